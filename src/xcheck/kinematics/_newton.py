@@ -1,0 +1,147 @@
+"""Newton-Raphson on Phi(q, c) = 0, batched over samples, and continuation.
+
+Continuation walks the inputs in small steps from a known configuration,
+predicting each step with the tangent dq/dc, so that the mechanism stays on
+its assembly branch. A step is accepted only if Newton converges, the
+Jacobian's determinant keeps its sign (no singular configuration was crossed)
+and the correction from the prediction is small.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._system import ConstraintSystem
+
+__all__ = ["solve_linear", "newton", "tangent", "continue_to"]
+
+#: Newton stops once the violation is below this fraction of the mechanism's size.
+STOP_TOLERANCE = 1e-13
+#: A sample counts as assembled when its violation is below this fraction.
+CONVERGED_TOLERANCE = 1e-10
+#: Largest accepted correction from the predicted configuration (scaled units:
+#: radians, or lengths per mechanism size) before a step counts as a jump.
+MAX_CORRECTION = 0.1
+
+
+def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve jac x = rhs per sample, shapes (N, n, n), (N, n[, m]).
+
+    A sample whose matrix is exactly singular gets the least-squares
+    (minimum-norm) solution instead; callers flag such samples by the
+    singularity measure.
+    """
+    vector = rhs.ndim == 2
+    b = rhs[..., None] if vector else rhs
+    try:
+        x = np.linalg.solve(jac, b)
+    except np.linalg.LinAlgError:
+        x = np.empty(jac.shape[:1] + (jac.shape[2],) + b.shape[2:])
+        for i in range(jac.shape[0]):
+            try:
+                x[i] = np.linalg.solve(jac[i], b[i])
+            except np.linalg.LinAlgError:
+                x[i] = np.linalg.lstsq(jac[i], b[i], rcond=None)[0]
+    return x[..., 0] if vector else x
+
+
+def newton(system: ConstraintSystem, q0: np.ndarray, c: np.ndarray, max_iter: int = 30):
+    """Solve Phi(q, c) = 0 from q0, all samples at once.
+
+    Parameters
+    ----------
+    q0 : ndarray, shape (N, n)
+    c : ndarray, shape (N, k)
+        Input values (rad or m).
+
+    Returns
+    -------
+    q : ndarray, shape (N, n)
+    residual : ndarray, shape (N,)
+        Largest constraint violation in metres.
+    iterations : ndarray of int, shape (N,)
+    converged : ndarray of bool, shape (N,)
+    """
+    q = np.array(q0, dtype=float, copy=True)
+    stop = STOP_TOLERANCE * system.size
+    iterations = np.zeros(q.shape[0], dtype=int)
+    with np.errstate(all="ignore"):
+        residual = system.residual_metres(system.residual(q, c))
+        for _ in range(max_iter):
+            active = np.flatnonzero(residual > stop)
+            if active.size == 0:
+                break
+            qa = q[active]
+            step = solve_linear(system.jacobian(qa), system.residual(qa, c[active]))
+            qa = qa - step
+            new = system.residual_metres(system.residual(qa, c[active]))
+            finite = np.isfinite(new) & np.all(np.isfinite(qa), axis=1)
+            q[active[finite]] = qa[finite]
+            new_residual = np.where(finite, new, np.inf)
+            # samples that stopped improving are done (round-off floor)
+            stalled = new_residual >= residual[active]
+            residual[active] = np.where(finite, new_residual, residual[active])
+            iterations[active] += 1
+            if np.all(stalled | ~finite):
+                break
+    converged = residual <= CONVERGED_TOLERANCE * system.size
+    return q, residual, iterations, converged
+
+
+def tangent(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
+    """dq/dc at q: the solution of Phi_q T = [0; I]; shape (N, n, k)."""
+    rhs = np.zeros((q.shape[0], system.n_rows, system.n_drivers))
+    rhs[:, system.n_kinematic:, :] = np.eye(system.n_drivers)
+    return solve_linear(system.jacobian(q), rhs)
+
+
+def _det_sign(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
+    return np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(q))))
+
+
+def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: np.ndarray,
+                max_step: float = np.radians(2.0), min_step: float = 1e-10):
+    """Walk the inputs from c (configuration q) to target, staying on the branch.
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        An assembled configuration at inputs c.
+    c, target : ndarray, shape (k,)
+    max_step, min_step : float
+        Step bounds in scaled input units (radians; slides per mechanism size).
+
+    Returns
+    -------
+    q, c : ndarray
+        The configuration and inputs reached (target if reached).
+    reached : bool
+        False when the walk stopped at a limit position or singularity; c is
+        then within about ``min_step`` of it.
+    """
+    scale = system.input_scale()
+    q, c = np.array(q, dtype=float), np.array(c, dtype=float)
+    sign = _det_sign(system, q[None])[0]
+    step = max_step
+    while True:
+        remaining = (target - c) * scale
+        distance = float(np.max(np.abs(remaining)))
+        if distance == 0.0:
+            return q, c, True
+        fraction = min(1.0, step / distance)
+        c_next = target if fraction == 1.0 else c + (target - c) * fraction
+        guess = q + tangent(system, q[None])[0] @ (c_next - c)
+        q_new, _, _, ok = newton(system, guess[None], c_next[None])
+        accepted = bool(ok[0])
+        if accepted:
+            correction = np.max(np.abs((q_new[0] - guess) * system.coordinate_scale()))
+            new_sign = _det_sign(system, q_new)[0]
+            accepted = correction <= MAX_CORRECTION and (new_sign == sign or sign == 0.0)
+        if accepted:
+            sign = new_sign
+            q, c = q_new[0], c_next
+            step = min(max_step, step * 1.5)
+        else:
+            step *= 0.5
+            if step < min_step:
+                return q, c, False

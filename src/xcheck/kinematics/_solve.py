@@ -1,0 +1,431 @@
+"""The general native solver: assembly, mobility, and position, velocity and
+acceleration over a sweep of inputs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import ModelError
+from ..model import GROUND, Mechanism
+from ._newton import CONVERGED_TOLERANCE, MAX_CORRECTION, continue_to, newton, solve_linear, tangent
+from ._system import ConstraintSystem, _perp, _rotate
+
+__all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
+
+#: Below this inverse condition number of the scaled Jacobian, results lose
+#: more than about six digits: flagged, still reported.
+NEAR_SINGULAR = 1e-6
+#: Below this, the configuration is singular (dead centre, limit position):
+#: velocities and accelerations are not determined and are not reported.
+SINGULAR = 1e-12
+
+
+class Status(IntEnum):
+    """Per-sample outcome of a solve."""
+
+    OK = 0
+    NEAR_SINGULAR = 1
+    SINGULAR = 2
+    NOT_CONVERGED = 3
+    BRANCH_JUMP = 4
+
+    @property
+    def message(self) -> str:
+        return _STATUS_MESSAGES[self]
+
+    @property
+    def label(self) -> str:
+        return self.name.lower().replace("_", "-")
+
+
+_STATUS_MESSAGES = {
+    Status.OK: "assembled; velocity and acceleration determined",
+    Status.NEAR_SINGULAR: "close to a singular configuration: results lose accuracy",
+    Status.SINGULAR: "singular configuration (dead centre or limit position): "
+                     "velocity and acceleration not determined",
+    Status.NOT_CONVERGED: "the mechanism does not assemble at this input",
+    Status.BRANCH_JUMP: "the solution would leave the assembly branch here",
+}
+
+
+@dataclass
+class Solution:
+    """The state of a mechanism over N samples of its inputs (SI units).
+
+    Attributes
+    ----------
+    kinematics : Kinematics
+    branch : str
+    inputs, input_rates, input_accelerations : ndarray, shape (N, k)
+        Drivers' values (rad or m), rates and accelerations, in driver order.
+    q, qd, qdd : ndarray, shape (N, n)
+        Body coordinates (x, y, phi per moving body) and their derivatives.
+        Rows whose status is not-converged or branch-jump hold NaN; so do qd
+        and qdd where the status is singular. ``status`` is authoritative.
+    status : ndarray of int, shape (N,)
+        :class:`Status` codes.
+    residual : ndarray, shape (N,)
+        Largest constraint violation, m.
+    singularity : ndarray, shape (N,)
+        Inverse condition number of the dimensionless Jacobian (1: well
+        conditioned, 0: singular).
+    iterations : ndarray of int, shape (N,)
+    """
+
+    kinematics: "Kinematics"
+    branch: str
+    inputs: np.ndarray
+    input_rates: np.ndarray
+    input_accelerations: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    status: np.ndarray
+    residual: np.ndarray
+    singularity: np.ndarray
+    iterations: np.ndarray
+
+    @property
+    def mechanism(self) -> Mechanism:
+        return self.kinematics.mechanism
+
+    @property
+    def success(self) -> bool:
+        """True when every sample assembled with determined velocities."""
+        return bool(np.all(self.status <= Status.NEAR_SINGULAR))
+
+    def _frame(self, body: str):
+        index = self.kinematics.system.body_index[body]
+        n = self.q.shape[0]
+        if index < 0:
+            zero2, zero = np.zeros((n, 2)), np.zeros(n)
+            return zero2, zero, zero2, zero, zero2, zero
+        k = 3 * index
+        return (self.q[:, k:k + 2], self.q[:, k + 2], self.qd[:, k:k + 2], self.qd[:, k + 2],
+                self.qdd[:, k:k + 2], self.qdd[:, k + 2])
+
+    def body(self, name: str) -> dict[str, np.ndarray]:
+        """A body frame's state: position (N, 2) m, angle (N,) rad, velocity,
+        omega, acceleration, alpha."""
+        r, phi, rd, phid, rdd, phidd = self._frame(name)
+        return {"position": r, "angle": phi, "velocity": rd, "omega": phid,
+                "acceleration": rdd, "alpha": phidd}
+
+    def point(self, label: str, body: str | None = None) -> dict[str, np.ndarray]:
+        """A named point's position, velocity and acceleration, each (N, 2), SI.
+
+        ``body`` defaults to the first body (ground first) that has the label.
+        """
+        body = body or self.mechanism.point_owners[label]
+        s = self.mechanism.body(body).points[label]
+        r, phi, rd, phid, rdd, phidd = self._frame(body)
+        arm = _rotate(phi, s)
+        normal = _perp(arm)
+        return {
+            "position": r + arm,
+            "velocity": rd + phid[:, None] * normal,
+            "acceleration": rdd + phidd[:, None] * normal - (phid ** 2)[:, None] * arm,
+        }
+
+
+@dataclass(frozen=True)
+class InputRange:
+    """Feasible interval of one driver's input, others held at the assembly inputs.
+
+    ``low``/``high`` are SI values (rad or m); None means no limit was met
+    within ``span`` of the assembly input (a crank that turns round).
+    """
+
+    driver: str
+    low: float | None
+    high: float | None
+    span: float
+
+    @property
+    def full_turn(self) -> bool:
+        return self.low is None and self.high is None
+
+    def contains(self, value: float) -> bool:
+        return (self.low is None or value >= self.low) and (self.high is None or value <= self.high)
+
+
+@dataclass
+class Kinematics:
+    """The native general solver for one mechanism.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+
+    Notes
+    -----
+    Build once per mechanism; the assembled reference configuration of each
+    branch and the feasible input ranges are computed on first use and kept.
+    """
+
+    mechanism: Mechanism
+    system: ConstraintSystem = field(init=False)
+    _assembled: dict = field(init=False, default_factory=dict)
+    _ranges: dict = field(init=False, default_factory=dict)
+
+    def __post_init__(self):
+        self.system = ConstraintSystem(self.mechanism)
+
+    @property
+    def branches(self) -> list[str]:
+        return list(self.mechanism.assembly.branches)
+
+    def _branch_name(self, branch: str | None) -> str:
+        names = self.branches
+        if branch is None:
+            return names[0]
+        if branch not in names:
+            raise ModelError(self.mechanism.path, "assembly.branches",
+                             f"a branch named one of {', '.join(names)}", repr(branch))
+        return branch
+
+    # -- assembly and mobility ---------------------------------------------
+    def reference_inputs(self) -> np.ndarray:
+        """The drivers' values at which the branch sketches are drawn, shape (k,)."""
+        at = self.mechanism.assembly.at
+        return np.array([at[d.name] for d in self.mechanism.drivers])
+
+    def mobility(self, q: np.ndarray | None = None) -> dict[str, int]:
+        """Degrees of freedom by Grübler's count and by the rank of Phi_q.
+
+        The rank is taken at q (default: the assembled reference configuration).
+        """
+        if q is None:
+            q = self.assemble()
+        jac = self.system.scaled_jacobian(self.system.jacobian(q[None], kinematic_only=True))[0]
+        singular_values = np.linalg.svd(jac, compute_uv=False) if jac.size else np.zeros(0)
+        rank = int(np.sum(singular_values > 1e-9 * max(1.0, singular_values.max(initial=0.0))))
+        return {"grubler": self.mechanism.grubler(), "rank": self.system.n - rank,
+                "drivers": self.system.n_drivers}
+
+    def assemble(self, branch: str | None = None) -> np.ndarray:
+        """The configuration at the reference inputs on a branch, shape (n,).
+
+        The branch's rough sketch is fitted first (least squares of the
+        constraints plus a weak pull towards the sketched points), then
+        Newton-Raphson closes the loops exactly.
+
+        Raises
+        ------
+        ModelError
+            If the drivers do not match the degrees of freedom, or the sketch
+            does not assemble.
+        """
+        name = self._branch_name(branch)
+        if name in self._assembled:
+            return self._assembled[name]
+        system, mech = self.system, self.mechanism
+        c_ref = self.reference_inputs()
+        sketch = {**{lbl: xy for lbl, xy in mech.ground.points.items()},
+                  **mech.assembly.branches[name]}
+        q0 = self._sketch_guess(sketch)
+        fitted = self._fit_sketch(q0, c_ref, sketch)
+        dof = self.mobility(fitted)
+        if dof["rank"] != dof["drivers"] or system.n_rows != system.n:
+            raise ModelError(
+                mech.path, "drivers",
+                f"{dof['rank']} driver(s), one per degree of freedom (Grübler count {dof['grubler']}, "
+                f"rank of the constraint Jacobian gives {dof['rank']})",
+                f"{dof['drivers']}" + (" and redundant joint constraints" if dof["rank"] == dof["drivers"]
+                                       else ""))
+        q, residual, _, ok = newton(system, fitted[None], c_ref[None], max_iter=50)
+        if not ok[0]:
+            where = ", ".join(f"{d.name} = {self._show_input(d, v)}" for d, v in zip(mech.drivers, c_ref))
+            raise ModelError(
+                mech.path, f"assembly.branches.{name}" if mech.assembly.branches[name] else "assembly",
+                f"a sketch from which the mechanism assembles at {where}",
+                f"none that closes the loops (violation {residual[0] / mech.units.length_factor:.3g} "
+                f"{mech.units.length})")
+        self._assembled[name] = q[0]
+        return q[0]
+
+    def _show_input(self, driver, value: float) -> str:
+        units = self.mechanism.units
+        if driver.quantity == "angle":
+            return f"{value / units.angle_factor:.6g} {units.angle}"
+        return f"{value / units.length_factor:.6g} {units.length}"
+
+    def _sketch_guess(self, sketch: dict[str, np.ndarray]) -> np.ndarray:
+        """Best rigid fit of each moving body's points to the sketch, shape (n,)."""
+        q = np.zeros(self.system.n)
+        for i, body in enumerate(self.mechanism.moving_bodies):
+            labels = [lbl for lbl in body.points if lbl in sketch]
+            if not labels:
+                continue
+            local = np.array([body.points[lbl] for lbl in labels])
+            world = np.array([sketch[lbl] for lbl in labels])
+            lc, wc = local.mean(axis=0), world.mean(axis=0)
+            if len(labels) >= 2:
+                a, b = local - lc, world - wc
+                phi = math.atan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a * b))
+            else:
+                phi = 0.0
+            q[3 * i:3 * i + 2] = wc - _rotate(np.array([phi]), lc)[0]
+            q[3 * i + 2] = phi
+        return q
+
+    def _fit_sketch(self, q0, c_ref, sketch) -> np.ndarray:
+        system, mech = self.system, self.mechanism
+        targets = [(system.body_index[b.name], b.points[lbl], sketch[lbl])
+                   for b in mech.moving_bodies for lbl in b.points if lbl in sketch]
+        size, weight = system.size, 1e-3
+        row_scale = np.where(system.row_is_angle, 1.0, 1.0 / size)
+
+        def residuals(q):
+            phi = system.residual(q[None], c_ref[None])[0] * row_scale
+            pulls = [weight * (q[3 * i:3 * i + 2] + _rotate(q[3 * i + 2:3 * i + 3], s)[0] - xy) / size
+                     for i, s, xy in targets]
+            return np.concatenate([phi] + pulls) if pulls else phi
+
+        def jacobian(q):
+            jac = system.jacobian(q[None])[0] * row_scale[:, None]
+            rows = []
+            for i, s, _ in targets:
+                row = np.zeros((2, system.n))
+                row[:, 3 * i:3 * i + 2] = np.eye(2)
+                row[:, 3 * i + 2] = _perp(_rotate(q[3 * i + 2:3 * i + 3], s))[0]
+                rows.append(weight * row / size)
+            return np.vstack([jac] + rows) if rows else jac
+
+        if system.n_rows + 2 * len(targets) < system.n:
+            return q0  # too few equations for least squares; Newton decides
+        fit = least_squares(residuals, q0, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15,
+                            gtol=1e-15, max_nfev=2000)
+        return fit.x
+
+    # -- feasible range ---------------------------------------------------
+    def input_range(self, driver: str | int, branch: str | None = None) -> InputRange:
+        """Feasible interval of a driver's input on a branch (limit positions found
+        by continuation from the reference configuration)."""
+        drivers = self.mechanism.drivers
+        k = driver if isinstance(driver, int) else [d.name for d in drivers].index(driver)
+        name = self._branch_name(branch)
+        key = (name, k)
+        if key not in self._ranges:
+            q_ref, c_ref = self.assemble(name), self.reference_inputs()
+            is_angle = drivers[k].quantity == "angle"
+            span = 2.0 * math.pi if is_angle else 10.0 * self.system.size
+            ends = []
+            for direction in (-1.0, 1.0):
+                target = c_ref.copy()
+                target[k] += direction * span
+                _, c, reached = continue_to(self.system, q_ref, c_ref, target)
+                ends.append(None if reached else float(c[k]))
+                if reached and is_angle:  # turned round once: the input is a crank
+                    ends = [None, None]
+                    break
+            self._ranges[key] = InputRange(drivers[k].name, ends[0], ends[-1], span)
+        return self._ranges[key]
+
+    # -- sweeps -----------------------------------------------------------
+    def solve(self, inputs, rates=None, accelerations=None, branch: str | None = None,
+              max_waypoints: int = 256) -> Solution:
+        """Positions, velocities and accelerations over a sweep of inputs.
+
+        Parameters
+        ----------
+        inputs, rates, accelerations : array_like, shape (N, k) or (N,) for k = 1
+            Drivers' values (rad or m), rates (per s) and accelerations
+            (per s^2), samples in the order the mechanism moves through them.
+            Rates and accelerations default to zero.
+        branch : str, optional
+            Assembly branch (default: the model file's first).
+        max_waypoints : int
+            Samples tracked one by one for continuation; the rest are solved
+            in one batch from predictions off the nearest waypoint.
+
+        Returns
+        -------
+        Solution
+        """
+        system = self.system
+        name = self._branch_name(branch)
+        c = self._as_inputs(inputs)
+        cd = np.zeros_like(c) if rates is None else self._as_inputs(rates, c.shape)
+        cdd = np.zeros_like(c) if accelerations is None else self._as_inputs(accelerations, c.shape)
+        n_samples = c.shape[0]
+
+        # 1. continuation through waypoints, one at a time
+        stride = max(1, math.ceil(n_samples / max_waypoints))
+        waypoints = np.arange(0, n_samples, stride)
+        wp_q = np.full((len(waypoints), system.n), np.nan)
+        wp_ok = np.zeros(len(waypoints), dtype=bool)
+        q_prev, c_prev = self.assemble(name), self.reference_inputs()
+        for j, i in enumerate(waypoints):
+            q_new, c_new, reached = continue_to(system, q_prev, c_prev, c[i])
+            if reached:
+                wp_q[j], wp_ok[j] = q_new, True
+                q_prev, c_prev = q_new, c_new
+
+        # 2. every sample in one batch, predicted from its waypoint
+        anchor = np.minimum(np.arange(n_samples) // stride, len(waypoints) - 1)
+        good = wp_ok[anchor]
+        q = np.full((n_samples, system.n), np.nan)
+        residual = np.full(n_samples, np.inf)
+        iterations = np.zeros(n_samples, dtype=int)
+        status = np.full(n_samples, Status.NOT_CONVERGED, dtype=np.int8)
+        idx = np.flatnonzero(good)
+        if idx.size:
+            wp_tangent = tangent(system, wp_q[wp_ok])
+            slot = np.cumsum(wp_ok) - 1
+            t = wp_tangent[slot[anchor[idx]]]
+            guess = wp_q[anchor[idx]] + np.einsum("nik,nk->ni", t, c[idx] - c[waypoints[anchor[idx]]])
+            q_i, res_i, it_i, ok_i = newton(system, guess, c[idx])
+            # stayed on the branch: small correction, same determinant sign as the waypoint
+            correction = np.max(np.abs((q_i - guess) * system.coordinate_scale()), axis=1)
+            sign = np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(q_i))))
+            wp_sign = np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(wp_q[anchor[idx]]))))
+            on_branch = (correction <= MAX_CORRECTION) & ((sign == wp_sign) | (sign == 0))
+            accept = ok_i & on_branch
+            q[idx[accept]] = q_i[accept]
+            residual[idx] = res_i
+            iterations[idx] = it_i
+            status[idx[accept]] = Status.OK
+            status[idx[ok_i & ~on_branch]] = Status.BRANCH_JUMP
+            # 3. the few that failed in the batch: walk to them from their waypoint
+            for i in idx[~accept]:
+                j = anchor[i]
+                q_new, _, reached = continue_to(system, wp_q[j], c[waypoints[j]], c[i])
+                if reached:
+                    q[i], status[i] = q_new, Status.OK
+                    residual[i] = system.residual_metres(system.residual(q_new[None], c[i][None]))[0]
+
+        # 4. velocities and accelerations
+        qd = np.full_like(q, np.nan)
+        qdd = np.full_like(q, np.nan)
+        singularity = np.zeros(n_samples)
+        done = np.flatnonzero(status == Status.OK)
+        if done.size:
+            jac = system.jacobian(q[done])
+            singular_values = np.linalg.svd(system.scaled_jacobian(jac), compute_uv=False)
+            singularity[done] = singular_values[:, -1] / singular_values[:, 0]
+            qd[done] = solve_linear(jac, system.velocity_rhs(cd[done]))
+            qdd[done] = solve_linear(jac, system.gamma(q[done], qd[done], cdd[done]))
+            near = done[singularity[done] < NEAR_SINGULAR]
+            status[near] = Status.NEAR_SINGULAR
+            flat = done[singularity[done] < SINGULAR]
+            status[flat] = Status.SINGULAR
+            qd[flat] = qdd[flat] = np.nan
+        return Solution(self, name, c, cd, cdd, q, qd, qdd, status, residual, singularity, iterations)
+
+    def _as_inputs(self, values, shape=None) -> np.ndarray:
+        k = self.system.n_drivers
+        arr = np.asarray(values, dtype=float)
+        if arr.ndim == 0:
+            arr = arr.reshape(1, 1)
+        if arr.ndim == 1:
+            arr = arr[:, None] if k == 1 else arr[None, :]
+        if arr.ndim != 2 or arr.shape[1] != k or (shape is not None and arr.shape != shape):
+            raise ValueError(f"expected inputs of shape (N, {k}), found {np.shape(values)}")
+        return arr

@@ -1,0 +1,32 @@
+"""The canonical mechanism model and its file format."""
+
+from ._load import load_mechanism, parse_mechanism
+from ._mechanism import (
+    GROUND,
+    Assembly,
+    Body,
+    Driver,
+    Instant,
+    Joint,
+    Mechanism,
+    MotionLaw,
+    PinInSlot,
+    Prismatic,
+    Revolute,
+)
+
+__all__ = [
+    "GROUND",
+    "Assembly",
+    "Body",
+    "Driver",
+    "Instant",
+    "Joint",
+    "Mechanism",
+    "MotionLaw",
+    "PinInSlot",
+    "Prismatic",
+    "Revolute",
+    "load_mechanism",
+    "parse_mechanism",
+]

@@ -1,0 +1,476 @@
+"""Reading and checking mechanism files (TOML).
+
+The file format is documented in ``docs/mechanism-format.md``. Every check
+happens here, before any solving; a failed check raises :class:`ModelError`
+naming the file, the field, what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ModelError
+from ..units import (
+    ACCELERATION_UNITS,
+    ANGLE_UNITS,
+    ANGULAR_RATE_UNITS,
+    LENGTH_UNITS,
+    VELOCITY_UNITS,
+    Units,
+    evaluate_expression,
+)
+from ._mechanism import (
+    GROUND,
+    Assembly,
+    Body,
+    Driver,
+    Instant,
+    Mechanism,
+    MotionLaw,
+    PinInSlot,
+    Prismatic,
+    Revolute,
+)
+
+__all__ = ["load_mechanism", "parse_mechanism"]
+
+_TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants")
+_JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
+
+
+def load_mechanism(path: str | Path) -> Mechanism:
+    """Read and check a mechanism file.
+
+    Raises
+    ------
+    ModelError
+        If the file cannot be read, is not valid TOML, or fails a check.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ModelError(str(path), "", "a readable mechanism file", err.strerror or str(err)) from err
+    return parse_mechanism(text, str(path))
+
+
+def parse_mechanism(text: str, path: str = "<string>") -> Mechanism:
+    """Parse and check the TOML text of a mechanism file (see :func:`load_mechanism`)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ModelError(path, "", "valid TOML", f"a syntax error: {err}") from err
+    return _Reader(path).mechanism(data)
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+class _Reader:
+    """Turns the parsed TOML into a :class:`Mechanism`, one checked field at a time."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def fail(self, field: str, expected: str, found: str):
+        raise ModelError(self.path, field, expected, found)
+
+    # -- primitives -------------------------------------------------------
+    def table(self, value: Any, field: str, allowed: tuple[str, ...] | None = None) -> dict:
+        if not isinstance(value, dict):
+            self.fail(field, "a table", _describe(value))
+        if allowed is not None:
+            for key in value:
+                if key not in allowed:
+                    self.fail(f"{field}.{key}" if field else key,
+                              f"one of the keys {', '.join(allowed)}", f"unknown key {key!r}")
+        return value
+
+    def text(self, value: Any, field: str) -> str:
+        if not isinstance(value, str) or not value.strip():
+            self.fail(field, "a non-empty string", _describe(value))
+        return value
+
+    def choice(self, value: Any, field: str, options) -> str:
+        if value not in options:
+            self.fail(field, f"one of {', '.join(map(repr, options))}", _describe(value))
+        return value
+
+    def number(self, value: Any, field: str, scale: float = 1.0, positive: bool = False) -> float:
+        if isinstance(value, bool):
+            self.fail(field, "a number", _describe(value))
+        if isinstance(value, (int, float)):
+            result = float(value)
+        elif isinstance(value, str):
+            try:
+                result = evaluate_expression(value)
+            except ValueError as err:
+                self.fail(field, "a number or an arithmetic expression", f"{value!r} ({err})")
+        else:
+            self.fail(field, "a number", _describe(value))
+        if not math.isfinite(result):
+            self.fail(field, "a finite number", _describe(value))
+        if positive and result <= 0.0:
+            self.fail(field, "a positive number", _describe(value))
+        return result * scale
+
+    def vector(self, value: Any, field: str, scale: float) -> np.ndarray:
+        if not isinstance(value, list) or len(value) != 2:
+            self.fail(field, "a pair [x, y]", _describe(value))
+        return np.array([self.number(v, f"{field}[{i}]", scale) for i, v in enumerate(value)])
+
+    def points(self, value: Any, field: str, scale: float) -> dict[str, np.ndarray]:
+        table = self.table(value, field)
+        return {label: self.vector(xy, f"{field}.{label}", scale) for label, xy in table.items()}
+
+    # -- sections ---------------------------------------------------------
+    def mechanism(self, data: dict) -> Mechanism:
+        self.table(data, "", _TOP_KEYS)
+        for key in ("mechanism", "bodies", "joints", "drivers"):
+            if key not in data:
+                self.fail(key, f"a [{key}] section", "none")
+        meta = self.table(data["mechanism"], "mechanism", ("name", "title", "source", "notes"))
+        name = self.text(meta.get("name"), "mechanism.name")
+        units = self.units(data.get("units", {}))
+        length = units.length_factor
+
+        bodies = [Body(GROUND, self.points(self.table(data.get("ground", {}), "ground", ("points",))
+                                            .get("points", {}), "ground.points", length))]
+        sketches: dict[str, np.ndarray] = {}
+        for body_name, spec in self.table(data["bodies"], "bodies").items():
+            body, sketch = self.body(body_name, spec, units)
+            bodies.append(body)
+            sketches.update(sketch)
+        if len(bodies) == 1:
+            self.fail("bodies", "at least one moving body", "none")
+        by_name = {b.name: b for b in bodies}
+
+        joints = self.joints(data["joints"], by_name, units)
+        self.check_shared_labels(bodies, joints)
+        drivers = self.drivers(data["drivers"], joints, units)
+        assembly = self.assembly(data.get("assembly", {}), drivers, by_name, units, sketches)
+        instants = self.instants(data.get("instants", []), drivers, units)
+        return Mechanism(
+            name=name,
+            title=meta.get("title", name),
+            source=meta.get("source", ""),
+            notes=meta.get("notes", ""),
+            path=self.path,
+            units=units,
+            bodies=tuple(bodies),
+            joints=tuple(joints),
+            drivers=tuple(drivers),
+            assembly=assembly,
+            instants=tuple(instants),
+        )
+
+    def units(self, value: Any) -> Units:
+        spec = self.table(value, "units", ("length", "angle", "angular_rate", "velocity", "acceleration"))
+        length = self.choice(spec.get("length", "m"), "units.length", tuple(LENGTH_UNITS))
+        default_v = f"{length}/s" if f"{length}/s" in VELOCITY_UNITS else "m/s"
+        return Units(
+            length=length,
+            angle=self.choice(spec.get("angle", "deg"), "units.angle", tuple(ANGLE_UNITS)),
+            angular_rate=self.choice(spec.get("angular_rate", "rad/s"), "units.angular_rate",
+                                     tuple(ANGULAR_RATE_UNITS)),
+            velocity=self.choice(spec.get("velocity", default_v), "units.velocity", tuple(VELOCITY_UNITS)),
+            acceleration=self.choice(spec.get("acceleration", default_v + "^2"), "units.acceleration",
+                                     tuple(ACCELERATION_UNITS)),
+        )
+
+    def body(self, name: str, value: Any, units: Units) -> tuple[Body, dict[str, np.ndarray]]:
+        """One body; also returns the global sketch positions its ``sketch`` form gives."""
+        field = f"bodies.{name}"
+        if name == GROUND:
+            self.fail(field, "a body name other than 'ground' (use the [ground] section)", repr(name))
+        spec = self.table(value, field, ("points", "ends", "length", "sketch", "axis",
+                                          "mass", "com", "inertia"))
+        length = units.length_factor
+        forms = [k for k in ("ends", "sketch") if k in spec]
+        if len(forms) > 1:
+            self.fail(field, "one of 'ends' or 'sketch'", "both")
+        points: dict[str, np.ndarray] = {}
+        sketch: dict[str, np.ndarray] = {}
+        if "ends" in spec:
+            ends = spec["ends"]
+            if not (isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends)
+                    and ends[0] != ends[1]):
+                self.fail(f"{field}.ends", "two different point labels", _describe(ends))
+            if "length" not in spec:
+                self.fail(f"{field}.length", "the distance between the ends", "none")
+            half = 0.5 * self.number(spec["length"], f"{field}.length", length, positive=True)
+            points = {ends[0]: np.array([-half, 0.0]), ends[1]: np.array([half, 0.0])}
+        elif "length" in spec:
+            self.fail(f"{field}.length", "'length' only together with 'ends'", "'length' without 'ends'")
+        if "sketch" in spec:
+            sketch = self.points(spec["sketch"], f"{field}.sketch", length)
+            if not sketch:
+                self.fail(f"{field}.sketch", "at least one point", "an empty table")
+            origin, angle = next(iter(sketch.values())), 0.0
+            if "axis" in spec:
+                axis = spec["axis"]
+                if not (isinstance(axis, list) and len(axis) == 2 and all(a in sketch for a in axis)):
+                    self.fail(f"{field}.axis", f"two labels of the sketch ({', '.join(sketch)})",
+                              _describe(axis))
+                origin, tip = sketch[axis[0]], sketch[axis[1]]
+                if np.allclose(origin, tip, rtol=0.0, atol=1e-12):
+                    self.fail(f"{field}.axis", "two points at different positions", "coincident points")
+                angle = math.atan2(*(tip - origin)[::-1])
+            c, s = math.cos(angle), math.sin(angle)
+            to_local = np.array([[c, s], [-s, c]])
+            points = {lbl: to_local @ (xy - origin) for lbl, xy in sketch.items()}
+        elif "axis" in spec:
+            self.fail(f"{field}.axis", "'axis' only together with 'sketch'", "'axis' without 'sketch'")
+        extra = self.points(spec.get("points", {}), f"{field}.points", length)
+        for label in extra:
+            if label in points:
+                self.fail(f"{field}.points.{label}", "a label not already given by 'ends' or 'sketch'",
+                          "a duplicate")
+        points.update(extra)
+        if not points:
+            self.fail(field, "named points ('points', 'ends' or 'sketch')", "none")
+
+        mass = com = inertia = None
+        if any(k in spec for k in ("mass", "com", "inertia")):
+            mass = self.number(spec.get("mass"), f"{field}.mass", positive=True)
+            inertia = self.number(spec.get("inertia"), f"{field}.inertia", positive=True)
+            com_spec = spec.get("com", [0.0, 0.0])
+            if isinstance(com_spec, str):
+                if com_spec not in points:
+                    self.fail(f"{field}.com", f"a point of {name} ({', '.join(points)}) or [x, y]",
+                              repr(com_spec))
+                com = points[com_spec]
+            else:
+                com = self.vector(com_spec, f"{field}.com", length)
+        return Body(name, points, mass, com, inertia), sketch
+
+    def joints(self, value: Any, bodies: dict[str, Body], units: Units) -> list:
+        if not isinstance(value, list) or not value:
+            self.fail("joints", "a list of [[joints]]", _describe(value))
+        joints, names = [], set()
+        for i, spec in enumerate(value):
+            field = f"joints[{i}]"
+            spec = self.table(spec, field, ("name", "type", "bodies", "point", "points", "line",
+                                             "direction", "angle"))
+            kind = self.choice(spec.get("type"), f"{field}.type", _JOINT_TYPES)
+            pair = spec.get("bodies")
+            if not (isinstance(pair, list) and len(pair) == 2):
+                self.fail(f"{field}.bodies", "two body names", _describe(pair))
+            for k, b in enumerate(pair):
+                if b not in bodies:
+                    self.fail(f"{field}.bodies[{k}]", f"a body ({', '.join(bodies)})", repr(b))
+            if pair[0] == pair[1]:
+                self.fail(f"{field}.bodies", "two different bodies", f"{pair[0]!r} twice")
+            a, b = bodies[pair[0]], bodies[pair[1]]
+            if kind == "revolute":
+                joint = self.revolute(spec, field, a, b)
+            else:
+                joint = self.line_joint(spec, field, kind, a, b, units)
+            if joint.name in names:
+                self.fail(f"{field}.name", "a name no other joint has", repr(joint.name))
+            names.add(joint.name)
+            joints.append(joint)
+        return joints
+
+    def point_of(self, label: Any, body: Body, field: str) -> str:
+        if not isinstance(label, str) or label not in body.points:
+            self.fail(field, f"a point of {body.name} ({', '.join(body.points) or 'none'})",
+                      _describe(label))
+        return label
+
+    def revolute(self, spec: dict, field: str, a: Body, b: Body) -> Revolute:
+        for key in ("line", "direction", "angle"):
+            if key in spec:
+                self.fail(f"{field}.{key}", "no line for a revolute joint", repr(key))
+        if "points" in spec:
+            pts = spec["points"]
+            if not (isinstance(pts, list) and len(pts) == 2):
+                self.fail(f"{field}.points", "two point labels [on first body, on second body]", _describe(pts))
+            pa, pb = pts
+            pa = self.point_of(pa, a, f"{field}.points[0]")
+            pb = self.point_of(pb, b, f"{field}.points[1]")
+        else:
+            pa = self.point_of(spec.get("point"), a, f"{field}.point")
+            pb = self.point_of(spec.get("point"), b, f"{field}.point")
+        name = spec.get("name", pa)
+        return Revolute(self.text(name, f"{field}.name"), a.name, b.name, pa, pb)
+
+    def line_joint(self, spec: dict, field: str, kind: str, a: Body, b: Body, units: Units):
+        if "points" in spec:
+            self.fail(f"{field}.points", "'point' (the sliding point on the second body)", "'points'")
+        point = self.point_of(spec.get("point"), b, f"{field}.point")
+        line = spec.get("line")
+        if isinstance(line, list):
+            if len(line) != 2 or "direction" in spec:
+                self.fail(f"{field}.line", "two points of the first body, or one point with 'direction'",
+                          _describe(line))
+            p0 = self.point_of(line[0], a, f"{field}.line[0]")
+            p1 = self.point_of(line[1], a, f"{field}.line[1]")
+            direction = a.points[p1] - a.points[p0]
+            if math.hypot(*direction) <= 1e-12:
+                self.fail(f"{field}.line", "two points at different positions (a line of non-zero length)",
+                          f"{p0} and {p1} coincide")
+        else:
+            p0 = self.point_of(line, a, f"{field}.line")
+            if "direction" not in spec:
+                self.fail(f"{field}.direction", "the line's angle in the first body's frame", "none")
+            theta = self.number(spec["direction"], f"{field}.direction", units.angle_factor)
+            direction = np.array([math.cos(theta), math.sin(theta)])
+        name = self.text(spec.get("name", point), f"{field}.name")
+        if kind == "prismatic":
+            angle = self.number(spec.get("angle", 0.0), f"{field}.angle", units.angle_factor)
+            return Prismatic(name, a.name, b.name, p0, direction, point, angle)
+        if "angle" in spec:
+            self.fail(f"{field}.angle", "no locked angle on a pin-in-slot joint", repr(spec["angle"]))
+        return PinInSlot(name, a.name, b.name, p0, direction, point)
+
+    def check_shared_labels(self, bodies: list[Body], joints: list) -> None:
+        """A label on two bodies must be a revolute joining them at that label."""
+        pinned = {(j.point_a, frozenset((j.body_a, j.body_b))) for j in joints
+                  if isinstance(j, Revolute) and j.point_a == j.point_b}
+        owners: dict[str, list[str]] = {}
+        for b in bodies:
+            for label in b.points:
+                owners.setdefault(label, []).append(b.name)
+        for label, names in owners.items():
+            for i, first in enumerate(names):
+                for second in names[i + 1:]:
+                    if (label, frozenset((first, second))) not in pinned:
+                        # allowed when connected through a chain of revolutes at the same label
+                        linked = _connected(label, first, second, pinned)
+                        if not linked:
+                            self.fail("joints", f"a revolute joint at {label!r} between {first} and {second} "
+                                      "(they share the label)", "none: rename one of the points")
+
+    def drivers(self, value: Any, joints: list, units: Units) -> list[Driver]:
+        if not isinstance(value, list) or not value:
+            self.fail("drivers", "a list of [[drivers]]", _describe(value))
+        by_name = {j.name: j for j in joints}
+        drivers, driven = [], set()
+        for i, spec in enumerate(value):
+            field = f"drivers[{i}]"
+            spec = self.table(spec, field, ("name", "joint", "motion", "start", "rate", "acceleration",
+                                             "centre", "amplitude", "frequency", "phase"))
+            joint_name = spec.get("joint")
+            if joint_name not in by_name:
+                self.fail(f"{field}.joint", f"a joint ({', '.join(by_name)})", _describe(joint_name))
+            if joint_name in driven:
+                self.fail(f"{field}.joint", "a joint no other driver drives", repr(joint_name))
+            driven.add(joint_name)
+            joint = by_name[joint_name]
+            quantity = "angle" if isinstance(joint, Revolute) else "slide"
+            q_scale, rate_scale = self.input_scales(quantity, units)
+            kind = self.choice(spec.get("motion", "constant-rate"), f"{field}.motion", MotionLaw.KINDS)
+            allowed = {"constant-rate": ("start", "rate"),
+                       "constant-acceleration": ("start", "rate", "acceleration"),
+                       "harmonic": ("centre", "amplitude", "frequency", "phase")}[kind]
+            for key in ("start", "rate", "acceleration", "centre", "amplitude", "frequency", "phase"):
+                if key in spec and key not in allowed:
+                    self.fail(f"{field}.{key}", f"only {', '.join(allowed)} for motion {kind!r}", repr(key))
+            get = lambda key, scale, default=0.0: self.number(spec.get(key, default), f"{field}.{key}", scale)
+            if kind == "harmonic":
+                law = MotionLaw(kind, centre=get("centre", q_scale), amplitude=get("amplitude", q_scale),
+                                frequency=self.number(spec.get("frequency"), f"{field}.frequency", positive=True),
+                                phase=get("phase", units.angle_factor))
+            else:
+                law = MotionLaw(kind, start=get("start", q_scale), rate=get("rate", rate_scale),
+                                acceleration=get("acceleration", rate_scale))
+            name = self.text(spec.get("name", joint_name), f"{field}.name")
+            if any(d.name == name for d in drivers):
+                self.fail(f"{field}.name", "a name no other driver has", repr(name))
+            drivers.append(Driver(name, joint_name, quantity, law))
+        return drivers
+
+    @staticmethod
+    def input_scales(quantity: str, units: Units) -> tuple[float, float]:
+        """SI per display unit of an input's value and of its rate (per s)."""
+        if quantity == "angle":
+            return units.angle_factor, units.angular_rate_factor
+        return units.length_factor, units.length_factor
+
+    def assembly(self, value: Any, drivers: list[Driver], bodies: dict[str, Body], units: Units,
+                 body_sketches: dict[str, np.ndarray]) -> Assembly:
+        spec = self.table(value, "assembly", ("at", "branches"))
+        at_spec = self.table(spec.get("at", {}), "assembly.at")
+        at = {}
+        for d in drivers:
+            if d.name in at_spec:
+                at[d.name] = self.number(at_spec[d.name], f"assembly.at.{d.name}",
+                                         self.input_scales(d.quantity, units)[0])
+            else:
+                at[d.name] = float(d.law.at_time(0.0)[0])
+        for key in at_spec:
+            if key not in at:
+                self.fail(f"assembly.at.{key}", f"a driver ({', '.join(at)})", repr(key))
+        labels = {lbl for b in bodies.values() for lbl in b.points}
+        branches = {}
+        for branch, sketch in self.table(spec.get("branches", {}), "assembly.branches").items():
+            points = self.points(sketch, f"assembly.branches.{branch}", units.length_factor)
+            for label in points:
+                if label not in labels:
+                    self.fail(f"assembly.branches.{branch}.{label}", "a point label of the mechanism",
+                              repr(label))
+            branches[branch] = {**body_sketches, **points}
+        if not branches:
+            branches["default"] = dict(body_sketches)
+        return Assembly(at, branches)
+
+    def instants(self, value: Any, drivers: list[Driver], units: Units) -> list[Instant]:
+        if not isinstance(value, list):
+            self.fail("instants", "a list of [[instants]]", _describe(value))
+        instants = []
+        for i, spec in enumerate(value):
+            field = f"instants[{i}]"
+            spec = self.table(spec, field)
+            label = self.text(spec.get("label", f"instant {i + 1}"), f"{field}.label")
+            for key in spec:
+                if key != "label" and key not in {d.name for d in drivers}:
+                    self.fail(f"{field}.{key}", f"'label' or a driver ({', '.join(d.name for d in drivers)})",
+                              repr(key))
+            inputs = {}
+            for d in drivers:
+                if d.name not in spec:
+                    self.fail(f"{field}.{d.name}", f"the value of driver {d.name!r}", "none")
+                inputs[d.name] = self.instant_input(spec[d.name], f"{field}.{d.name}", d, units)
+            instants.append(Instant(label, inputs))
+        return instants
+
+    def instant_input(self, value: Any, field: str, driver: Driver, units: Units):
+        q_scale, rate_scale = self.input_scales(driver.quantity, units)
+        if isinstance(value, dict):
+            self.table(value, field, ("q", "qd", "qdd"))
+            if "q" not in value:
+                self.fail(f"{field}.q", "the input value", "none")
+            q = self.number(value["q"], f"{field}.q", q_scale)
+            if "qd" in value or "qdd" in value:
+                return (q, self.number(value.get("qd", 0.0), f"{field}.qd", rate_scale),
+                        self.number(value.get("qdd", 0.0), f"{field}.qdd", rate_scale))
+        else:
+            q = self.number(value, field, q_scale)
+        t = driver.law.first_time_at(q)
+        if t is None:
+            self.fail(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit qd/qdd",
+                      _describe(value))
+        _, qd, qdd = driver.law.at_time(t)
+        return (q, float(qd), float(qdd))
+
+
+def _connected(label: str, first: str, second: str, pinned: set) -> bool:
+    """Whether revolutes at ``label`` link ``first`` to ``second`` (through other bodies)."""
+    edges = [tuple(pair) for lbl, pair in pinned if lbl == label]
+    reached, frontier = {first}, [first]
+    while frontier:
+        node = frontier.pop()
+        for u, v in edges:
+            for x, y in ((u, v), (v, u)):
+                if x == node and y not in reached:
+                    reached.add(y)
+                    frontier.append(y)
+    return second in reached

@@ -1,0 +1,316 @@
+"""The canonical mechanism model: an immutable description, SI units inside.
+
+Solvers and engine adapters read from it; nothing converts back into it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+
+from ..units import Units
+
+__all__ = [
+    "GROUND",
+    "Body",
+    "Revolute",
+    "Prismatic",
+    "PinInSlot",
+    "Joint",
+    "MotionLaw",
+    "Driver",
+    "Instant",
+    "Assembly",
+    "Mechanism",
+]
+
+#: Name of the fixed body. Its frame is the global frame.
+GROUND = "ground"
+
+
+def _frozen_points(points: Mapping[str, np.ndarray]) -> Mapping[str, np.ndarray]:
+    frozen = {}
+    for label, xy in points.items():
+        arr = np.array(xy, dtype=float).reshape(2)
+        arr.flags.writeable = False
+        frozen[label] = arr
+    return MappingProxyType(frozen)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body with named points.
+
+    Attributes
+    ----------
+    name : str
+    points : mapping of str to ndarray, shape (2,), m
+        Named points in the body frame.
+    mass : float or None, kg
+    com : ndarray, shape (2,), m, or None
+        Centre of mass in the body frame.
+    inertia : float or None, kg m^2
+        Moment of inertia about the centre of mass.
+    """
+
+    name: str
+    points: Mapping[str, np.ndarray]
+    mass: float | None = None
+    com: np.ndarray | None = None
+    inertia: float | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "points", _frozen_points(self.points))
+
+
+@dataclass(frozen=True)
+class Revolute:
+    """A pin joint: point ``point_a`` of ``body_a`` coincides with ``point_b`` of ``body_b``."""
+
+    name: str
+    body_a: str
+    body_b: str
+    point_a: str
+    point_b: str
+
+    kind = "revolute"
+    #: constraint equations (degrees of freedom removed)
+    rows = 2
+
+
+@dataclass(frozen=True)
+class _LineJoint:
+    """Point ``point`` of ``body_b`` stays on a line fixed in ``body_a``.
+
+    The line passes through ``line_point`` of ``body_a`` with the unit
+    direction ``direction`` (body_a frame). The slide displacement of the joint
+    is ``direction . (r_point - r_line_point)`` in m.
+    """
+
+    name: str
+    body_a: str
+    body_b: str
+    line_point: str
+    direction: np.ndarray
+    point: str
+
+    def __post_init__(self):
+        d = np.array(self.direction, dtype=float).reshape(2)
+        d = d / math.hypot(*d)
+        d.flags.writeable = False
+        object.__setattr__(self, "direction", d)
+
+
+@dataclass(frozen=True)
+class Prismatic(_LineJoint):
+    """A block sliding along a line, relative rotation locked at ``angle`` rad
+    (``phi_b - phi_a``)."""
+
+    angle: float = 0.0
+
+    kind = "prismatic"
+    rows = 2
+
+
+@dataclass(frozen=True)
+class PinInSlot(_LineJoint):
+    """A pin sliding along a slot, relative rotation free."""
+
+    kind = "pin-in-slot"
+    rows = 1
+
+
+Joint = Revolute | Prismatic | PinInSlot
+
+
+@dataclass(frozen=True)
+class MotionLaw:
+    """An input as a function of time, SI units (rad or m, per s, per s^2).
+
+    ``constant-rate``: q = start + rate t; ``constant-acceleration``:
+    q = start + rate t + acceleration t^2 / 2; ``harmonic``:
+    q = centre + amplitude sin(2 pi frequency t + phase).
+    """
+
+    kind: str
+    start: float = 0.0
+    rate: float = 0.0
+    acceleration: float = 0.0
+    centre: float = 0.0
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+
+    KINDS = ("constant-rate", "constant-acceleration", "harmonic")
+
+    def at_time(self, t):
+        """Input value, rate and acceleration at time(s) ``t`` (s).
+
+        Returns
+        -------
+        q, qd, qdd : ndarray, shape of ``t``
+        """
+        t = np.asarray(t, dtype=float)
+        if self.kind == "harmonic":
+            w = 2.0 * math.pi * self.frequency
+            arg = w * t + self.phase
+            return (
+                self.centre + self.amplitude * np.sin(arg),
+                self.amplitude * w * np.cos(arg),
+                -self.amplitude * w * w * np.sin(arg),
+            )
+        acc = self.acceleration if self.kind == "constant-acceleration" else 0.0
+        return (
+            self.start + self.rate * t + 0.5 * acc * t * t,
+            self.rate + acc * t + 0.0 * t,
+            acc + 0.0 * t,
+        )
+
+    def first_time_at(self, value: float) -> float | None:
+        """The first time t >= 0 at which the input equals ``value``; None if never."""
+        if self.kind == "harmonic":
+            if self.amplitude == 0.0 or self.frequency == 0.0:
+                return 0.0 if value == self.centre else None
+            ratio = (value - self.centre) / self.amplitude
+            if abs(ratio) > 1.0 + 1e-12:
+                return None
+            base = math.asin(max(-1.0, min(1.0, ratio)))
+            w = 2.0 * math.pi * self.frequency
+            period = 2.0 * math.pi / abs(w)
+            times = []
+            for arg in (base, math.pi - base):
+                t = (arg - self.phase) / w
+                times.append(t % period)
+            return min(times)
+        acc = self.acceleration if self.kind == "constant-acceleration" else 0.0
+        dq = value - self.start
+        if acc == 0.0:
+            if self.rate == 0.0:
+                return 0.0 if dq == 0.0 else None
+            t = dq / self.rate
+            return t if t >= 0.0 else None
+        disc = self.rate**2 + 2.0 * acc * dq
+        if disc < 0.0:
+            return None
+        roots = [(-self.rate + s * math.sqrt(disc)) / acc for s in (1.0, -1.0)]
+        ahead = [t for t in roots if t >= 0.0]
+        return min(ahead) if ahead else None
+
+
+@dataclass(frozen=True)
+class Driver:
+    """An input: the relative angle (revolute) or slide (prismatic, pin-in-slot)
+    of one joint, prescribed by a motion law.
+
+    The angle of a revolute is ``phi_b - phi_a`` of its bodies' frames; the
+    slide is the joint's slide displacement (see :class:`Prismatic`).
+    """
+
+    name: str
+    joint: str
+    quantity: str  # "angle" (rad) or "slide" (m)
+    law: MotionLaw
+
+
+@dataclass(frozen=True)
+class Instant:
+    """A state at which a worked solution states its results.
+
+    ``inputs`` maps each driver's name to (q, qd, qdd) in SI units.
+    """
+
+    label: str
+    inputs: Mapping[str, tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """How to pick the assembly branch.
+
+    ``at`` holds the drivers' values (SI) at which the branch sketches are
+    drawn; each branch maps point labels to rough global positions (m).
+    The first branch is the default.
+    """
+
+    at: Mapping[str, float]
+    branches: Mapping[str, Mapping[str, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """A planar mechanism as one immutable description (SI units).
+
+    Attributes
+    ----------
+    name, title, source, notes : str
+    path : str
+        The file it was read from (for messages).
+    units : Units
+        The display units of the file and of tables.
+    bodies : tuple of Body
+        ``bodies[0]`` is the ground (name :data:`GROUND`), the others move.
+    joints : tuple of Joint
+    drivers : tuple of Driver
+    assembly : Assembly
+    instants : tuple of Instant
+    """
+
+    name: str
+    title: str
+    source: str
+    notes: str
+    path: str
+    units: Units
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    drivers: tuple[Driver, ...]
+    assembly: Assembly
+    instants: tuple[Instant, ...] = field(default=())
+
+    @property
+    def ground(self) -> Body:
+        return self.bodies[0]
+
+    @property
+    def moving_bodies(self) -> tuple[Body, ...]:
+        return self.bodies[1:]
+
+    def body(self, name: str) -> Body:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(name)
+
+    def joint(self, name: str) -> Joint:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+    @property
+    def point_owners(self) -> dict[str, str]:
+        """Each point label and the first body (ground first) that has it."""
+        owners: dict[str, str] = {}
+        for b in self.bodies:
+            for label in b.points:
+                owners.setdefault(label, b.name)
+        return owners
+
+    @property
+    def size(self) -> float:
+        """Characteristic length (m): the largest extent of any body's points,
+        or of the ground points, whichever is larger. Scales tolerances."""
+        extent = 0.0
+        for b in self.bodies:
+            pts = np.array(list(b.points.values()) or [[0.0, 0.0]])
+            extent = max(extent, float(np.max(np.ptp(pts, axis=0), initial=0.0)),
+                         float(np.max(np.linalg.norm(pts - pts[0], axis=1), initial=0.0)))
+        return extent if extent > 0.0 else 1.0
+
+    def grubler(self) -> int:
+        """Degrees of freedom by the Grübler-Kutzbach count: 3 (n - 1) - sum of rows."""
+        return 3 * (len(self.bodies) - 1) - sum(j.rows for j in self.joints)
