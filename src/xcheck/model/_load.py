@@ -454,12 +454,11 @@ class _Reader:
                         self.number(value.get("qdd", 0.0), f"{field}.qdd", rate_scale))
         else:
             q = self.number(value, field, q_scale)
-        t = driver.law.first_time_at(q)
-        if t is None:
+        state = driver.law.state_at(q)
+        if state is None:
             self.fail(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit qd/qdd",
                       _describe(value))
-        _, qd, qdd = driver.law.at_time(t)
-        return (q, float(qd), float(qdd))
+        return state
 
 
 def _connected(label: str, first: str, second: str, pinned: set) -> bool:

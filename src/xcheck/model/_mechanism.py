@@ -170,35 +170,41 @@ class MotionLaw:
             acc + 0.0 * t,
         )
 
-    def first_time_at(self, value: float) -> float | None:
-        """The first time t >= 0 at which the input equals ``value``; None if never."""
+    def time_at(self, value: float) -> float | None:
+        """The time nearest t = 0 (before or after) at which the input equals
+        ``value``; None if it never does."""
         if self.kind == "harmonic":
-            if self.amplitude == 0.0 or self.frequency == 0.0:
+            if self.amplitude == 0.0:
                 return 0.0 if value == self.centre else None
             ratio = (value - self.centre) / self.amplitude
-            if abs(ratio) > 1.0 + 1e-12:
+            if abs(ratio) > 1.0:
                 return None
-            base = math.asin(max(-1.0, min(1.0, ratio)))
             w = 2.0 * math.pi * self.frequency
-            period = 2.0 * math.pi / abs(w)
-            times = []
-            for arg in (base, math.pi - base):
-                t = (arg - self.phase) / w
-                times.append(t % period)
-            return min(times)
+            period = 2.0 * math.pi / w
+            candidates = []
+            for arg in (math.asin(ratio), math.pi - math.asin(ratio)):
+                t = ((arg - self.phase) / w) % period
+                candidates += [t, t - period]
+            return min(candidates, key=abs)
         acc = self.acceleration if self.kind == "constant-acceleration" else 0.0
         dq = value - self.start
         if acc == 0.0:
             if self.rate == 0.0:
                 return 0.0 if dq == 0.0 else None
-            t = dq / self.rate
-            return t if t >= 0.0 else None
+            return dq / self.rate
         disc = self.rate**2 + 2.0 * acc * dq
         if disc < 0.0:
             return None
         roots = [(-self.rate + s * math.sqrt(disc)) / acc for s in (1.0, -1.0)]
-        ahead = [t for t in roots if t >= 0.0]
-        return min(ahead) if ahead else None
+        return min(roots, key=abs)
+
+    def state_at(self, value: float) -> tuple[float, float, float] | None:
+        """(q, qd, qdd) when the input passes ``value`` nearest t = 0; None if never."""
+        t = self.time_at(value)
+        if t is None:
+            return None
+        _, qd, qdd = self.at_time(t)
+        return (value, float(qd), float(qdd))
 
 
 @dataclass(frozen=True)

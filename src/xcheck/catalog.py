@@ -1,0 +1,51 @@
+"""Finding mechanism files by name."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import InputError
+
+__all__ = ["models_dir", "model_path", "model_names"]
+
+#: The repository's models/ (an editable or source install).
+_BUNDLED = Path(__file__).resolve().parents[2] / "models"
+
+
+def models_dir(override: str | Path | None = None) -> Path:
+    """The directory of mechanism files: ``override``, else $XCHECK_MODELS,
+    else ./models if it exists, else the repository's models/."""
+    if override is not None:
+        return Path(override)
+    if os.environ.get("XCHECK_MODELS"):
+        return Path(os.environ["XCHECK_MODELS"])
+    local = Path("models")
+    return local if local.is_dir() else _BUNDLED
+
+
+def model_names(directory: Path) -> list[str]:
+    """Names of the mechanism files (``*.toml``) in a directory, sorted."""
+    if not directory.is_dir():
+        raise InputError(f"{directory}: expected a directory of mechanism files, found none")
+    return sorted(p.stem for p in directory.glob("*.toml"))
+
+
+def model_path(name: str, directory: Path) -> Path:
+    """The file of a mechanism given by name (``fourbar``) or path (``x/y.toml``).
+
+    Raises
+    ------
+    InputError
+        If there is no such file; the message lists the known names.
+    """
+    as_path = Path(name)
+    if as_path.suffix == ".toml" or os.sep in name:
+        if as_path.is_file():
+            return as_path
+        raise InputError(f"{name}: expected a mechanism file, found no such file")
+    candidate = directory / f"{name}.toml"
+    if candidate.is_file():
+        return candidate
+    known = ", ".join(model_names(directory)) or "none"
+    raise InputError(f"unknown mechanism {name!r}: expected one of {known} (in {directory})")

@@ -1,0 +1,212 @@
+"""The command line: ``xcheck list`` and ``xcheck solve``."""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from . import __version__
+from .catalog import model_names, model_path, models_dir
+from .errors import InputError, ModelError, XcheckError
+from .kinematics import Kinematics, Status
+from .model import Mechanism, load_mechanism
+from .output import print_solution, range_text, solution_json, wide_console
+from .units import evaluate_expression
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Exact kinematics of planar mechanisms, cross-checked against physics engines.",
+)
+
+ModelsOption = Annotated[
+    Optional[Path],
+    typer.Option("--models", help="Directory of mechanism files (default: ./models, or $XCHECK_MODELS)."),
+]
+
+
+def _reports_errors(command):
+    """Turn an XcheckError into one line on stderr and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except XcheckError as err:
+            typer.echo(f"xcheck: error: {err}", err=True)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def _version(value: bool):
+    if value:
+        typer.echo(f"xcheck {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+):
+    """Exact kinematics of planar mechanisms, cross-checked against physics engines."""
+
+
+@app.command("list")
+@_reports_errors
+def list_command(
+    models: ModelsOption = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+):
+    """List the mechanisms: name, title, source, degrees of freedom, input range.
+
+    Example: xcheck list
+    """
+    directory = models_dir(models)
+    rows, failures = [], []
+    for name in model_names(directory):
+        try:
+            mech = load_mechanism(directory / f"{name}.toml")
+            kin = Kinematics(mech)
+            dof = kin.mobility()
+            ranges = [range_text(kin, kin.input_range(k)) for k in range(len(mech.drivers))]
+        except XcheckError as err:
+            failures.append(str(err))
+            continue
+        rows.append({"name": mech.name, "title": mech.title, "source": mech.source,
+                     "dof": dof["rank"], "ranges": ranges})
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+    else:
+        table = Table(header_style="bold")
+        for header in ("name", "title", "source", "DOF", "input range"):
+            table.add_column(header, overflow="fold")
+        for row in rows:
+            table.add_row(row["name"], row["title"], row["source"], str(row["dof"]), "\n".join(row["ranges"]))
+        wide_console().print(table)
+    for failure in failures:
+        typer.echo(f"xcheck: error: {failure}", err=True)
+    if failures:
+        raise typer.Exit(2)
+
+
+@app.command("solve")
+@_reports_errors
+def solve_command(
+    name: Annotated[str, typer.Argument(help="Mechanism name (see `xcheck list`) or path to a .toml file.")],
+    at: Annotated[Optional[str], typer.Option(
+        "--at", metavar="V[,V…]",
+        help="Input values in display units (degrees for angles, the model's length unit for slides); "
+             "separate states by commas and, for several drivers, their values by colons (30:45). "
+             "Rates come from the drivers' motion. Default: the instants in the model file.")] = None,
+    branch: Annotated[Optional[str], typer.Option(
+        "--branch", help="Assembly branch (default: the model file's first).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
+    models: ModelsOption = None,
+):
+    """Solve a mechanism's position, velocity and acceleration at its instants.
+
+    Examples: xcheck solve fourbar;  xcheck solve fourbar --at 45,90 --json;
+    xcheck solve two-body-arm --at 30:30
+    """
+    mech = load_mechanism(model_path(name, models_dir(models)))
+    kin = Kinematics(mech)
+    kin.assemble(branch)
+    if at is None:
+        if not mech.instants:
+            raise ModelError(mech.path, "instants", "[[instants]] to solve (or use --at)", "none")
+        labels = [inst.label for inst in mech.instants]
+        states = [[inst.inputs[d.name] for d in mech.drivers] for inst in mech.instants]
+        fields = [f"instants[{i}]" for i in range(len(states))]
+    else:
+        states = _parse_at(at, mech)
+        labels = ["at " + ", ".join(f"{d.name} = {_display(mech, d, value[0])}" for d, value in zip(mech.drivers, s))
+                  for s in states]
+        fields = None
+    _check_ranges(kin, states, branch, fields)
+    values = np.array(states)  # (N, k, 3)
+    solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
+    _check_statuses(kin, solution, labels, fields)
+    if as_json:
+        typer.echo(json.dumps(solution_json(solution, labels), indent=2, allow_nan=False, ensure_ascii=False))
+    else:
+        print_solution(wide_console(), solution, labels)
+
+
+def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float]]]:
+    """``--at`` values (display units) to per-state (q, qd, qdd) per driver, SI."""
+    states = []
+    u = mech.units
+    for item in text.split(","):
+        parts = item.split(":")
+        if len(parts) != len(mech.drivers):
+            raise InputError(f"--at: expected {len(mech.drivers)} value(s) per state separated by ':' "
+                             f"({', '.join(d.name for d in mech.drivers)}), found {item!r}")
+        state = []
+        for driver, part in zip(mech.drivers, parts):
+            try:
+                value = evaluate_expression(part.strip())
+            except ValueError:
+                raise InputError(f"--at: expected a number for {driver.name}, found {part!r}") from None
+            scale = u.angle_factor if driver.quantity == "angle" else u.length_factor
+            result = driver.law.state_at(value * scale)
+            if result is None:
+                raise InputError(f"--at: {driver.name} = {part.strip()}: expected a value that the "
+                                 f"driver's {driver.law.kind} motion reaches, found one it never does")
+            state.append(result)
+        states.append(state)
+    return states
+
+
+def _display(mech: Mechanism, driver, value: float) -> str:
+    u = mech.units
+    if driver.quantity == "angle":
+        return f"{value / u.angle_factor:.6g} {u.angle}"
+    return f"{value / u.length_factor:.6g} {u.length}"
+
+
+def _check_ranges(kin: Kinematics, states, branch, fields) -> None:
+    mech = kin.mechanism
+    for i, state in enumerate(states):
+        for k, driver in enumerate(mech.drivers):
+            rng = kin.input_range(k, branch)
+            q = state[k][0]
+            if not rng.contains(q):
+                expected = f"an input within the feasible range ({range_text(kin, rng)})"
+                found = _display(mech, driver, q)
+                if fields:
+                    raise ModelError(mech.path, f"{fields[i]}.{driver.name}", expected, found)
+                raise InputError(f"{mech.path}: --at {driver.name}: expected {expected}, found {found}")
+
+
+def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
+    mech = kin.mechanism
+    for i, code in enumerate(solution.status):
+        status = Status(int(code))
+        if status <= Status.NEAR_SINGULAR:
+            continue
+        inputs = ", ".join(f"{d.name} = {_display(mech, d, solution.inputs[i, k])}"
+                           for k, d in enumerate(mech.drivers))
+        field = fields[i] if fields else "--at"
+        raise ModelError(mech.path, field, "a state where the mechanism assembles with determined velocities",
+                         f"{status.label} at {inputs} ({status.message})")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""What ``xcheck solve`` shows: JSON in SI units, tables in display units."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from .kinematics import InputRange, Kinematics, Solution, Status
+
+__all__ = ["solution_json", "print_solution", "range_text", "wide_console"]
+
+
+def _number(value) -> float | None:
+    """A finite float, or None (never NaN) for undetermined values."""
+    value = float(value) + 0.0  # no negative zero
+    return value if math.isfinite(value) else None
+
+
+def _pair(values) -> list[float | None] | None:
+    pair = [_number(v) for v in values]
+    return None if any(v is None for v in pair) else pair
+
+
+def solution_json(solution: Solution, labels: list[str] | None = None) -> dict:
+    """The JSON document of ``xcheck solve --json`` (SI units).
+
+    Parameters
+    ----------
+    solution : Solution
+    labels : list of str, optional
+        A label per sample (the model file's instant labels).
+    """
+    mech = solution.mechanism
+    bodies = {b.name: solution.body(b.name) for b in mech.moving_bodies}
+    points = {label: solution.point(label) for label in mech.point_owners}
+    states = []
+    for i in range(solution.q.shape[0]):
+        status = Status(int(solution.status[i]))
+        state = {
+            "inputs": {
+                d.name: {"q": _number(solution.inputs[i, k]), "qd": _number(solution.input_rates[i, k]),
+                         "qdd": _number(solution.input_accelerations[i, k])}
+                for k, d in enumerate(mech.drivers)
+            },
+            "status": status.label,
+            "message": status.message,
+            "residual": _number(solution.residual[i]),
+            "singularity": _number(solution.singularity[i]),
+            "bodies": {
+                name: {"position": _pair(s["position"][i]), "angle": _number(s["angle"][i]),
+                       "velocity": _pair(s["velocity"][i]), "omega": _number(s["omega"][i]),
+                       "acceleration": _pair(s["acceleration"][i]), "alpha": _number(s["alpha"][i])}
+                for name, s in bodies.items()
+            },
+            "points": {
+                label: {key: _pair(p[key][i]) for key in ("position", "velocity", "acceleration")}
+                for label, p in points.items()
+            },
+        }
+        if labels is not None:
+            state = {"label": labels[i], **state}
+        states.append(state)
+    return {"mechanism": mech.name, "branch": solution.branch,
+            "units": {"length": "m", "angle": "rad", "time": "s"}, "states": states}
+
+
+def range_text(kin: Kinematics, rng: InputRange) -> str:
+    """A driver's feasible range in display units, e.g. ``crank -129.02 … 129.02 deg``."""
+    units = kin.mechanism.units
+    driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
+    if driver.quantity == "angle":
+        scale, unit = units.angle_factor, units.angle
+    else:
+        scale, unit = units.length_factor, units.length
+    if rng.full_turn:
+        return f"{rng.driver}: full turn"
+    low = "-inf" if rng.low is None else f"{rng.low / scale:.6g}"
+    high = "+inf" if rng.high is None else f"{rng.high / scale:.6g}"
+    return f"{rng.driver}: {low} … {high} {unit}"
+
+
+def _fmt(value: float, digits: int = 6) -> str:
+    if not math.isfinite(value):
+        return "—"
+    if value == 0.0:
+        return "0"
+    return f"{value + 0.0:.{digits}g}"
+
+
+def wide_console(**kwargs) -> Console:
+    """A console at least 140 columns wide, so that tables are never cut short
+    when the output goes to a file or pipe (rich assumes 80 there)."""
+    console = Console(**kwargs)
+    if console.width < 140:
+        console = Console(width=140, **kwargs)
+    return console
+
+
+def print_solution(console: Console, solution: Solution, labels: list[str] | None = None) -> None:
+    """Tables of bodies and points per state, in the model's display units."""
+    mech = solution.mechanism
+    u = mech.units
+    L, A, W = u.length_factor, u.angle_factor, u.angular_rate_factor
+    V, AC = u.velocity_factor, u.acceleration_factor
+    alpha_unit = u.angular_acceleration
+    for i in range(solution.q.shape[0]):
+        status = Status(int(solution.status[i]))
+        inputs = []
+        for k, d in enumerate(mech.drivers):
+            if d.quantity == "angle":
+                inputs.append(f"{d.name} = {_fmt(solution.inputs[i, k] / A)} {u.angle}, "
+                              f"{_fmt(solution.input_rates[i, k] / W)} {u.angular_rate}, "
+                              f"{_fmt(solution.input_accelerations[i, k] / W)} {alpha_unit}")
+            else:
+                inputs.append(f"{d.name} = {_fmt(solution.inputs[i, k] / L)} {u.length}, "
+                              f"{_fmt(solution.input_rates[i, k] / L)} {u.length}/s, "
+                              f"{_fmt(solution.input_accelerations[i, k] / L)} {u.length}/s^2")
+        title = f"[bold]{mech.name}[/bold]" + (f" — {labels[i]}" if labels else "")
+        console.print(title)
+        console.print("  " + "; ".join(inputs))
+        style = "green" if status == Status.OK else "yellow" if status == Status.NEAR_SINGULAR else "red"
+        console.print(f"  status [{style}]{status.label}[/{style}] ({status.message}); "
+                      f"loop-closure residual {solution.residual[i] / L:.2g} {u.length}; "
+                      f"conditioning {solution.singularity[i]:.2g}; branch {solution.branch}")
+
+        bodies = Table(box=None, pad_edge=False, header_style="bold")
+        for header in ("body", f"x [{u.length}]", f"y [{u.length}]", f"φ [{u.angle}]", f"vx [{u.velocity}]",
+                       f"vy [{u.velocity}]", f"ω [{u.angular_rate}]", f"ax [{u.acceleration}]",
+                       f"ay [{u.acceleration}]", f"α [{alpha_unit}]"):
+            bodies.add_column(header, justify="right" if header != "body" else "left", no_wrap=True)
+        for b in mech.moving_bodies:
+            s = solution.body(b.name)
+            bodies.add_row(b.name, _fmt(s["position"][i, 0] / L), _fmt(s["position"][i, 1] / L),
+                           _fmt(s["angle"][i] / A), _fmt(s["velocity"][i, 0] / V), _fmt(s["velocity"][i, 1] / V),
+                           _fmt(s["omega"][i] / W), _fmt(s["acceleration"][i, 0] / AC),
+                           _fmt(s["acceleration"][i, 1] / AC), _fmt(s["alpha"][i] / W))
+        console.print(bodies)
+
+        points = Table(box=None, pad_edge=False, header_style="bold")
+        for header in ("point", "body", f"x [{u.length}]", f"y [{u.length}]", f"vx [{u.velocity}]",
+                       f"vy [{u.velocity}]", f"|v| [{u.velocity}]", f"ax [{u.acceleration}]",
+                       f"ay [{u.acceleration}]", f"|a| [{u.acceleration}]"):
+            points.add_column(header, justify="left" if header in ("point", "body") else "right",
+                              no_wrap=True)
+        for label, owner in mech.point_owners.items():
+            p = solution.point(label)
+            v, a = p["velocity"][i], p["acceleration"][i]
+            points.add_row(label, owner, _fmt(p["position"][i, 0] / L), _fmt(p["position"][i, 1] / L),
+                           _fmt(v[0] / V), _fmt(v[1] / V), _fmt(float(np.hypot(*v)) / V),
+                           _fmt(a[0] / AC), _fmt(a[1] / AC), _fmt(float(np.hypot(*a)) / AC))
+        console.print(points)
+        console.print()
