@@ -13,7 +13,7 @@ import numpy as np
 
 from ._system import ConstraintSystem
 
-__all__ = ["solve_linear", "newton", "tangent", "continue_to"]
+__all__ = ["solve_linear", "newton", "tangent", "det_sign", "continue_to"]
 
 #: Newton stops once the violation is below this fraction of the mechanism's size.
 STOP_TOLERANCE = 1e-13
@@ -88,15 +88,20 @@ def newton(system: ConstraintSystem, q0: np.ndarray, c: np.ndarray, max_iter: in
     return q, residual, iterations, converged
 
 
-def tangent(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
-    """dq/dc at q: the solution of Phi_q T = [0; I]; shape (N, n, k)."""
+def tangent(system: ConstraintSystem, q: np.ndarray, jac: np.ndarray | None = None) -> np.ndarray:
+    """dq/dc at q: the solution of Phi_q T = [0; I]; shape (N, n, k).
+
+    ``jac`` is Phi_q at q when the caller has it already.
+    """
     rhs = np.zeros((q.shape[0], system.n_rows, system.n_drivers))
     rhs[:, system.n_kinematic:, :] = np.eye(system.n_drivers)
-    return solve_linear(system.jacobian(q), rhs)
+    return solve_linear(system.jacobian(q) if jac is None else jac, rhs)
 
 
-def _det_sign(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
-    return np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(q))))
+def det_sign(system: ConstraintSystem, jac: np.ndarray) -> np.ndarray:
+    """Sign of det Phi_q per sample, shape (N,): it flips only through a singular
+    configuration, so a change marks a branch jump or a crossed singularity."""
+    return np.sign(np.linalg.det(system.scaled_jacobian(jac)))
 
 
 def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: np.ndarray,
@@ -118,30 +123,41 @@ def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: 
     reached : bool
         False when the walk stopped at a limit position or singularity; c is
         then within about ``min_step`` of it.
+    trail : list of (fraction, q)
+        Every accepted step: the fraction of the way from c to target, and
+        the configuration there. Steps are short where the mechanism moves
+        fast (near limit positions), so the trail is a good set of anchors
+        for predicting nearby samples.
     """
     scale = system.input_scale()
     q, c = np.array(q, dtype=float), np.array(c, dtype=float)
-    sign = _det_sign(system, q[None])[0]
+    jac = system.jacobian(q[None])
+    sign = det_sign(system, jac)[0]
     step = max_step
+    start = c.copy()
+    total = float(np.max(np.abs((target - start) * scale)))
+    trail = []
     while True:
         remaining = (target - c) * scale
         distance = float(np.max(np.abs(remaining)))
         if distance == 0.0:
-            return q, c, True
+            return q, c, True, trail
         fraction = min(1.0, step / distance)
         c_next = target if fraction == 1.0 else c + (target - c) * fraction
-        guess = q + tangent(system, q[None])[0] @ (c_next - c)
+        guess = q + tangent(system, q[None], jac)[0] @ (c_next - c)
         q_new, _, _, ok = newton(system, guess[None], c_next[None])
         accepted = bool(ok[0])
         if accepted:
             correction = np.max(np.abs((q_new[0] - guess) * system.coordinate_scale()))
-            new_sign = _det_sign(system, q_new)[0]
+            new_jac = system.jacobian(q_new)
+            new_sign = det_sign(system, new_jac)[0]
             accepted = correction <= MAX_CORRECTION and (new_sign == sign or sign == 0.0)
         if accepted:
-            sign = new_sign
+            sign, jac = new_sign, new_jac
             q, c = q_new[0], c_next
+            trail.append((1.0 - float(np.max(np.abs((target - c) * scale))) / total, q))
             step = min(max_step, step * 1.5)
         else:
             step *= 0.5
             if step < min_step:
-                return q, c, False
+                return q, c, False, trail

@@ -13,7 +13,7 @@ from scipy.optimize import least_squares
 
 from ..errors import ModelError
 from ..model import GROUND, Mechanism
-from ._newton import CONVERGED_TOLERANCE, MAX_CORRECTION, continue_to, newton, solve_linear, tangent
+from ._newton import MAX_CORRECTION, continue_to, det_sign, newton, tangent
 from ._system import ConstraintSystem, _perp, _rotate
 
 __all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
@@ -24,6 +24,27 @@ NEAR_SINGULAR = 1e-6
 #: Below this, the configuration is singular (dead centre, limit position):
 #: velocities and accelerations are not determined and are not reported.
 SINGULAR = 1e-12
+
+
+def _inverse_with_condition(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverses of matrices of shape (N, n, n) and their inverse condition numbers
+    1 / (|A|_1 |A^-1|_1): 1 when well conditioned, 0 when singular (whose
+    inverse is then the pseudo-inverse)."""
+    norm = np.max(np.sum(np.abs(matrices), axis=1), axis=1)
+    try:
+        inverse = np.linalg.inv(matrices)
+    except np.linalg.LinAlgError:
+        inverse = np.empty_like(matrices)
+        for i, m in enumerate(matrices):
+            try:
+                inverse[i] = np.linalg.inv(m)
+            except np.linalg.LinAlgError:
+                inverse[i] = np.linalg.pinv(m)
+                norm[i] = np.inf
+    inverse_norm = np.max(np.sum(np.abs(inverse), axis=1), axis=1)
+    with np.errstate(all="ignore"):
+        result = 1.0 / (norm * inverse_norm)
+    return inverse, np.where(np.isfinite(result), result, 0.0)
 
 
 class Status(IntEnum):
@@ -73,8 +94,8 @@ class Solution:
     residual : ndarray, shape (N,)
         Largest constraint violation, m.
     singularity : ndarray, shape (N,)
-        Inverse condition number of the dimensionless Jacobian (1: well
-        conditioned, 0: singular).
+        Inverse condition number (1-norm) of the dimensionless Jacobian
+        Phi_q (1: well conditioned, 0: singular).
     iterations : ndarray of int, shape (N,)
     """
 
@@ -132,6 +153,28 @@ class Solution:
             "velocity": rd + phid[:, None] * normal,
             "acceleration": rdd + phidd[:, None] * normal - (phid ** 2)[:, None] * arm,
         }
+
+
+def _predict(system, anchor_path, anchor_q, anchor_c, anchor, sample_path, sample_c) -> np.ndarray:
+    """Predicted configurations of samples from the anchors around them, (N, n).
+
+    Between two anchors: the cubic Hermite curve through both anchors'
+    configurations and tangents (error of fourth order in the spacing);
+    past the last anchor: the tangent line of that anchor.
+    """
+    tangents = tangent(system, anchor_q)  # (M, n, k)
+    nxt = np.minimum(anchor + 1, len(anchor_q) - 1)
+    span = anchor_path[nxt] - anchor_path[anchor]
+    inside = span > 0.0
+    t = np.where(inside, (sample_path - anchor_path[anchor]) / np.where(inside, span, 1.0), 0.0)[:, None]
+    step = anchor_c[nxt] - anchor_c[anchor]  # input change over the interval, (N, k)
+    d0 = np.einsum("nik,nk->ni", tangents[anchor], step)
+    d1 = np.einsum("nik,nk->ni", tangents[nxt], step)
+    h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
+    h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
+    hermite = h00 * anchor_q[anchor] + h10 * d0 + h01 * anchor_q[nxt] + h11 * d1
+    linear = anchor_q[anchor] + np.einsum("nik,nk->ni", tangents[anchor], sample_c - anchor_c[anchor])
+    return np.where(inside[:, None], hermite, linear)
 
 
 @dataclass(frozen=True)
@@ -320,7 +363,7 @@ class Kinematics:
             for direction in (-1.0, 1.0):
                 target = c_ref.copy()
                 target[k] += direction * span
-                _, c, reached = continue_to(self.system, q_ref, c_ref, target)
+                _, c, reached, _ = continue_to(self.system, q_ref, c_ref, target)
                 ends.append(None if reached else float(c[k]))
                 if reached and is_angle:  # turned round once: the input is a crank
                     ends = [None, None]
@@ -330,7 +373,7 @@ class Kinematics:
 
     # -- sweeps -----------------------------------------------------------
     def solve(self, inputs, rates=None, accelerations=None, branch: str | None = None,
-              max_waypoints: int = 256) -> Solution:
+              waypoint_spacing: float = math.radians(2.0)) -> Solution:
         """Positions, velocities and accelerations over a sweep of inputs.
 
         Parameters
@@ -341,9 +384,11 @@ class Kinematics:
             Rates and accelerations default to zero.
         branch : str, optional
             Assembly branch (default: the model file's first).
-        max_waypoints : int
-            Samples tracked one by one for continuation; the rest are solved
-            in one batch from predictions off the nearest waypoint.
+        waypoint_spacing : float
+            Input distance (rad; slides per mechanism size) between the
+            waypoints that are tracked one by one by continuation; all other
+            samples are solved in one batch from predictions off the waypoint
+            before them.
 
         Returns
         -------
@@ -356,49 +401,63 @@ class Kinematics:
         cdd = np.zeros_like(c) if accelerations is None else self._as_inputs(accelerations, c.shape)
         n_samples = c.shape[0]
 
-        # 1. continuation through waypoints, one at a time
-        stride = max(1, math.ceil(n_samples / max_waypoints))
-        waypoints = np.arange(0, n_samples, stride)
-        wp_q = np.full((len(waypoints), system.n), np.nan)
-        wp_ok = np.zeros(len(waypoints), dtype=bool)
+        # 1. continuation through waypoints, one at a time; every accepted
+        #    step becomes an anchor at its position along the sweep's path
+        path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(),
+                                                        axis=1))])
+        bins = np.floor(path / waypoint_spacing)
+        waypoints = np.flatnonzero(np.concatenate([[True], bins[1:] != bins[:-1]]))
+        if waypoints[-1] != n_samples - 1:
+            waypoints = np.append(waypoints, n_samples - 1)
+        anchor_path, anchor_q, anchor_c = [], [], []
         q_prev, c_prev = self.assemble(name), self.reference_inputs()
-        for j, i in enumerate(waypoints):
-            q_new, c_new, reached = continue_to(system, q_prev, c_prev, c[i])
-            if reached:
-                wp_q[j], wp_ok[j] = q_new, True
-                q_prev, c_prev = q_new, c_new
+        path_prev = None
+        for i in waypoints:
+            q_new, c_new, reached, trail = continue_to(system, q_prev, c_prev, c[i])
+            if not reached:
+                continue
+            if path_prev is not None:  # intermediate steps lie between two samples on the path
+                for fraction, q_step in trail[:-1]:
+                    anchor_path.append(path_prev + fraction * (path[i] - path_prev))
+                    anchor_q.append(q_step)
+                    anchor_c.append(c_prev + fraction * (c[i] - c_prev))
+            anchor_path.append(path[i])
+            anchor_q.append(q_new)
+            anchor_c.append(c[i])
+            q_prev, c_prev, path_prev = q_new, c[i], path[i]
 
-        # 2. every sample in one batch, predicted from its waypoint
-        anchor = np.minimum(np.arange(n_samples) // stride, len(waypoints) - 1)
-        good = wp_ok[anchor]
+        # 2. every sample in one batch, predicted from the anchor before it
         q = np.full((n_samples, system.n), np.nan)
         residual = np.full(n_samples, np.inf)
         iterations = np.zeros(n_samples, dtype=int)
         status = np.full(n_samples, Status.NOT_CONVERGED, dtype=np.int8)
-        idx = np.flatnonzero(good)
-        if idx.size:
-            wp_tangent = tangent(system, wp_q[wp_ok])
-            slot = np.cumsum(wp_ok) - 1
-            t = wp_tangent[slot[anchor[idx]]]
-            guess = wp_q[anchor[idx]] + np.einsum("nik,nk->ni", t, c[idx] - c[waypoints[anchor[idx]]])
+        jac = np.zeros((n_samples, system.n_rows, system.n))  # Phi_q where solved
+        if anchor_q:
+            anchor_path, anchor_q, anchor_c = map(np.array, (anchor_path, anchor_q, anchor_c))
+            # samples beyond the last anchor reached (past a limit) are not attempted
+            idx = np.flatnonzero(path <= anchor_path[-1])
+            anchor = np.clip(np.searchsorted(anchor_path, path[idx], side="right") - 1, 0, None)
+            guess = _predict(system, anchor_path, anchor_q, anchor_c, anchor, path[idx], c[idx])
             q_i, res_i, it_i, ok_i = newton(system, guess, c[idx])
-            # stayed on the branch: small correction, same determinant sign as the waypoint
+            # stayed on the branch: small correction, same determinant sign as the anchor
             correction = np.max(np.abs((q_i - guess) * system.coordinate_scale()), axis=1)
-            sign = np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(q_i))))
-            wp_sign = np.sign(np.linalg.det(system.scaled_jacobian(system.jacobian(wp_q[anchor[idx]]))))
-            on_branch = (correction <= MAX_CORRECTION) & ((sign == wp_sign) | (sign == 0))
+            jac_i = system.jacobian(q_i)
+            sign = det_sign(system, jac_i)
+            anchor_sign = det_sign(system, system.jacobian(anchor_q))[anchor]
+            on_branch = (correction <= MAX_CORRECTION) & ((sign == anchor_sign) | (sign == 0))
             accept = ok_i & on_branch
             q[idx[accept]] = q_i[accept]
+            jac[idx[accept]] = jac_i[accept]
             residual[idx] = res_i
             iterations[idx] = it_i
             status[idx[accept]] = Status.OK
             status[idx[ok_i & ~on_branch]] = Status.BRANCH_JUMP
-            # 3. the few that failed in the batch: walk to them from their waypoint
-            for i in idx[~accept]:
-                j = anchor[i]
-                q_new, _, reached = continue_to(system, wp_q[j], c[waypoints[j]], c[i])
+            # 3. the few that failed in the batch: walk to them from their anchor
+            for i, j in zip(idx[~accept], anchor[~accept]):
+                q_new, _, reached, _ = continue_to(system, anchor_q[j], anchor_c[j], c[i])
                 if reached:
                     q[i], status[i] = q_new, Status.OK
+                    jac[i] = system.jacobian(q_new[None])[0]
                     residual[i] = system.residual_metres(system.residual(q_new[None], c[i][None]))[0]
 
         # 4. velocities and accelerations
@@ -407,11 +466,17 @@ class Kinematics:
         singularity = np.zeros(n_samples)
         done = np.flatnonzero(status == Status.OK)
         if done.size:
-            jac = system.jacobian(q[done])
-            singular_values = np.linalg.svd(system.scaled_jacobian(jac), compute_uv=False)
-            singularity[done] = singular_values[:, -1] / singular_values[:, 0]
-            qd[done] = solve_linear(jac, system.velocity_rhs(cd[done]))
-            qdd[done] = solve_linear(jac, system.gamma(q[done], qd[done], cdd[done]))
+            # with the dimensionless Jacobian S = D_r J C^-1 (rows per size,
+            # coordinates per size), J^-1 b = C^-1 S^-1 D_r b
+            inverse, singularity[done] = _inverse_with_condition(system.scaled_jacobian(jac[done]))
+            row_scale = np.where(system.row_is_angle, 1.0, 1.0 / system.size)
+            coordinate_scale = system.coordinate_scale()
+
+            def apply_inverse(rhs):
+                return np.einsum("nij,nj->ni", inverse, rhs * row_scale) / coordinate_scale
+
+            qd[done] = apply_inverse(system.velocity_rhs(cd[done]))
+            qdd[done] = apply_inverse(system.gamma(q[done], qd[done], cdd[done]))
             near = done[singularity[done] < NEAR_SINGULAR]
             status[near] = Status.NEAR_SINGULAR
             flat = done[singularity[done] < SINGULAR]

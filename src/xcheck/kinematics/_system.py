@@ -23,34 +23,59 @@ __all__ = ["ConstraintSystem"]
 
 def _rotate(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
     """A(phi) s for phi of shape (N,) and a body vector s of shape (2,); returns (N, 2)."""
-    c, sn = np.cos(phi), np.sin(phi)
-    return np.stack((c * s[0] - sn * s[1], sn * s[0] + c * s[1]), axis=-1)
+    return _rotate_cs(np.cos(phi), np.sin(phi), s)
+
+
+def _rotate_cs(c: np.ndarray, sn: np.ndarray, s: np.ndarray) -> np.ndarray:
+    out = np.empty(c.shape + (2,))
+    out[..., 0] = c * s[0] - sn * s[1]
+    out[..., 1] = sn * s[0] + c * s[1]
+    return out
 
 
 def _perp(v: np.ndarray) -> np.ndarray:
     """R v: rotate vectors of shape (..., 2) by +90 degrees."""
-    return np.stack((-v[..., 1], v[..., 0]), axis=-1)
+    out = np.empty_like(v)
+    out[..., 0] = -v[..., 1]
+    out[..., 1] = v[..., 0]
+    return out
 
 
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1]
 
 
-class _Frame:
-    """Position, angle and their rates of one body's frame across N samples."""
+class _Poses:
+    """Body frames' positions, angles (with cosines and sines computed once)
+    and rates across N samples; index -1 is the ground."""
 
-    def __init__(self, index: int, q: np.ndarray, qd: np.ndarray | None = None):
-        n_samples = q.shape[0]
-        if index < 0:  # ground
-            self.r = np.zeros((n_samples, 2))
-            self.phi = np.zeros(n_samples)
-            self.rd = np.zeros((n_samples, 2))
-            self.phid = np.zeros(n_samples)
-        else:
-            k = 3 * index
-            self.r, self.phi = q[:, k:k + 2], q[:, k + 2]
-            if qd is not None:
-                self.rd, self.phid = qd[:, k:k + 2], qd[:, k + 2]
+    def __init__(self, q: np.ndarray, qd: np.ndarray | None = None):
+        n_samples, n = q.shape
+        q3 = q.reshape(n_samples, n // 3, 3)
+        self.n_samples = n_samples
+        self.r, self.phi = q3[..., :2], q3[..., 2]
+        self.cos, self.sin = np.cos(self.phi), np.sin(self.phi)
+        if qd is not None:
+            qd3 = qd.reshape(n_samples, n // 3, 3)
+            self.rd, self.phid = qd3[..., :2], qd3[..., 2]
+
+    def frame(self, index: int):
+        """(r (N, 2), phi (N,)) of one body."""
+        if index < 0:
+            return np.zeros((self.n_samples, 2)), np.zeros(self.n_samples)
+        return self.r[:, index], self.phi[:, index]
+
+    def rates(self, index: int):
+        """(r_dot (N, 2), phi_dot (N,)) of one body."""
+        if index < 0:
+            return np.zeros((self.n_samples, 2)), np.zeros(self.n_samples)
+        return self.rd[:, index], self.phid[:, index]
+
+    def rotate(self, index: int, s: np.ndarray) -> np.ndarray:
+        """A(phi) s of one body, shape (N, 2)."""
+        if index < 0:
+            return np.broadcast_to(s, (self.n_samples, 2))
+        return _rotate_cs(self.cos[:, index], self.sin[:, index], s)
 
 
 @dataclass(frozen=True)
@@ -65,23 +90,22 @@ class _Coincidence:
     rows: int = 2
     is_angle: bool = False
 
-    def residual(self, q, c):
-        fa, fb = _Frame(self.a, q), _Frame(self.b, q)
-        return fa.r + _rotate(fa.phi, self.s_a) - fb.r - _rotate(fb.phi, self.s_b)
+    def residual(self, poses, c):
+        return (poses.frame(self.a)[0] + poses.rotate(self.a, self.s_a)
+                - poses.frame(self.b)[0] - poses.rotate(self.b, self.s_b))
 
-    def jacobian(self, q, out):
+    def jacobian(self, poses, out):
         for index, s, sign in ((self.a, self.s_a, 1.0), (self.b, self.s_b, -1.0)):
             if index < 0:
                 continue
             k = 3 * index
             out[:, 0, k] = sign
             out[:, 1, k + 1] = sign
-            out[:, :, k + 2] = sign * _perp(_rotate(q[:, k + 2], s))
+            out[:, :, k + 2] = sign * _perp(poses.rotate(index, s))
 
-    def gamma(self, q, qd, cdd):
-        fa, fb = _Frame(self.a, q, qd), _Frame(self.b, q, qd)
-        return (_rotate(fa.phi, self.s_a) * (fa.phid ** 2)[:, None]
-                - _rotate(fb.phi, self.s_b) * (fb.phid ** 2)[:, None])
+    def gamma(self, poses, cdd):
+        return (poses.rotate(self.a, self.s_a) * (poses.rates(self.a)[1] ** 2)[:, None]
+                - poses.rotate(self.b, self.s_b) * (poses.rates(self.b)[1] ** 2)[:, None])
 
 
 @dataclass(frozen=True)
@@ -102,22 +126,21 @@ class _Projection:
     rows: int = 1
     is_angle: bool = False
 
-    def _parts(self, q, qd=None):
-        fa, fb = _Frame(self.a, q, qd), _Frame(self.b, q, qd)
-        w = _rotate(fa.phi, self.w)
-        as_q, as_p = _rotate(fa.phi, self.s_q), _rotate(fb.phi, self.s_p)
-        d = fb.r + as_p - fa.r - as_q
-        return fa, fb, w, as_q, as_p, d
+    def _parts(self, poses):
+        w = poses.rotate(self.a, self.w)
+        as_q, as_p = poses.rotate(self.a, self.s_q), poses.rotate(self.b, self.s_p)
+        d = poses.frame(self.b)[0] + as_p - poses.frame(self.a)[0] - as_q
+        return w, as_q, as_p, d
 
-    def residual(self, q, c):
-        *_, w, _, _, d = self._parts(q)
+    def residual(self, poses, c):
+        w, _, _, d = self._parts(poses)
         value = _dot(w, d)
         if self.driver is not None:
             value = value - c[:, self.driver]
         return value[:, None]
 
-    def jacobian(self, q, out):
-        _, _, w, as_q, as_p, d = self._parts(q)
+    def jacobian(self, poses, out):
+        w, as_q, as_p, d = self._parts(poses)
         if self.b >= 0:
             k = 3 * self.b
             out[:, 0, k:k + 2] = w
@@ -127,11 +150,13 @@ class _Projection:
             out[:, 0, k:k + 2] = -w
             out[:, 0, k + 2] = _dot(_perp(w), d) - _dot(w, _perp(as_q))
 
-    def gamma(self, q, qd, cdd):
-        fa, fb, w, as_q, as_p, d = self._parts(q, qd)
-        dd = fb.rd + fb.phid[:, None] * _perp(as_p) - fa.rd - fa.phid[:, None] * _perp(as_q)
-        quadratic = (-fa.phid ** 2 * _dot(w, d) + 2.0 * fa.phid * _dot(_perp(w), dd)
-                     - fb.phid ** 2 * _dot(w, as_p) + fa.phid ** 2 * _dot(w, as_q))
+    def gamma(self, poses, cdd):
+        w, as_q, as_p, d = self._parts(poses)
+        rd_a, phid_a = poses.rates(self.a)
+        rd_b, phid_b = poses.rates(self.b)
+        dd = rd_b + phid_b[:, None] * _perp(as_p) - rd_a - phid_a[:, None] * _perp(as_q)
+        quadratic = (-phid_a ** 2 * _dot(w, d) + 2.0 * phid_a * _dot(_perp(w), dd)
+                     - phid_b ** 2 * _dot(w, as_p) + phid_a ** 2 * _dot(w, as_q))
         value = -quadratic
         if self.driver is not None:
             value = value + cdd[:, self.driver]
@@ -149,20 +174,20 @@ class _RelativeAngle:
     rows: int = 1
     is_angle: bool = True
 
-    def residual(self, q, c):
-        value = _Frame(self.b, q).phi - _Frame(self.a, q).phi - self.offset
+    def residual(self, poses, c):
+        value = poses.frame(self.b)[1] - poses.frame(self.a)[1] - self.offset
         if self.driver is not None:
             value = value - c[:, self.driver]
         return value[:, None]
 
-    def jacobian(self, q, out):
+    def jacobian(self, poses, out):
         if self.b >= 0:
             out[:, 0, 3 * self.b + 2] = 1.0
         if self.a >= 0:
             out[:, 0, 3 * self.a + 2] = -1.0
 
-    def gamma(self, q, qd, cdd):
-        value = np.zeros(q.shape[0])
+    def gamma(self, poses, cdd):
+        value = np.zeros(poses.n_samples)
         if self.driver is not None:
             value = value + cdd[:, self.driver]
         return value[:, None]
@@ -235,21 +260,24 @@ class ConstraintSystem:
     def residual(self, q: np.ndarray, c: np.ndarray, kinematic_only: bool = False) -> np.ndarray:
         """Phi(q, c), shape (N, rows); metres for point rows, radians for angle rows."""
         terms = self.terms[: len(self.terms) - self.n_drivers] if kinematic_only else self.terms
-        return np.concatenate([t.residual(q, c) for t in terms], axis=1)
+        poses = _Poses(q)
+        return np.concatenate([t.residual(poses, c) for t in terms], axis=1)
 
     def jacobian(self, q: np.ndarray, kinematic_only: bool = False) -> np.ndarray:
         """Phi_q, shape (N, rows, n)."""
         rows = self.n_kinematic if kinematic_only else self.n_rows
         out = np.zeros((q.shape[0], rows, self.n))
+        poses = _Poses(q)
         for t, start in zip(self.terms, self._offsets):
             if start >= rows:
                 break
-            t.jacobian(q, out[:, start:start + t.rows])
+            t.jacobian(poses, out[:, start:start + t.rows])
         return out
 
     def gamma(self, q: np.ndarray, qd: np.ndarray, cdd: np.ndarray) -> np.ndarray:
         """gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt, shape (N, rows)."""
-        return np.concatenate([t.gamma(q, qd, cdd) for t in self.terms], axis=1)
+        poses = _Poses(q, qd)
+        return np.concatenate([t.gamma(poses, cdd) for t in self.terms], axis=1)
 
     def velocity_rhs(self, cd: np.ndarray) -> np.ndarray:
         """-Phi_t: zero for joints, the input rates for driver rows; shape (N, rows)."""
@@ -277,7 +305,7 @@ class ConstraintSystem:
     def scaled_jacobian(self, jac: np.ndarray) -> np.ndarray:
         """Dimensionless Phi_q (rows in size units, columns per size), same shape."""
         rows = np.where(self.row_is_angle[: jac.shape[1]], 1.0, 1.0 / self.size)
-        return jac * rows[:, None] / self.coordinate_scale()[None, :]
+        return jac * (rows[:, None] / self.coordinate_scale()[None, :])
 
     def input_scale(self) -> np.ndarray:
         """Per-driver scale making inputs dimensionless (1 for angles, 1/size for slides); (k,)."""
