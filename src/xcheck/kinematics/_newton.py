@@ -16,7 +16,7 @@ from ._system import ConstraintSystem
 __all__ = ["solve_linear", "newton", "tangent", "det_sign", "continue_to"]
 
 #: Newton stops once the violation is below this fraction of the mechanism's size.
-STOP_TOLERANCE = 1e-13
+STOP_TOLERANCE = 1e-15
 #: A sample counts as assembled when its violation is below this fraction.
 CONVERGED_TOLERANCE = 1e-10
 #: Largest accepted correction from the predicted configuration (scaled units:
@@ -145,7 +145,7 @@ def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: 
         fraction = min(1.0, step / distance)
         c_next = target if fraction == 1.0 else c + (target - c) * fraction
         guess = q + tangent(system, q[None], jac)[0] @ (c_next - c)
-        q_new, _, _, ok = newton(system, guess[None], c_next[None])
+        q_new, _, _, ok = newton(system, guess[None], c_next[None], max_iter=100)
         accepted = bool(ok[0])
         if accepted:
             correction = np.max(np.abs((q_new[0] - guess) * system.coordinate_scale()))

@@ -21,6 +21,9 @@ __all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
 #: Below this inverse condition number of the scaled Jacobian, results lose
 #: more than about six digits: flagged, still reported.
 NEAR_SINGULAR = 1e-6
+#: Samples this close (scaled input units) to a stretch that continuation
+#: reached are still attempted.
+_PATH_TOLERANCE = 1e-9
 #: Below this, the configuration is singular (dead centre, limit position):
 #: velocities and accelerations are not determined and are not reported.
 SINGULAR = 1e-12
@@ -401,30 +404,14 @@ class Kinematics:
         cdd = np.zeros_like(c) if accelerations is None else self._as_inputs(accelerations, c.shape)
         n_samples = c.shape[0]
 
-        # 1. continuation through waypoints, one at a time; every accepted
-        #    step becomes an anchor at its position along the sweep's path
+        # 1. continuation through waypoints, one at a time
         path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(),
                                                         axis=1))])
         bins = np.floor(path / waypoint_spacing)
         waypoints = np.flatnonzero(np.concatenate([[True], bins[1:] != bins[:-1]]))
         if waypoints[-1] != n_samples - 1:
             waypoints = np.append(waypoints, n_samples - 1)
-        anchor_path, anchor_q, anchor_c = [], [], []
-        q_prev, c_prev = self.assemble(name), self.reference_inputs()
-        path_prev = None
-        for i in waypoints:
-            q_new, c_new, reached, trail = continue_to(system, q_prev, c_prev, c[i])
-            if not reached:
-                continue
-            if path_prev is not None:  # intermediate steps lie between two samples on the path
-                for fraction, q_step in trail[:-1]:
-                    anchor_path.append(path_prev + fraction * (path[i] - path_prev))
-                    anchor_q.append(q_step)
-                    anchor_c.append(c_prev + fraction * (c[i] - c_prev))
-            anchor_path.append(path[i])
-            anchor_q.append(q_new)
-            anchor_c.append(c[i])
-            q_prev, c_prev, path_prev = q_new, c[i], path[i]
+        anchors, covered = self._walk_waypoints(name, c, path, waypoints)
 
         # 2. every sample in one batch, predicted from the anchor before it
         q = np.full((n_samples, system.n), np.nan)
@@ -432,10 +419,15 @@ class Kinematics:
         iterations = np.zeros(n_samples, dtype=int)
         status = np.full(n_samples, Status.NOT_CONVERGED, dtype=np.int8)
         jac = np.zeros((n_samples, system.n_rows, system.n))  # Phi_q where solved
-        if anchor_q:
-            anchor_path, anchor_q, anchor_c = map(np.array, (anchor_path, anchor_q, anchor_c))
-            # samples beyond the last anchor reached (past a limit) are not attempted
-            idx = np.flatnonzero(path <= anchor_path[-1])
+        if anchors:
+            anchors.sort(key=lambda a: a[0])
+            anchor_path, anchor_q, anchor_c = (np.array([a[i] for a in anchors]) for i in range(3))
+            # only samples on stretches of the sweep that continuation reached are attempted:
+            # the others lie past a limit position
+            lows, highs = (np.array(v) for v in zip(*sorted(covered)))
+            highs = np.maximum.accumulate(highs)
+            slot = np.searchsorted(lows, path + _PATH_TOLERANCE, side="right") - 1
+            idx = np.flatnonzero((slot >= 0) & (path <= highs[np.maximum(slot, 0)] + _PATH_TOLERANCE))
             anchor = np.clip(np.searchsorted(anchor_path, path[idx], side="right") - 1, 0, None)
             guess = _predict(system, anchor_path, anchor_q, anchor_c, anchor, path[idx], c[idx])
             q_i, res_i, it_i, ok_i = newton(system, guess, c[idx])
@@ -483,6 +475,50 @@ class Kinematics:
             status[flat] = Status.SINGULAR
             qd[flat] = qdd[flat] = np.nan
         return Solution(self, name, c, cd, cdd, q, qd, qdd, status, residual, singularity, iterations)
+
+    def _walk_waypoints(self, branch: str, c: np.ndarray, path: np.ndarray, waypoints: np.ndarray):
+        """Continuation from the reference configuration through the waypoints.
+
+        Returns
+        -------
+        anchors : list of (path position, q, c)
+            Assembled configurations on the sweep's path: the waypoints and
+            every step taken between them.
+        covered : list of (low, high)
+            Stretches of the path that continuation walked; the rest lies past
+            a limit position.
+        """
+        system = self.system
+        anchors, covered = [], []
+        q_last, c_last = self.assemble(branch), self.reference_inputs()
+        previous = None  # the waypoint the mechanism stands at, if any
+        stop = None  # input where the last walk met a limit (one-input sweeps)
+        for j, i in enumerate(waypoints):
+            if stop is not None and system.n_drivers == 1:
+                ahead, to_stop = c[i, 0] - c_last[0], stop - c_last[0]
+                if ahead * to_stop > 0.0 and abs(ahead) >= abs(to_stop):
+                    continue  # behind the same limit position as the last failed walk
+            q_new, c_new, reached, trail = continue_to(system, q_last, c_last, c[i])
+            if previous is not None:  # walked along the sweep's own path
+                p0, length = path[previous], path[i] - path[previous]
+                for fraction, q_step in trail:
+                    anchors.append((p0 + fraction * length, q_step, c[previous] + fraction * (c[i] - c[previous])))
+                covered.append((p0, p0 + (trail[-1][0] if trail else 0.0) * length))
+            elif reached:  # arrived from elsewhere: cover the way back to the last waypoint
+                anchors.append((path[i], q_new, c[i]))
+                covered.append((path[i], path[i]))
+                if j > 0:
+                    back = waypoints[j - 1]
+                    _, _, _, trail_back = continue_to(system, q_new, c[i], c[back])
+                    length = path[i] - path[back]
+                    for fraction, q_step in trail_back:
+                        anchors.append((path[i] - fraction * length, q_step, c[i] + fraction * (c[back] - c[i])))
+                    covered.append((path[i] - (trail_back[-1][0] if trail_back else 0.0) * length, path[i]))
+            if reached:
+                q_last, c_last, previous, stop = q_new, c[i], i, None
+            else:
+                previous, stop = None, float(c_new[0])
+        return anchors, covered
 
     def _as_inputs(self, values, shape=None) -> np.ndarray:
         k = self.system.n_drivers
