@@ -1,0 +1,143 @@
+"""States of a mechanism from any source, and their differences from the
+native solution, as pandas tables.
+
+Every engine mode returns :class:`Trajectory` objects; :func:`differences`
+solves the native general solver at the trajectory's own inputs (value, rate
+and acceleration of each driver, as the engine realised them) and tabulates the
+largest and RMS difference per body and point quantity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .kinematics import Kinematics, Solution
+
+__all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences",
+           "trajectory_from_solution"]
+
+#: per body: key -> shape suffix; angles are compared modulo 2 pi
+BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
+#: per point
+POINT_QUANTITIES = {"position": 2, "velocity": 2, "acceleration": 2}
+
+
+@dataclass
+class Trajectory:
+    """States of a mechanism from one source, SI units, N samples.
+
+    Attributes
+    ----------
+    source : str
+        The mode that produced it, e.g. ``"mujoco-kinematic"``.
+    inputs, input_rates, input_accelerations : ndarray, shape (N, k)
+        The drivers' values, rates and accelerations as the source realised them.
+    bodies : dict of str to dict of str to ndarray
+        Per moving body, the keys of :data:`BODY_QUANTITIES`: position (N, 2),
+        angle (N,), velocity (N, 2), omega (N,), acceleration (N, 2), alpha (N,).
+        A quantity the source cannot give is left out.
+    points : dict of str to dict of str to ndarray
+        Per named point, the keys of :data:`POINT_QUANTITIES`, each (N, 2).
+    times : ndarray, shape (N,), optional
+        Simulation time of each sample (dynamic modes).
+    settings : dict
+        What produced it: integrator, time step, constraint settings, ...
+    diagnostics : dict of str to ndarray
+        Per-sample extras, e.g. ``"constraint_violation"`` (N,) in m.
+    notes : str
+        How accelerations (or anything else) were obtained, for the report.
+    """
+
+    source: str
+    inputs: np.ndarray
+    input_rates: np.ndarray
+    input_accelerations: np.ndarray
+    bodies: dict
+    points: dict
+    times: np.ndarray | None = None
+    settings: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+    notes: str = ""
+
+
+@dataclass
+class ModeResult:
+    """The outcome of one engine mode on one mechanism.
+
+    ``ok`` is False when the mode could not run or failed (``reason`` says why,
+    in one line); ``trajectories`` holds one entry per setting (time step,
+    integrator, ...), the first being the one the comparison uses.
+    ``summary`` is an optional table (e.g. the error against time step).
+    """
+
+    mode: str
+    mechanism: str
+    ok: bool
+    reason: str = ""
+    trajectories: list = field(default_factory=list)
+    summary: pd.DataFrame | None = None
+
+
+def trajectory_from_solution(solution: Solution, source: str = "native") -> Trajectory:
+    """The native solution as a :class:`Trajectory` (for uniform handling)."""
+    mech = solution.mechanism
+    return Trajectory(
+        source=source, inputs=solution.inputs, input_rates=solution.input_rates,
+        input_accelerations=solution.input_accelerations,
+        bodies={b.name: solution.body(b.name) for b in mech.moving_bodies},
+        points={label: solution.point(label) for label in mech.point_owners},
+        diagnostics={"residual": solution.residual},
+    )
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> pd.DataFrame:
+    """Differences between a trajectory and the native solution at its inputs.
+
+    Returns
+    -------
+    DataFrame
+        One row per (kind, name, quantity) the trajectory has: ``kind`` is
+        "body" or "point"; columns ``max_abs`` and ``rms`` (SI units of the
+        quantity; vectors by Euclidean norm), ``scale`` (largest magnitude of
+        the native quantity over the samples), ``max_rel`` (max_abs / scale),
+        ``worst_sample`` (index) and ``worst_input`` (the first driver's value
+        there, SI). Samples where the native solver did not succeed are left
+        out and counted in ``samples``.
+    """
+    native = kinematics.solve(trajectory.inputs, trajectory.input_rates, trajectory.input_accelerations,
+                              branch=branch)
+    good = native.status <= 1
+    rows = []
+    sources = [("body", name, q, native.body(name)) for name in trajectory.bodies
+               for q in BODY_QUANTITIES if q in trajectory.bodies[name]]
+    sources += [("point", label, q, native.point(label)) for label in trajectory.points
+                for q in POINT_QUANTITIES if q in trajectory.points[label]]
+    for kind, name, quantity, reference in sources:
+        values = (trajectory.bodies if kind == "body" else trajectory.points)[name][quantity]
+        exact = reference[quantity]
+        delta = values - exact
+        if quantity == "angle":
+            delta = _wrap(delta)
+        error = np.abs(delta) if delta.ndim == 1 else np.linalg.norm(delta, axis=1)
+        magnitude = np.abs(exact) if exact.ndim == 1 else np.linalg.norm(exact, axis=1)
+        error, magnitude = error[good], magnitude[good]
+        if error.size == 0:
+            continue
+        worst = int(np.argmax(error))
+        scale = float(np.max(magnitude))
+        rows.append({
+            "kind": kind, "name": name, "quantity": quantity,
+            "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error**2))),
+            "scale": scale, "max_rel": float(error[worst] / scale) if scale > 0 else float(error[worst]),
+            "worst_sample": int(np.flatnonzero(good)[worst]),
+            "worst_input": float(trajectory.inputs[np.flatnonzero(good)[worst], 0]),
+            "samples": int(good.sum()),
+        })
+    return pd.DataFrame(rows)

@@ -1,0 +1,87 @@
+"""The time window over which a mechanism's drivers can be simulated.
+
+A dynamic simulation drives the inputs by their motion laws; a crank that turns
+round is simulated for one turn, an input that rocks between limit positions
+only while every input stays inside its feasible range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .kinematics import Kinematics
+
+__all__ = ["SimulationWindow", "simulation_window"]
+
+
+@dataclass(frozen=True)
+class SimulationWindow:
+    """Times 0 <= t <= ``duration`` (s) over which the drivers' motion is feasible.
+
+    ``reason`` says what ended the window: "one turn", "one period",
+    "feasible range" or "time cap".
+    """
+
+    duration: float
+    reason: str
+
+    def times(self, count: int) -> np.ndarray:
+        """``count`` equally spaced sample times from 0 to the end, shape (count,)."""
+        return np.linspace(0.0, self.duration, count)
+
+    def inputs(self, kinematics: Kinematics, times: np.ndarray):
+        """The drivers' (q, qd, qdd) at ``times``, each of shape (len(times), k), SI."""
+        laws = [d.law.at_time(times) for d in kinematics.mechanism.drivers]
+        return tuple(np.stack([np.broadcast_to(law[i], times.shape) for law in laws], axis=1) for i in range(3))
+
+
+def simulation_window(kinematics: Kinematics, branch: str | None = None, margin: float = 0.02,
+                      time_cap: float = 10.0) -> SimulationWindow:
+    """How long the drivers' motion laws can run from t = 0.
+
+    Parameters
+    ----------
+    margin : float
+        Fraction of a bounded input's feasible range kept clear of each limit
+        position (near a limit the mechanism is near-singular).
+    time_cap : float
+        Longest window, s.
+
+    Raises
+    ------
+    InputError
+        If the motion leaves the feasible range at once.
+    """
+    mech = kinematics.mechanism
+    ends = [(time_cap, "time cap")]
+    for k, driver in enumerate(mech.drivers):
+        law = driver.law
+        if law.kind == "harmonic" and law.frequency > 0.0:
+            ends.append((1.0 / law.frequency, "one period"))
+        elif driver.quantity == "angle":
+            turn = law.time_at(law.start + math.copysign(2.0 * math.pi, law.rate or law.acceleration or 1.0))
+            if turn is not None and turn > 0.0:
+                ends.append((turn, "one turn"))
+    duration, reason = min(ends)
+    times = np.linspace(0.0, duration, 20001)
+    q = SimulationWindow(duration, reason).inputs(kinematics, times)[0]
+    inside = np.ones(times.shape, dtype=bool)
+    for k in range(len(mech.drivers)):
+        rng = kinematics.input_range(k, branch)
+        if rng.low is not None and rng.high is not None:
+            pad = margin * (rng.high - rng.low)
+            inside &= (q[:, k] >= rng.low + pad) & (q[:, k] <= rng.high - pad)
+        elif rng.low is not None or rng.high is not None:
+            bound = rng.low if rng.low is not None else rng.high
+            pad = margin * abs(bound) if bound else margin
+            inside &= (q[:, k] >= rng.low + pad) if rng.low is not None else (q[:, k] <= rng.high - pad)
+    if not inside[0]:
+        raise InputError(f"{mech.path}: drivers: expected a motion that starts inside the feasible range, "
+                         "found one that starts at or past a limit position")
+    if not inside.all():
+        duration, reason = float(times[np.argmin(inside) - 1]), "feasible range"
+    return SimulationWindow(duration, reason)
