@@ -126,12 +126,20 @@ def evaluate_expression(text: str) -> float:
             and not node.keywords
         ):
             return float(_FUNCTIONS[node.func.id](*(value(a) for a in node.args)))
-        raise ValueError(f"unsupported element {ast.dump(node)[:40]}")
+        raise ValueError(f"unsupported element {ast.unparse(node)[:40]!r}")
 
     try:
         result = value(ast.parse(text, mode="eval").body)
-    except (SyntaxError, TypeError, ZeroDivisionError, OverflowError) as err:
+    except SyntaxError as err:
+        raise ValueError(err.msg) from err  # without the "(<unknown>, line 1)" of str(err)
+    except OverflowError as err:
+        raise ValueError("the value is too large") from err
+    except (RecursionError, MemoryError) as err:
+        raise ValueError("the expression is nested too deeply") from err
+    except (TypeError, ZeroDivisionError) as err:
         raise ValueError(str(err)) from err
+    if isinstance(result, complex):  # e.g. (-1) ** 0.5
+        raise ValueError("the value is not a real number")
     if not math.isfinite(result):
         raise ValueError("the value is not finite")
     return result
