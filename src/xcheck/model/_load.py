@@ -8,6 +8,7 @@ naming the file, the field, what was expected and what was found.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,8 @@ __all__ = ["load_mechanism", "parse_mechanism"]
 
 _TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants")
 _JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
+#: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
+_TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
 
 
 def load_mechanism(path: str | Path) -> Mechanism:
@@ -56,6 +59,9 @@ def load_mechanism(path: str | Path) -> Mechanism:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ModelError(str(path), "", "a readable mechanism file", err.strerror or str(err)) from err
+    except UnicodeDecodeError as err:
+        raise ModelError(str(path), "", "a UTF-8 text file",
+                         f"bytes that are not UTF-8 at byte offset {err.start}") from err
     return parse_mechanism(text, str(path))
 
 
@@ -64,6 +70,11 @@ def parse_mechanism(text: str, path: str = "<string>") -> Mechanism:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
+        # tomllib ends its message with "(at line L, column C)" or "(at end of
+        # document)": that location is the field of a syntax error.
+        match = _TOML_LOCATION.fullmatch(str(err))
+        if match:
+            raise ModelError(path, match["where"], "valid TOML", f"a syntax error: {match['what']}") from err
         raise ModelError(path, "", "valid TOML", f"a syntax error: {err}") from err
     return _Reader(path).mechanism(data)
 
@@ -78,6 +89,8 @@ class _Reader:
 
     def __init__(self, path: str):
         self.path = path
+        #: (body, label) -> the field that gives the point, for messages
+        self.point_fields: dict[tuple[str, str], str] = {}
 
     def fail(self, field: str, expected: str, found: str):
         raise ModelError(self.path, field, expected, found)
@@ -96,6 +109,11 @@ class _Reader:
     def text(self, value: Any, field: str) -> str:
         if not isinstance(value, str) or not value.strip():
             self.fail(field, "a non-empty string", _describe(value))
+        return value
+
+    def string(self, value: Any, field: str) -> str:
+        if not isinstance(value, str):
+            self.fail(field, "a string", _describe(value))
         return value
 
     def choice(self, value: Any, field: str, options) -> str:
@@ -133,16 +151,21 @@ class _Reader:
     # -- sections ---------------------------------------------------------
     def mechanism(self, data: dict) -> Mechanism:
         self.table(data, "", _TOP_KEYS)
-        for key in ("mechanism", "bodies", "joints", "drivers"):
+        for key, form in (("mechanism", "[mechanism]"), ("bodies", "[bodies.NAME]"),
+                          ("joints", "[[joints]]"), ("drivers", "[[drivers]]")):
             if key not in data:
-                self.fail(key, f"a [{key}] section", "none")
+                self.fail(key, f"a {form} section", "none")
         meta = self.table(data["mechanism"], "mechanism", ("name", "title", "source", "notes"))
         name = self.text(meta.get("name"), "mechanism.name")
+        title = self.text(meta.get("title", name), "mechanism.title")
+        source = self.string(meta.get("source", ""), "mechanism.source")
+        notes = self.string(meta.get("notes", ""), "mechanism.notes")
         units = self.units(data.get("units", {}))
         length = units.length_factor
 
         bodies = [Body(GROUND, self.points(self.table(data.get("ground", {}), "ground", ("points",))
                                             .get("points", {}), "ground.points", length))]
+        self.point_fields.update({(GROUND, lbl): f"ground.points.{lbl}" for lbl in bodies[0].points})
         sketches: dict[str, np.ndarray] = {}
         for body_name, spec in self.table(data["bodies"], "bodies").items():
             body, sketch = self.body(body_name, spec, units)
@@ -154,14 +177,15 @@ class _Reader:
 
         joints = self.joints(data["joints"], by_name, units)
         self.check_shared_labels(bodies, joints)
+        self.check_joint_points(bodies, joints)
         drivers = self.drivers(data["drivers"], joints, units)
         assembly = self.assembly(data.get("assembly", {}), drivers, by_name, units, sketches)
         instants = self.instants(data.get("instants", []), drivers, units)
         return Mechanism(
             name=name,
-            title=meta.get("title", name),
-            source=meta.get("source", ""),
-            notes=meta.get("notes", ""),
+            title=title,
+            source=source,
+            notes=notes,
             path=self.path,
             units=units,
             bodies=tuple(bodies),
@@ -207,16 +231,19 @@ class _Reader:
                 self.fail(f"{field}.length", "the distance between the ends", "none")
             half = 0.5 * self.number(spec["length"], f"{field}.length", length, positive=True)
             points = {ends[0]: np.array([-half, 0.0]), ends[1]: np.array([half, 0.0])}
+            self.point_fields.update({(name, lbl): f"{field}.ends" for lbl in ends})
         elif "length" in spec:
             self.fail(f"{field}.length", "'length' only together with 'ends'", "'length' without 'ends'")
         if "sketch" in spec:
             sketch = self.points(spec["sketch"], f"{field}.sketch", length)
             if not sketch:
                 self.fail(f"{field}.sketch", "at least one point", "an empty table")
+            self.point_fields.update({(name, lbl): f"{field}.sketch.{lbl}" for lbl in sketch})
             origin, angle = next(iter(sketch.values())), 0.0
             if "axis" in spec:
                 axis = spec["axis"]
-                if not (isinstance(axis, list) and len(axis) == 2 and all(a in sketch for a in axis)):
+                if not (isinstance(axis, list) and len(axis) == 2
+                        and all(isinstance(a, str) and a in sketch for a in axis)):
                     self.fail(f"{field}.axis", f"two labels of the sketch ({', '.join(sketch)})",
                               _describe(axis))
                 origin, tip = sketch[axis[0]], sketch[axis[1]]
@@ -234,6 +261,7 @@ class _Reader:
                 self.fail(f"{field}.points.{label}", "a label not already given by 'ends' or 'sketch'",
                           "a duplicate")
         points.update(extra)
+        self.point_fields.update({(name, lbl): f"{field}.points.{lbl}" for lbl in extra})
         if not points:
             self.fail(field, "named points ('points', 'ends' or 'sketch')", "none")
 
@@ -264,7 +292,7 @@ class _Reader:
             if not (isinstance(pair, list) and len(pair) == 2):
                 self.fail(f"{field}.bodies", "two body names", _describe(pair))
             for k, b in enumerate(pair):
-                if b not in bodies:
+                if not isinstance(b, str) or b not in bodies:
                     self.fail(f"{field}.bodies[{k}]", f"a body ({', '.join(bodies)})", repr(b))
             if pair[0] == pair[1]:
                 self.fail(f"{field}.bodies", "two different bodies", f"{pair[0]!r} twice")
@@ -349,6 +377,28 @@ class _Reader:
                             self.fail("joints", f"a revolute joint at {label!r} between {first} and {second} "
                                       "(they share the label)", "none: rename one of the points")
 
+    def check_joint_points(self, bodies: list[Body], joints: list) -> None:
+        """Two different joint points of one body must not coincide: that is a
+        link of zero length (one place of a body takes one label)."""
+        used: dict[str, list[str]] = {b.name: [] for b in bodies}
+        for j in joints:
+            if isinstance(j, Revolute):
+                ends = ((j.body_a, j.point_a), (j.body_b, j.point_b))
+            else:  # the sliding point; the line's points only place the line
+                ends = ((j.body_b, j.point),)
+            for body, label in ends:
+                if label not in used[body]:
+                    used[body].append(label)
+        for b in bodies:
+            labels = used[b.name]
+            for i, first in enumerate(labels):
+                for second in labels[i + 1:]:
+                    if np.allclose(b.points[first], b.points[second], rtol=0.0, atol=1e-12):
+                        self.fail(self.point_fields.get((b.name, second), f"bodies.{b.name}"),
+                                  f"joint point {second!r} of {b.name} apart from its joint point {first!r} "
+                                  "(a link of non-zero length; for one place use one label)",
+                                  f"{first} and {second} coincide")
+
     def drivers(self, value: Any, joints: list, units: Units) -> list[Driver]:
         if not isinstance(value, list) or not value:
             self.fail("drivers", "a list of [[drivers]]", _describe(value))
@@ -359,7 +409,7 @@ class _Reader:
             spec = self.table(spec, field, ("name", "joint", "motion", "start", "rate", "acceleration",
                                              "centre", "amplitude", "frequency", "phase"))
             joint_name = spec.get("joint")
-            if joint_name not in by_name:
+            if not isinstance(joint_name, str) or joint_name not in by_name:
                 self.fail(f"{field}.joint", f"a joint ({', '.join(by_name)})", _describe(joint_name))
             if joint_name in driven:
                 self.fail(f"{field}.joint", "a joint no other driver drives", repr(joint_name))
@@ -454,10 +504,16 @@ class _Reader:
                         self.number(value.get("qdd", 0.0), f"{field}.qdd", rate_scale))
         else:
             q = self.number(value, field, q_scale)
-        state = driver.law.state_at(q)
+        try:
+            state = driver.law.state_at(q)
+        except OverflowError:  # absurd rates or accelerations
+            state = (math.inf,)
         if state is None:
             self.fail(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit qd/qdd",
                       _describe(value))
+        if not all(math.isfinite(v) for v in state):
+            self.fail(field, f"a value at which the motion of driver {driver.name!r} has a finite rate "
+                      "and acceleration, or explicit qd/qdd", f"{_describe(value)} (the motion law overflows)")
         return state
 
 
