@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -151,19 +152,27 @@ def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float
     for item in text.split(","):
         parts = item.split(":")
         if len(parts) != len(mech.drivers):
-            raise InputError(f"--at: expected {len(mech.drivers)} value(s) per state separated by ':' "
-                             f"({', '.join(d.name for d in mech.drivers)}), found {item!r}")
+            raise InputError(f"{mech.path}: --at: expected {len(mech.drivers)} value(s) per state separated "
+                             f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {item!r}")
         state = []
         for driver, part in zip(mech.drivers, parts):
             try:
                 value = evaluate_expression(part.strip())
-            except ValueError:
-                raise InputError(f"--at: expected a number for {driver.name}, found {part!r}") from None
+            except ValueError as err:
+                raise InputError(f"{mech.path}: --at {driver.name}: expected a number or an arithmetic "
+                                 f"expression, found {part!r} ({err})") from None
             scale = u.angle_factor if driver.quantity == "angle" else u.length_factor
-            result = driver.law.state_at(value * scale)
+            try:
+                result = driver.law.state_at(value * scale)
+            except OverflowError:  # absurd rates or accelerations
+                result = (math.inf,)
             if result is None:
-                raise InputError(f"--at: {driver.name} = {part.strip()}: expected a value that the "
-                                 f"driver's {driver.law.kind} motion reaches, found one it never does")
+                raise InputError(f"{mech.path}: --at {driver.name}: expected a value that the driver's "
+                                 f"{driver.law.kind} motion reaches, found {part.strip()}, which it never does")
+            if not all(math.isfinite(v) for v in result):
+                raise InputError(f"{mech.path}: --at {driver.name}: expected a value at which the driver's "
+                                 f"{driver.law.kind} motion has a finite rate and acceleration, "
+                                 f"found {part.strip()} (the motion law overflows)")
             state.append(result)
         states.append(state)
     return states
