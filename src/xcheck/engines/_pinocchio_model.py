@@ -1,0 +1,399 @@
+"""The mechanism as a Pinocchio model: a kinematic tree plus loop-closure constraints.
+
+One description, :class:`TreeSpec`, is read from the canonical mechanism model
+and turned either into a ``pin.Model`` built programmatically
+(:func:`build_model`) or into URDF text (``_pinocchio_urdf``). Both have the
+same joints, placements, inertias and frame names, so a test can check one
+against the other.
+
+Conventions (planar mechanism in the x-y plane, rotation about z):
+
+* Each tree joint of :func:`xcheck.topology.spanning_tree` becomes a Pinocchio
+  joint whose frame sits *at the joint* (the pin, or the line point / sliding
+  point of a slider) and turns with the child body. A revolute is
+  ``JointModelRZ`` (one coordinate: the child's angle minus the parent's); a
+  prismatic is ``JointModelPrismaticUnaligned`` with the rotation ``angle``
+  locked in the placement; a pin-in-slot is a prismatic and an ``RZ`` joint
+  through a massless intermediate body ("carrier"), the slide first when the
+  slot is in the parent, the hinge first when the slot is in the child.
+* The mechanism's body frame of a moving body is the frame named after the
+  body (type BODY) on its last joint; its named points are OP frames named
+  ``"<body>.<label>"`` (the ground's on the universe joint).
+* Each cut revolute becomes a ``RigidConstraintModel`` of type CONTACT_3D
+  between its two points, expressed LOCAL_WORLD_ALIGNED. Its z row is
+  identically zero for a planar mechanism.
+* A body without mass properties gets defaults (see :func:`mass_properties`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import ModelError
+from ..model import GROUND, Body, Mechanism, PinInSlot, Prismatic, Revolute
+from ..topology import spanning_tree
+
+__all__ = ["JointSpec", "BodySpec", "DriverCoordinate", "TreeSpec", "PinocchioMechanism",
+           "tree_spec", "build_model", "mass_properties", "joint_coordinates"]
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One Pinocchio joint.
+
+    Attributes
+    ----------
+    name : str
+        Joint name (the mechanism joint's, or ``"<joint>.slide"`` and
+        ``"<joint>.turn"`` for the two joints of a pin-in-slot).
+    kind : str
+        ``"revolute"`` (about z) or ``"prismatic"``.
+    parent : str
+        The frame it hangs from: a body name (the body frame) or the link of an
+        earlier joint (``"<joint>.link"``).
+    origin : ndarray, shape (2,), m
+        Joint frame origin in the parent frame at zero joint coordinate.
+    angle : float, rad
+        Rotation of the joint frame about z relative to the parent frame.
+    axis : ndarray, shape (3,)
+        Unit axis in the joint frame: (0, 0, 1) for a revolute, in-plane for a
+        prismatic.
+    link : str
+        Name of the (massless) link whose frame is the joint frame.
+    tree_joint : str
+        The mechanism joint it belongs to.
+    bodies : tuple of (str, str)
+        (parent, child) bodies of that tree joint.
+    """
+
+    name: str
+    kind: str
+    parent: str
+    origin: np.ndarray
+    angle: float
+    axis: np.ndarray
+    link: str
+    tree_joint: str
+    bodies: tuple[str, str]
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """A moving body hung from the link of its last joint.
+
+    Attributes
+    ----------
+    name : str
+    link : str
+        The joint link it is fixed to.
+    offset : ndarray, shape (2,), m
+        Origin of the body frame in the link frame (same orientation).
+    mass : float, kg
+    com : ndarray, shape (2,), m
+        Centre of mass in the body frame.
+    inertia : float, kg m^2
+        Moment of inertia about the z axis through the centre of mass.
+    default : bool
+        True when the mass properties are defaults, not from the model.
+    """
+
+    name: str
+    link: str
+    offset: np.ndarray
+    mass: float
+    com: np.ndarray
+    inertia: float
+    default: bool
+
+
+@dataclass(frozen=True)
+class DriverCoordinate:
+    """Where a driver's input is in the Pinocchio coordinates.
+
+    The input equals ``sign * q[index]`` (and the same for v and a): nq = nv
+    for every joint used here.
+    """
+
+    driver: str
+    joint: str
+    index: int
+    sign: float
+
+
+@dataclass(frozen=True)
+class TreeSpec:
+    """The tree, frames and loop closures of one mechanism, engine-neutral.
+
+    Attributes
+    ----------
+    mechanism : Mechanism
+    joints : tuple of JointSpec
+        Parents first.
+    bodies : tuple of BodySpec
+        Moving bodies in ``mechanism.moving_bodies`` order.
+    points : tuple of (str, str, ndarray)
+        (body, label, local position (2,) m) of every named point, ground first.
+    cuts : tuple of Revolute
+        Loop-closing revolutes: point ``point_a`` of ``body_a`` on ``point_b``
+        of ``body_b``.
+    drivers : tuple of (str, str, float)
+        Per driver: its name, the joint carrying its input, and the sign.
+    """
+
+    mechanism: Mechanism
+    joints: tuple[JointSpec, ...]
+    bodies: tuple[BodySpec, ...]
+    points: tuple[tuple[str, str, np.ndarray], ...]
+    cuts: tuple[Revolute, ...]
+    drivers: tuple[tuple[str, str, float], ...]
+
+
+def point_frame(body: str, label: str) -> str:
+    """Frame name of a named point: ``"<body>.<label>"``."""
+    return f"{body}.{label}"
+
+
+def mass_properties(body: Body, size: float) -> tuple[float, np.ndarray, float, bool]:
+    """Mass (kg), centre of mass (2,) m, inertia about it (kg m^2), and whether defaulted.
+
+    A body without mass properties gets 1 kg at the centroid of its named
+    points and the inertia of a uniform slender bar as long as the largest
+    distance L between two of its points, m L^2 / 12, with L at least a tenth
+    of the mechanism's size (so a one-point slider block has inertia too).
+    """
+    if body.mass is not None:
+        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        return float(body.mass), com, float(body.inertia), False
+    pts = np.array(list(body.points.values()))
+    span = max((float(np.linalg.norm(p - r)) for p in pts for r in pts), default=0.0)
+    span = max(span, 0.1 * size)
+    return 1.0, pts.mean(axis=0), span * span / 12.0, True
+
+
+def _unit3(xy) -> np.ndarray:
+    return np.array([float(xy[0]), float(xy[1]), 0.0])
+
+
+def _rotated(angle: float, xy: np.ndarray) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
+
+
+_Z = np.array([0.0, 0.0, 1.0])
+
+
+def tree_spec(mechanism: Mechanism) -> TreeSpec:
+    """The Pinocchio description of a mechanism (see the module notes).
+
+    Raises
+    ------
+    ModelError
+        If the mechanism has no spanning tree with revolute cuts, or two
+        generated frame names clash.
+    """
+    topology = spanning_tree(mechanism)
+    joints: list[JointSpec] = []
+    attach: dict[str, tuple[str, np.ndarray]] = {}  # child body -> (joint link, its joint point)
+    drivers: dict[str, tuple[str, float]] = {}
+    for tj in topology.tree:
+        j, parent, child = tj.joint, tj.parent, tj.child
+        if isinstance(j, Revolute):
+            s_parent, s_child = ((j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b))
+            s_parent = mechanism.body(parent).points[s_parent]
+            s_child = mechanism.body(child).points[s_child]
+            steps = [("revolute", j.name, s_parent, 0.0, _Z)]
+            if tj.driver:
+                drivers[tj.driver] = (j.name, -1.0 if tj.reversed else 1.0)
+        else:
+            s_line = mechanism.body(j.body_a).points[j.line_point]
+            s_point = mechanism.body(j.body_b).points[j.point]
+            d = j.direction
+            if isinstance(j, Prismatic):
+                if not tj.reversed:  # frame at the sliding point, turned by the locked angle
+                    steps = [("prismatic", j.name, s_line, j.angle, _unit3(_rotated(-j.angle, d)))]
+                    s_parent, s_child = s_line, s_point
+                else:  # frame at the line point of the child, axis reversed
+                    steps = [("prismatic", j.name, s_point, -j.angle, -_unit3(d))]
+                    s_parent, s_child = s_point, s_line
+                slide = j.name
+            else:  # pin-in-slot: slide and hinge through a massless carrier
+                if not tj.reversed:
+                    steps = [("prismatic", f"{j.name}.slide", s_line, 0.0, _unit3(d)),
+                             ("revolute", f"{j.name}.turn", np.zeros(2), 0.0, _Z)]
+                    s_parent, s_child = s_line, s_point
+                else:
+                    steps = [("revolute", f"{j.name}.turn", s_point, 0.0, _Z),
+                             ("prismatic", f"{j.name}.slide", np.zeros(2), 0.0, -_unit3(d))]
+                    s_parent, s_child = s_point, s_line
+                slide = f"{j.name}.slide"
+            if tj.driver:
+                drivers[tj.driver] = (slide, 1.0)
+        frame = parent
+        for kind, name, origin, angle, axis in steps:
+            link = f"{name}.link"
+            joints.append(JointSpec(name, kind, frame, np.array(origin, dtype=float), float(angle),
+                                    axis, link, j.name, (parent, child)))
+            frame = link
+        attach[child] = (frame, np.array(s_child, dtype=float))
+
+    size = mechanism.size
+    bodies = []
+    for body in mechanism.moving_bodies:
+        link, s_child = attach[body.name]
+        mass, com, inertia, default = mass_properties(body, size)
+        bodies.append(BodySpec(body.name, link, -s_child, mass, com, inertia, default))
+    points = tuple((b.name, label, np.array(xy, dtype=float))
+                   for b in mechanism.bodies for label, xy in b.points.items())
+    spec = TreeSpec(mechanism, tuple(joints), tuple(bodies), points, topology.cuts,
+                    tuple((d.name, *drivers[d.name]) for d in mechanism.drivers))
+    links = ([GROUND] + [j.link for j in spec.joints] + [b.name for b in spec.bodies]
+             + [point_frame(b, lbl) for b, lbl, _ in spec.points])
+    joint_names = [j.name for j in spec.joints] + [fixed_joint(link) for link in links[1:]]
+    for kind, names in (("link", links), ("joint", joint_names)):
+        clash = sorted({n for n in names if names.count(n) > 1})
+        if clash:
+            raise ModelError(mechanism.path, "bodies", f"body, joint and point names that give distinct "
+                             f"Pinocchio/URDF {kind} names", f"{clash[0]!r} more than once")
+    return spec
+
+
+def fixed_joint(link: str) -> str:
+    """Name of the URDF fixed joint that hangs a body or point link: ``"<link>.fixed"``."""
+    return f"{link}.fixed"
+
+
+def _se3(angle: float, xy: np.ndarray) -> pin.SE3:
+    c, s = math.cos(angle), math.sin(angle)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return pin.SE3(rotation, _unit3(xy))
+
+
+def spatial_inertia(body: BodySpec) -> pin.Inertia:
+    """The body's spatial inertia in its body frame: a lamina in the x-y plane
+    (Ixx = Iyy = Izz / 2 about the centre of mass; only Izz acts in planar motion)."""
+    izz = body.inertia
+    return pin.Inertia(body.mass, _unit3(body.com), np.diag([0.5 * izz, 0.5 * izz, izz]))
+
+
+@dataclass(frozen=True)
+class PinocchioMechanism:
+    """A mechanism as a Pinocchio model (the description; data is made apart).
+
+    Attributes
+    ----------
+    spec : TreeSpec
+    model : pin.Model
+    constraints : list of pin.RigidConstraintModel
+        One CONTACT_3D per cut, LOCAL_WORLD_ALIGNED, in ``spec.cuts`` order.
+    body_frames : dict of str to int
+        Moving body -> frame id of its body frame.
+    point_frames : dict of str to int
+        ``"<body>.<label>"`` -> frame id.
+    drivers : tuple of DriverCoordinate
+    """
+
+    spec: TreeSpec
+    model: pin.Model
+    constraints: list
+    body_frames: dict
+    point_frames: dict
+    drivers: tuple[DriverCoordinate, ...]
+
+    @property
+    def mechanism(self) -> Mechanism:
+        return self.spec.mechanism
+
+    def constraint_datas(self) -> list:
+        """Fresh workspaces for the constraints (one per constraint model)."""
+        return [cm.createData() for cm in self.constraints]
+
+
+def build_model(spec: TreeSpec) -> PinocchioMechanism:
+    """Build the Pinocchio model of a :class:`TreeSpec` through the API
+    (``addJoint``, ``appendBodyToJoint``, ``addBodyFrame``, ``addFrame``)."""
+    model = pin.Model()
+    model.name = spec.mechanism.name
+    frame_joint = {GROUND: (0, pin.SE3.Identity())}  # frame name -> (joint id, placement in joint)
+    frame_id = {GROUND: 0}  # ... -> id of the Pinocchio frame standing for it
+    hung = {b.link: b for b in spec.bodies}
+    body_frames, point_frames = {}, {}
+    for js in spec.joints:
+        parent_joint, parent_placement = frame_joint[js.parent]
+        if js.kind == "revolute":
+            joint_model = pin.JointModelRZ()
+        else:
+            joint_model = pin.JointModelPrismaticUnaligned(js.axis.copy())
+        jid = model.addJoint(parent_joint, joint_model, parent_placement * _se3(js.angle, js.origin), js.name)
+        joint_frame = model.addJointFrame(jid, frame_id[js.parent])
+        frame_joint[js.link], frame_id[js.link] = (jid, pin.SE3.Identity()), joint_frame
+        if js.link in hung:  # the child body's frame, with its inertia
+            body = hung[js.link]
+            placement = _se3(0.0, body.offset)
+            model.appendBodyToJoint(jid, spatial_inertia(body), placement)
+            body_frames[body.name] = model.addBodyFrame(body.name, jid, placement, joint_frame)
+            frame_joint[body.name], frame_id[body.name] = (jid, placement), body_frames[body.name]
+    for body, label, xy in spec.points:
+        jid, placement = frame_joint[body]
+        parent_frame = 0 if body == GROUND else body_frames[body]
+        name = point_frame(body, label)
+        point_frames[name] = model.addFrame(
+            pin.Frame(name, jid, parent_frame, placement * _se3(0.0, xy), pin.FrameType.OP_FRAME), False)
+    constraints = []
+    for cut in spec.cuts:
+        anchors = []
+        for body, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b)):
+            frame = model.frames[point_frames[point_frame(body, label)]]
+            anchors += [frame.parentJoint, frame.placement]
+        cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, *anchors,
+                                      pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        cm.name = cut.name
+        constraints.append(cm)
+    index = {model.names[j]: model.idx_qs[j] for j in range(1, model.njoints)}
+    drivers = tuple(DriverCoordinate(name, joint, index[joint], sign) for name, joint, sign in spec.drivers)
+    return PinocchioMechanism(spec, model, constraints, body_frames, point_frames, drivers)
+
+
+def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarray:
+    """Pinocchio joint coordinates (nq,) from the native body coordinates.
+
+    Parameters
+    ----------
+    q_bodies : ndarray, shape (3 * moving bodies,)
+        (x, y, phi) per moving body, ``mechanism.moving_bodies`` order (m, rad).
+
+    Notes
+    -----
+    A hinge's coordinate is the child's angle minus the parent's; a slide's is
+    the slide displacement ``direction . (r_point - r_line_point)`` (m), in
+    the line body's frame.
+    """
+    mech = pm.mechanism
+    names = [b.name for b in mech.moving_bodies]
+
+    def pose(body):
+        if body == GROUND:
+            return np.zeros(2), 0.0
+        k = 3 * names.index(body)
+        return q_bodies[k:k + 2], float(q_bodies[k + 2])
+
+    def where(body, xy):
+        r, phi = pose(body)
+        return r + _rotated(phi, xy)
+
+    q = np.zeros(pm.model.nq)
+    model = pm.model
+    for js in pm.spec.joints:
+        idx = model.idx_qs[model.getJointId(js.name)]
+        if js.kind == "revolute":
+            parent, child = js.bodies
+            q[idx] = pose(child)[1] - pose(parent)[1]
+        else:
+            j = mech.joint(js.tree_joint)
+            gap = (where(j.body_b, mech.body(j.body_b).points[j.point])
+                   - where(j.body_a, mech.body(j.body_a).points[j.line_point]))
+            q[idx] = float(_rotated(pose(j.body_a)[1], j.direction) @ gap)
+    return q

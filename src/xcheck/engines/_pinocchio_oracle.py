@@ -1,0 +1,171 @@
+"""Pinocchio's own kinematics of a closed-loop mechanism: loop residuals and
+Jacobians from the constraint models, drift from frame classical accelerations,
+and the states of the body and point frames.
+
+Every function here works on one sample; the caller loops. ``q``, ``v``, ``a``
+are Pinocchio joint coordinates and their rates (nq = nv, m or rad).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ._pinocchio_model import PinocchioMechanism
+
+__all__ = ["Oracle", "NEWTON_TOLERANCE", "frame_states", "one_line"]
+
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: Newton stops when every loop and driver residual is below this times the
+#: mechanism's size (m; rad for angle inputs): round-off is ~1e-16.
+NEWTON_TOLERANCE = 1e-14
+_MAX_ITERATIONS = 30
+
+
+@dataclass
+class Oracle:
+    """Newton projection, velocity and acceleration of a mechanism in Pinocchio.
+
+    The rows of the full system are the loop closures (3 per cut, the z row
+    identically zero) followed by one row per driver, ``sign * q[index] = c``.
+    Systems are solved in the least-squares sense (``lstsq``), which is exact
+    for a consistent system of full column rank.
+
+    Parameters
+    ----------
+    pm : PinocchioMechanism
+        The description; this object holds its own ``data`` workspace.
+    """
+
+    pm: PinocchioMechanism
+    data: pin.Data = field(init=False)
+    cds: list = field(init=False)
+
+    def __post_init__(self):
+        self.data = self.pm.model.createData()
+        self.cds = self.pm.constraint_datas()
+        model, n = self.pm.model, self.pm.model.nv
+        self.selector = np.zeros((len(self.pm.drivers), n))
+        for k, dc in enumerate(self.pm.drivers):
+            self.selector[k, dc.index] = dc.sign
+        self.n_loop = 3 * len(self.pm.constraints)
+        self._model = model
+
+    # -- loop closure ------------------------------------------------------
+    def loop_residual(self, q: np.ndarray) -> np.ndarray:
+        """Anchor 1 minus anchor 2 of each cut, world axes, shape (3 cuts,), m."""
+        model, data = self._model, self.data
+        pin.forwardKinematics(model, data, q)
+        out = np.empty(self.n_loop)
+        for i, (cm, cd) in enumerate(zip(self.pm.constraints, self.cds)):
+            cm.calc(model, data, cd)
+            out[3 * i:3 * i + 3] = cd.oMc1.translation - cd.oMc2.translation
+        return out
+
+    def loop_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """d(loop_residual)/dq from ``getConstraintsJacobian``, shape (3 cuts, nv).
+
+        Call after :meth:`loop_residual` at the same q.
+        """
+        if not self.n_loop:
+            return np.zeros((0, self._model.nv))
+        pin.computeJointJacobians(self._model, self.data, q)
+        return pin.getConstraintsJacobian(self._model, self.data, self.pm.constraints, self.cds)
+
+    def system(self, q: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(residual (3 cuts + k,), Jacobian (3 cuts + k, nv)) of loops and drivers."""
+        residual = np.concatenate([self.loop_residual(q), self.selector @ q - c])
+        return residual, np.vstack([self.loop_jacobian(q), self.selector])
+
+    def project(self, q: np.ndarray, c: np.ndarray, size: float):
+        """Newton-Raphson onto the loops at inputs ``c`` (k,) from ``q``.
+
+        Returns
+        -------
+        q : ndarray, shape (nq,)
+        residual : float
+            Largest loop residual, m.
+        iterations : int
+        converged : bool
+        """
+        q = np.array(q, dtype=float)
+        for iteration in range(_MAX_ITERATIONS + 1):
+            residual, jac = self.system(q, c)
+            worst = float(np.max(np.abs(residual), initial=0.0))
+            if worst <= NEWTON_TOLERANCE * size:
+                return q, float(np.max(np.abs(residual[:self.n_loop]), initial=0.0)), iteration, True
+            if not np.isfinite(worst) or iteration == _MAX_ITERATIONS:
+                break
+            q = q - np.linalg.lstsq(jac, residual, rcond=None)[0]
+        return q, float(np.max(np.abs(residual[:self.n_loop]), initial=np.inf)), iteration, False
+
+    def rates(self, q: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """Solve [J_loop; S] x = [0; right] for x (nv,) or (nv, m) at q.
+
+        With ``right`` the input rates this is the velocity; with the identity
+        (k, k) the tangent dq/dc.
+        """
+        self.loop_residual(q)
+        jac = np.vstack([self.loop_jacobian(q), self.selector])
+        rhs = np.zeros((jac.shape[0],) + np.shape(right)[1:])
+        rhs[self.n_loop:] = right
+        return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+
+    def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Loop acceleration at zero joint acceleration, shape (3 cuts,), m/s^2:
+        classical acceleration of anchor 1 minus anchor 2 (world axes)."""
+        model, data = self._model, self.data
+        pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
+        out = np.empty(self.n_loop)
+        for i, cm in enumerate(self.pm.constraints):
+            a1 = pin.getFrameClassicalAcceleration(model, data, cm.joint1_id, cm.joint1_placement, LWA)
+            a2 = pin.getFrameClassicalAcceleration(model, data, cm.joint2_id, cm.joint2_placement, LWA)
+            out[3 * i:3 * i + 3] = a1.linear - a2.linear
+        return out
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, input_accelerations: np.ndarray) -> np.ndarray:
+        """Joint accelerations (nv,) with J a = -drift and S a = input accelerations."""
+        drift = self.drift(q, v)
+        self.loop_residual(q)
+        jac = np.vstack([self.loop_jacobian(q), self.selector])
+        rhs = np.concatenate([-drift, input_accelerations])
+        return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+
+
+def frame_states(pm: PinocchioMechanism, data: pin.Data, q, v, a) -> tuple[dict, dict]:
+    """Positions, velocities and classical accelerations of every body frame
+    and named point at one state (q, v, a), world axes.
+
+    Returns
+    -------
+    bodies : dict of str to dict
+        Per moving body: position (2,), angle (float), velocity (2,), omega,
+        acceleration (2,), alpha (SI).
+    points : dict of str to dict
+        Per ``"<body>.<label>"``: position, velocity, acceleration, each (2,).
+    """
+    model = pm.model
+    pin.forwardKinematics(model, data, q, v, a)
+    pin.updateFramePlacements(model, data)
+    bodies, points = {}, {}
+    for name, fid in pm.body_frames.items():
+        placement = data.oMf[fid]
+        vel = pin.getFrameVelocity(model, data, fid, LWA)
+        acc = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
+        bodies[name] = {"position": placement.translation[:2].copy(),
+                        "angle": float(np.arctan2(placement.rotation[1, 0], placement.rotation[0, 0])),
+                        "velocity": vel.linear[:2].copy(), "omega": float(vel.angular[2]),
+                        "acceleration": acc.linear[:2].copy(), "alpha": float(acc.angular[2])}
+    for name, fid in pm.point_frames.items():
+        vel = pin.getFrameVelocity(model, data, fid, LWA)
+        acc = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
+        points[name] = {"position": data.oMf[fid].translation[:2].copy(), "velocity": vel.linear[:2].copy(),
+                        "acceleration": acc.linear[:2].copy()}
+    return bodies, points
+
+
+def one_line(error: BaseException) -> str:
+    """An exception as the one-line reason of a failed mode."""
+    return " ".join(str(error).split()) or type(error).__name__

@@ -1,0 +1,234 @@
+"""Pinocchio adapter: every mechanism as a kinematic tree with loop constraints.
+
+Modes
+-----
+``pinocchio-kinematic`` (:func:`run_kinematic`)
+    Pinocchio as a kinematic oracle: Newton projection onto the loops from the
+    previous sample, velocities from the constraint Jacobian with the inputs'
+    rates imposed, accelerations from the drift (frame classical accelerations
+    at zero joint acceleration). Exact to round-off when the model is right.
+``pinocchio-dynamic`` (:func:`run_dynamic`)
+    ``constraintDynamics`` with the inputs driven by a computed torque, integrated
+    with RK4 and with semi-implicit Euler (with and without Baumgarte
+    correction) at several time steps.
+
+Model files
+-----------
+:func:`export_files` writes the tree as URDF and the loop closures as JSON
+(``models/urdf/NAME.urdf`` and ``NAME.loops.json``).
+
+The model is built from the canonical mechanism in ``_pinocchio_model``; see
+there for the frame conventions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..compare import ModeResult, Trajectory, differences
+from ..kinematics import Kinematics
+from ._pinocchio_dynamics import run_dynamic
+from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
+from ._pinocchio_oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
+from ._pinocchio_urdf import export_texts
+
+__all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs"]
+
+KINEMATIC = "pinocchio-kinematic"
+DYNAMIC = "pinocchio-dynamic"
+#: Fraction of a bounded input's feasible range kept clear of each limit
+#: position (there the mechanism is singular), as in the simulation window.
+RANGE_MARGIN = 0.02
+#: Largest input change (rad, or slide / size) between two Newton projections;
+#: farther samples are reached through intermediate inputs.
+MAX_STEP = math.radians(2.0)
+
+
+def build(kinematics: Kinematics) -> PinocchioMechanism:
+    """The Pinocchio model of a mechanism, built through the API.
+
+    Raises
+    ------
+    ModelError
+        If the mechanism cannot be expressed as a tree with revolute cuts.
+    """
+    return build_model(tree_spec(kinematics.mechanism))
+
+
+# -- kinematic oracle --------------------------------------------------------
+class _NotConverged(RuntimeError):
+    """A sample where Newton projection failed (the mode's reason)."""
+
+
+def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None):
+    """The inputs of the kinematic sweep: each driver in turn over its feasible
+    range, the others held at their reference values.
+
+    A driver that turns round sweeps one turn from its reference value; a
+    bounded one sweeps its feasible range less :data:`RANGE_MARGIN` at each
+    end. Either is narrowed to the values its motion law reaches (a harmonic
+    slide covers only centre +- amplitude). Rates and accelerations are the
+    laws' where they pass each value (:meth:`MotionLaw.state_at`); where a law
+    never passes a value (a law that stands still, or a driver held at a
+    reference value its law never reaches) they are zero, and the notes say so.
+
+    Returns
+    -------
+    inputs, rates, accelerations : ndarray, shape (samples * k, k), SI
+    starts : list of int
+        Per driver, the index of the sample of its sweep nearest the
+        reference inputs (where the projection starts).
+    notes : list of str
+    """
+    mech = kinematics.mechanism
+    ref = kinematics.reference_inputs()
+    k = len(ref)
+    blocks, starts, notes = [], [], []
+    for i, driver in enumerate(mech.drivers):
+        rng = kinematics.input_range(i, branch)
+        if rng.full_turn and driver.quantity == "angle":
+            low, high, what = ref[i], ref[i] + 2.0 * math.pi, "one turn"
+        else:
+            size = kinematics.system.size
+            low = rng.low if rng.low is not None else ref[i] - size
+            high = rng.high if rng.high is not None else ref[i] + size
+            pad = RANGE_MARGIN * (high - low)
+            low, high, what = low + pad, high - pad, f"feasible range less {RANGE_MARGIN:.0%} at each limit"
+        dense = np.linspace(low, high, 20 * samples)
+        reached = dense[[driver.law.state_at(float(x)) is not None for x in dense]]
+        if reached.size >= 2 and (reached[0] > low or reached[-1] < high):
+            low, high = float(reached[0]), float(reached[-1])
+            what += ", within the values the motion law reaches"
+        values = np.linspace(low, high, samples)
+        notes.append(f"{driver.name} from {low:.6g} to {high:.6g} ({what})")
+        inputs = np.tile(ref, (samples, 1))
+        inputs[:, i] = values
+        rates, accelerations = np.zeros((samples, k)), np.zeros((samples, k))
+        for j, d in enumerate(mech.drivers):
+            states = [d.law.state_at(float(x)) for x in inputs[:, j]]
+            for s, state in enumerate(states):
+                if state is not None:
+                    rates[s, j], accelerations[s, j] = state[1], state[2]
+            if any(state is None for state in states):
+                notes.append(f"{d.name}: its motion law does not pass some of the values used: "
+                             "rate and acceleration 0 there")
+        starts.append(len(blocks) * samples + int(np.argmin(np.abs(values - ref[i]))))
+        blocks.append((inputs, rates, accelerations))
+    stacked = tuple(np.concatenate([b[j] for b in blocks]) for j in range(3))
+    return (*stacked, starts, notes)
+
+
+def _empty_states(pm: PinocchioMechanism, n: int) -> tuple[dict, dict]:
+    mech = pm.mechanism
+    bodies = {b.name: {"position": np.full((n, 2), np.nan), "angle": np.full(n, np.nan),
+                       "velocity": np.full((n, 2), np.nan), "omega": np.full(n, np.nan),
+                       "acceleration": np.full((n, 2), np.nan), "alpha": np.full(n, np.nan)}
+              for b in mech.moving_bodies}
+    points = {label: {q: np.full((n, 2), np.nan) for q in ("position", "velocity", "acceleration")}
+              for label in mech.point_owners}
+    return bodies, points
+
+
+def _store(pm: PinocchioMechanism, bodies: dict, points: dict, i: int, state: tuple[dict, dict]) -> None:
+    body_state, point_state = state
+    for name, values in body_state.items():
+        for quantity, value in values.items():
+            bodies[name][quantity][i] = value
+    for label, owner in pm.mechanism.point_owners.items():
+        for quantity, value in point_state[point_frame(owner, label)].items():
+            points[label][quantity][i] = value
+
+
+def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None = None) -> ModeResult:
+    """Positions, velocities and accelerations from Pinocchio's own kinematics.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    samples : int
+        Samples per driver's sweep (see :func:`sweep_inputs`).
+    branch : str, optional
+        Assembly branch (default: the model's first).
+
+    Returns
+    -------
+    ModeResult
+        One trajectory; ``summary`` is its :func:`~xcheck.compare.differences`
+        table. ``ok`` is False, with the reason, when the model cannot be
+        built or a sample does not converge.
+    """
+    name = kinematics.mechanism.name
+    try:
+        pm = build(kinematics)
+        oracle = Oracle(pm)
+        size = kinematics.system.size
+        inputs, rates, accelerations, starts, sweep_notes = sweep_inputs(kinematics, samples, branch)
+        n = inputs.shape[0]
+        bodies, points = _empty_states(pm, n)
+        residual = np.full(n, np.nan)
+        iterations = np.zeros(n, dtype=int)
+        q_ref, c_ref = joint_coordinates(pm, kinematics.assemble(branch)), kinematics.reference_inputs()
+        q_ref, _, _, ok = oracle.project(q_ref, c_ref, size)
+        if not ok:
+            return ModeResult(KINEMATIC, name, False, "the native assembled configuration does not "
+                              "close Pinocchio's loops (model conversion error)")
+        per_driver = n // len(starts)
+
+        scale = kinematics.system.input_scale()
+        identity = np.eye(len(c_ref))
+
+        def step_to(q_prev, c_prev, c):
+            """Newton projection at inputs c, predicted along the tangent from
+            (q_prev, c_prev); through intermediate inputs when c is far."""
+            pieces = max(1, math.ceil(np.max(np.abs(c - c_prev) * scale) / MAX_STEP))
+            start = c_prev
+            for f in np.arange(1, pieces + 1) / pieces:
+                target = start + f * (c - start)
+                guess = q_prev + oracle.rates(q_prev, identity) @ (target - c_prev)
+                q_prev, res, its, converged = oracle.project(guess, target, size)
+                if not converged:
+                    raise _NotConverged(f"Newton did not converge at input {target.tolist()} "
+                                        f"(loop residual {res:.3g} m)")
+                c_prev = target
+            return q_prev, res, its
+
+        def walk(order, q_prev, c_prev):
+            """Project sample after sample from (q_prev, c_prev); return the first solution."""
+            first = None
+            for i in order:
+                q, residual[i], iterations[i] = step_to(q_prev, c_prev, inputs[i])
+                v = oracle.rates(q, rates[i])
+                a = oracle.acceleration(q, v, accelerations[i])
+                _store(pm, bodies, points, i, frame_states(pm, oracle.data, q, v, a))
+                first = q if first is None else first
+                q_prev, c_prev = q, inputs[i]
+            return first
+
+        for d, start in enumerate(starts):
+            q_start = walk(range(start, (d + 1) * per_driver), q_ref, c_ref)
+            walk(range(start - 1, d * per_driver - 1, -1), q_start, inputs[start])
+        trajectory = Trajectory(
+            source=KINEMATIC, inputs=inputs, input_rates=rates, input_accelerations=accelerations,
+            bodies=bodies, points=points,
+            settings={"samples_per_driver": samples, "branch": kinematics._branch_name(branch),
+                      "newton_tolerance_m": NEWTON_TOLERANCE * size, "loops": len(pm.constraints),
+                      "nq": pm.model.nq},
+            diagnostics={"loop_residual": residual, "iterations": iterations},
+            notes="Pinocchio forward kinematics; Newton projection onto the loops (getConstraintsJacobian of "
+                  "CONTACT_3D constraints, least squares) from the previous sample with a tangent prediction; "
+                  "velocities from the constraint Jacobian with the input rates imposed; accelerations with the "
+                  "drift from frame classical accelerations at zero joint acceleration. Sweep: "
+                  + "; ".join(sweep_notes),
+        )
+        summary = differences(kinematics, trajectory, branch)
+        return ModeResult(KINEMATIC, name, True, "", [trajectory], summary)
+    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
+        return ModeResult(KINEMATIC, name, False, one_line(error))
+
+
+def export_files(kinematics: Kinematics) -> dict[str, str]:
+    """The tree as URDF and the loop closures as JSON: {``NAME.urdf``: text,
+    ``NAME.loops.json``: text} (see ``_pinocchio_urdf`` for the layout)."""
+    return export_texts(tree_spec(kinematics.mechanism))
