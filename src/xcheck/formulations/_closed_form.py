@@ -56,6 +56,12 @@ def _other(joint, body: str) -> str:
     return joint.body_b if joint.body_a == body else joint.body_a
 
 
+def _shown(mech: Mechanism, lengths) -> list[str]:
+    """Lengths (m) as text in the file's display unit."""
+    units = mech.units
+    return [f"{x / units.length_factor:.6g} {units.length}" for x in lengths]
+
+
 def _fail(mech: Mechanism, reason: str):
     raise NotApplicable(SOURCE, mech.name, reason)
 
@@ -104,11 +110,11 @@ class _FourBar:
                 abs(loc[self.rocker, "C"] - loc[self.rocker, "D"]), abs(self.d - self.a))
 
     def describe(self) -> str:
-        r, d, s, l = (x * 1e3 for x in self.lengths)
+        r, d, s, l = _shown(self.mechanism, self.lengths)
         a, b, c, dd = self.labels
-        return (f"four-bar {a}{b}{c}{dd}: crank {self.crank} {a}{b} = {r:.6g} mm, coupler {self.coupler} "
-                f"{b}{c} = {d:.6g} mm, rocker {self.rocker} {dd}{c} = {s:.6g} mm, ground {a}{dd} = {l:.6g} mm; "
-                "theta1 (at D) from eq. (2), theta2 (at C) from eq. (3), theta3 (at B) from eq. (4)")
+        return (f"four-bar {a}{b}{c}{dd}: crank {self.crank} {a}{b} = {r}, coupler {self.coupler} {b}{c} = {d}, "
+                f"rocker {self.rocker} {dd}{c} = {s}, ground {a}{dd} = {l}; theta1 (at {dd}) from eq. (2), "
+                f"theta2 (at {c}) from eq. (3), theta3 (at {b}) from eq. (4)")
 
     def _crank_angle(self, c, cd, cdd):
         """The seed's phi: the crank AB from the ground line AD (rad), with rates."""
@@ -240,11 +246,11 @@ class _SliderCrank:
         return abs(loc[self.crank, "A"] - loc[self.crank, "O"]), abs(loc[self.rod, "B"] - loc[self.rod, "A"]), e
 
     def describe(self) -> str:
-        r, l, e = (x * 1e3 for x in self.lengths)
+        r, l, e = _shown(self.mechanism, self.lengths)
         o, a, b = self.labels
-        return (f"offset slider-crank {o}{a}{b}: crank {self.crank} {o}{a} = {r:.6g} mm, rod {self.rod} {a}{b} = "
-                f"{l:.6g} mm, {b} on a ground line at offset e = {e:.6g} mm from {o}; "
-                "x = r cos t + sqrt(l^2 - (e - r sin t)^2) along the line")
+        return (f"offset slider-crank {o}{a}{b}: crank {self.crank} {o}{a} = {r}, rod {self.rod} {a}{b} = {l}, "
+                f"{b} on a ground line at offset e = {e} from {o}; x = r cos t + sqrt(l^2 - (e - r sin t)^2) "
+                "along the line")
 
     def _angle(self, c, cd, cdd):
         """t: the crank O->A from the line's direction (rad), with rates."""

@@ -140,10 +140,10 @@ def build_trajectory(kinematics: Kinematics, source: str, c, cd, cdd, frames: di
     lost = status == Status.NOT_CONVERGED
     undetermined = lost | (status == Status.SINGULAR)
     for frame in (frames[b.name] for b in mech.moving_bodies):
-        for name in ("r", "phi"):
-            getattr(frame, name)[lost] = np.nan
-        for name in ("rd", "rdd", "phid", "phidd"):
-            getattr(frame, name)[undetermined] = np.nan
+        for name, rows in (("r", lost), ("phi", lost), ("rd", undetermined), ("rdd", undetermined),
+                           ("phid", undetermined), ("phidd", undetermined)):
+            values = getattr(frame, name)
+            values[rows] = complex(np.nan, np.nan) if np.iscomplexobj(values) else np.nan
     bodies = {}
     q = np.empty((n, 3 * len(mech.moving_bodies)))
     for i, body in enumerate(mech.moving_bodies):
