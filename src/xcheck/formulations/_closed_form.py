@@ -124,8 +124,22 @@ class _FourBar:
         return self.sign * c + gamma - beta, self.sign * cd, self.sign * cdd
 
     def thetas(self, c, cd, cdd, roots):
-        """theta1, theta2, theta3 (rad) with first and second time derivatives,
-        each (3, N), and the assembled flags (N,)."""
+        """The seed's interior angles on the branch ``roots`` = (sigma1, sigma2).
+
+        Parameters
+        ----------
+        c, cd, cdd : ndarray, shape (N,)
+            The input (rad), its rate (rad/s) and acceleration (rad/s^2).
+
+        Returns
+        -------
+        theta1, theta2, theta3 : ndarray, shape (3, N)
+            Each angle (rad) with its first and second time derivatives.
+        ok : ndarray of bool, shape (N,)
+            False where the four-bar does not assemble.
+        singularity : ndarray, shape (N,)
+            |sin theta2|: 0 where coupler and rocker line up (a limit position).
+        """
         r, d, s, l = self.lengths
         sigma1, sigma2 = roots
         phi, phid, phidd = self._crank_angle(c, cd, cdd)
@@ -172,7 +186,9 @@ class _FourBar:
         theta2 = cmath.phase(self.d - c_pt) - cmath.phase(b_pt - c_pt)
         return theta1, theta2
 
-    def choose_roots(self, kinematics: Kinematics, branch: str):
+    def choose_roots(self, kinematics: Kinematics, branch: str) -> list[float]:
+        """(sigma1, sigma2): the roots of eq. (2) and (3) that reproduce the
+        general solver's assembly of ``branch`` at the reference input."""
         c_ref = kinematics.reference_inputs()[None, :]
         zero = np.zeros_like(c_ref)
         want = self.reference_thetas(kinematics, branch)
@@ -192,6 +208,8 @@ class _FourBar:
         return roots
 
     def frames(self, c, cd, cdd, roots):
+        """Every moving body's :class:`Frame`, the assembled flags, the
+        singularity measure (N,) and the diagnostics theta1..3 (rad)."""
         th1, th2, th3, ok, singularity = self.thetas(c[:, 0], cd[:, 0], cdd[:, 0], roots)
         loc, n = self.local, c.shape[0]
         phi, phid, phidd = self._crank_angle(c[:, 0], cd[:, 0], cdd[:, 0])
@@ -279,7 +297,9 @@ class _SliderCrank:
             betadd = sigma * (vdd / root + v * vd**2 / root**3)
         return np.stack([x, xd, xdd]), np.stack([beta, betad, betadd]), ok, root / l
 
-    def choose_roots(self, kinematics: Kinematics, branch: str):
+    def choose_roots(self, kinematics: Kinematics, branch: str) -> list[float]:
+        """[sigma]: the root of the closed form that puts B where the general
+        solver's assembly of ``branch`` has it at the reference input."""
         frames = body_frames_from_q(kinematics, kinematics.assemble(branch))
         rr, pr = frames[self.rod]
         b_ref = rr + cmath.exp(1j * pr) * self.local[self.rod, "B"]
@@ -294,6 +314,8 @@ class _SliderCrank:
         return [best]
 
     def frames(self, c, cd, cdd, roots):
+        """Every moving body's :class:`Frame`, the assembled flags, the
+        singularity measure (N,) and the diagnostics slide_x (m), rod_angle (rad)."""
         (sigma,) = roots
         x, beta, ok, singularity = self.closed_form(c[:, 0], cd[:, 0], cdd[:, 0], sigma)
         r, l, e = self.lengths

@@ -357,13 +357,28 @@ class _State:
         e = np.exp(1j * phi) * t.w
         return l * e, (ld + 1j * l * phid) * e, (ldd + 2j * ld * phid + 1j * l * phidd - l * phid**2) * e
 
-    def set(self, unknown, order: int, values: np.ndarray):
+    def set(self, unknown, order: int, values):
+        """Set an unknown's value (order 0), rate (1) or acceleration (2), (N,) or scalar."""
         kind, name = unknown
         (self.theta if kind == "angle" else self.slide)[name][order] = values
 
 
 def _pieces(loop: _Loop, state: _State):
-    """The loop as K + sum over unknown angles e^{i theta}(C + s D_theta) + s D_known."""
+    """The loop at the current state, split by its unknowns:
+    ``K + sum_theta e^{i theta} (C_theta + s D_theta) + s D_known = 0``.
+
+    Returns
+    -------
+    k_sum : ndarray of complex, shape (N,)
+        The known vectors' sum K, m.
+    angles, slides : list of str
+        The unknown angle classes (root bodies) and unknown slides (joints).
+    c_of, d_theta : dict of str to ndarray of complex, shape (N,)
+        Per unknown angle: its fixed-length vectors C (m) and the unit
+        direction D of an unknown slide it turns, both at theta = 0.
+    d_known : dict of str to ndarray of complex, shape (N,)
+        Per unknown slide whose line's angle is known: its unit direction.
+    """
     plan = state.plan
     angle_unknowns = [u[1] for u in loop.unknowns if u[0] == "angle"]
     slide_unknowns = [u[1] for u in loop.unknowns if u[0] == "slide"]
@@ -394,7 +409,8 @@ def _pieces(loop: _Loop, state: _State):
 
 
 def _quadratic(b_half: np.ndarray, c0: np.ndarray, sigma: float):
-    """Root of s^2 + 2 b_half s + c0 = 0 on branch sigma; (roots, real?)."""
+    """The root -b_half + sigma sqrt(b_half^2 - c0) of s^2 + 2 b_half s + c0 = 0,
+    and where it is real (N,)."""
     disc = b_half**2 - c0
     ok = disc >= 0.0
     return -b_half + sigma * np.sqrt(np.where(ok, disc, 0.0)), ok
