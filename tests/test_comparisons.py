@@ -353,3 +353,47 @@ def test_bad_entry_is_one_line_naming_file_and_entry(tmp_path, fourbar_mechanism
     assert found in err.found
     assert str(err) == f"{path}: {field}: expected {err.expected}, found {err.found}"
     assert "\n" not in str(err)
+
+# -- the command line ---------------------------------------------------------
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k not in ("XCHECK_MODELS", "XCHECK_COMPARISONS")}
+    env["PYTHONIOENCODING"] = "utf-8"
+    return subprocess.run([str(XCHECK), *args], capture_output=True, text=True, encoding="utf-8", cwd=ROOT,
+                          env=env, timeout=300)
+
+
+def test_cli_json_has_the_textbook_comparison(checked):
+    done = _run("solve", "task-2-1", "--json")
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    _, results = checked("task-2-1")
+    table = document["textbook"]
+    assert [row["verdict"] for row in table] == [r["verdict"] for r in results]
+    for row in table:
+        assert isinstance(row["printed"], float) and isinstance(row["computed"], float)
+        assert row["verdict"] in (AGREES, ROUNDING, DISAGREES)
+        assert {"quantity", "deviation_percent", "note", "unit", "source"} <= set(row)
+    assert Counter(row["verdict"] for row in table) == Counter(r["verdict"] for r in results)
+
+
+def test_cli_table_shows_the_textbook_comparison():
+    done = _run("solve", "fourbar")
+    assert done.returncode == 0, done.stderr
+    assert "printed" in done.stdout and "disagrees" in done.stdout
+    assert "2,30906" in done.stdout and "Mathematica" in done.stdout
+
+
+def test_cli_without_comparisons_file_has_no_textbook(tmp_path):
+    done = _run("solve", "slider-crank", "--json", "--comparisons", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert "textbook" not in json.loads(done.stdout)
+
+
+def test_cli_bad_comparisons_file_is_one_line(tmp_path):
+    (tmp_path / "fourbar.toml").write_text(GOOD.replace('unit = "deg"\n', ""), encoding="utf-8")
+    done = _run("solve", "fourbar", "--comparisons", str(tmp_path))
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert lines == [f"xcheck: error: {tmp_path / 'fourbar.toml'}: printed[0].unit: expected the printed value's "
+                     "unit (one of deg, rad), found none"]

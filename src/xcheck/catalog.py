@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["models_dir", "model_path", "model_names"]
+__all__ = ["models_dir", "model_path", "model_names", "comparisons_dir", "comparisons_path"]
 
 #: The repository's models/ (an editable or source install).
 _BUNDLED = Path(__file__).resolve().parents[2] / "models"
@@ -49,3 +49,20 @@ def model_path(name: str, directory: Path) -> Path:
         return candidate
     known = ", ".join(model_names(directory)) or "none"
     raise InputError(f"unknown mechanism {name!r}: expected one of {known} (in {directory})")
+
+
+def comparisons_dir(models: Path, override: str | Path | None = None) -> Path:
+    """The directory of printed textbook answers: ``override``, else
+    $XCHECK_COMPARISONS, else ``comparisons/`` beside the models directory."""
+    if override is not None:
+        return Path(override)
+    if os.environ.get("XCHECK_COMPARISONS"):
+        return Path(os.environ["XCHECK_COMPARISONS"])
+    return Path(models).parent / "comparisons"
+
+
+def comparisons_path(model_file: Path, directory: Path) -> Path | None:
+    """The comparisons file of a mechanism file (``NAME.toml`` for
+    ``NAME.toml``), or None if there is none."""
+    candidate = Path(directory) / f"{Path(model_file).stem}.toml"
+    return candidate if candidate.is_file() else None

@@ -14,11 +14,12 @@ import typer
 from rich.table import Table
 
 from . import __version__
-from .catalog import model_names, model_path, models_dir
+from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir
 from .errors import InputError, ModelError, XcheckError
 from .kinematics import Kinematics, Status
 from .model import Mechanism, load_mechanism
-from .output import print_solution, range_text, solution_json, wide_console
+from .output import print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
+from .textbook import check_printed, load_comparisons
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -33,6 +34,11 @@ app = typer.Typer(
 ModelsOption = Annotated[
     Optional[Path],
     typer.Option("--models", help="Directory of mechanism files (default: ./models, or $XCHECK_MODELS)."),
+]
+ComparisonsOption = Annotated[
+    Optional[Path],
+    typer.Option("--comparisons", help="Directory of printed textbook answers (default: comparisons/ beside "
+                                       "the models directory, or $XCHECK_COMPARISONS)."),
 ]
 
 
@@ -115,13 +121,15 @@ def solve_command(
         "--branch", help="Assembly branch (default: the model file's first).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
     models: ModelsOption = None,
+    comparisons: ComparisonsOption = None,
 ):
     """Solve a mechanism's position, velocity and acceleration at its instants.
 
     Examples: xcheck solve fourbar;  xcheck solve fourbar --at 45,90 --json;
     xcheck solve two-body-arm --at 30:30
     """
-    mech = load_mechanism(model_path(name, models_dir(models)))
+    path = model_path(name, models_dir(models))
+    mech = load_mechanism(path)
     kin = Kinematics(mech)
     kin.assemble(branch)
     if at is None:
@@ -139,10 +147,28 @@ def solve_command(
     values = np.array(states)  # (N, k, 3)
     solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
     _check_statuses(kin, solution, labels, fields)
+    # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
+    # after the solution, which still prints
+    textbook, textbook_error, document = None, None, ""
+    found = comparisons_path(path, comparisons_dir(models_dir(models), comparisons))
+    if found is not None:
+        try:
+            printed = load_comparisons(found, mech)
+            textbook, document = check_printed(kin, printed), printed.document
+        except XcheckError as err:
+            textbook_error = err
     if as_json:
-        typer.echo(json.dumps(solution_json(solution, labels), indent=2, allow_nan=False, ensure_ascii=False))
+        output = solution_json(solution, labels)
+        if textbook is not None:
+            output["textbook"] = textbook_json(textbook)
+        typer.echo(json.dumps(output, indent=2, allow_nan=False, ensure_ascii=False))
     else:
-        print_solution(wide_console(), solution, labels)
+        console = wide_console()
+        print_solution(console, solution, labels)
+        if textbook is not None:
+            print_textbook(console, textbook, document)
+    if textbook_error is not None:
+        raise textbook_error
 
 
 def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float]]]:

@@ -10,7 +10,7 @@ from rich.table import Table
 
 from .kinematics import InputRange, Kinematics, Solution, Status
 
-__all__ = ["solution_json", "print_solution", "range_text", "wide_console"]
+__all__ = ["solution_json", "print_solution", "range_text", "wide_console", "textbook_json", "print_textbook"]
 
 
 def _number(value) -> float | None:
@@ -153,3 +153,46 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
                            _fmt(a[0] / AC), _fmt(a[1] / AC), _fmt(float(np.hypot(*a)) / AC))
         console.print(points)
         console.print()
+
+
+def textbook_json(results: list[dict]) -> list[dict]:
+    """The ``"textbook"`` list of ``xcheck solve --json``: one object per printed
+    value (see :func:`xcheck.textbook.check_printed`); ``printed`` and
+    ``computed`` are in the entry's ``unit``, not SI; ``deviation_percent`` is
+    null when the exact value is 0."""
+    rows = []
+    for r in results:
+        row = dict(r)
+        for key in ("printed", "computed", "deviation_percent", "deviation_digits"):
+            row[key] = None if r[key] is None else _number(r[key])
+        rows.append(row)
+    return rows
+
+
+_VERDICT_STYLE = {"agrees": "green", "rounding": "yellow", "disagrees": "red"}
+
+
+def print_textbook(console: Console, results: list[dict], document: str = "") -> None:
+    """The table of printed values against the exact ones, with the verdicts."""
+    counts = {v: sum(r["verdict"] == v for r in results) for v in _VERDICT_STYLE}
+    console.print(f"[bold]Printed answers[/bold]{' — ' + document if document else ''}: {len(results)} values; "
+                  + ", ".join(f"[{_VERDICT_STYLE[v]}]{n} {v}[/{_VERDICT_STYLE[v]}]" for v, n in counts.items()))
+    several_instants = len({r["instant"] for r in results}) > 1
+    several_branches = len({r["branch"] for r in results}) > 1
+    table = Table(box=None, pad_edge=False, header_style="bold")
+    headers = ["symbol", "quantity"] + ["instant"] * several_instants + ["branch"] * several_branches
+    headers += ["printed", "computed", "unit", "deviation %", "last digits", "verdict", "note"]
+    for header in headers:
+        numeric = header in ("printed", "computed", "deviation %", "last digits")
+        table.add_column(header, justify="right" if numeric else "left",
+                         no_wrap=header != "note", overflow="fold")
+    for r in results:
+        digits = max(6, sum(c.isdigit() for c in r["printed_text"].lstrip("-0,.")) + 2)
+        percent = "—" if r["deviation_percent"] is None else f"{r['deviation_percent']:+.3g}"
+        style = _VERDICT_STYLE[r["verdict"]]
+        cells = [r["symbol"], r["quantity"]] + [r["instant"]] * several_instants + [r["branch"]] * several_branches
+        cells += [r["printed_text"], _fmt(r["computed"], digits), r["unit"], percent, f"{r['deviation_digits']:+.3g}",
+                  f"[{style}]{r['verdict']}[/{style}]", r["note"]]
+        table.add_row(*cells)
+    console.print(table)
+    console.print()
