@@ -80,14 +80,54 @@ def _rotate(angle: float, xy) -> np.ndarray:
     return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
 
 
-def _mass_properties(mechanism: Mechanism, name: str) -> tuple[float, np.ndarray, float, list[str]]:
+def _groove_free_com(mechanism: Mechanism, name: str, centroid: np.ndarray) -> np.ndarray | None:
+    """A centre of mass (local, m) at which pymunk's groove joints on this body
+    are exact, or None if there is none.
+
+    pymunk's ``GrooveJoint`` solves the pin's 2-D point impulse with the
+    effective mass K of both bodies and then keeps only its component along
+    the groove's normal. That is the right 1-D impulse only when K has the
+    groove's normal as an eigenvector; otherwise the joint holds the relative
+    velocity along a skewed direction: the pin leaves its groove in proportion
+    to its sliding speed, and the scene can meet a false singularity (task-2-2
+    blew up with the centres of mass at the bodies' centroids). K is diagonal
+    in the groove's frame when the line's body has its centre of mass on the
+    line and the pin's body at the pin; this picks such a point when one
+    exists: the common pin if the body carries pins (and it lies on every line
+    the body carries), else the centroid's projection on the body's common line.
+    """
+    lines = [j for j in mechanism.joints if isinstance(j, (Prismatic, PinInSlot)) and j.body_a == name]
+    pins = [mechanism.body(name).points[j.point] for j in mechanism.joints
+            if isinstance(j, (Prismatic, PinInSlot)) and j.body_b == name]
+    if not lines and not pins:
+        return None
+    body = mechanism.body(name)
+    tol = 1e-9 * mechanism.size
+
+    def on_line(xy, joint) -> bool:
+        r = xy - body.points[joint.line_point]
+        return abs(joint.direction[0] * r[1] - joint.direction[1] * r[0]) <= tol
+
+    if pins:
+        if any(np.linalg.norm(pin - pins[0]) > tol for pin in pins):
+            return None
+        return pins[0] if all(on_line(pins[0], j) for j in lines) else None
+    base, u = body.points[lines[0].line_point], lines[0].direction
+    candidate = base + float(u @ (centroid - base)) * u
+    return candidate if all(on_line(candidate, j) for j in lines) else None
+
+
+def _mass_properties(mechanism: Mechanism, name: str, guides=()) -> tuple[float, np.ndarray, float, list[str]]:
     """Mass (kg), centre of mass (local, m) and moment about it (kg m^2) of a
     moving body, with the model's values where it has them.
 
-    Defaults: mass :data:`DEFAULT_MASS`; centre of mass at the mean of the
-    body's points; moment of a uniform slender rod, m L^2 / 12, with L the
-    largest distance between two of its points, at least a tenth of the
-    mechanism's size (a one-point slider block still needs a moment).
+    Defaults: mass :data:`DEFAULT_MASS`; centre of mass where pymunk's groove
+    joints on the body are exact (see :func:`_groove_free_com`), else at the
+    mean of the body's points and the ends of the grooves it carries
+    (``guides``, local, m); moment of a uniform slender rod, m L^2 / 12, with
+    L the largest distance between two of those points, at least a tenth of
+    the mechanism's size (a one-point slider block still needs a moment). A
+    guide is part of its body, so its length counts.
 
     Returns
     -------
@@ -99,10 +139,13 @@ def _mass_properties(mechanism: Mechanism, name: str) -> tuple[float, np.ndarray
     mass = body.mass
     if mass is None:
         mass, defaulted = DEFAULT_MASS, defaulted + ["mass"]
-    points = np.array(list(body.points.values()) or [[0.0, 0.0]])
+    points = np.array(list(body.points.values()) + [np.asarray(g, dtype=float) for g in guides] or [[0.0, 0.0]])
     com = body.com
     if com is None:
-        com, defaulted = points.mean(axis=0), defaulted + ["com"]
+        centroid = points.mean(axis=0)
+        exact = _groove_free_com(mechanism, name, centroid)
+        com = centroid if exact is None else exact
+        defaulted.append("com" if exact is None else "com (on its groove line or pin)")
     inertia = body.inertia
     if inertia is None:
         span = max((float(np.linalg.norm(p - q)) for p in points for q in points), default=0.0)
@@ -300,13 +343,23 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
             # or when body_a moves against it (line in the moving body)
             prescribed[moving] = _Drive(k, "kinematic-slide", sign=sign, law=driver.law)
 
+    grooves = {}
+    for joint in mech.joints:
+        if isinstance(joint, (Prismatic, PinInSlot)):
+            low, high = _slide_extent(mech, native, joint)
+            pad = _GROOVE_MARGIN[0] * (high - low) + _GROOVE_MARGIN[1] * mech.size
+            base = mech.body(joint.body_a).points[joint.line_point]
+            grooves[joint.name] = (joint.body_a, base + (low - pad) * joint.direction,
+                                   base + (high + pad) * joint.direction)
+
     first = 0
     for body in mech.moving_bodies:
         frame = native.body(body.name)
         origin, angle = frame["position"][first], float(frame["angle"][first])
         drive = prescribed.get(body.name)
         if drive is None:
-            mass, com, inertia, defaulted = _mass_properties(mech, body.name)
+            guides = [end for carrier, *ends in grooves.values() if carrier == body.name for end in ends]
+            mass, com, inertia, defaulted = _mass_properties(mech, body.name, guides)
             pb = pm.Body(mass, inertia)
             pb.center_of_gravity = (float(com[0]), float(com[1]))
             defaults[body.name] = defaulted
@@ -333,22 +386,16 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         return any(bodies[n].body_type == pm.Body.DYNAMIC for n in names)
 
     constraints: dict[str, list] = {}
-    grooves = {}
     for joint in mech.joints:
         a, b = bodies[joint.body_a], bodies[joint.body_b]
         made = []
-        if isinstance(joint, (Prismatic, PinInSlot)):
-            low, high = _slide_extent(mech, native, joint)
-            pad = _GROOVE_MARGIN[0] * (high - low) + _GROOVE_MARGIN[1] * mech.size
-            base = mech.body(joint.body_a).points[joint.line_point]
-            ends = (base + (low - pad) * joint.direction, base + (high + pad) * joint.direction)
-            grooves[joint.name] = (joint.body_a, ends[0], ends[1])
         if dynamic(joint.body_a, joint.body_b):
             if isinstance(joint, Revolute):
                 made.append(pm.PivotJoint(a, b, tuple(mech.body(joint.body_a).points[joint.point_a]),
                                           tuple(mech.body(joint.body_b).points[joint.point_b])))
             else:
-                made.append(pm.GrooveJoint(a, b, tuple(ends[0]), tuple(ends[1]),
+                _, start, end = grooves[joint.name]
+                made.append(pm.GrooveJoint(a, b, tuple(start), tuple(end),
                                            tuple(mech.body(joint.body_b).points[joint.point])))
                 if isinstance(joint, Prismatic):
                     made.append(pm.GearJoint(a, b, float(joint.angle), 1.0))
@@ -422,15 +469,17 @@ class Setting:
         return "pymunk default" if self.error_bias is None else f"error_bias {self.error_bias:g}"
 
 
-#: The settings :func:`run_dynamic` runs by default, the comparison's first.
-#: Full correction (error_bias 0) makes the position error second order in the
-#: time step where pymunk's default leaves it first order; it needs enough
-#: solver iterations to converge, or the scene goes unstable (the inverted
-#: slider-crank needed 200: 500 leaves a margin, 50 shows the failure).
+#: The settings :func:`run_dynamic` runs by default, the comparison's first:
+#: three time steps at 500 iterations with full correction (error_bias 0),
+#: then the finest step with 50 iterations and with pymunk's defaults (10
+#: iterations, default error_bias). Full correction makes the position error
+#: second order in the time step where pymunk's default leaves it first order;
+#: it needs enough iterations to converge or the scene goes unstable (task-2-6
+#: and the inverted slider-crank needed more than 200: 500 leaves a margin).
 DEFAULT_SETTINGS = (
-    Setting(400, 500), Setting(200, 500), Setting(100, 500),
-    Setting(400, 50), Setting(200, 50), Setting(100, 50),
-    Setting(400, 10, None),
+    Setting(200, 500), Setting(100, 500), Setting(50, 500),
+    Setting(200, 50),
+    Setting(200, 10, None),
 )
 
 
@@ -490,7 +539,7 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
             speed = float(np.max(np.linalg.norm(pvel[1, i], axis=1), initial=0.0))
             finite = all(np.isfinite(x).all() for x in (pos[i], ang[i], vel[1, i], omg[1, i], pvel[1, i]))
             if not (finite and math.isfinite(gaps[i])):
-                run.failure = f"non-finite state at t = {n * dt:.6g} s"
+                run.failure = f"went non-finite (NaN or infinite state) at t = {n * dt:.6g} s"
             elif gaps[i] > gap_bound:
                 run.failure = (f"came apart at t = {n * dt:.6g} s: joints {gaps[i]:.3g} m apart "
                                f"(bound {gap_bound:.3g} m)")

@@ -1,0 +1,249 @@
+"""pymunk-dynamic against the native solution: every mechanism as a 2-D
+constraint scene, simulated, with its error trend in the time step.
+
+Each mechanism is simulated once (module cache) with run_dynamic's default
+settings; the tests read the ModeResult it returns.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from conftest import MODEL_NAMES
+from test_kinematics import INVERTED, SLIDER_DRIVEN
+from xcheck import Kinematics
+from xcheck.compare import differences
+from xcheck.engines import mode_function
+from xcheck.engines.pymunk import DEFAULT_SETTINGS, Setting, run_dynamic, scene_figure, trajectory_errors
+from xcheck.model import parse_mechanism
+
+# The inverted slider-crank driven by the slide of its block along the rocker
+# (a driven prismatic between two moving bodies: the slide servo).
+BLOCK_DRIVEN = INVERTED.split("[[drivers]]")[0] + """
+[[drivers]]
+name = "block"
+joint = "block"
+motion = "harmonic"
+centre = -0.3
+amplitude = 0.12
+frequency = 1
+[assembly]
+at = { block = -0.3 }
+[assembly.branches.main]
+A = [0.094, 0.034]
+P = [-0.11, 0.07]
+"""
+EXTRA = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "block-driven": BLOCK_DRIVEN}
+MECHANISMS = MODEL_NAMES + list(EXTRA)
+
+# Tolerances on the comparison trajectory (time step 1/8000 of the window, 500
+# iterations, error_bias 0), measured on pymunk 7.3.1 over the 14 mechanisms
+# (models/ and the three above). Largest measured: position 1.7e-6 of the size
+# (two-body-arm), angle 1.8e-6 rad (task-2-1); velocities 1.7e-3 and
+# accelerations 9.1e-3 of their largest native magnitude (slider-driven,
+# inverted). About twice those:
+POSITION_TOL = 4e-6  # of the mechanism's size
+ANGLE_TOL = 4e-6  # rad
+RATE_TOL = 4e-3  # velocity, omega: of the largest native magnitude
+ACCELERATION_TOL = 2e-2  # acceleration, alpha: of the largest native magnitude
+# Position error is second order in the time step (measured 1.96-2.00 with the
+# default centres of mass, which keep pymunk's groove joints exact), rates first
+# order (error ratio 1.95-2.00 per doubled step). Bands around those:
+POSITION_ORDER = (1.8, 2.2)
+RATE_RATIO = (1.7, 2.3)
+
+
+def _kinematics(kinematics, name: str) -> Kinematics:
+    if name in EXTRA:
+        return Kinematics(parse_mechanism(EXTRA[name], name))
+    return kinematics(name)
+
+
+@pytest.fixture(scope="module")
+def simulated(kinematics):
+    """run_dynamic's result per mechanism, computed once."""
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            kin = _kinematics(kinematics, name)
+            cache[name] = (kin, run_dynamic(kin))
+        return cache[name]
+
+    return get
+
+
+def _disagreements(rows: list[dict], size: float) -> list[str]:
+    """What is wrong with pymunk's errors: ``rows`` are trajectory_errors of
+    the comparison trajectory and of two more with the time step doubled
+    twice (plus their ``time_step``), ``size`` the mechanism's; the first row
+    against the tolerances, all three against the expected orders."""
+    problems = []
+    limits = {"position_error": POSITION_TOL * size, "angle_error": ANGLE_TOL, "velocity_error": RATE_TOL,
+              "omega_error": RATE_TOL, "acceleration_error": ACCELERATION_TOL, "alpha_error": ACCELERATION_TOL}
+    for key, limit in limits.items():
+        if not rows[0][key] <= limit:
+            problems.append(f"{key} {rows[0][key]:.3g} > {limit:.3g}")
+    for fine, coarse in zip(rows, rows[1:]):
+        steps = coarse["time_step"] / fine["time_step"]
+        if coarse["position_error"] > 1e-12 * size:  # above round-off only
+            order = math.log(coarse["position_error"] / fine["position_error"]) / math.log(steps)
+            if not POSITION_ORDER[0] <= order <= POSITION_ORDER[1]:
+                problems.append(f"position error order {order:.2f} between time steps "
+                                f"{coarse['time_step']:.3g} and {fine['time_step']:.3g} s")
+        ratio = (coarse["velocity_error"] / fine["velocity_error"]) ** (1.0 / math.log2(steps))
+        if not RATE_RATIO[0] <= ratio <= RATE_RATIO[1]:
+            problems.append(f"velocity error ratio {ratio:.2f} per doubled time step")
+    return problems
+
+
+def _trend_rows(summary) -> list[dict]:
+    """The summary's rows of the three time steps at the comparison's settings."""
+    head = summary.iloc[:3]
+    assert (head["iterations"] == DEFAULT_SETTINGS[0].iterations).all()
+    assert (head["status"] == "ok").all(), list(head["status"])
+    return head.to_dict("records")
+
+
+@pytest.mark.parametrize("name", MECHANISMS)
+def test_agrees_with_native(simulated, name):
+    """The comparison trajectory is within the measured tolerances, the error
+    falls with the time step at the expected orders, the joints stay together
+    within the position tolerance, and the summary's figures are those of
+    compare.differences on the trajectory."""
+    kin, result = simulated(name)
+    assert result.ok, result.reason
+    assert result.mode == "pymunk-dynamic" and result.mechanism == kin.mechanism.name
+    assert _disagreements(_trend_rows(result.summary), kin.mechanism.size) == []
+    first = result.trajectories[0]
+    assert first.settings["time_step"] == min(t.settings["time_step"] for t in result.trajectories)
+    assert first.settings["iterations"] == DEFAULT_SETTINGS[0].iterations
+    assert np.max(first.diagnostics["joint_gap"]) <= POSITION_TOL * kin.mechanism.size
+    # every body and point the native solution has, all six quantities, finite
+    assert set(first.bodies) == {b.name for b in kin.mechanism.moving_bodies}
+    assert set(first.points) == set(kin.mechanism.point_owners)
+    assert all(np.isfinite(v).all() for body in first.bodies.values() for v in body.values())
+    table = differences(kin, first)
+    assert set(table["quantity"]) == {"position", "angle", "velocity", "omega", "acceleration", "alpha"}
+    assert (table["samples"] == len(first.times)).all()
+    position = table[table["quantity"] == "position"]["max_abs"].max()
+    assert result.summary.loc[0, "position_error"] == position
+    velocity = table[table["quantity"] == "velocity"]
+    assert result.summary.loc[0, "velocity_error"] == velocity["max_abs"].max() / velocity["scale"].max()
+
+
+@pytest.mark.parametrize("name", MECHANISMS)
+def test_summary_is_data(simulated, name):
+    """One summary row per setting with its settings and status, one
+    trajectory per run that went through, the observed order computed from
+    the rows, and no error figures for a run that failed."""
+    kin, result = simulated(name)
+    summary = result.summary
+    assert len(summary) == len(DEFAULT_SETTINGS)
+    assert list(summary["iterations"]) == [s.iterations for s in DEFAULT_SETTINGS]
+    assert list(summary["error_bias"]) == [s.correction for s in DEFAULT_SETTINGS]
+    ok = summary[summary["status"] == "ok"]
+    assert len(ok) == len(result.trajectories)
+    for (_, row), trajectory in zip(ok.iterrows(), result.trajectories):
+        assert row["time_step"] == trajectory.settings["time_step"]
+        assert row["joint_gap"] == np.max(trajectory.diagnostics["joint_gap"])
+    assert summary.loc[0, "order"] == pytest.approx(
+        math.log(summary.loc[1, "position_error"] / summary.loc[0, "position_error"]) / math.log(2.0))
+    failed = summary[summary["status"] != "ok"]
+    assert failed["position_error"].isna().all()  # a failed run has no error figures, only its status
+    assert all("\n" not in status for status in summary["status"])
+
+
+def test_registry_names_the_mode(kinematics):
+    assert mode_function("pymunk-dynamic") is run_dynamic
+
+
+def test_inputs_are_as_pymunk_realised_them(simulated):
+    """A constant-rate crank on the ground is a KINEMATIC body: its angle is
+    the motion law's to round-off; a motor-driven input (constant
+    acceleration) drifts from its law by forward Euler, which the trajectory
+    records rather than hides."""
+    kin, result = simulated("fourbar")
+    first = result.trajectories[0]
+    assert first.settings["drives"] == "crank: kinematic-rate"
+    assert np.max(np.abs(first.diagnostics["input_error"])) < 1e-10
+    assert np.allclose(first.input_rates, kin.mechanism.drivers[0].law.rate, rtol=0, atol=1e-12)
+    kin, result = simulated("two-body-arm")
+    first = result.trajectories[0]
+    assert first.settings["drives"] == "theta1: motor, theta2: motor"
+    drift = np.max(np.abs(first.diagnostics["input_error"]))
+    assert 1e-6 < drift < 1e-3  # measured 2.3e-4 rad
+
+
+def test_link_one_millimetre_too_long_is_caught(kinematics):
+    """A scene built from a four-bar whose coupler is 1 mm too long, compared
+    with the true four-bar, fails both the tolerance and the trend check: its
+    error does not fall with the time step."""
+    kin = kinematics("fourbar")
+    mech = kin.mechanism
+    bodies = []
+    for body in mech.bodies:
+        if body.name == "coupler":
+            points = dict(body.points)
+            points["C"] = points["C"] + np.array([1e-3, 0.0])  # C on the coupler's axis, 1 mm further out
+            body = dataclasses.replace(body, points=points)
+        bodies.append(body)
+    wrong = Kinematics(dataclasses.replace(mech, bodies=tuple(bodies)))
+    result = run_dynamic(wrong, settings=DEFAULT_SETTINGS[:3])
+    assert result.ok, result.reason
+    assert _disagreements(_trend_rows(result.summary), mech.size) == []  # pymunk simulates the wrong scene well
+    rows = [{**trajectory_errors(kin, t), "time_step": t.settings["time_step"]} for t in result.trajectories]
+    problems = _disagreements(rows, mech.size)
+    assert any(p.startswith("position_error") for p in problems), problems
+    assert any(p.startswith("position error order") for p in problems), problems
+    assert rows[0]["position_error"] > 1e-4  # the 1 mm shows as about 1 mm
+
+
+def test_scene_that_comes_apart_is_reported_not_raised():
+    """A time step of a quarter of the window: the joints come apart past the
+    bound; the mode fails with one line and the summary keeps the row."""
+    kin = Kinematics(parse_mechanism(INVERTED, "inverted"))
+    result = run_dynamic(kin, settings=[Setting(1, 10)], samples=4)
+    assert not result.ok
+    assert result.reason.startswith("pymunk-dynamic: the scene came apart at t = ")
+    assert "\n" not in result.reason
+    assert result.trajectories == []
+    assert result.summary.loc[0, "status"].startswith("came apart")
+
+
+def test_scene_that_goes_non_finite_is_reported_not_raised():
+    """A rocker with a moment of inertia of 1e-300 kg m^2 (positive, so the
+    model accepts it) makes pymunk's state NaN: reported as a failed mode."""
+    source = INVERTED.replace("[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }",
+                              "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }\n"
+                              "mass = 1\ninertia = 1e-300\ncom = [0.5, 0.3]")
+    assert source != INVERTED
+    kin = Kinematics(parse_mechanism(source, "inverted-nan"))
+    result = run_dynamic(kin, settings=[Setting(50, 50)])
+    assert not result.ok
+    assert "went non-finite" in result.reason and "\n" not in result.reason
+
+
+def test_bad_settings_are_reported_not_raised(kinematics):
+    result = run_dynamic(kinematics("fourbar"), settings=[])
+    assert not result.ok
+    assert result.reason == "pymunk-dynamic: expected at least one setting, found none"
+
+
+@pytest.mark.parametrize("name", ["slider-crank", "inverted"])
+def test_scene_figure_is_written(kinematics, tmp_path, name):
+    """The figure is a whole PNG, drawn from pymunk's bodies; a bad time
+    leaves no file behind."""
+    kin = _kinematics(kinematics, name)
+    path = tmp_path / "scene.png"
+    scene_figure(kin, path, count=3, setting=Setting(50, 500))
+    data = path.read_bytes()
+    assert data.startswith(b"\x89PNG\r\n\x1a\n") and data.endswith(b"IEND\xaeB`\x82")
+    assert len(data) > 10_000
+    with pytest.raises(ValueError, match="simulation window"):
+        scene_figure(kin, tmp_path / "late.png", times=[1e6])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.png"]
