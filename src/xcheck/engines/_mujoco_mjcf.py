@@ -1,0 +1,370 @@
+"""The mechanism as an MJCF file: a tree of hinge and slide joints, loops closed
+by site-based ``connect`` constraints, the input joints driven by servos.
+
+The writer only reads the canonical model (nothing converts back). Conventions
+of the file, which the adapter relies on:
+
+- Every MuJoCo body frame coincides with the model's body frame, so body
+  positions and angles compare directly with the native solver's.
+- Each joint coordinate is the model's own joint quantity: a hinge's ``qpos``
+  is ``phi_b - phi_a`` (axis -z when the tree runs from body_b to body_a), a
+  slide's is the joint's slide displacement ``direction . (r_point - r_line_point)``.
+- A pin-in-slot joint in the tree is a slide and a hinge in one body, slide
+  first when the slot is in the parent, hinge first when it is in the child
+  (MuJoCo applies a body's joints in order). MuJoCo rejects the massless
+  intermediate body of the textbook construction ("mass and inertia of moving
+  bodies must be larger than mjMINVAL"); two joints in one body are exact.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import XcheckError
+from ..kinematics import Kinematics
+from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from ..motion import simulation_window
+from ..topology import Topology, TreeJoint, spanning_tree
+
+__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "MassProperties", "MjJoint", "Layout", "layout",
+           "mass_properties", "joint_coordinates", "mjcf_text"]
+
+#: Mass (kg) of a body whose model gives no mass properties.
+DEFAULT_MASS = 1.0
+#: Radius of gyration of a default body's disc term, as a fraction of the
+#: mechanism's size, so that a one-point body (a slider block) has inertia too.
+DEFAULT_DISC_FRACTION = 0.05
+#: Natural frequency (rad/s) of each input's servo, critically damped. With
+#: MuJoCo's default 2 ms Euler step, omega dt = 0.5: stable (the limit is 1).
+SERVO_FREQUENCY = 250.0
+
+
+def _num(x: float) -> str:
+    """A float as the shortest text that reads back to the same double."""
+    x = float(x) + 0.0  # no negative zero
+    text = repr(x)
+    return text[:-2] if text.endswith(".0") else text
+
+
+def _vec(*values: float) -> str:
+    return " ".join(_num(v) for v in values)
+
+
+def _rotate(angle: float, v: np.ndarray) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+@dataclass(frozen=True)
+class MassProperties:
+    """Mass (kg), centre of mass (body frame, (2,) m), inertia about it (kg m^2),
+    and whether they are the writer's defaults."""
+
+    mass: float
+    com: np.ndarray
+    inertia: float
+    default: bool
+
+
+def mass_properties(mechanism: Mechanism) -> dict[str, MassProperties]:
+    """Each moving body's mass properties: the model's, or defaults.
+
+    The default is :data:`DEFAULT_MASS` at the centroid of the body's points
+    with the inertia of a uniform rod as long as the body's largest point
+    distance L, plus a disc term: ``m (L^2 / 12 + (0.05 size)^2 / 2)``.
+    """
+    out = {}
+    radius = DEFAULT_DISC_FRACTION * mechanism.size
+    for body in mechanism.moving_bodies:
+        if body.mass is not None:
+            com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+            out[body.name] = MassProperties(body.mass, com, body.inertia, False)
+            continue
+        pts = np.array(list(body.points.values()))
+        length = max((float(np.linalg.norm(p - q)) for p in pts for q in pts), default=0.0)
+        m = DEFAULT_MASS
+        out[body.name] = MassProperties(m, pts.mean(axis=0), m * (length**2 / 12.0 + radius**2 / 2.0), True)
+    return out
+
+
+@dataclass(frozen=True)
+class MjJoint:
+    """One MuJoCo joint: its name, ``"hinge"`` or ``"slide"``, the model joint it
+    belongs to and the body that carries it."""
+
+    name: str
+    kind: str
+    joint: object
+    body: str
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How the model maps onto the MJCF file.
+
+    Attributes
+    ----------
+    topology : Topology
+    joints : tuple of MjJoint
+        In ``qpos`` order (MuJoCo numbers joints depth-first through the tree).
+    driver_joints : tuple of str
+        The MuJoCo joint of each driver, in driver order.
+    """
+
+    topology: Topology
+    joints: tuple[MjJoint, ...]
+    driver_joints: tuple[str, ...]
+
+
+def _site(body: str, label: str) -> str:
+    return f"{body}.{label}"
+
+
+def _tree_joints(tj: TreeJoint) -> list[tuple[str, str]]:
+    """(MuJoCo joint name, kind) of a tree joint, in the order the body applies them."""
+    joint = tj.joint
+    if isinstance(joint, Revolute):
+        return [(joint.name, "hinge")]
+    if isinstance(joint, Prismatic):
+        return [(joint.name, "slide")]
+    pair = [(f"{joint.name}.slide", "slide"), (f"{joint.name}.hinge", "hinge")]
+    return pair[::-1] if tj.reversed else pair
+
+
+def layout(mechanism: Mechanism) -> Layout:
+    """The MJCF layout of a mechanism.
+
+    Raises
+    ------
+    ModelError
+        If a loop cannot be cut at a revolute joint (see :func:`spanning_tree`).
+    """
+    topology = spanning_tree(mechanism)
+    children: dict[str, list[TreeJoint]] = {}
+    for tj in topology.tree:
+        children.setdefault(tj.parent, []).append(tj)
+    joints: list[MjJoint] = []
+
+    def visit(body: str) -> None:
+        for tj in children.get(body, []):
+            joints.extend(MjJoint(name, kind, tj.joint, tj.child) for name, kind in _tree_joints(tj))
+            visit(tj.child)
+
+    visit(GROUND)
+    driver_joints = []
+    for driver in mechanism.drivers:
+        joint = mechanism.joint(driver.joint)
+        driver_joints.append(f"{joint.name}.slide" if isinstance(joint, PinInSlot) else joint.name)
+    return Layout(topology, tuple(joints), tuple(driver_joints))
+
+
+def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.ndarray:
+    """MuJoCo ``qpos`` of body coordinates.
+
+    Parameters
+    ----------
+    q : ndarray, shape (3 m,)
+        x (m), y (m), phi (rad) of each moving body, ``mechanism.moving_bodies`` order.
+
+    Returns
+    -------
+    ndarray, shape (nq,)
+        Hinges: ``phi_b - phi_a`` (rad); slides: the slide displacement (m).
+    """
+    frames = {GROUND: (np.zeros(2), 0.0)}
+    for i, body in enumerate(mechanism.moving_bodies):
+        frames[body.name] = (np.asarray(q[3 * i:3 * i + 2]), float(q[3 * i + 2]))
+
+    def world(body: str, label: str) -> np.ndarray:
+        r, phi = frames[body]
+        return r + _rotate(phi, mechanism.body(body).points[label])
+
+    qpos = []
+    for mj in lay.joints:
+        joint = mj.joint
+        if mj.kind == "hinge":
+            qpos.append(frames[joint.body_b][1] - frames[joint.body_a][1])
+        else:
+            direction = _rotate(frames[joint.body_a][1], joint.direction)
+            qpos.append(float(direction @ (world(joint.body_b, joint.point) - world(joint.body_a, joint.line_point))))
+    return np.array(qpos)
+
+
+def _servo_inertia(kinematics: Kinematics, masses: dict[str, MassProperties]) -> list[float]:
+    """The inertia (kg m^2 or kg) each input's servo is tuned for.
+
+    Per driver j, the smallest over the simulation window (or the reference
+    configuration, if the window cannot be found) of ``1 / (M^-1)_jj``, M the
+    drivers' k x k effective mass matrix (kinetic energy at unit input rates).
+    Tuning every servo for its smallest inertia keeps the servo stable where
+    the mechanism is lightest; ``1 / (M^-1)_jj`` bounds the coupled servos'
+    highest frequency by sqrt(k) times the nominal one.
+    """
+    mech = kinematics.mechanism
+    k = len(mech.drivers)
+    try:
+        window = simulation_window(kinematics)
+        c = window.inputs(kinematics, window.times(201))[0]
+    except XcheckError:
+        c = kinematics.reference_inputs()[None]
+    velocities = []  # per driver j: per body, (v_com (N, 2), omega (N,)) at unit rate of input j
+    for j in range(k):
+        rates = np.zeros_like(c)
+        rates[:, j] = 1.0
+        solution = kinematics.solve(c, rates)
+        per_body = []
+        for body in mech.moving_bodies:
+            state, props = solution.body(body.name), masses[body.name]
+            arm = np.array([_rotate(phi, props.com) for phi in state["angle"]])
+            v_com = state["velocity"] + state["omega"][:, None] * np.stack([-arm[:, 1], arm[:, 0]], axis=1)
+            per_body.append((props, v_com, state["omega"]))
+        velocities.append(per_body)
+    mass = np.zeros((c.shape[0], k, k))
+    for i in range(k):
+        for j in range(k):
+            for (props, v_i, w_i), (_, v_j, w_j) in zip(velocities[i], velocities[j]):
+                mass[:, i, j] += props.mass * np.sum(v_i * v_j, axis=1) + props.inertia * w_i * w_j
+    good = np.all(np.isfinite(mass), axis=(1, 2))
+    apparent = 1.0 / np.diagonal(np.linalg.inv(mass[good]), axis1=1, axis2=2)
+    return [float(v) for v in apparent.min(axis=0)]
+
+
+def _round(x: float, digits: int = 3) -> float:
+    return float(f"{x:.{digits - 1}e}")
+
+
+def _comment(text: str) -> ET.Comment:
+    return ET.Comment(" " + text.strip().replace("--", "-") + " ")
+
+
+def mjcf_text(kinematics: Kinematics) -> str:
+    """The MJCF file of a mechanism (UTF-8 text).
+
+    Raises
+    ------
+    ModelError
+        If the mechanism cannot be written as a tree with revolute loop cuts.
+    """
+    mech = kinematics.mechanism
+    lay = layout(mech)
+    masses = mass_properties(mech)
+    size = mech.size
+    radius = _round(0.01 * size)  # visual only
+
+    root = ET.Element("mujoco", model=mech.name)
+    defaults = [name for name, p in masses.items() if p.default]
+    header = [
+        f"{mech.title} ({mech.name}), written by xcheck from {Path(mech.path).name}; regenerate, do not edit.",
+        "SI units; angles in radians. Body frames are the model's body frames. Hinge qpos = phi_b - phi_a "
+        "of the model joint (axis -z where the tree runs from body_b to body_a); slide qpos = the joint's "
+        "slide displacement. A pin-in-slot is a slide and a hinge in one body.",
+        "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp). "
+        "Gravity is zero: the kinematic comparison does not depend on loads (for a vertical plane set "
+        "gravity to 0 -9.81 0). Links never collide (contype = conaffinity = 0).",
+        "Mass properties: " + ("the model's." if not defaults else
+                               f"defaults for {', '.join(defaults)} (the model gives none): "
+                               f"{_num(DEFAULT_MASS)} kg at the centroid of the body's points, inertia "
+                               f"m (L^2/12 + r^2/2), L the body's largest point distance, r = "
+                               f"{_num(DEFAULT_DISC_FRACTION)} x mechanism size."),
+        "Each input is driven by a position servo (kp, ctrl = the motion law's value) plus a velocity servo "
+        f"(kv, ctrl = the law's rate): critically damped at {_num(SERVO_FREQUENCY)} rad/s for the input's "
+        "smallest apparent inertia over the simulation window (gains rounded to 3 digits). Options are MuJoCo's defaults "
+        "(Euler, 2 ms) apart from gravity.",
+        "Keyframe 'reference': the assembled configuration at the reference inputs (rounded to 12 digits).",
+    ]
+    for line in header:
+        root.append(_comment(line))
+    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
+    ET.SubElement(root, "option", gravity="0 0 0")
+    default = ET.SubElement(root, "default")
+    ET.SubElement(default, "geom", contype="0", conaffinity="0", rgba="0.3 0.5 0.8 1")
+    ET.SubElement(default, "site", size=_num(_round(1.5 * radius)), rgba="0.9 0.3 0.2 1")
+
+    worldbody = ET.SubElement(root, "worldbody")
+    for label, xy in mech.ground.points.items():
+        ET.SubElement(worldbody, "site", name=_site(GROUND, label), pos=_vec(xy[0], xy[1], 0.0))
+
+    children: dict[str, list[TreeJoint]] = {}
+    for tj in lay.topology.tree:
+        children.setdefault(tj.parent, []).append(tj)
+
+    def add_body(parent_el: ET.Element, tj: TreeJoint) -> None:
+        joint, body = tj.joint, mech.body(tj.child)
+        parent = mech.body(tj.parent)
+        angle = 0.0
+        if isinstance(joint, Revolute):
+            s_parent, s_child = ((parent.points[joint.point_a], body.points[joint.point_b]) if not tj.reversed
+                                 else (parent.points[joint.point_b], body.points[joint.point_a]))
+            pos, anchor = s_parent - s_child, s_child
+        elif isinstance(joint, Prismatic):
+            # non-reversed: child b at relative angle +angle; reversed: child a at -angle
+            angle = -joint.angle if tj.reversed else joint.angle
+            if not tj.reversed:
+                pos, anchor = parent.points[joint.line_point] - _rotate(angle, body.points[joint.point]), \
+                    body.points[joint.point]
+            else:
+                pos, anchor = parent.points[joint.point] - _rotate(angle, body.points[joint.line_point]), \
+                    body.points[joint.line_point]
+        else:  # pin-in-slot: the pin sits on the line point at zero slide
+            if not tj.reversed:
+                pos, anchor = parent.points[joint.line_point] - body.points[joint.point], body.points[joint.point]
+            else:
+                pos, anchor = parent.points[joint.point] - body.points[joint.line_point], \
+                    body.points[joint.line_point]
+        attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
+        if angle != 0.0:
+            attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
+        el = ET.SubElement(parent_el, "body", attrs)
+        for name, kind in _tree_joints(tj):
+            j_attrs = {"name": name, "type": kind, "pos": _vec(anchor[0], anchor[1], 0.0)}
+            if kind == "hinge":
+                j_attrs["axis"] = "0 0 -1" if tj.reversed else "0 0 1"
+            else:
+                # the line's direction in the child frame (reversed: the child carries the line
+                # and moves against it)
+                axis = -joint.direction if tj.reversed else _rotate(-angle, joint.direction)
+                j_attrs["axis"] = _vec(axis[0], axis[1], 0.0)
+            ET.SubElement(el, "joint", j_attrs)
+        props = masses[body.name]
+        ET.SubElement(el, "inertial", pos=_vec(props.com[0], props.com[1], 0.0), mass=_num(props.mass),
+                      diaginertia=_vec(props.inertia, props.inertia, props.inertia))
+        labels = list(body.points)
+        pts = [body.points[lbl] for lbl in labels]
+        if len(pts) == 1:
+            ET.SubElement(el, "geom", type="box", pos=_vec(pts[0][0], pts[0][1], 0.0),
+                          size=_vec(3 * radius, 2 * radius, radius))
+        for p, q in zip(pts, pts[1:]):
+            ET.SubElement(el, "geom", type="capsule", size=_num(radius),
+                          fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0))
+        for label, xy in zip(labels, pts):
+            ET.SubElement(el, "site", name=_site(body.name, label), pos=_vec(xy[0], xy[1], 0.0))
+        for child in children.get(body.name, []):
+            add_body(el, child)
+
+    for tj in children.get(GROUND, []):
+        add_body(worldbody, tj)
+
+    if lay.topology.cuts:
+        equality = ET.SubElement(root, "equality")
+        for cut in lay.topology.cuts:
+            ET.SubElement(equality, "connect", name=cut.name, site1=_site(cut.body_a, cut.point_a),
+                          site2=_site(cut.body_b, cut.point_b))
+
+    actuator = ET.SubElement(root, "actuator")
+    for driver, mj_joint, inertia in zip(mech.drivers, lay.driver_joints, _servo_inertia(kinematics, masses)):
+        kp = _round(inertia * SERVO_FREQUENCY**2)
+        kv = _round(2.0 * inertia * SERVO_FREQUENCY)
+        ET.SubElement(actuator, "position", name=f"{driver.name}.position", joint=mj_joint, kp=_num(kp))
+        ET.SubElement(actuator, "velocity", name=f"{driver.name}.velocity", joint=mj_joint, kv=_num(kv))
+
+    qpos = joint_coordinates(mech, lay, kinematics.assemble())
+    keyframe = ET.SubElement(root, "keyframe")
+    ET.SubElement(keyframe, "key", name="reference", qpos=" ".join(_num(float(f"{v:.11e}")) for v in qpos))
+
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
