@@ -1,0 +1,418 @@
+"""MuJoCo adapter: the mechanism as an MJCF file, MuJoCo as a kinematic oracle
+(mode ``mujoco-kinematic``) and as a simulator (mode ``mujoco-dynamic``).
+
+``export_files`` writes the MJCF file (see :mod:`._mujoco_mjcf` for its
+conventions); both modes compile that text, so they test the file a user gets.
+Run ``python -m xcheck.engines.mujoco models/*.toml`` to regenerate models/mjcf/.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from ..compare import ModeResult, Trajectory, differences
+from ..errors import InputError, XcheckError
+from ..fileio import write_atomic
+from ..kinematics import Kinematics, Status
+from ..model import Mechanism
+from ..motion import simulation_window
+from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
+from ._mujoco_mjcf import joint_coordinates, layout, mjcf_text
+from ._mujoco_oracle import Oracle
+
+__all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error"]
+
+KINEMATIC_MODE = "mujoco-kinematic"
+DYNAMIC_MODE = "mujoco-dynamic"
+
+
+def export_files(kinematics: Kinematics) -> dict[str, str]:
+    """The MJCF file of a mechanism: ``{"NAME.xml": text}``, NAME the mechanism's name.
+
+    Raises
+    ------
+    ModelError
+        If the mechanism cannot be written (a loop with no revolute to cut).
+    """
+    return {f"{kinematics.mechanism.name}.xml": mjcf_text(kinematics)}
+
+
+def _writer_failure(mechanism: Mechanism, error: XcheckError) -> str:
+    """One line saying which joint the writer cannot express and why."""
+    field = getattr(error, "field", "")
+    if field.startswith("joints["):
+        joint = mechanism.joints[int(field[len("joints["):field.index("]")])]
+        return (f"MJCF writer: joint {joint.name!r} ({joint.kind}) closes a loop that has no revolute joint; "
+                "MuJoCo closes loops with connect constraints at revolutes, so the loop cannot be written")
+    return f"MJCF writer: {error}"
+
+
+def _compile(kinematics: Kinematics, xml: str | None):
+    """(model, layout) of the mechanism's MJCF text (``xml`` overrides the writer's)."""
+    mech = kinematics.mechanism
+    lay = layout(mech)
+    text = mjcf_text(kinematics) if xml is None else xml
+    return mujoco.MjModel.from_xml_string(text), lay
+
+
+def _law_states(mechanism: Mechanism, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Rates and accelerations of the drivers' laws where they pass ``values`` (N, k).
+
+    Where a law never reaches a value (a harmonic law inside a wider feasible
+    range), its rate and acceleration at t = 0 stand in. Returns rates,
+    accelerations (N, k) and the number of such stand-ins.
+    """
+    rates, accelerations = np.empty_like(values), np.empty_like(values)
+    stand_ins = 0
+    for k, driver in enumerate(mechanism.drivers):
+        _, qd0, qdd0 = driver.law.at_time(0.0)
+        for i, value in enumerate(values[:, k]):
+            state = driver.law.state_at(float(value))
+            if state is None:
+                state, stand_ins = (value, float(qd0), float(qdd0)), stand_ins + 1
+            rates[i, k], accelerations[i, k] = state[1], state[2]
+    return rates, accelerations, stand_ins
+
+
+def _sweeps(kinematics: Kinematics, samples: int, branch: str | None, margin: float):
+    """Input sweeps, one per driver, the other inputs held at their reference values.
+
+    A crank that turns round sweeps one turn up from its reference value; a
+    bounded input sweeps its feasible range less ``margin`` of its width at
+    each limit position, split at the reference value into a piece going up
+    and one going down, so that Newton can walk out from the reference
+    configuration.
+
+    Returns
+    -------
+    list of (up, down)
+        Per driver, two arrays of shape (N_up, k), (N_down, k) (N_down may be 0),
+        each ordered away from the reference value.
+    """
+    ref = kinematics.reference_inputs()
+    sweeps = []
+    for k, driver in enumerate(kinematics.mechanism.drivers):
+        rng = kinematics.input_range(k, branch)
+        if rng.full_turn and driver.quantity == "angle":
+            ups, downs = ref[k] + np.linspace(0.0, 2.0 * math.pi, samples), np.zeros(0)
+        else:
+            low = rng.low if rng.low is not None else ref[k] - rng.span / 2.0
+            high = rng.high if rng.high is not None else ref[k] + rng.span / 2.0
+            pad = margin * (high - low)
+            values = np.linspace(low + pad, high - pad, samples)
+            ups, downs = values[values >= ref[k]], values[values < ref[k]][::-1]
+        pair = []
+        for part in (ups, downs):
+            c = np.tile(ref, (part.size, 1))
+            c[:, k] = part
+            pair.append(c)
+        sweeps.append(tuple(pair))
+    return sweeps
+
+
+def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None = None, margin: float = 1e-3,
+                  xml: str | None = None) -> ModeResult:
+    """MuJoCo as a kinematic oracle over the feasible range of each input.
+
+    Positions by Newton projection on MuJoCo's loop residuals (``efc_pos``)
+    and Jacobian (``efc_J``), each sample from the previous one, starting from
+    the native assembled configuration at the reference inputs; velocities from
+    the constraint Jacobian with the input rates imposed; accelerations with
+    the drift term from ``mj_jacDot``. Bodies and points are read from MuJoCo.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    samples : int
+        Samples per driver's sweep.
+    branch : str, optional
+        Assembly branch (default: the model file's first).
+    margin : float
+        Fraction of a bounded input's feasible range kept clear of each limit.
+    xml : str, optional
+        MJCF text to use instead of the writer's (to test a wrong file).
+
+    Returns
+    -------
+    ModeResult
+        One trajectory: per driver, its sweep in ascending input order; rates
+        and accelerations from the drivers' laws at those values.
+        ``summary`` is the trajectory's :func:`differences` table.
+    """
+    mech = kinematics.mechanism
+    try:
+        model, lay = _compile(kinematics, xml)
+    except XcheckError as error:
+        return ModeResult(KINEMATIC_MODE, mech.name, False, _writer_failure(mech, error))
+    except ValueError as error:  # MuJoCo's compiler
+        return ModeResult(KINEMATIC_MODE, mech.name, False, f"MuJoCo rejects the MJCF: {error}".splitlines()[0])
+    oracle = Oracle(model, mech, lay)
+    ref = kinematics.reference_inputs()
+    start = joint_coordinates(mech, lay, kinematics.assemble(branch))
+    parts = []  # (inputs, projection arrays) in ascending input order per driver
+    for up, down in _sweeps(kinematics, samples, branch, margin):
+        for c, order in ((down, slice(None, None, -1)), (up, slice(None))):
+            if c.size:
+                p = oracle.project(start, ref, c)
+                parts.append((c[order], p.qpos[order], p.residual[order], p.converged[order]))
+    inputs, q, residual, converged = (np.concatenate(arrays) for arrays in zip(*parts))
+    if not converged.all():
+        i = int(np.argmin(converged))
+        where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[i]))
+        return ModeResult(KINEMATIC_MODE, mech.name, False,
+                          f"MuJoCo's Newton projection did not close the loops at {where} "
+                          f"(violation {residual[i]:.3g} m)")
+    rates, accelerations, stand_ins = _law_states(mech, inputs)
+    qvel = np.array([oracle.velocity(q[i], rates[i]) for i in range(len(q))])
+    qacc = np.array([oracle.acceleration(q[i], qvel[i], accelerations[i]) for i in range(len(q))])
+    bodies, points = oracle.states(q, qvel, qacc)
+    notes = ("Positions: Newton projection on MuJoCo's equality rows (efc_pos, efc_J, least squares) from the "
+             "previous sample; velocities: efc_J with the input rates imposed; accelerations: the same with the "
+             "drift -Jdot qd from mj_jacDot at both sites of each connect. Bodies from xpos/xmat, mj_jac, "
+             "mj_jacDot; points from their sites.")
+    if stand_ins:
+        notes += (f" At {stand_ins} input value(s) a driver's law never passes, its rate and acceleration at "
+                  "t = 0 were used.")
+    trajectory = Trajectory(
+        source=KINEMATIC_MODE, inputs=inputs, input_rates=rates, input_accelerations=accelerations,
+        bodies=bodies, points=points,
+        settings={"samples": samples, "margin": margin, "branch": branch or kinematics.branches[0],
+                  "jacobian": "sparse" if mujoco.mj_isSparse(model) else "dense"},
+        diagnostics={"constraint_violation": residual}, notes=notes)
+    return ModeResult(KINEMATIC_MODE, mech.name, True, "", [trajectory],
+                      differences(kinematics, trajectory, branch))
+
+
+def _simulated_duration(kinematics: Kinematics, branch: str | None, duration: float | None):
+    """(duration in s, reason for failing or "") of a dynamic run: the simulation
+    window's, or ``duration`` if the drivers' motion stays feasible that long."""
+    try:
+        window = simulation_window(kinematics, branch)
+    except InputError as error:
+        return 0.0, str(error)
+    if duration is None or duration <= window.duration:
+        return (window.duration if duration is None else duration), ""
+    if window.reason == "feasible range":
+        inputs = window.inputs(kinematics, np.array([window.duration]))[0][0]
+        where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(kinematics.mechanism.drivers, inputs))
+        return duration, (f"the driven motion leaves the feasible range (2% margin) at t = {window.duration:.6g} s "
+                          f"({where}); {duration:.6g} s were asked for")
+    return duration, (f"expected a duration up to the simulation window ({window.duration:.6g} s, "
+                      f"{window.reason}), found {duration:.6g} s")
+
+
+def _outside_range(kinematics: Kinematics, branch: str | None, run: Run, dofs: np.ndarray) -> str:
+    """Why the realised inputs of a run left their feasible ranges, or ""."""
+    for k, driver in enumerate(kinematics.mechanism.drivers):
+        rng = kinematics.input_range(k, branch)
+        values = run.qpos[:, dofs[k]]
+        outside = np.flatnonzero([not rng.contains(float(v)) for v in values])
+        if outside.size:
+            i = int(outside[0])
+            return (f"the input {driver.name} reached {values[i]:.6g} at t = {run.times[i]:.6g} s, outside its "
+                    f"feasible range {rng.low} .. {rng.high}")
+    return ""
+
+
+def _summary_row(kinematics, branch, run: Run, trajectory, oracle_trajectory, violation, tracking,
+                 status: str) -> dict:
+    """One row of the dynamic mode's summary (errors left empty for a failed run,
+    the oracle's acceleration error empty where it was not computed)."""
+    row = {"setting": run.settings["setting"], "integrator": run.settings["integrator"],
+           "timestep": run.settings["timestep"], "steps": run.steps, "status": status or "ok",
+           "position_error": np.nan, "angle_error": np.nan, "velocity_error": np.nan,
+           "acceleration_error": np.nan, "acceleration_error_oracle": np.nan, "observed_order": np.nan,
+           "constraint_violation": float(np.max(violation)) if violation.size else np.nan,
+           "input_tracking": float(np.max(tracking)) if tracking.size else np.nan}
+    if status:
+        return row
+
+    table = differences(kinematics, trajectory, branch)
+    row.update(position_error=relative_error(table, "position", absolute=True),
+               angle_error=relative_error(table, "angle", absolute=True),
+               velocity_error=max(relative_error(table, "velocity"), relative_error(table, "omega")),
+               acceleration_error=max(relative_error(table, "acceleration"), relative_error(table, "alpha")))
+    if oracle_trajectory is not None:
+        oracle = differences(kinematics, oracle_trajectory, branch)
+        row["acceleration_error_oracle"] = max(relative_error(oracle, "acceleration"), relative_error(oracle, "alpha"))
+    return row
+
+
+def relative_error(table: pd.DataFrame, quantity: str, absolute: bool = False) -> float:
+    """The worst error of one quantity over every body or point of a :func:`differences` table.
+
+    Relative errors are taken against the largest magnitude of that quantity in
+    the whole mechanism (e.g. the fastest point's speed), not per row: a body
+    whose quantity is zero (a frame origin at a fixed pivot) has a round-off
+    scale that would make its own ``max_rel`` meaningless.
+
+    Returns
+    -------
+    float
+        ``max(max_abs)`` in SI units if ``absolute``, else ``max(max_abs) /
+        max(scale)`` (``max(max_abs)`` itself where every scale is zero);
+        0 when the table has no row of that quantity.
+    """
+    rows = table[table.quantity == quantity]
+    if rows.empty:
+        return 0.0
+    error, scale = float(rows.max_abs.max()), float(rows.scale.max())
+    return error if absolute or scale == 0.0 else error / scale
+
+
+def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int = 101,
+                default_timesteps=(2e-3, 1e-3, 5e-4), tight_timesteps=(1e-3, 5e-4, 2.5e-4, 1.25e-4),
+                duration: float | None = None, violation_bound: float = 0.05,
+                xml: str | None = None) -> ModeResult:
+    """MuJoCo simulating the mechanism with its inputs driven by the file's servos.
+
+    Every run starts from the exact state at t = 0 (native configuration,
+    MuJoCo's velocity solve) and integrates over the simulation window
+    (:func:`~xcheck.motion.simulation_window`) with the servos' controls
+    following the drivers' laws. Sampled states are compared with the native
+    solution at the inputs MuJoCo realised (qpos, qvel, qacc of the input joints).
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    branch : str, optional
+    samples : int
+        States sampled per run, evenly in time.
+    default_timesteps, tight_timesteps : sequence of float
+        Time steps (s) run with the :data:`DEFAULT` (the file as written) and
+        :data:`TIGHT` settings.
+    duration : float, optional
+        Simulated time (s); default the simulation window. Longer than a
+        window cut short by the feasible range fails.
+    violation_bound : float
+        A run whose loop violation exceeds this fraction of the mechanism's
+        size counts as diverged.
+    xml : str, optional
+        MJCF text to use instead of the writer's.
+
+    Returns
+    -------
+    ModeResult
+        ``trajectories[0]``: the tight setting at its smallest time step,
+        accelerations from qacc (the comparison's); ``trajectories[1]``: the
+        same states with the oracle's accelerations; then every other run.
+        ``summary``: one row per run: setting, integrator, timestep (s),
+        steps, status ("ok" or why it failed), position_error (m, worst
+        body origin or point), angle_error (rad), velocity_error and
+        acceleration_error (worst, relative to the mechanism's largest value
+        of the quantity: :func:`relative_error`), acceleration_error_oracle (the
+        compared run only; empty elsewhere), observed_order (of the position
+        error against the previous time step of the same setting),
+        constraint_violation (m, worst loop), input_tracking (worst
+        |input - law|, rad or m). Errors are empty for a failed run.
+    """
+    mech = kinematics.mechanism
+    try:
+        model, lay = _compile(kinematics, xml)
+    except XcheckError as error:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, _writer_failure(mech, error))
+    except ValueError as error:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, f"MuJoCo rejects the MJCF: {error}".splitlines()[0])
+    duration, failure = _simulated_duration(kinematics, branch, duration)
+    if failure:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, failure)
+    oracle = Oracle(model, mech, lay)
+    c0, cd0 = (np.array([float(d.law.at_time(0.0)[i]) for d in mech.drivers]) for i in (0, 1))
+    native = kinematics.solve(c0[None], cd0[None], branch=branch)
+    if native.status[0] > Status.NEAR_SINGULAR:
+        return ModeResult(DYNAMIC_MODE, mech.name, False,
+                          f"the mechanism has no determined state at t = 0 ({Status(native.status[0]).message})")
+    start = oracle.project(joint_coordinates(mech, lay, native.q[0]), c0, c0[None])
+    qpos0, qvel0 = start.qpos[0], oracle.velocity(start.qpos[0], cd0)
+    dofs = oracle.input_dofs
+
+    plan = [(DEFAULT, dt) for dt in default_timesteps] + [(TIGHT, dt) for dt in tight_timesteps]
+    if not plan:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, "expected at least one time step to run, found none")
+    primary = (TIGHT, min(tight_timesteps)) if tight_timesteps else plan[-1]
+    rows, trajectories, primary_failure = [], [], ""
+    for setting, dt in plan:
+        run = simulate(copy.deepcopy(model), mech, lay, setting, dt, duration, qpos0, qvel0, samples)
+        violation = np.array([oracle.violation(q) for q in run.qpos])
+        tracking = np.abs(run.qpos[:, dofs] - run.law)
+        status = run.failure
+        if not status and violation.size and violation.max() > violation_bound * mech.size:
+            i = int(np.argmax(violation > violation_bound * mech.size))
+            status = (f"diverged: loop violation {violation[i]:.3g} m > {violation_bound:g} x size at "
+                      f"t = {run.times[i]:.6g} s")
+        status = status or _outside_range(kinematics, branch, run, dofs)
+        is_primary = (setting, dt) == primary
+        trajectory = oracle_trajectory = None
+        if not status:
+            trajectory, oracle_trajectory = _run_trajectories(oracle, run, setting, duration, violation, tracking,
+                                                              with_oracle=is_primary)
+        rows.append(_summary_row(kinematics, branch, run, trajectory, oracle_trajectory, violation, tracking, status))
+        if is_primary and status:
+            primary_failure = f"{setting.name} {setting.integrator} dt = {dt:g} s: {status}"
+        elif is_primary:
+            trajectories[:0] = [trajectory, oracle_trajectory]
+        elif trajectory is not None:
+            trajectories.append(trajectory)
+    summary = pd.DataFrame(rows)
+    with np.errstate(all="ignore"):  # an exact zero error has no order
+        for name in summary.setting.unique():
+            group = summary[summary.setting == name]
+            errors, steps = group.position_error.to_numpy(), group.timestep.to_numpy()
+            summary.loc[group.index[1:], "observed_order"] = np.log(errors[:-1] / errors[1:]) / np.log(
+                steps[:-1] / steps[1:])
+    if primary_failure:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary)
+    return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary)
+
+
+def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray,
+                      tracking: np.ndarray, with_oracle: bool):
+    """The trajectory of a run (accelerations from qacc) and, if asked, the same
+    states with the kinematic oracle's accelerations (else None)."""
+    dofs = oracle.input_dofs
+    inputs, rates, accelerations = run.qpos[:, dofs], run.qvel[:, dofs], run.qacc[:, dofs]
+    settings = {**run.settings, "accelerations": "qacc", "duration": duration, "samples": len(run.times),
+                "drive": "position servo (ctrl = law value) + velocity servo (ctrl = law rate), zero-order hold"}
+    diagnostics = {"constraint_violation": violation, "input_tracking": tracking}
+    drive = (f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
+             "by the file's servos, controls = the laws' value and rate at each step's start; the native solver "
+             "is evaluated at the inputs as MuJoCo realised them (input joints' qpos, qvel, qacc). ")
+    bodies, points = oracle.states(run.qpos, run.qvel, run.qacc)
+    trajectory = Trajectory(DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times, settings,
+                            diagnostics, drive + "Accelerations: qacc from mj_forward at each sampled state (what "
+                            "the integrator uses, including MuJoCo's constraint stabilisation); the comparison "
+                            "uses these.")
+    if not with_oracle:
+        return trajectory, None
+    qacc = np.array([oracle.acceleration(q, v, a) for q, v, a in zip(run.qpos, run.qvel, accelerations)])
+    bodies, points = oracle.states(run.qpos, run.qvel, qacc)
+    return trajectory, Trajectory(
+        DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times,
+        {**settings, "accelerations": "oracle at simulated state"}, diagnostics,
+        drive + "Accelerations: the kinematic oracle at the simulated states (J qdd = -Jdot qd with the input "
+        "joints' qacc imposed), not qacc; shown beside the comparison, which uses qacc.")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write models/mjcf/NAME.xml for each TOML file named on the command line."""
+    from ..model import load_mechanism
+
+    paths = sys.argv[1:] if argv is None else argv
+    for path in paths:
+        kin = Kinematics(load_mechanism(path))
+        for name, text in export_files(kin).items():
+            target = Path(path).resolve().parent / "mjcf" / name
+            write_atomic(target, text)
+            print(target)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
