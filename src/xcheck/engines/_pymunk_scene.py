@@ -1,0 +1,440 @@
+"""The mechanism as a pymunk space (private to :mod:`xcheck.engines.pymunk`).
+
+pymunk (Chipmunk2D) has no kinematic tree: every joint of the canonical model
+becomes a constraint between two rigid bodies, and the space's iterative
+impulse solver keeps them together while it integrates the bodies' motion
+(semi-implicit Euler). Joint by joint:
+
+* revolute: ``PivotJoint`` at the two bodies' points;
+* prismatic: ``GrooveJoint`` (the point of ``body_b`` on a finite segment of
+  the line fixed in ``body_a``) plus ``GearJoint(a, b, angle, 1)``, which holds
+  ``phi_b - phi_a = angle``;
+* pin-in-slot: ``GrooveJoint`` alone.
+
+Grooves are finite: each spans the slide range of the native solution over the
+simulated window plus a margin on each side. Bodies have no shapes, so nothing
+collides. A pymunk body's ``position`` is the origin of the model's body frame
+and its ``center_of_gravity`` the model's centre of mass (local), so positions
+and angles map one to one; where the model gives no mass properties the
+defaults of :func:`_mass_properties` apply (and are reported).
+
+The inputs:
+
+* an angle driven at a constant rate on a revolute to the ground: the body is
+  ``KINEMATIC`` with that angular velocity and its centre of gravity on the
+  pivot, so pymunk turns it exactly;
+* any other angle (an acceleration profile, or a revolute between two moving
+  bodies): a ``SimpleMotor`` whose rate is set before each step to the law's
+  rate at the end of that step; the angle then follows by integration;
+* a slide on a prismatic joint to the ground: the sliding body is
+  ``KINEMATIC``, its velocity set before each step to the secant of the motion
+  law over the step, so that its position is exact at every step's end;
+* a slide of a pin-in-slot, or between two moving bodies: a ``PinJoint``
+  between the point and a fixed anchor on the line, far behind the slide
+  range, whose length is set before each step to the law's value one step
+  ahead and corrected fully in one step (a servo on the slide).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk as pm
+
+from xcheck.kinematics import Kinematics, Solution, Status
+from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.motion import SimulationWindow, simulation_window
+
+__all__ = ["DEFAULT_MASS", "Scene", "build_scene", "native_window"]
+
+#: Mass (kg) of a body whose model gives none.
+DEFAULT_MASS = 1.0
+#: Groove margin beyond the native slide range on each side: this fraction of
+#: the range plus this fraction of the mechanism's size.
+_GROOVE_MARGIN = (0.25, 0.05)
+#: The slide servo's fixed anchor sits this many mechanism sizes behind the
+#: line point, so the servo's length never passes through zero.
+_SERVO_BACKOFF = 2.0
+
+
+def _rotate(angle: float, xy) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
+
+
+def _groove_free_com(mechanism: Mechanism, name: str, centroid: np.ndarray) -> np.ndarray | None:
+    """A centre of mass (local, m) at which pymunk's groove joints on this body
+    are exact, or None if there is none.
+
+    pymunk's ``GrooveJoint`` solves the pin's 2-D point impulse with the
+    effective mass K of both bodies and then keeps only its component along
+    the groove's normal. That is the right 1-D impulse only when K has the
+    groove's normal as an eigenvector; otherwise the joint holds the relative
+    velocity along a skewed direction: the pin leaves its groove in proportion
+    to its sliding speed, and the scene can meet a false singularity (task-2-2
+    blew up with the centres of mass at the bodies' centroids). K is diagonal
+    in the groove's frame when the line's body has its centre of mass on the
+    line and the pin's body at the pin; this picks such a point when one
+    exists: the common pin if the body carries pins (and it lies on every line
+    the body carries), else the centroid's projection on the body's common line.
+    """
+    lines = [j for j in mechanism.joints if isinstance(j, (Prismatic, PinInSlot)) and j.body_a == name]
+    pins = [mechanism.body(name).points[j.point] for j in mechanism.joints
+            if isinstance(j, (Prismatic, PinInSlot)) and j.body_b == name]
+    if not lines and not pins:
+        return None
+    body = mechanism.body(name)
+    tol = 1e-9 * mechanism.size
+
+    def on_line(xy, joint) -> bool:
+        r = xy - body.points[joint.line_point]
+        return abs(joint.direction[0] * r[1] - joint.direction[1] * r[0]) <= tol
+
+    if pins:
+        if any(np.linalg.norm(pin - pins[0]) > tol for pin in pins):
+            return None
+        return pins[0] if all(on_line(pins[0], j) for j in lines) else None
+    base, u = body.points[lines[0].line_point], lines[0].direction
+    candidate = base + float(u @ (centroid - base)) * u
+    return candidate if all(on_line(candidate, j) for j in lines) else None
+
+
+def _mass_properties(mechanism: Mechanism, name: str, guides=()) -> tuple[float, np.ndarray, float, list[str]]:
+    """Mass (kg), centre of mass (local, m) and moment about it (kg m^2) of a
+    moving body, with the model's values where it has them.
+
+    Defaults: mass :data:`DEFAULT_MASS`; centre of mass where pymunk's groove
+    joints on the body are exact (see :func:`_groove_free_com`), else at the
+    mean of the body's points and the ends of the grooves it carries
+    (``guides``, local, m); moment of a uniform slender rod, m L^2 / 12, with
+    L the largest distance between two of those points, at least a tenth of
+    the mechanism's size (a one-point slider block still needs a moment). A
+    guide is part of its body, so its length counts.
+
+    Returns
+    -------
+    mass, com, moment, defaulted
+        ``defaulted`` names the properties that took a default.
+    """
+    body = mechanism.body(name)
+    defaulted = []
+    mass = body.mass
+    if mass is None:
+        mass, defaulted = DEFAULT_MASS, defaulted + ["mass"]
+    points = np.array(list(body.points.values()) + [np.asarray(g, dtype=float) for g in guides] or [[0.0, 0.0]])
+    com = body.com
+    if com is None:
+        centroid = points.mean(axis=0)
+        exact = _groove_free_com(mechanism, name, centroid)
+        com = centroid if exact is None else exact
+        defaulted.append("com" if exact is None else "com (on its groove line or pin)")
+    inertia = body.inertia
+    if inertia is None:
+        span = max((float(np.linalg.norm(p - q)) for p in points for q in points), default=0.0)
+        length = max(span, 0.1 * mechanism.size)
+        inertia, defaulted = mass * length * length / 12.0, defaulted + ["inertia"]
+    if not (math.isfinite(mass) and mass > 0.0 and math.isfinite(inertia) and inertia > 0.0):
+        raise ValueError(f"body {name}: expected a positive finite mass and moment of inertia, "
+                         f"found mass {mass} kg, inertia {inertia} kg m^2")
+    return float(mass), np.asarray(com, dtype=float), float(inertia), defaulted
+
+
+@dataclass
+class _Drive:
+    """How one driver is realised in the scene.
+
+    ``kind`` is "kinematic-rate", "motor", "kinematic-slide" or "slide-servo";
+    ``before_step(t, dt)`` prepares the step from t to t + dt.
+    """
+
+    driver_index: int
+    kind: str
+    body: pm.Body | None = None
+    constraint: pm.Constraint | None = None
+    sign: float = 1.0
+    direction: np.ndarray | None = None  # world direction of a kinematic slide
+    law: object = None
+
+    def before_step(self, t: float, dt: float) -> None:
+        if self.kind == "motor":
+            # SimpleMotor holds b.w - a.w = -rate at the end of the step
+            _, qd, _ = self.law.at_time(t + dt)
+            self.constraint.rate = -float(qd)
+        elif self.kind == "kinematic-slide":
+            step = (float(self.law.at_time(t + dt)[0]) - float(self.law.at_time(t)[0])) / dt
+            v = self.sign * step * self.direction
+            self.body.velocity = (float(v[0]), float(v[1]))
+        elif self.kind == "slide-servo":
+            # the velocity solved in this step moves the bodies in the next one
+            self.constraint.distance = self.sign * float(self.law.at_time(t + 2.0 * dt)[0])
+
+
+@dataclass
+class Scene:
+    """A mechanism as a pymunk space.
+
+    Attributes
+    ----------
+    mechanism : Mechanism
+    space : pymunk.Space
+    bodies : dict of str to pymunk.Body
+        Every body of the model by name; the ground is the space's static body.
+    constraints : dict of str to list of pymunk.Constraint
+        The constraints standing for each joint (empty for a joint between two
+        bodies whose motion is prescribed), and ``"driver:<name>"`` entries for
+        motors and slide servos.
+    grooves : dict of str to (str, ndarray (2,), ndarray (2,))
+        Per prismatic / pin-in-slot joint: the body carrying the line and the
+        groove's two ends in its frame, m.
+    drives : list of _Drive
+    defaults : dict of str to list of str
+        Per moving body, the mass properties that took a default.
+    """
+
+    mechanism: Mechanism
+    space: pm.Space
+    bodies: dict
+    constraints: dict
+    grooves: dict
+    drives: list
+    defaults: dict
+
+    def step(self, t: float, dt: float) -> None:
+        """Advance the space from t to t + dt (s)."""
+        for drive in self.drives:
+            if drive.kind != "kinematic-rate":
+                drive.before_step(t, dt)
+        self.space.step(dt)
+
+    def world_point(self, body: str, label: str) -> np.ndarray:
+        """Global position (m) of a body's named point, from pymunk's transform."""
+        p = self.bodies[body].local_to_world(tuple(self.mechanism.body(body).points[label]))
+        return np.array([p.x, p.y])
+
+    def point_velocity(self, body: str, label: str) -> np.ndarray:
+        v = self.bodies[body].velocity_at_local_point(tuple(self.mechanism.body(body).points[label]))
+        return np.array([v.x, v.y])
+
+    def joint_gaps(self) -> tuple[float, float]:
+        """How far the joints have come apart: the largest distance (m) between
+        points that should coincide or from a point to its line, and the largest
+        error (rad) of a prismatic joint's locked angle."""
+        gap, lock = 0.0, 0.0
+        for joint in self.mechanism.joints:
+            if isinstance(joint, Revolute):
+                d = self.world_point(joint.body_a, joint.point_a) - self.world_point(joint.body_b, joint.point_b)
+                gap = max(gap, float(math.hypot(*d)))
+                continue
+            a = self.bodies[joint.body_a]
+            u = _rotate(a.angle, joint.direction)
+            r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
+            gap = max(gap, abs(float(u[0] * r[1] - u[1] * r[0])))
+            if isinstance(joint, Prismatic):
+                err = self.bodies[joint.body_b].angle - a.angle - joint.angle
+                lock = max(lock, abs((err + math.pi) % (2.0 * math.pi) - math.pi))
+        return gap, lock
+
+    def inputs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The drivers' values and rates as the bodies realise them, each (k,), SI."""
+        mech = self.mechanism
+        q, qd = np.empty(len(mech.drivers)), np.empty(len(mech.drivers))
+        for k, driver in enumerate(mech.drivers):
+            joint = mech.joint(driver.joint)
+            a, b = self.bodies[joint.body_a], self.bodies[joint.body_b]
+            if driver.quantity == "angle":
+                q[k], qd[k] = b.angle - a.angle, b.angular_velocity - a.angular_velocity
+                continue
+            u = _rotate(a.angle, joint.direction)
+            r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
+            v = self.point_velocity(joint.body_b, joint.point) - self.point_velocity(joint.body_a, joint.line_point)
+            q[k] = u @ r
+            qd[k] = u @ v + a.angular_velocity * (u[0] * r[1] - u[1] * r[0])
+        return q, qd
+
+
+def _place(body: pm.Body, origin, angle: float, origin_velocity, omega: float) -> None:
+    """Put a pymunk body's frame origin at ``origin`` with ``angle`` and the
+    origin moving at ``origin_velocity`` (pymunk's velocity is that of the
+    centre of gravity). The angle goes first: its setter turns the body about
+    the centre of gravity."""
+    body.angle = float(angle)
+    body.position = (float(origin[0]), float(origin[1]))
+    arm = _rotate(angle, body.center_of_gravity)
+    v = np.asarray(origin_velocity, dtype=float) + omega * np.array([-arm[1], arm[0]])
+    body.velocity = (float(v[0]), float(v[1]))
+    body.angular_velocity = float(omega)
+
+
+def _slide_extent(mechanism: Mechanism, solution: Solution, joint) -> tuple[float, float]:
+    """Smallest and largest slide (m) of a line joint over a native solution."""
+    ok = solution.status <= Status.NEAR_SINGULAR
+    la = solution.body(joint.body_a)
+    r = (solution.point(joint.point, joint.body_b)["position"]
+         - solution.point(joint.line_point, joint.body_a)["position"])[ok]
+    phi = la["angle"][ok]
+    u = np.stack([np.cos(phi) * joint.direction[0] - np.sin(phi) * joint.direction[1],
+                  np.sin(phi) * joint.direction[0] + np.cos(phi) * joint.direction[1]], axis=1)
+    s = np.einsum("ij,ij->i", u, r)
+    return float(s.min()), float(s.max())
+
+
+def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 10,
+                error_bias: float | None = None) -> Scene:
+    """The mechanism as a pymunk space, at the first sample of ``native``.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    native : Solution
+        The native solution over the window to simulate; its first sample is
+        the initial state (positions and velocities) and its slide ranges size
+        the grooves. Every sample must have assembled.
+    iterations : int
+        The space's solver iterations per step.
+    error_bias : float, optional
+        Each constraint's ``error_bias``: the fraction of a joint's error left
+        uncorrected after one second (pymunk's default, 0.9 per 1/60 s, when
+        None).
+
+    Returns
+    -------
+    Scene
+    """
+    mech = kinematics.mechanism
+    if not np.all(native.status <= Status.NEAR_SINGULAR):
+        raise ValueError("the native solution does not assemble over the whole window")
+    space = pm.Space()
+    space.iterations = int(iterations)
+    bodies = {GROUND: space.static_body}
+    defaults = {}
+    drives: list[_Drive] = []
+
+    # prescribed bodies: a constant-rate angle on a revolute to the ground, a
+    # slide on a prismatic joint to the ground
+    prescribed: dict[str, _Drive] = {}
+    for k, driver in enumerate(mech.drivers):
+        joint = mech.joint(driver.joint)
+        on_ground = GROUND in (joint.body_a, joint.body_b) and joint.body_a != joint.body_b
+        moving = joint.body_b if joint.body_a == GROUND else joint.body_a
+        sign = 1.0 if joint.body_a == GROUND else -1.0
+        if (driver.quantity == "angle" and on_ground and driver.law.kind == "constant-rate"
+                and moving not in prescribed):
+            prescribed[moving] = _Drive(k, "kinematic-rate", sign=sign, law=driver.law)
+        elif driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic) and moving not in prescribed:
+            # the slide grows when body_b moves along the line (line in body_a)
+            # or when body_a moves against it (line in the moving body)
+            prescribed[moving] = _Drive(k, "kinematic-slide", sign=sign, law=driver.law)
+
+    grooves = {}
+    for joint in mech.joints:
+        if isinstance(joint, (Prismatic, PinInSlot)):
+            low, high = _slide_extent(mech, native, joint)
+            pad = _GROOVE_MARGIN[0] * (high - low) + _GROOVE_MARGIN[1] * mech.size
+            base = mech.body(joint.body_a).points[joint.line_point]
+            grooves[joint.name] = (joint.body_a, base + (low - pad) * joint.direction,
+                                   base + (high + pad) * joint.direction)
+
+    first = 0
+    for body in mech.moving_bodies:
+        frame = native.body(body.name)
+        origin, angle = frame["position"][first], float(frame["angle"][first])
+        drive = prescribed.get(body.name)
+        if drive is None:
+            guides = [end for carrier, *ends in grooves.values() if carrier == body.name for end in ends]
+            mass, com, inertia, defaulted = _mass_properties(mech, body.name, guides)
+            pb = pm.Body(mass, inertia)
+            pb.center_of_gravity = (float(com[0]), float(com[1]))
+            defaults[body.name] = defaulted
+        else:
+            pb = pm.Body(body_type=pm.Body.KINEMATIC)
+            drive.body = pb
+            if drive.kind == "kinematic-rate":
+                # turning about the centre of gravity is exact in pymunk: put it on the pivot
+                joint = mech.joint(mech.drivers[drive.driver_index].joint)
+                pivot = joint.point_b if joint.body_b == body.name else joint.point_a
+                pb.center_of_gravity = tuple(float(x) for x in body.points[pivot])
+            else:
+                joint = mech.joint(mech.drivers[drive.driver_index].joint)
+                line_angle = 0.0 if joint.body_a == GROUND else angle
+                drive.direction = _rotate(line_angle, joint.direction)
+            drives.append(drive)
+        _place(pb, origin, angle, frame["velocity"][first], float(frame["omega"][first]))
+        if drive is not None and drive.kind == "kinematic-rate":
+            pb.angular_velocity = drive.sign * drive.law.rate
+        space.add(pb)
+        bodies[body.name] = pb
+
+    def dynamic(*names):
+        return any(bodies[n].body_type == pm.Body.DYNAMIC for n in names)
+
+    constraints: dict[str, list] = {}
+    for joint in mech.joints:
+        a, b = bodies[joint.body_a], bodies[joint.body_b]
+        made = []
+        if dynamic(joint.body_a, joint.body_b):
+            if isinstance(joint, Revolute):
+                made.append(pm.PivotJoint(a, b, tuple(mech.body(joint.body_a).points[joint.point_a]),
+                                          tuple(mech.body(joint.body_b).points[joint.point_b])))
+            else:
+                _, start, end = grooves[joint.name]
+                made.append(pm.GrooveJoint(a, b, tuple(start), tuple(end),
+                                           tuple(mech.body(joint.body_b).points[joint.point])))
+                if isinstance(joint, Prismatic):
+                    made.append(pm.GearJoint(a, b, float(joint.angle), 1.0))
+        constraints[joint.name] = made
+
+    for k, driver in enumerate(mech.drivers):
+        joint = mech.joint(driver.joint)
+        if any(d.driver_index == k for d in drives):
+            continue
+        a, b = bodies[joint.body_a], bodies[joint.body_b]
+        if driver.quantity == "angle":
+            motor = pm.SimpleMotor(a, b, -float(driver.law.at_time(0.0)[1]))
+            drives.append(_Drive(k, "motor", constraint=motor, law=driver.law))
+            constraints[f"driver:{driver.name}"] = [motor]
+        else:
+            # a distance constraint from a fixed anchor behind the line point: its
+            # length is the slide plus the back-off, never near zero
+            backoff = _SERVO_BACKOFF * mech.size
+            anchor = mech.body(joint.body_a).points[joint.line_point] - backoff * joint.direction
+            servo = pm.PinJoint(a, b, tuple(anchor), tuple(mech.body(joint.body_b).points[joint.point]))
+            servo.error_bias = 0.0  # full correction in one step: the length is a set point
+            servo.distance = backoff + float(driver.law.at_time(0.0)[0])
+            drives.append(_Drive(k, "slide-servo", constraint=servo, law=_Shifted(driver.law, backoff)))
+            constraints[f"driver:{driver.name}"] = [servo]
+    for made in constraints.values():
+        for c in made:
+            c.collide_bodies = False
+            if error_bias is not None and not (isinstance(c, pm.PinJoint) and c.error_bias == 0.0):
+                c.error_bias = float(error_bias)
+            space.add(c)
+    drives.sort(key=lambda d: d.driver_index)
+    return Scene(mech, space, bodies, constraints, grooves, drives, defaults)
+
+
+@dataclass(frozen=True)
+class _Shifted:
+    """A motion law shifted by a constant (the slide servo's length)."""
+
+    law: object
+    offset: float
+
+    def at_time(self, t):
+        q, qd, qdd = self.law.at_time(t)
+        return q + self.offset, qd, qdd
+
+
+def native_window(kinematics: Kinematics, branch: str | None = None,
+                  count: int = 401) -> tuple[SimulationWindow, Solution]:
+    """The simulation window and the native solution at ``count`` equally
+    spaced times over it; ValueError if the native solver does not assemble
+    the mechanism all along."""
+    window = simulation_window(kinematics, branch)
+    native = kinematics.solve(*window.inputs(kinematics, window.times(count)), branch=branch)
+    if not np.all(native.status <= Status.NEAR_SINGULAR):
+        bad = int(np.argmax(native.status > Status.NEAR_SINGULAR))
+        raise ValueError(f"the native solver does not assemble the mechanism at t = "
+                         f"{window.times(count)[bad]:.6g} s of the window ({Status(native.status[bad]).message})")
+    return window, native
