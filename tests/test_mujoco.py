@@ -1,0 +1,348 @@
+"""The MuJoCo adapter: the MJCF files, MuJoCo as a kinematic oracle and as a
+simulator, each compared with the native solver.
+
+Measured figures quoted below come from this file's own runs (MuJoCo 4.0.0);
+``python -m pytest tests/test_mujoco.py`` reproduces them.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import MODEL_NAMES, MODELS
+from test_kinematics import INVERTED, SLIDER_DRIVEN
+from xcheck import Kinematics, ModelError
+from xcheck.compare import differences
+from xcheck.engines.mujoco import export_files, relative_error, run_dynamic, run_kinematic
+from xcheck.model import parse_mechanism
+from xcheck.topology import spanning_tree
+
+# The inverted slider-crank and the slide-driven slider-crank cover pin-in-slot and
+# prismatic joints on moving bodies and a slide input; REVERSED covers what no model
+# has: revolutes listed child first (the hinge axis flips), a prismatic joint whose
+# line is on the moving body (the ground point slides) with a locked angle of -20 deg.
+REVERSED = """
+[mechanism]
+name = "reversed"
+[units]
+length = "m"
+[ground]
+points = { O = [0, 0], E = [0, 0.04] }
+[bodies.crank]
+points = { O = [0, 0], A = [0.1, 0] }
+[bodies.rod]
+points = { A = [0, 0], B = [0.35, 0] }
+[bodies.slider]
+points = { B = [0, 0], L = [0.05, 0.02] }
+[[joints]]
+type = "revolute"
+bodies = ["crank", "ground"]
+point = "O"
+[[joints]]
+type = "revolute"
+bodies = ["rod", "crank"]
+point = "A"
+[[joints]]
+type = "revolute"
+bodies = ["slider", "rod"]
+point = "B"
+[[joints]]
+name = "slide"
+type = "prismatic"
+bodies = ["slider", "ground"]
+line = "L"
+direction = 30
+point = "E"
+angle = -20
+[[drivers]]
+name = "crank"
+joint = "O"
+motion = "constant-rate"
+start = 0
+rate = -50
+[assembly]
+at = { crank = 0 }
+[assembly.branches.up]
+B = [0.23, 0.33]
+"""
+
+# A loop closed by sliding joints only: a table sliding on the ground, a wedge
+# sliding up the table, the wedge's pin in an inclined slot of the ground.
+ALL_SLIDING = """
+[mechanism]
+name = "wedges"
+[units]
+length = "m"
+[ground]
+points = { O = [0, 0] }
+[bodies.table]
+points = { T = [0, 0] }
+[bodies.wedge]
+points = { W = [0, 0] }
+[[joints]]
+name = "table slide"
+type = "prismatic"
+bodies = ["ground", "table"]
+line = "O"
+direction = 0
+point = "T"
+[[joints]]
+name = "wedge slide"
+type = "prismatic"
+bodies = ["table", "wedge"]
+line = "T"
+direction = 90
+point = "W"
+[[joints]]
+name = "incline"
+type = "pin-in-slot"
+bodies = ["ground", "wedge"]
+line = "O"
+direction = 45
+point = "W"
+[[drivers]]
+name = "push"
+joint = "table slide"
+motion = "constant-rate"
+start = 0.1
+rate = 0.5
+[assembly]
+at = { push = 0.1 }
+[assembly.branches.only]
+W = [0.1, 0.1]
+"""
+
+STRINGS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "reversed": REVERSED}
+CASES = [*MODEL_NAMES, *STRINGS]
+
+# Tight setting's time steps in these tests (the mode's default plan has more).
+TEST_TIGHT_STEPS = (5e-4, 2.5e-4)
+
+
+@pytest.fixture(scope="module")
+def case(kinematics):
+    """(Kinematics, MJCF text) of a case, each exported once for the module."""
+    cache = {}
+
+    def get(name: str):
+        if name not in cache:
+            kin = Kinematics(parse_mechanism(STRINGS[name], name)) if name in STRINGS else kinematics(name)
+            (text,) = export_files(kin).values()
+            cache[name] = (kin, text)
+        return cache[name]
+
+    return get
+
+
+def _speed(kin: Kinematics, table) -> float:
+    """The mechanism's speed W (1/s) over a :func:`differences` table's samples: the
+    largest native angular velocity, or point speed per size, whichever is larger."""
+    omega = table[table.quantity == "omega"].scale.max()
+    speed = table[(table.kind == "point") & (table.quantity == "velocity")].scale.max()
+    return float(max(omega, speed / kin.system.size))
+
+
+# -- the files ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_committed_mjcf_is_current_and_opens(case, name):
+    """models/mjcf/NAME.xml is what the writer writes now, MuJoCo opens it, and its
+    bodies and sites carry the model's names."""
+    kin, text = case(name)
+    (file_name,) = export_files(kin)
+    path = MODELS / "mjcf" / file_name
+    regenerate = "regenerate with: python -m xcheck.engines.mujoco models/*.toml"
+    assert path.exists(), f"{path} is missing; {regenerate}"
+    assert path.read_text(encoding="utf-8") == text, f"{path} is stale; {regenerate}"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    mech = kin.mechanism
+    assert {model.body(i).name for i in range(1, model.nbody)} == {b.name for b in mech.moving_bodies}
+    assert {model.site(i).name for i in range(model.nsite)} == {
+        f"{b.name}.{label}" for b in mech.bodies for label in b.points}
+    assert model.neq == len(spanning_tree(mech).cuts)
+    assert model.opt.gravity.tolist() == [0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_points_are_written_without_loss(case, name):
+    """Every point's coordinates read back from the file as the same doubles."""
+    kin, text = case(name)
+    sites = {s.get("name"): s.get("pos") for s in ET.fromstring(text).iter("site")}
+    for body in kin.mechanism.bodies:
+        for label, xy in body.points.items():
+            x, y, _ = (float(v) for v in sites[f"{body.name}.{label}"].split())
+            assert (x, y) == (float(xy[0]), float(xy[1]))
+
+
+# -- kinematic oracle -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_kinematic_mode_agrees_at_round_off(case, name):
+    """MuJoCo's own kinematics over each input's feasible range (margin 1e-3 of the
+    range at limit positions) agree with the native solver at round-off, for every
+    body and named point. Rates are relative to the mechanism's largest value of
+    the quantity (:func:`relative_error`). Measured worst over the cases: position
+    1.2e-14 of the size and angle 4.9e-14 rad (inverted), velocity 1.9e-13 and
+    acceleration 5.6e-13 (slider-driven, next to its dead centres); the bounds are
+    the project's round-off targets."""
+    kin, text = case(name)
+    result = run_kinematic(kin, xml=text)
+    assert result.ok, result.reason
+    table, trajectory = result.summary, result.trajectories[0]
+    mech = kin.mechanism
+    assert set(table[table.kind == "body"].name) == {b.name for b in mech.moving_bodies}
+    assert set(table[table.kind == "point"].name) == set(mech.point_owners)
+    assert (table.samples == len(trajectory.inputs)).all()  # the native solver solved every sample
+    assert relative_error(table, "position", absolute=True) <= 1e-10 * kin.system.size
+    assert relative_error(table, "angle", absolute=True) <= 1e-10
+    for quantity in ("velocity", "omega", "acceleration", "alpha"):
+        assert relative_error(table, quantity) <= 1e-9, quantity
+    assert np.max(trajectory.diagnostics["constraint_violation"]) <= 1e-12 * kin.system.size
+
+
+def test_a_link_one_millimetre_too_long_is_caught(case):
+    """An MJCF whose crank is 1 mm longer than the model's: the kinematic mode
+    still runs (MuJoCo closes the loop), and the differences name the point B at
+    the crank's end with an error of exactly that millimetre."""
+    kin, text = case("fourbar")
+    root = ET.fromstring(text)
+    site = next(s for s in root.iter("site") if s.get("name") == "crank.B")
+    coupler = next(b for b in root.iter("body") if b.get("name") == "coupler")
+    for element in (site, coupler):
+        x, y, z = (float(v) for v in element.get("pos").split())
+        element.set("pos", f"{x + 1e-3!r} {y!r} {z!r}")
+    result = run_kinematic(kin, xml=ET.tostring(root, encoding="unicode"))
+    assert result.ok, result.reason
+    table = result.summary
+    wrong = table[table.max_abs > 1e-10 * kin.system.size]
+    named = set(zip(wrong.kind, wrong.name, wrong.quantity))
+    assert ("point", "B", "position") in named
+    assert {("body", "coupler", "position"), ("body", "rocker", "angle")} <= named
+    b = table[(table.kind == "point") & (table.name == "B") & (table.quantity == "position")].iloc[0]
+    assert b.max_abs == pytest.approx(1e-3, rel=1e-9)
+
+
+# -- simulation -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_dynamic_mode_agrees_and_converges_at_second_order(case, name):
+    """The simulation with the tight setting (RK4, solref 2 dt, solimp 0.9999)
+    against the native solution at the inputs MuJoCo realised.
+
+    Errors scale with the mechanism's speed W (largest angular velocity, or point
+    speed per size) times the time step: position ~ size (W dt)^2, velocity ~
+    W dt. Measured at dt = 2.5e-4 s over the loop cases: position / (size (W
+    dt)^2) from 8e-4 (task-2-5) to 0.063 (task-2-7), angle / (W dt)^2 up to
+    0.081 (task-2-7), velocity / (W dt) up to 0.024 (task-2-2), the oracle's
+    accelerations at the simulated states / (W dt) up to 0.061 (inverted).
+    Bounds: about three times the worst, for models of the same kind. Observed
+    order of the position error from 5e-4 to 2.5e-4 s: 1.93 to 2.11. qacc-based
+    accelerations do not fall with the step (MuJoCo's constraint stabilisation is
+    in qacc): 1e-3 to 4.1e-3 (task-2-1) of the largest acceleration.
+    """
+    kin, text = case(name)
+    result = run_dynamic(kin, default_timesteps=(2e-3,), tight_timesteps=TEST_TIGHT_STEPS, xml=text)
+    assert result.ok, result.reason
+    summary, compared = result.summary, result.trajectories[0]
+    assert compared.settings["setting"] == "tight" and compared.settings["timestep"] == 2.5e-4
+    assert compared.settings["accelerations"] == "qacc"
+    assert result.trajectories[1].settings["accelerations"] == "oracle at simulated state"
+    assert (summary.status == "ok").all(), summary.status.tolist()
+    table = differences(kin, compared)
+    mech = kin.mechanism
+    assert set(table[table.kind == "body"].name) == {b.name for b in mech.moving_bodies}
+    assert set(table[table.kind == "point"].name) == set(mech.point_owners)
+    row = summary.iloc[-1]  # tight, 2.5e-4 s: the compared run
+    assert row.position_error == relative_error(table, "position", absolute=True)
+    size = kin.system.size
+    if not spanning_tree(mech).cuts:
+        # an open chain has no loop to drift: round-off (measured 1.1e-15 of the size)
+        assert row.position_error <= 1e-13 * size
+        assert row.velocity_error <= 1e-12 and row.acceleration_error <= 1e-12
+        return
+    w_dt = _speed(kin, table) * 2.5e-4
+    assert row.position_error <= 0.2 * size * w_dt**2
+    assert row.angle_error <= 0.25 * w_dt**2
+    assert row.velocity_error <= 0.08 * w_dt
+    assert row.acceleration_error_oracle <= 0.2 * w_dt
+    assert row.acceleration_error <= 0.015
+    assert 1.7 <= row.observed_order <= 2.3
+
+
+def test_dynamic_default_plan_reports_the_error_trend(case):
+    """The mode's own plan on the four-bar, from the file as written: three time
+    steps with MuJoCo's defaults, four with the tight setting. Measured: tight
+    position errors 1.4e-8, 3.2e-9, 7.9e-10, 2.0e-10 m (orders 2.11, 2.03, 2.01);
+    the defaults' error does not fall with the time step (2.4e-5, 6.0e-5,
+    7.8e-5 m: solref's 0.02 s time constant, not the step, sets it)."""
+    kin, _ = case("fourbar")
+    result = run_dynamic(kin)
+    assert result.ok, result.reason
+    summary = result.summary
+    assert list(summary.setting) == ["default"] * 3 + ["tight"] * 4
+    assert list(summary.integrator) == ["Euler"] * 3 + ["RK4"] * 4
+    assert result.trajectories[0].settings["timestep"] == 1.25e-4
+    tight, default = summary[summary.setting == "tight"], summary[summary.setting == "default"]
+    assert np.all((tight.observed_order.iloc[1:] > 1.8) & (tight.observed_order.iloc[1:] < 2.2))
+    assert np.all(default.observed_order.iloc[1:] < 0.5)
+    assert default.position_error.min() > 1e4 * tight.position_error.min()
+    assert len(result.trajectories) == 2 + 6  # compared run twice (qacc, oracle), then every other run
+
+
+# -- bad input ------------------------------------------------------------------
+
+
+def test_a_mechanism_the_writer_cannot_express_fails_both_modes_in_one_line():
+    kin = Kinematics(parse_mechanism(ALL_SLIDING, "wedges"))
+    for result in (run_kinematic(kin), run_dynamic(kin)):
+        assert not result.ok
+        assert "\n" not in result.reason
+        assert "'incline'" in result.reason and "no revolute" in result.reason
+    with pytest.raises(ModelError, match="revolute"):
+        export_files(kin)
+
+
+def test_a_diverging_simulation_fails_with_its_reason(case, tmp_path, monkeypatch):
+    """RK4 at 50 ms: the 250 rad/s servo is far past RK4's stability limit. MuJoCo's
+    warning becomes the reason (and no MUJOCO_LOG.TXT is written)."""
+    kin, text = case("fourbar")
+    monkeypatch.chdir(tmp_path)
+    handler = mujoco.get_mju_user_warning()
+    result = run_dynamic(kin, default_timesteps=(), tight_timesteps=(0.05,), xml=text)
+    assert not result.ok
+    assert "diverged" in result.reason and "unstable" in result.reason and "\n" not in result.reason
+    row = result.summary.iloc[0]
+    assert row.status.startswith("diverged") and np.isnan(row.position_error)
+    assert result.trajectories == []
+    assert mujoco.get_mju_user_warning() == handler
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_a_loop_violation_past_the_bound_fails(case):
+    """MuJoCo's defaults leave the four-bar's loop open by 1e-5 m within 16 ms
+    (measured): past a bound of 1e-6 of the size, the run counts as diverged."""
+    kin, text = case("fourbar")
+    result = run_dynamic(kin, default_timesteps=(2e-3,), tight_timesteps=(), violation_bound=1e-6, xml=text)
+    assert not result.ok
+    assert "loop violation" in result.reason
+
+
+def test_a_motion_leaving_the_feasible_range_fails(case):
+    """The four-bar's crank rocks between limit positions at +-129 deg: driving it
+    for 5 s at 1 rad/s from 30 deg would cross one; starting at 140 deg, past it."""
+    kin, text = case("fourbar")
+    result = run_dynamic(kin, duration=5.0, xml=text)
+    assert not result.ok
+    assert "feasible range" in result.reason
+    outside = (MODELS / "fourbar.toml").read_text().replace("start = 30\n", "start = 140\n")
+    assert "start = 140" in outside
+    result = run_dynamic(Kinematics(parse_mechanism(outside, "fourbar-outside")))
+    assert not result.ok
+    assert "feasible range" in result.reason and "\n" not in result.reason
