@@ -26,12 +26,14 @@ def snapshot(scene: Scene) -> dict:
             "pins": [], "grooves": [], "inputs": scene.inputs()[0], "gap": scene.joint_gaps()[0]}
     for joint in mech.joints:
         if isinstance(joint, Revolute):
-            shot["pins"].append((scene.world_point(joint.body_b, joint.point_b), GROUND in (joint.body_a, joint.body_b)))
+            grounded = GROUND in (joint.body_a, joint.body_b)
+            shot["pins"].append((scene.world_point(joint.body_b, joint.point_b), grounded))
         else:
             body, start, end = scene.grooves[joint.name]
             ends = [scene.bodies[body].local_to_world(tuple(p)) for p in (start, end)]
             shot["grooves"].append((np.array([[p.x, p.y] for p in ends]), isinstance(joint, Prismatic),
-                                    scene.world_point(joint.body_b, joint.point), scene.bodies[joint.body_b].angle))
+                                    scene.world_point(joint.body_b, joint.point),
+                                    scene.bodies[joint.body_b].angle))
     return shot
 
 

@@ -248,7 +248,8 @@ class Scene:
                 continue
             u = _rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
-            v = self.point_velocity(joint.body_b, joint.point) - self.point_velocity(joint.body_a, joint.line_point)
+            v = (self.point_velocity(joint.body_b, joint.point)
+                 - self.point_velocity(joint.body_a, joint.line_point))
             q[k] = u @ r
             qd[k] = u @ v + a.angular_velocity * (u[0] * r[1] - u[1] * r[0])
         return q, qd
@@ -322,7 +323,8 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         if (driver.quantity == "angle" and on_ground and driver.law.kind == "constant-rate"
                 and moving not in prescribed):
             prescribed[moving] = _Drive(k, "kinematic-rate", sign=sign, law=driver.law)
-        elif driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic) and moving not in prescribed:
+        elif (driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic)
+              and moving not in prescribed):
             # the slide grows when body_b moves along the line (line in body_a)
             # or when body_a moves against it (line in the moving body)
             prescribed[moving] = _Drive(k, "kinematic-slide", sign=sign, law=driver.law)

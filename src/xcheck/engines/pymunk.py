@@ -145,6 +145,8 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
         if run.failure:
             break
     run.run_time = time.perf_counter() - start
+    if not run.failure and not all(np.isfinite(x).all() for x in (vel, omg, pvel, qd_in)):
+        run.failure = "went non-finite (NaN or infinite state) after the last sample"
     if run.failure:
         return run
     h = m * dt
@@ -153,7 +155,8 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
                      "omega": omg[1, :, j], "acceleration": (vel[2, :, j] - vel[0, :, j]) / (2.0 * h),
                      "alpha": (omg[2, :, j] - omg[0, :, j]) / (2.0 * h)} for j, name in enumerate(moving)}
     points = {label: {"position": ppos[:, j], "velocity": pvel[1, :, j],
-                      "acceleration": (pvel[2, :, j] - pvel[0, :, j]) / (2.0 * h)} for j, label in enumerate(labels)}
+                      "acceleration": (pvel[2, :, j] - pvel[0, :, j]) / (2.0 * h)}
+              for j, label in enumerate(labels)}
     drives = ", ".join(f"{mech.drivers[d.driver_index].name}: {d.kind}" for d in scene.drives)
     defaulted = "; ".join(f"{name}: {', '.join(props)}" for name, props in scene.defaults.items() if props)
     run.trajectory = Trajectory(
@@ -183,8 +186,10 @@ _ERROR_COLUMNS = {
 }
 
 
-def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory) -> dict[str, float]:
-    """The largest differences of a trajectory from the native solution.
+def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory,
+                      branch: str | None = None) -> dict[str, float]:
+    """The largest differences of a trajectory from the native solution (on
+    ``branch``, by default the model's first), from :func:`xcheck.compare.differences`.
 
     Returns
     -------
@@ -196,7 +201,7 @@ def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory) -> dict[st
         (dimensionless); ``joint_gap`` (m) and ``lock_error`` (rad): largest
         over the samples. A quantity no row has is left out.
     """
-    table = differences(kinematics, trajectory)
+    table = differences(kinematics, trajectory, branch)
     out = {}
     for column, (quantity, kind) in _ERROR_COLUMNS.items():
         rows = table[table["quantity"] == quantity]
@@ -212,7 +217,7 @@ def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory) -> dict[st
     return out
 
 
-def _summary(kinematics: Kinematics, runs: list[_Run]) -> pd.DataFrame:
+def _summary(kinematics: Kinematics, runs: list[_Run], branch: str | None) -> pd.DataFrame:
     """One row per setting; the observed order of the position error between
     a setting and the next coarser one of the same iterations and correction."""
     mech = kinematics.mechanism
@@ -221,7 +226,7 @@ def _summary(kinematics: Kinematics, runs: list[_Run]) -> pd.DataFrame:
         row = {"setting": len(rows), "error_bias": run.setting.correction, "iterations": run.setting.iterations,
                "time_step": run.dt, "status": run.failure or "ok"}
         if run.trajectory is not None:
-            row.update(trajectory_errors(kinematics, run.trajectory))
+            row.update(trajectory_errors(kinematics, run.trajectory, branch))
             drift = np.max(np.abs(run.trajectory.diagnostics["input_error"]), axis=0)
             row.update({f"input_error:{d.name}": float(e) for d, e in zip(mech.drivers, drift)})
         row["run_time"] = run.run_time
@@ -274,7 +279,10 @@ def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: i
         per setting (see :func:`trajectory_errors` for the error columns, plus
         ``input_error:<driver>``, the largest difference of the realised input
         from its motion law in rad or m, ``order``, the observed order of the
-        position error in the time step, and ``run_time`` in s). ``ok`` is
+        position error in the time step against the next coarser setting of the
+        same iterations and correction, and ``run_time`` in s; a failed run's
+        error figures and a row without a coarser partner's order are NaN, the
+        ``status`` says why). ``ok`` is
         False, with the reason in one line, when the first setting fails or the
         scene cannot be built; nothing is raised.
     """
@@ -289,9 +297,11 @@ def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: i
         top = max(float(np.max(s)) for s in speeds)
         speed_bound = 10.0 * max(top, mech.size / window.duration)
         runs = [_simulate(kinematics, native, window, samples, s, fd_steps, bound, speed_bound) for s in settings]
-        summary = _summary(kinematics, runs)
+        summary = _summary(kinematics, runs, branch)
     except Exception as err:  # the other modes still run: report, never raise
-        reason = " ".join(str(err).split()) or type(err).__name__
+        reason = " ".join(str(err).split())
+        if not isinstance(err, ValueError) or not reason:
+            reason = f"{type(err).__name__}: {reason}"
         return ModeResult(MODE, mech.name, False, f"{MODE}: {reason}")
     first = runs[0]
     if first.trajectory is None:
