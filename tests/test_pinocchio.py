@@ -3,18 +3,18 @@ dynamics and the URDF export, on every mechanism in models/ plus the inverted
 slider-crank (pin-in-slot and prismatic joints on moving bodies) and the
 slider-crank driven by its slide.
 
-Measured figures that justify the tolerances (pin 4.1.0, this machine,
-``.venv/bin/pytest tests/test_pinocchio.py``):
+Measured figures that justify the tolerances (pin 4.1.0, this machine; the
+script in the adapter's report prints them), worst over the 12 models of
+models/, the inverted and slider-driven slider-cranks and the two variants:
 
-* kinematic mode against the native solver, worst over fourbar, two-body-arm,
-  slider-crank, task-2-1, task-2-2, inverted, slider-driven: position 3.3e-14 m
-  (sizes 0.45 to 1 m), velocity 2.9e-13 relative, acceleration 6.6e-13
-  relative (slider-crank alpha at 100 rad/s). Round-off.
-* dynamic mode, RK4 at 800 steps per window: position error at most 1.5e-8 of
-  the size (slider-driven 6.6e-9 m), velocity 1.1e-7 and acceleration 3.9e-7
-  relative (inverted); observed order 3.91 to 4.06. Semi-implicit Euler:
-  order 0.97 to 1.11 (finest pair); with Baumgarte correction 1.73 to 2.0 and
-  a loop opening 4 to 200 times smaller than without.
+* kinematic mode against the native solver: position 3.3e-14 m (sizes 0.3 to
+  1 m), angle 1.3e-13 rad, velocity 1.9e-13 and acceleration 4.6e-13 relative
+  to the largest of the same quantity in the mechanism. Round-off.
+* dynamic mode, RK4 at 800 steps per window: position error 1.9e-8 of the
+  size (slider-driven), velocity 5.5e-8 (task-2-1) and acceleration 3.9e-7
+  (inverted) relative; observed order 3.96 to 4.08. Semi-implicit Euler:
+  order 0.98 to 1.11 (finest pair); with Baumgarte correction 1.73 to 2.0,
+  and a loop opening 25 to 600 times smaller than without.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from test_kinematics import INVERTED, SLIDER_DRIVEN
 from xcheck import Kinematics, load_mechanism
 from xcheck.compare import differences
 from xcheck.engines import exporter, mode_function
+from xcheck.engines._pinocchio_dynamics import worst_relative
 from xcheck.engines._pinocchio_model import joint_coordinates
 from xcheck.engines._pinocchio_oracle import Oracle
 from xcheck.engines.pinocchio import build, export_files, run_dynamic, run_kinematic
@@ -48,6 +49,11 @@ REVERSED_SLIDER = (MODELS / "slider-crank.toml").read_text().replace(
     'bodies = ["ground", "slider"]\nline = "E"\ndirection = 0\npoint = "B"',
     'bodies = ["slider", "ground"]\nline = "B"\ndirection = 30\npoint = "E"\nangle = 30',
 ).split("[[instants]]")[0]
+
+# The slider-crank with its driven pin written crank-first, so the driven
+# revolute is reversed in the tree (input = minus the joint coordinate).
+REVERSED_DRIVER = (MODELS / "slider-crank.toml").read_text().replace(
+    'bodies = ["ground", "crank"]\npoint = "O"', 'bodies = ["crank", "ground"]\npoint = "O"').split("[[instants]]")[0]
 
 # A Scotch yoke: its only loop is closed by a prismatic and a pin-in-slot joint,
 # so it has no revolute at which a point constraint could cut it.
@@ -91,18 +97,20 @@ at = { crank = 0 }
 Y = [0.1, 0]
 """
 
-TEXTS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "reversed-slider": REVERSED_SLIDER}
+TEXTS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "reversed-slider": REVERSED_SLIDER,
+         "reversed-driver": REVERSED_DRIVER}
+VARIANTS = ["reversed-slider", "reversed-driver"]
 MECHANISMS = MODEL_NAMES + ["inverted", "slider-driven"]
 
-# Agreement of the kinematic mode: round-off (measured 3.3e-14 m, 6.6e-13
+# Agreement of the kinematic mode: round-off (measured 3.3e-14 m, 4.6e-13
 # relative at worst); the issue's bar is 1e-10 of the size and 1e-9 relative.
 POSITION_TOLERANCE = 1e-10  # times the mechanism's size
 RATE_TOLERANCE = 1e-9  # relative (max_rel)
-# Dynamic mode, RK4 at the finest step: measured at most 1.5e-8 x size in
-# position, 1.1e-7 relative in velocity, 3.9e-7 in acceleration; tolerances a
-# factor 7 to 9 above, so a model still to come may be a little stiffer.
+# Dynamic mode, RK4 at the finest step: measured at most 1.9e-8 x size in
+# position, 5.5e-8 relative in velocity, 3.9e-7 in acceleration; tolerances a
+# factor 5 to 9 above, so a model still to come may be a little stiffer.
 RK4_POSITION = 1e-7  # times the size
-RK4_VELOCITY = 1e-6
+RK4_VELOCITY = 5e-7
 RK4_ACCELERATION = 3e-6
 
 
@@ -128,7 +136,7 @@ def _worst(table, quantities, column):
 
 
 # -- the model ---------------------------------------------------------------
-@pytest.mark.parametrize("name", MECHANISMS + ["reversed-slider"])
+@pytest.mark.parametrize("name", MECHANISMS + VARIANTS)
 def test_frames_coincide_with_native_body_frames(name):
     """At the native assembled configuration, converted to joint coordinates,
     Pinocchio's body and point frames are the model's and the loops close."""
@@ -152,6 +160,16 @@ def test_frames_coincide_with_native_body_frames(name):
     assert np.max(np.abs(Oracle(pm).loop_residual(q)), initial=0.0) < 1e-14 * size
     inputs = [dc.sign * q[dc.index] for dc in pm.drivers]
     np.testing.assert_allclose(inputs, kin.reference_inputs(), rtol=0, atol=1e-14)
+
+
+def test_variants_exercise_reversed_tree_joints():
+    """The variants do what they are for: a reversed prismatic with a locked
+    angle, and a driven revolute whose input is minus its joint coordinate."""
+    slider = build(_kin("reversed-slider")).spec
+    spec = next(js for js in slider.joints if js.tree_joint == "slide")
+    assert spec.bodies == ("ground", "slider") and spec.angle == pytest.approx(-math.pi / 6)
+    driver = build(_kin("reversed-driver")).drivers[0]
+    assert driver.sign == -1.0
 
 
 @pytest.mark.parametrize("name", MECHANISMS)
@@ -183,7 +201,7 @@ def test_constraint_jacobian_and_drift_against_finite_differences(name):
 
 
 # -- kinematic mode ----------------------------------------------------------
-@pytest.mark.parametrize("name", MECHANISMS + ["reversed-slider"])
+@pytest.mark.parametrize("name", MECHANISMS + VARIANTS)
 def test_kinematic_mode_agrees_with_native_at_round_off(name):
     kin = _kin(name)
     result = _kinematic(name)
@@ -199,8 +217,8 @@ def test_kinematic_mode_agrees_with_native_at_round_off(name):
     size = kin.system.size
     assert _worst(table, ["position"], "max_abs") <= POSITION_TOLERANCE * size
     assert _worst(table, ["angle"], "max_abs") <= POSITION_TOLERANCE
-    assert _worst(table, ["velocity", "omega"], "max_rel") <= RATE_TOLERANCE
-    assert _worst(table, ["acceleration", "alpha"], "max_rel") <= RATE_TOLERANCE
+    assert worst_relative(table, ["velocity", "omega"]) <= RATE_TOLERANCE
+    assert worst_relative(table, ["acceleration", "alpha"]) <= RATE_TOLERANCE
     assert np.max(trajectory.diagnostics["loop_residual"]) <= 1e-14 * size
 
 
@@ -243,39 +261,40 @@ def test_a_link_one_millimetre_too_long_is_caught(name, old, new):
 
 
 # -- dynamic mode ------------------------------------------------------------
-@pytest.mark.parametrize("name", MECHANISMS)
+@pytest.mark.parametrize("name", MECHANISMS + ["reversed-driver"])
 def test_dynamic_mode_converges_with_the_expected_orders(name):
     kin = _kin(name)
     result = _dynamic(name)
     assert result.ok, result.reason
     summary = result.summary
-    assert len(summary) == 9 and (summary.status == "ok").all()
+    assert len(summary) == 9
     first = result.trajectories[0]
     assert first.settings["integrator"] == "rk4" and first.settings["steps"] == 800
     assert first.settings["role"] == "comparison"
     size = kin.system.size
-    rk4 = summary[summary.integrator == "rk4"].iloc[-1]
+    runs = {name: summary[summary.integrator == name] for name in summary.integrator.unique()}
+    # RK4 and corrected Euler run through at every step; plain Euler may open
+    # the loops beyond 10% of the size at coarse steps (task-2-5 at 200,
+    # task-2-6 at 200 and 400 steps per window): reported in its status
+    assert (runs["rk4"].status == "ok").all() and (runs["semi-implicit-euler-baumgarte"].status == "ok").all()
+    rk4 = runs["rk4"].iloc[-1]
     assert rk4.position_error_m <= RK4_POSITION * size
-    assert rk4.velocity_max_rel <= RK4_VELOCITY
-    assert rk4.acceleration_max_rel <= RK4_ACCELERATION
-
-    def finest_order(integrator, column):
-        return summary[summary.integrator == integrator][column].iloc[-1]
-
-    loops = len(build(kin).constraints)
-    if loops:
-        order = finest_order("rk4", "order_position")
+    assert rk4.velocity_rel <= RK4_VELOCITY
+    assert rk4.acceleration_rel <= RK4_ACCELERATION
+    assert rk4.input_error <= RK4_POSITION * max(1.0, size)  # the engine realised the motion law
+    if len(build(kin).constraints):
+        order = rk4.order_position
         assert math.isnan(order) or 3.5 < order < 4.5  # NaN: already at round-off
-        assert 0.8 < finest_order("semi-implicit-euler", "order_position") < 1.25
-        assert 1.4 < finest_order("semi-implicit-euler-baumgarte", "order_position") < 2.3
-        plain = summary[summary.integrator == "semi-implicit-euler"].constraint_violation_m.to_numpy()
-        corrected = summary[summary.integrator == "semi-implicit-euler-baumgarte"].constraint_violation_m.to_numpy()
-        assert np.all(corrected < plain)
+        plain = runs["semi-implicit-euler"]
+        if (plain.status == "ok").sum() >= 2:
+            assert 0.8 < plain.order_position.iloc[-1] < 1.25
+        assert 1.5 < runs["semi-implicit-euler-baumgarte"].order_position.iloc[-1] < 2.2
+        corrected = runs["semi-implicit-euler-baumgarte"].constraint_violation_m.to_numpy()
+        ran = (plain.status == "ok").to_numpy()
+        assert np.all(corrected[ran] < plain.constraint_violation_m.to_numpy()[ran])
     else:  # an open chain: nothing to drift, the state is exact at the realised inputs
         assert summary.position_error_m.max() <= POSITION_TOLERANCE * size
-        assert 3.5 < finest_order("rk4", "order_input") < 4.5
-    # the engine realised the motion law: tracking error of the comparison run
-    assert rk4.input_error <= RK4_POSITION * max(1.0, size)
+        assert 3.5 < runs["rk4"].order_input.iloc[-1] < 4.5
     assert np.all(np.isfinite(first.diagnostics["constraint_violation"]))
 
 
@@ -284,9 +303,9 @@ def test_dynamic_mode_reports_a_diverging_run():
     (measured: 1.0 per step diverges, 0.7 does not) are reported, not raised."""
     result = run_dynamic(_kin("fourbar"), steps=(100,), samples=11, integrators=("semi-implicit-euler-baumgarte",),
                          baumgarte=1.5)
-    assert not result.ok
-    assert "diverged at t =" in result.reason and "\n" not in result.reason
-    assert result.summary.status.iloc[0].startswith("diverged")
+    assert not result.ok and result.trajectories == []
+    assert " at t = " in result.reason and "\n" not in result.reason
+    assert result.summary.status.iloc[0] != "ok"
 
 
 @pytest.mark.parametrize("run", [run_kinematic, run_dynamic])

@@ -31,7 +31,7 @@ from ..motion import simulation_window
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
 from ._pinocchio_oracle import Oracle, frame_states, one_line
 
-__all__ = ["run_dynamic", "INTEGRATORS"]
+__all__ = ["run_dynamic", "INTEGRATORS", "worst_relative"]
 
 MODE = "pinocchio-dynamic"
 #: integrator name -> (scheme, Baumgarte correction on?)
@@ -48,14 +48,10 @@ PROXIMAL_MU = 1e-8
 PROXIMAL_ACCURACY = 1e-14
 PROXIMAL_MAX_ITER = 50
 #: A trajectory whose loops open wider than this fraction of the mechanism's
-#: size, or whose state is not finite, is stopped and reported as diverged.
-DIVERGED = 0.1
+#: size, or whose state is not finite, is stopped and reported as failed.
+LOOP_OPENING_LIMIT = 0.1
 #: Errors at or below this times the size are round-off: no order is reported.
 ROUND_OFF = 1e-13
-
-
-class _Diverged(RuntimeError):
-    pass
 
 
 def tracking_gains(window: float) -> tuple[float, float]:
@@ -113,8 +109,9 @@ def _integrate(driven: _Driven, scheme: str, q0, v0, duration: float, steps: int
 
     Returns
     -------
-    times (M,), q (M, nq), v (M, nv), a (M, nv), force (M, k), and the time
-    reached when the run diverged (None otherwise).
+    rows : list of (t, q (nq,), v (nv,), a (nv,), force (k,))
+    failure : str or None
+        Why the run stopped early (state not finite, loops opened), if it did.
     """
     dt = duration / steps
     q, v = q0.copy(), v0.copy()
@@ -144,9 +141,12 @@ def _integrate(driven: _Driven, scheme: str, q0, v0, duration: float, steps: int
             v = v + dt * a
             q = q + dt * v
         if (i + 1) % every == 0:
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+                return rows, f"diverged at t = {(i + 1) * dt:.4g} s (state not finite)"
             opening = float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0))
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))) or opening > DIVERGED * size:
-                return rows, (i + 1) * dt
+            if opening > LOOP_OPENING_LIMIT * size:
+                return rows, (f"failed at t = {(i + 1) * dt:.4g} s: the loops opened by {opening:.3g} m, "
+                              f"more than {LOOP_OPENING_LIMIT:.0%} of the size")
             record(i + 1)
     return rows, None
 
@@ -178,6 +178,22 @@ def _trajectory(pm, oracle, rows, source, settings, notes) -> Trajectory:
                       notes=notes)
 
 
+def worst_relative(table: pd.DataFrame, quantities) -> float:
+    """Largest error of the given quantities relative to the largest magnitude
+    of the same quantity anywhere in the mechanism.
+
+    ``differences``' own ``max_rel`` divides by each row's scale, which is
+    round-off for a quantity that is identically zero (the velocity of a body
+    frame whose origin sits on a ground pivot), so it reports round-off
+    divided by round-off there.
+    """
+    rows = table[table.quantity.isin(list(quantities))]
+    if rows.empty:
+        return math.nan
+    scale = rows.groupby("quantity").scale.transform("max")
+    return float(np.max(rows.max_abs / np.where(scale > 0, scale, 1.0)))
+
+
 def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
     """Observed order log(e_i / e_{i-1}) / log(dt_i / dt_{i-1}), NaN for the
     first run and where either error is not above ``floor`` (round-off)."""
@@ -187,6 +203,56 @@ def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
         ok = e0 > floor and e1 > floor and math.isfinite(e0) and math.isfinite(e1)
         out.append(math.log(e1 / e0) / math.log(dts[i] / dts[i - 1]) if ok else math.nan)
     return out
+
+
+def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, baumgarte, branch, defaults):
+    """One simulation: (summary row, Trajectory or None if it failed)."""
+    scheme, corrected = INTEGRATORS[integrator]
+    laws = [d.law for d in pm.mechanism.drivers]
+    size = kinematics.system.size
+    dt = window.duration / steps
+    gains = ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt) if corrected else None
+    start = time.perf_counter()
+    driven = None
+    try:
+        driven = _Driven(pm, laws, window.duration, gains)
+        rows, failure = _integrate(driven, scheme, q0, v0, window.duration, steps, steps // (samples - 1),
+                                   size, oracle)
+    except Exception as error:  # noqa: BLE001 - one run failing leaves the others
+        rows, failure = [], one_line(error)
+    run = {"integrator": integrator, "dt": dt, "steps": steps, "status": failure or "ok",
+           "seconds": time.perf_counter() - start}
+    if failure is not None:
+        return run, None
+    kp, kd = tracking_gains(window.duration)
+    settings = {"integrator": integrator, "dt": dt, "steps": steps, "duration": window.duration,
+                "window": window.reason, "baumgarte_kp": gains[0] if gains else 0.0,
+                "baumgarte_kd": gains[1] if gains else 0.0, "proximal_mu": PROXIMAL_MU,
+                "proximal_accuracy": PROXIMAL_ACCURACY, "tracking_kp": kp, "tracking_kd": kd,
+                "gravity": "-z (normal to the plane: does no work)", "default_mass_properties": defaults}
+    notes = (f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
+             f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
+             "Inputs driven by a computed torque on the input joints: the torque that makes the input "
+             "acceleration the motion law's plus a critically damped PD correction "
+             f"(kp = {kp:.4g} 1/s^2, kd = {kd:.4g} 1/s) on the tracking error. Accelerations are "
+             "constraintDynamics' own at each recorded state."
+             + (f" Baumgarte correction Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
+             + (f" Default mass properties (none in the model) for {', '.join(defaults)}: 1 kg at the "
+                "centroid of the body's points, a slender bar's inertia." if defaults else ""))
+    trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
+    table = differences(kinematics, trajectory, branch)
+    law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
+    run.update({
+        "position_error_m": float(table[table.quantity == "position"].max_abs.max()),
+        "angle_error_rad": float(table[table.quantity == "angle"].max_abs.max()),
+        "velocity_rel": worst_relative(table, ["velocity", "omega"]),
+        "acceleration_rel": worst_relative(table, ["acceleration", "alpha"]),
+        "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
+        "input_error": float(np.max(np.abs(trajectory.inputs - law_inputs))),
+        "evaluations": driven.evaluations,
+        "proximal_iterations_max": driven.proximal_iterations,
+    })
+    return run, trajectory
 
 
 def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51, branch: str | None = None,
@@ -212,10 +278,12 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
     ModeResult
         Trajectories: RK4 at the finest step first (the one the comparison
         uses; without RK4, the first integrator at its finest step), then the
-        other runs. ``summary``: one row per
-        run with the largest position error (m), velocity and acceleration
-        errors (relative), loop opening (m), input tracking error, observed
-        orders and run time.
+        other runs. ``summary``: one row per run with the largest position
+        error (m), velocity and acceleration errors (relative, see
+        :func:`worst_relative`), loop opening (m), input tracking error, observed
+        orders and run time. Runs that failed (loops opened wide, state not
+        finite) have their reason in ``status`` and no trajectory; the mode
+        fails only when the comparison run does.
     """
     mech = kinematics.mechanism
     try:
@@ -230,8 +298,7 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
         pm = build_model(tree_spec(mech))
         oracle = Oracle(pm)
         size = kinematics.system.size
-        laws = [d.law for d in mech.drivers]
-        c0 = np.array([[float(law.at_time(0.0)[i]) for law in laws] for i in range(2)])
+        c0 = np.array([[float(d.law.at_time(0.0)[i]) for d in mech.drivers] for i in range(2)])
         native = kinematics.solve(c0[0][None], c0[1][None], branch=branch)
         if not native.status[0] <= 1:
             raise ValueError(f"the mechanism does not assemble at the inputs at t = 0 ({c0[0].tolist()})")
@@ -242,59 +309,10 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(MODE, mech.name, False, one_line(error))
 
-    runs = []
-    tracking = tracking_gains(window.duration)
-    for integrator in integrators:
-        scheme, corrected = INTEGRATORS[integrator]
-        for n in steps:
-            dt = window.duration / n
-            gains = ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt) if corrected else None
-            start = time.perf_counter()
-            try:
-                driven = _Driven(pm, laws, window.duration, gains)
-                rows, diverged = _integrate(driven, scheme, q0, v0, window.duration, n, n // (samples - 1),
-                                            size, oracle)
-            except Exception as error:  # noqa: BLE001 - one run failing leaves the others
-                rows, diverged = [], one_line(error)
-            elapsed = time.perf_counter() - start
-            settings = {"integrator": integrator, "dt": dt, "steps": n, "duration": window.duration,
-                        "window": window.reason, "baumgarte_kp": gains[0] if gains else 0.0,
-                        "baumgarte_kd": gains[1] if gains else 0.0, "proximal_mu": PROXIMAL_MU,
-                        "proximal_accuracy": PROXIMAL_ACCURACY, "tracking_kp": tracking[0],
-                        "tracking_kd": tracking[1], "gravity": "-z (normal to the plane: no work)"}
-            notes = (f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
-                     f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
-                     "Inputs driven by a computed torque on the input joints: the torque that makes the "
-                     "input acceleration the motion law's plus a critically damped PD correction "
-                     f"({TRACKING_CYCLES:g} cycles per window) on the tracking error. Accelerations are "
-                     "constraintDynamics' own at each recorded state."
-                     + (f" Baumgarte correction Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else ""))
-            run = {"integrator": integrator, "dt": dt, "steps": n, "status": "ok", "seconds": elapsed}
-            trajectory = None
-            if diverged is not None and not isinstance(diverged, str):
-                run["status"] = f"diverged at t = {diverged:.4g} s (loops open or state not finite)"
-            elif isinstance(diverged, str):
-                run["status"] = diverged
-            else:
-                trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
-                table = differences(kinematics, trajectory, branch)
-                pos = table[table.quantity.isin(["position"])]
-                c_law = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
-                run.update({
-                    "position_error_m": float(pos.max_abs.max()),
-                    "angle_error_rad": float(table[table.quantity == "angle"].max_abs.max()),
-                    "velocity_max_rel": float(table[table.quantity.isin(["velocity", "omega"])].max_rel.max()),
-                    "acceleration_max_rel": float(
-                        table[table.quantity.isin(["acceleration", "alpha"])].max_rel.max()),
-                    "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
-                    "input_error": float(np.max(np.abs(trajectory.inputs - c_law))),
-                    "evaluations": driven.evaluations,
-                    "proximal_iterations_max": driven.proximal_iterations,
-                })
-                run["_table"] = table
-            runs.append((run, trajectory))
-
-    summary = pd.DataFrame([{k: v for k, v in run.items() if not k.startswith("_")} for run, _ in runs])
+    defaults = [b.name for b in pm.spec.bodies if b.default]
+    runs = [_run(kinematics, pm, oracle, integrator, n, samples, window, q0, v0, baumgarte, branch, defaults)
+            for integrator in integrators for n in steps]
+    summary = pd.DataFrame([run for run, _ in runs])
     for column, order in (("position_error_m", "order_position"), ("constraint_violation_m", "order_drift"),
                           ("input_error", "order_input")):
         if column not in summary:

@@ -367,9 +367,10 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
 
     Notes
     -----
-    A hinge's coordinate is the child's angle minus the parent's; a slide's is
-    the slide displacement ``direction . (r_point - r_line_point)`` (m), in
-    the line body's frame.
+    A hinge's coordinate is the child's angle minus the parent's (not wrapped:
+    the native driver rows hold the input angles exactly, so a driven hinge
+    equals its input); a slide's is the slide displacement
+    ``direction . (r_point - r_line_point)`` (m), in the line body's frame.
     """
     mech = pm.mechanism
     names = [b.name for b in mech.moving_bodies]

@@ -169,7 +169,8 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         bodies, points = _empty_states(pm, n)
         residual = np.full(n, np.nan)
         iterations = np.zeros(n, dtype=int)
-        q_ref, c_ref = joint_coordinates(pm, kinematics.assemble(branch)), kinematics.reference_inputs()
+        c_ref = kinematics.reference_inputs()
+        q_ref = joint_coordinates(pm, kinematics.assemble(branch))
         q_ref, _, _, ok = oracle.project(q_ref, c_ref, size)
         if not ok:
             return ModeResult(KINEMATIC, name, False, "the native assembled configuration does not "
