@@ -18,7 +18,6 @@ of the file, which the adapter relies on:
 
 from __future__ import annotations
 
-import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,9 +54,10 @@ def _vec(*values: float) -> str:
     return " ".join(_num(v) for v in values)
 
 
-def _rotate(angle: float, v: np.ndarray) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+def _rotate(angle, v: np.ndarray) -> np.ndarray:
+    """A body vector v (2,) turned by angle(s) (rad, scalar or (N,)); shape (2,) or (N, 2)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -136,6 +136,14 @@ def _tree_joints(tj: TreeJoint) -> list[tuple[str, str]]:
     return pair[::-1] if tj.reversed else pair
 
 
+def _children(topology: Topology) -> dict[str, list[TreeJoint]]:
+    """Tree joints by parent body, in tree order."""
+    children: dict[str, list[TreeJoint]] = {}
+    for tj in topology.tree:
+        children.setdefault(tj.parent, []).append(tj)
+    return children
+
+
 def layout(mechanism: Mechanism) -> Layout:
     """The MJCF layout of a mechanism.
 
@@ -145,9 +153,7 @@ def layout(mechanism: Mechanism) -> Layout:
         If a loop cannot be cut at a revolute joint (see :func:`spanning_tree`).
     """
     topology = spanning_tree(mechanism)
-    children: dict[str, list[TreeJoint]] = {}
-    for tj in topology.tree:
-        children.setdefault(tj.parent, []).append(tj)
+    children = _children(topology)
     joints: list[MjJoint] = []
 
     def visit(body: str) -> None:
@@ -220,7 +226,7 @@ def _servo_inertia(kinematics: Kinematics, masses: dict[str, MassProperties]) ->
         per_body = []
         for body in mech.moving_bodies:
             state, props = solution.body(body.name), masses[body.name]
-            arm = np.array([_rotate(phi, props.com) for phi in state["angle"]])
+            arm = _rotate(state["angle"], props.com)
             v_com = state["velocity"] + state["omega"][:, None] * np.stack([-arm[:, 1], arm[:, 0]], axis=1)
             per_body.append((props, v_com, state["omega"]))
         velocities.append(per_body)
@@ -289,9 +295,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
     for label, xy in mech.ground.points.items():
         ET.SubElement(worldbody, "site", name=_site(GROUND, label), pos=_vec(xy[0], xy[1], 0.0))
 
-    children: dict[str, list[TreeJoint]] = {}
-    for tj in lay.topology.tree:
-        children.setdefault(tj.parent, []).append(tj)
+    children = _children(lay.topology)
 
     def add_body(parent_el: ET.Element, tj: TreeJoint) -> None:
         joint, body = tj.joint, mech.body(tj.child)

@@ -55,11 +55,18 @@ def _writer_failure(mechanism: Mechanism, error: XcheckError) -> str:
 
 
 def _compile(kinematics: Kinematics, xml: str | None):
-    """(model, layout) of the mechanism's MJCF text (``xml`` overrides the writer's)."""
+    """(model, layout, "") of the mechanism's MJCF text (``xml`` overrides the
+    writer's), or (None, None, one-line reason) if it cannot be written or compiled."""
     mech = kinematics.mechanism
-    lay = layout(mech)
-    text = mjcf_text(kinematics) if xml is None else xml
-    return mujoco.MjModel.from_xml_string(text), lay
+    try:
+        lay = layout(mech)
+        text = mjcf_text(kinematics) if xml is None else xml
+    except XcheckError as error:
+        return None, None, _writer_failure(mech, error)
+    try:
+        return mujoco.MjModel.from_xml_string(text), lay, ""
+    except ValueError as error:  # MuJoCo's compiler
+        return None, None, f"MuJoCo rejects the MJCF: {error}".splitlines()[0]
 
 
 def _law_states(mechanism: Mechanism, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -147,12 +154,9 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         ``summary`` is the trajectory's :func:`differences` table.
     """
     mech = kinematics.mechanism
-    try:
-        model, lay = _compile(kinematics, xml)
-    except XcheckError as error:
-        return ModeResult(KINEMATIC_MODE, mech.name, False, _writer_failure(mech, error))
-    except ValueError as error:  # MuJoCo's compiler
-        return ModeResult(KINEMATIC_MODE, mech.name, False, f"MuJoCo rejects the MJCF: {error}".splitlines()[0])
+    model, lay, failure = _compile(kinematics, xml)
+    if failure:
+        return ModeResult(KINEMATIC_MODE, mech.name, False, failure)
     oracle = Oracle(model, mech, lay)
     ref = kinematics.reference_inputs()
     start = joint_coordinates(mech, lay, kinematics.assemble(branch))
@@ -314,12 +318,9 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         |input - law|, rad or m). Errors are empty for a failed run.
     """
     mech = kinematics.mechanism
-    try:
-        model, lay = _compile(kinematics, xml)
-    except XcheckError as error:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, _writer_failure(mech, error))
-    except ValueError as error:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, f"MuJoCo rejects the MJCF: {error}".splitlines()[0])
+    model, lay, failure = _compile(kinematics, xml)
+    if failure:
+        return ModeResult(DYNAMIC_MODE, mech.name, False, failure)
     duration, failure = _simulated_duration(kinematics, branch, duration)
     if failure:
         return ModeResult(DYNAMIC_MODE, mech.name, False, failure)
