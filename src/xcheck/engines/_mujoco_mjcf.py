@@ -279,8 +279,8 @@ def mjcf_text(kinematics: Kinematics) -> str:
                                f"{_num(DEFAULT_DISC_FRACTION)} x mechanism size."),
         "Each input is driven by a position servo (kp, ctrl = the motion law's value) plus a velocity servo "
         f"(kv, ctrl = the law's rate): critically damped at {_num(SERVO_FREQUENCY)} rad/s for the input's "
-        "smallest apparent inertia over the simulation window (gains rounded to 3 digits). Options are MuJoCo's defaults "
-        "(Euler, 2 ms) apart from gravity.",
+        "smallest apparent inertia over the simulation window (gains rounded to 3 digits). Options are "
+        "MuJoCo's defaults (Euler, 2 ms) apart from gravity.",
         "Keyframe 'reference': the assembled configuration at the reference inputs (rounded to 12 digits).",
     ]
     for line in header:
@@ -300,26 +300,16 @@ def mjcf_text(kinematics: Kinematics) -> str:
     def add_body(parent_el: ET.Element, tj: TreeJoint) -> None:
         joint, body = tj.joint, mech.body(tj.child)
         parent = mech.body(tj.parent)
-        angle = 0.0
-        if isinstance(joint, Revolute):
-            s_parent, s_child = ((parent.points[joint.point_a], body.points[joint.point_b]) if not tj.reversed
-                                 else (parent.points[joint.point_b], body.points[joint.point_a]))
-            pos, anchor = s_parent - s_child, s_child
-        elif isinstance(joint, Prismatic):
-            # non-reversed: child b at relative angle +angle; reversed: child a at -angle
-            angle = -joint.angle if tj.reversed else joint.angle
-            if not tj.reversed:
-                pos, anchor = parent.points[joint.line_point] - _rotate(angle, body.points[joint.point]), \
-                    body.points[joint.point]
-            else:
-                pos, anchor = parent.points[joint.point] - _rotate(angle, body.points[joint.line_point]), \
-                    body.points[joint.line_point]
-        else:  # pin-in-slot: the pin sits on the line point at zero slide
-            if not tj.reversed:
-                pos, anchor = parent.points[joint.line_point] - body.points[joint.point], body.points[joint.point]
-            else:
-                pos, anchor = parent.points[joint.point] - body.points[joint.line_point], \
-                    body.points[joint.line_point]
+        # the two points that coincide at zero joint coordinates: the pin's, or the
+        # line point (body_a) and the sliding point (body_b)
+        point_a, point_b = ((joint.point_a, joint.point_b) if isinstance(joint, Revolute)
+                            else (joint.line_point, joint.point))
+        angle = joint.angle if isinstance(joint, Prismatic) else 0.0  # phi_b - phi_a, locked
+        if tj.reversed:
+            s_parent, s_child, angle = parent.points[point_b], body.points[point_a], -angle
+        else:
+            s_parent, s_child = parent.points[point_a], body.points[point_b]
+        pos, anchor = s_parent - _rotate(angle, s_child), s_child
         attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
         if angle != 0.0:
             attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
