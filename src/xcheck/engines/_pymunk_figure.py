@@ -54,6 +54,8 @@ def _draw(ax, mech: Mechanism, shot: dict, colours, scale: float) -> None:
                             ec="0.2", zorder=4)
             box.set_transform(Affine2D().rotate_around(xy[0], xy[1], angle) + ax.transData)
             ax.add_patch(box)
+        else:  # a pin riding the slot
+            ax.plot(*(point / scale), marker="o", ms=6, mfc="0.85", mec="black", zorder=5)
     for k, body in enumerate(mech.moving_bodies):
         pts = np.array(list(shot["bodies"][body.name].values())) / scale
         colour = colours[k % len(colours)]
