@@ -50,7 +50,6 @@ import tomllib
 from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -207,7 +206,12 @@ def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -
     instants = [inst.label for inst in mechanism.instants]
     branches = list(mechanism.assembly.branches)
     default_instant = head.get("instant", instants[0] if len(instants) == 1 else None)
+    if "instant" in head and default_instant not in instants:
+        fail("comparisons.instant", f"an instant label of the model ({', '.join(map(repr, instants)) or 'none'})",
+             repr(default_instant))
     default_branch = head.get("branch", branches[0])
+    if default_branch not in branches:
+        fail("comparisons.branch", f"a branch of the model ({', '.join(branches)})", repr(default_branch))
 
     values = data.get("printed")
     if not isinstance(values, list) or not values:
