@@ -23,6 +23,8 @@ __all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "d
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
 #: per point
 POINT_QUANTITIES = {"position": 2, "velocity": 2, "acceleration": 2}
+#: smallest scale of a quantity, as a fraction of the largest of its kind (see differences)
+SCALE_FLOOR = 1e-3
 
 
 @dataclass
@@ -106,7 +108,11 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
         One row per (kind, name, quantity) the trajectory has: ``kind`` is
         "body" or "point"; columns ``max_abs`` and ``rms`` (SI units of the
         quantity; vectors by Euclidean norm), ``scale`` (largest magnitude of
-        the native quantity over the samples), ``max_rel`` (max_abs / scale),
+        the native quantity over the samples, but at least
+        :data:`SCALE_FLOOR` of the largest among all bodies' and points' of the
+        same quantity, so that a quantity that is zero, such as the velocity
+        of a frame on a ground pivot, is not divided by round-off),
+        ``max_rel`` (max_abs / scale),
         ``worst_sample`` (index) and ``worst_input`` (the first driver's value
         there, SI). Samples where the native solver did not succeed are left
         out and counted in ``samples``.
@@ -131,13 +137,19 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
         if error.size == 0:
             continue
         worst = int(np.argmax(error))
-        scale = float(np.max(magnitude))
         rows.append({
             "kind": kind, "name": name, "quantity": quantity,
             "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error**2))),
-            "scale": scale, "max_rel": float(error[worst] / scale) if scale > 0 else float(error[worst]),
+            "scale": float(np.max(magnitude)),
             "worst_sample": int(np.flatnonzero(good)[worst]),
             "worst_input": float(trajectory.inputs[np.flatnonzero(good)[worst], 0]),
             "samples": int(good.sum()),
         })
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    if not table.empty:
+        largest = table.groupby("quantity")["scale"].transform("max")
+        table["scale"] = np.maximum(table["scale"], SCALE_FLOOR * largest)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            table.insert(6, "max_rel", np.where(table["scale"] > 0, table["max_abs"] / table["scale"],
+                                                table["max_abs"]))
+    return table

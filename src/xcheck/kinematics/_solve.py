@@ -219,6 +219,7 @@ class Kinematics:
     system: ConstraintSystem = field(init=False)
     _assembled: dict = field(init=False, default_factory=dict)
     _ranges: dict = field(init=False, default_factory=dict)
+    _turns: dict = field(init=False, default_factory=dict)
 
     def __post_init__(self):
         self.system = ConstraintSystem(self.mechanism)
@@ -273,26 +274,51 @@ class Kinematics:
             return self._assembled[name]
         system, mech = self.system, self.mechanism
         c_ref = self.reference_inputs()
-        sketch = {**{lbl: xy for lbl, xy in mech.ground.points.items()},
-                  **mech.assembly.branches[name]}
-        q0 = self._sketch_guess(sketch)
-        fitted = self._fit_sketch(q0, c_ref, sketch)
-        dof = self.mobility(fitted)
-        if dof["rank"] != dof["drivers"] or system.n_rows != system.n:
+        drawn = mech.assembly.branches[name]
+        field_name = f"assembly.branches.{name}" if drawn else "assembly.branches"
+        loops = len(mech.joints) - len(mech.moving_bodies)
+        if loops > 0 and not drawn:
+            raise ModelError(mech.path, "assembly.branches",
+                             "a rough sketch of a few points that picks the assembly branch "
+                             f"(the mechanism has {loops} closed loop(s))", "none")
+        where = ", ".join(f"{d.name} = {self._show_input(d, v)}" for d, v in zip(mech.drivers, c_ref))
+
+        def no_assembly(why: str):
+            return ModelError(mech.path, field_name, f"a sketch from which the mechanism assembles at {where}",
+                              f"none that closes the loops ({why})")
+
+        sketch = {**{lbl: xy for lbl, xy in mech.ground.points.items()}, **drawn}
+        try:
+            with np.errstate(all="ignore"):  # absurd sizes overflow: reported below, not warned
+                fitted = self._fit_sketch(self._sketch_guess(sketch), c_ref, sketch)
+                joint_gap = float(system.residual_metres(system.residual(fitted[None], c_ref[None],
+                                                                         kinematic_only=True))[0])
+                dof = self.mobility(fitted)
+        except np.linalg.LinAlgError as err:
+            raise no_assembly(f"the linear algebra failed: {err}") from None
+        # the weak pull towards a rough sketch leaves small gaps that Newton closes
+        joints_close = joint_gap <= 1e-2 * system.size
+        if not joints_close and dof["grubler"] == dof["drivers"]:
+            # the joints themselves cannot close near the sketch: the geometry or the sketch is wrong
+            raise no_assembly(f"the best fit leaves the joints {joint_gap / mech.units.length_factor:.3g} "
+                              f"{mech.units.length} apart")
+        if dof["rank"] != dof["drivers"]:
             raise ModelError(
                 mech.path, "drivers",
                 f"{dof['rank']} driver(s), one per degree of freedom (Grübler count {dof['grubler']}, "
-                f"rank of the constraint Jacobian gives {dof['rank']})",
-                f"{dof['drivers']}" + (" and redundant joint constraints" if dof["rank"] == dof["drivers"]
-                                       else ""))
+                f"rank of the constraint Jacobian {dof['rank']})", f"{dof['drivers']}")
+        if system.n_rows != system.n:
+            raise ModelError(
+                mech.path, "joints",
+                f"independent joint constraints (Grübler count {dof['grubler']} degrees of freedom)",
+                f"{system.n_rows - system.n} redundant constraint equation(s), which xcheck cannot solve: "
+                "replace a joint by one that removes fewer degrees of freedom")
         q, residual, _, ok = newton(system, fitted[None], c_ref[None], max_iter=50)
         if not ok[0]:
-            where = ", ".join(f"{d.name} = {self._show_input(d, v)}" for d, v in zip(mech.drivers, c_ref))
-            raise ModelError(
-                mech.path, f"assembly.branches.{name}" if mech.assembly.branches[name] else "assembly",
-                f"a sketch from which the mechanism assembles at {where}",
-                f"none that closes the loops (violation {residual[0] / mech.units.length_factor:.3g} "
-                f"{mech.units.length})")
+            gap = residual[0] / mech.units.length_factor
+            raise no_assembly(f"Newton-Raphson left a violation of {gap:.3g} {mech.units.length}"
+                              if np.isfinite(gap) and gap < 1e3 * system.size / mech.units.length_factor
+                              else "Newton-Raphson diverged from the sketch")
         self._assembled[name] = q[0]
         return q[0]
 
@@ -366,13 +392,37 @@ class Kinematics:
             for direction in (-1.0, 1.0):
                 target = c_ref.copy()
                 target[k] += direction * span
-                _, c, reached, _ = continue_to(self.system, q_ref, c_ref, target)
+                q_end, c, reached, _ = continue_to(self.system, q_ref, c_ref, target)
                 ends.append(None if reached else float(c[k]))
                 if reached and is_angle:  # turned round once: the input is a crank
                     ends = [None, None]
+                    self._record_turn(name, k, direction * (q_end - q_ref))
                     break
             self._ranges[key] = InputRange(drivers[k].name, ends[0], ends[-1], span)
         return self._ranges[key]
+
+    def _record_turn(self, branch: str, k: int, change: np.ndarray) -> None:
+        """Keep the change of q over one turn of input k if the mechanism is then
+        back where it started (positions equal, angles changed by whole turns)."""
+        scale = self.system.coordinate_scale()
+        turns = np.round(change / (2.0 * math.pi))
+        turns[0::3] = turns[1::3] = 0.0
+        shift = turns * 2.0 * math.pi
+        if np.max(np.abs((change - shift) * scale)) <= 1e-9:
+            self._turns[(branch, k)] = shift
+
+    def _shift_by_turns(self, branch: str, q: np.ndarray, c: np.ndarray, target: np.ndarray):
+        """(q, c) moved by whole turns of periodic inputs to within half a turn of target."""
+        for k, driver in enumerate(self.mechanism.drivers):
+            turns = round((target[k] - c[k]) / (2.0 * math.pi))
+            if driver.quantity != "angle" or turns == 0:
+                continue
+            if not self.input_range(k, branch).full_turn or (branch, k) not in self._turns:
+                continue
+            c = c.copy()
+            c[k] += turns * 2.0 * math.pi
+            q = q + turns * self._turns[(branch, k)]
+        return q, c
 
     # -- sweeps -----------------------------------------------------------
     def solve(self, inputs, rates=None, accelerations=None, branch: str | None = None,
@@ -498,7 +548,10 @@ class Kinematics:
                 ahead, to_stop = c[i, 0] - c_last[0], stop - c_last[0]
                 if ahead * to_stop > 0.0 and abs(ahead) >= abs(to_stop):
                     continue  # behind the same limit position as the last failed walk
-            q_new, c_new, reached, trail = continue_to(system, q_last, c_last, c[i])
+            q_start, c_start = self._shift_by_turns(branch, q_last, c_last, c[i])
+            if not np.array_equal(c_start, c_last):  # jumped whole turns: not along the path
+                previous = None
+            q_new, c_new, reached, trail = continue_to(system, q_start, c_start, c[i])
             if previous is not None:  # walked along the sweep's own path
                 p0, length = path[previous], path[i] - path[previous]
                 for fraction, q_step in trail:
@@ -507,8 +560,8 @@ class Kinematics:
             elif reached:  # arrived from elsewhere: cover the way back to the last waypoint
                 anchors.append((path[i], q_new, c[i]))
                 covered.append((path[i], path[i]))
-                if j > 0:
-                    back = waypoints[j - 1]
+                if j > 0 and i - 1 > waypoints[j - 1]:  # samples lie between the two waypoints
+                    back = waypoints[j - 1] + 1
                     _, _, _, trail_back = continue_to(system, q_new, c[i], c[back])
                     length = path[i] - path[back]
                     for fraction, q_step in trail_back:

@@ -80,6 +80,8 @@ def parse_mechanism(text: str, path: str = "<string>") -> Mechanism:
 
 
 def _describe(value: Any) -> str:
+    if value is None:
+        return "none"
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
 

@@ -313,8 +313,8 @@ class Mechanism:
         extent = 0.0
         for b in self.bodies:
             pts = np.array(list(b.points.values()) or [[0.0, 0.0]])
-            extent = max(extent, float(np.max(np.ptp(pts, axis=0), initial=0.0)),
-                         float(np.max(np.linalg.norm(pts - pts[0], axis=1), initial=0.0)))
+            spread = pts - pts[0]
+            extent = max(extent, float(np.max(np.hypot(spread[:, 0], spread[:, 1]), initial=0.0)))
         return extent if extent > 0.0 else 1.0
 
     def grubler(self) -> int:
