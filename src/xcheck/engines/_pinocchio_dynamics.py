@@ -40,10 +40,14 @@ INTEGRATORS = {"rk4": ("rk4", False), "semi-implicit-euler": ("euler", False),
 #: PD tracking of the inputs: natural frequency in cycles per window.
 TRACKING_CYCLES = 10.0
 #: Baumgarte gains Kp = (BAUMGARTE / dt)^2, Kd = 2 BAUMGARTE / dt: a critically
-#: damped loop error with a time constant of 1 / BAUMGARTE steps.
+#: damped loop error with a time constant of 1 / BAUMGARTE steps. Measured on
+#: fourbar, slider-crank and inverted: 0.05 to 0.7 run, the error falling as the
+#: gain grows (fourbar, 800 steps: 1.1e-4 m at 0.05, 1.5e-5 m at 0.7); 1.0
+#: makes semi-implicit Euler diverge. 0.5 keeps a margin below that.
 BAUMGARTE = 0.5
 #: Proximal settings of constraintDynamics: a planar loop's z row is zero, so
-#: the Delassus matrix is singular and needs mu > 0.
+#: the Delassus matrix is singular and needs mu > 0. Measured: 3 to 5 proximal
+#: iterations (summary column proximal_iterations_max) give J a + drift ~1e-16.
 PROXIMAL_MU = 1e-8
 PROXIMAL_ACCURACY = 1e-14
 PROXIMAL_MAX_ITER = 50
@@ -73,10 +77,7 @@ class _Driven:
         self.cds = [cm.createData() for cm in self.cms]
         pin.initConstraintDynamics(self.model, self.data, self.cms, self.cds)
         self.settings = pin.ProximalSettings(PROXIMAL_ACCURACY, PROXIMAL_MU, PROXIMAL_MAX_ITER)
-        n, k = pm.model.nv, len(pm.drivers)
-        self.selector = np.zeros((k, n))
-        for j, dc in enumerate(pm.drivers):
-            self.selector[j, dc.index] = dc.sign
+        self.selector = pm.input_selector()
         self.kp, self.kd = tracking_gains(window)
         self.evaluations = 0
         self.proximal_iterations = 0

@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ModelError
-from ..model import GROUND, Body, Mechanism, PinInSlot, Prismatic, Revolute
+from ..model import GROUND, Body, Mechanism, Prismatic, Revolute
 from ..topology import spanning_tree
 
 __all__ = ["JointSpec", "BodySpec", "DriverCoordinate", "TreeSpec", "PinocchioMechanism",
@@ -310,6 +310,13 @@ class PinocchioMechanism:
     def constraint_datas(self) -> list:
         """Fresh workspaces for the constraints (one per constraint model)."""
         return [cm.createData() for cm in self.constraints]
+
+    def input_selector(self) -> np.ndarray:
+        """S, shape (k, nv): the drivers' inputs are ``S q`` (and their rates ``S v``)."""
+        selector = np.zeros((len(self.drivers), self.model.nv))
+        for k, dc in enumerate(self.drivers):
+            selector[k, dc.index] = dc.sign
+        return selector
 
 
 def build_model(spec: TreeSpec) -> PinocchioMechanism:

@@ -44,14 +44,11 @@ class Oracle:
     cds: list = field(init=False)
 
     def __post_init__(self):
-        self.data = self.pm.model.createData()
+        self._model = self.pm.model
+        self.data = self._model.createData()
         self.cds = self.pm.constraint_datas()
-        model, n = self.pm.model, self.pm.model.nv
-        self.selector = np.zeros((len(self.pm.drivers), n))
-        for k, dc in enumerate(self.pm.drivers):
-            self.selector[k, dc.index] = dc.sign
+        self.selector = self.pm.input_selector()
         self.n_loop = 3 * len(self.pm.constraints)
-        self._model = model
 
     # -- loop closure ------------------------------------------------------
     def loop_residual(self, q: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..compare import ModeResult, Trajectory, differences
 from ..kinematics import Kinematics
-from ._pinocchio_dynamics import run_dynamic
+from ._pinocchio_dynamics import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
 from ._pinocchio_oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
 from ._pinocchio_urdf import export_texts
@@ -37,7 +37,6 @@ from ._pinocchio_urdf import export_texts
 __all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs"]
 
 KINEMATIC = "pinocchio-kinematic"
-DYNAMIC = "pinocchio-dynamic"
 #: Fraction of a bounded input's feasible range kept clear of each limit
 #: position (there the mechanism is singular), as in the simulation window.
 RANGE_MARGIN = 0.02
