@@ -348,19 +348,24 @@ class Kinematics:
         return q
 
     def _fit_sketch(self, q0, c_ref, sketch) -> np.ndarray:
+        """Least squares of the constraints plus a pull towards the sketched
+        points, the pull relaxed in stages (1, 0.1, 0.01, 0.001) so that the
+        fit closes the loops without wandering off the sketched branch."""
         system, mech = self.system, self.mechanism
         targets = [(system.body_index[b.name], b.points[lbl], sketch[lbl])
                    for b in mech.moving_bodies for lbl in b.points if lbl in sketch]
-        size, weight = system.size, 1e-3
+        if system.n_rows + 2 * len(targets) < system.n:
+            return q0  # too few equations for least squares; Newton decides
+        size = system.size
         row_scale = np.where(system.row_is_angle, 1.0, 1.0 / size)
 
-        def residuals(q):
+        def residuals(q, weight):
             phi = system.residual(q[None], c_ref[None])[0] * row_scale
             pulls = [weight * (q[3 * i:3 * i + 2] + _rotate(q[3 * i + 2:3 * i + 3], s)[0] - xy) / size
                      for i, s, xy in targets]
             return np.concatenate([phi] + pulls) if pulls else phi
 
-        def jacobian(q):
+        def jacobian(q, weight):
             jac = system.jacobian(q[None])[0] * row_scale[:, None]
             rows = []
             for i, s, _ in targets:
@@ -370,11 +375,11 @@ class Kinematics:
                 rows.append(weight * row / size)
             return np.vstack([jac] + rows) if rows else jac
 
-        if system.n_rows + 2 * len(targets) < system.n:
-            return q0  # too few equations for least squares; Newton decides
-        fit = least_squares(residuals, q0, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15,
-                            gtol=1e-15, max_nfev=2000)
-        return fit.x
+        q = q0
+        for weight in (1.0, 1e-1, 1e-2, 1e-3):
+            q = least_squares(residuals, q, jac=jacobian, args=(weight,), method="lm", xtol=1e-15,
+                              ftol=1e-15, gtol=1e-15, max_nfev=2000).x
+        return q
 
     # -- feasible range ---------------------------------------------------
     def input_range(self, driver: str | int, branch: str | None = None) -> InputRange:
