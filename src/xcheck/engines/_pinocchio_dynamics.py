@@ -31,7 +31,7 @@ from ..motion import simulation_window
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
 from ._pinocchio_oracle import Oracle, frame_states, one_line
 
-__all__ = ["run_dynamic", "INTEGRATORS", "worst_relative"]
+__all__ = ["run_dynamic", "INTEGRATORS"]
 
 MODE = "pinocchio-dynamic"
 #: integrator name -> (scheme, Baumgarte correction on?)
@@ -179,20 +179,9 @@ def _trajectory(pm, oracle, rows, source, settings, notes) -> Trajectory:
                       notes=notes)
 
 
-def worst_relative(table: pd.DataFrame, quantities) -> float:
-    """Largest error of the given quantities relative to the largest magnitude
-    of the same quantity anywhere in the mechanism.
-
-    ``differences``' own ``max_rel`` divides by each row's scale, which is
-    round-off for a quantity that is identically zero (the velocity of a body
-    frame whose origin sits on a ground pivot), so it reports round-off
-    divided by round-off there.
-    """
-    rows = table[table.quantity.isin(list(quantities))]
-    if rows.empty:
-        return math.nan
-    scale = rows.groupby("quantity").scale.transform("max")
-    return float(np.max(rows.max_abs / np.where(scale > 0, scale, 1.0)))
+def _worst(table: pd.DataFrame, quantities, column: str) -> float:
+    """Largest ``column`` of a differences table over the given quantities."""
+    return float(table[table.quantity.isin(list(quantities))][column].max())
 
 
 def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
@@ -244,10 +233,10 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
     table = differences(kinematics, trajectory, branch)
     law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
     run.update({
-        "position_error_m": float(table[table.quantity == "position"].max_abs.max()),
-        "angle_error_rad": float(table[table.quantity == "angle"].max_abs.max()),
-        "velocity_rel": worst_relative(table, ["velocity", "omega"]),
-        "acceleration_rel": worst_relative(table, ["acceleration", "alpha"]),
+        "position_error_m": _worst(table, ["position"], "max_abs"),
+        "angle_error_rad": _worst(table, ["angle"], "max_abs"),
+        "velocity_rel": _worst(table, ["velocity", "omega"], "max_rel"),
+        "acceleration_rel": _worst(table, ["acceleration", "alpha"], "max_rel"),
         "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
         "input_error": float(np.max(np.abs(trajectory.inputs - law_inputs))),
         "evaluations": driven.evaluations,
@@ -280,8 +269,9 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
         Trajectories: RK4 at the finest step first (the one the comparison
         uses; without RK4, the first integrator at its finest step), then the
         other runs. ``summary``: one row per run with the largest position
-        error (m), velocity and acceleration errors (relative, see
-        :func:`worst_relative`), loop opening (m), input tracking error, observed
+        error (m), velocity and acceleration errors (``max_rel`` of
+        :func:`~xcheck.compare.differences`), loop opening (m), input tracking
+        error, observed
         orders and run time. Runs that failed (loops opened wide, state not
         finite) have their reason in ``status`` and no trajectory; the mode
         fails only when the comparison run does.
