@@ -15,7 +15,9 @@ from rich.table import Table
 
 from . import __version__
 from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir
+from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
+from .fileio import write_atomic
 from .kinematics import Kinematics, Status
 from .model import Mechanism, load_mechanism
 from .output import print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
@@ -169,6 +171,47 @@ def solve_command(
             print_textbook(console, textbook, document)
     if textbook_error is not None:
         raise textbook_error
+
+
+@app.command("export")
+@_reports_errors
+def export_command(
+    names: Annotated[Optional[list[str]], typer.Argument(
+        help="Mechanisms to export (default: all in the models directory).")] = None,
+    fmt: Annotated[str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the "
+                                     "loop-closure list), or all.")] = "all",
+    check: Annotated[bool, typer.Option("--check", help="Write nothing; exit 1 if a file is missing "
+                                        "or differs from what would be written.")] = False,
+    models: ModelsOption = None,
+):
+    """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf) from the mechanism files.
+
+    Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
+    """
+    directory = models_dir(models)
+    formats = list(EXPORTERS) if fmt == "all" else [fmt]
+    for f in formats:
+        if f not in EXPORTERS:
+            raise InputError(f"--format: expected one of {', '.join(EXPORTERS)} or all, found {f!r}")
+    stale = []
+    for name in names or model_names(directory):
+        kin = Kinematics(load_mechanism(model_path(name, directory)))
+        for f in formats:
+            function, subdirectory = exporter(f)
+            for file_name, text in function(kin).items():
+                target = directory / subdirectory / file_name
+                current = target.read_text(encoding="utf-8") if target.is_file() else None
+                if current == text:
+                    continue
+                if check:
+                    stale.append(str(target))
+                else:
+                    write_atomic(target, text)
+                    typer.echo(f"wrote {target}")
+    for path in stale:
+        typer.echo(f"stale: {path}")
+    if stale:
+        raise typer.Exit(1)
 
 
 def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float]]]:

@@ -319,8 +319,10 @@ class Kinematics:
             raise no_assembly(f"Newton-Raphson left a violation of {gap:.3g} {mech.units.length}"
                               if np.isfinite(gap) and gap < 1e3 * system.size / mech.units.length_factor
                               else "Newton-Raphson diverged from the sketch")
-        self._assembled[name] = q[0]
-        return q[0]
+        q = q[0]
+        q[2::3] = np.mod(q[2::3] + math.pi, 2.0 * math.pi) - math.pi  # body angles in [-pi, pi)
+        self._assembled[name] = q
+        return q
 
     def _show_input(self, driver, value: float) -> str:
         units = self.mechanism.units
