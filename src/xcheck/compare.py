@@ -16,8 +16,8 @@ import pandas as pd
 
 from .kinematics import Kinematics, Solution
 
-__all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences",
-           "trajectory_from_solution"]
+__all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
+           "sample_errors", "trajectory_from_solution"]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
@@ -99,7 +99,46 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> pd.DataFrame:
+def native_at(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> Solution:
+    """The native solution at a trajectory's own inputs, rates and accelerations."""
+    return kinematics.solve(trajectory.inputs, trajectory.input_rates, trajectory.input_accelerations,
+                            branch=branch)
+
+
+def _errors(trajectory: Trajectory, native: Solution):
+    """(kind, name, quantity, error (N,), native magnitude (N,)) for every quantity the trajectory has."""
+    sources = [("body", name, q, native.body(name)) for name in trajectory.bodies
+               for q in BODY_QUANTITIES if q in trajectory.bodies[name]]
+    sources += [("point", label, q, native.point(label)) for label in trajectory.points
+                for q in POINT_QUANTITIES if q in trajectory.points[label]]
+    for kind, name, quantity, reference in sources:
+        values = (trajectory.bodies if kind == "body" else trajectory.points)[name][quantity]
+        exact = reference[quantity]
+        delta = values - exact
+        if quantity == "angle":
+            delta = _wrap(delta)
+        error = np.abs(delta) if delta.ndim == 1 else np.linalg.norm(delta, axis=1)
+        magnitude = np.abs(exact) if exact.ndim == 1 else np.linalg.norm(exact, axis=1)
+        yield kind, name, quantity, error, magnitude
+
+
+def sample_errors(trajectory: Trajectory, native: Solution) -> dict[str, np.ndarray]:
+    """Per quantity, the largest error over all bodies and points at each sample.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (N,)
+        SI units; NaN where the native solver did not succeed.
+    """
+    good = native.status <= 1
+    worst: dict[str, np.ndarray] = {}
+    for _, _, quantity, error, _ in _errors(trajectory, native):
+        worst[quantity] = np.fmax(worst.get(quantity, np.full(error.shape, -np.inf)), error)
+    return {q: np.where(good, e, np.nan) for q, e in worst.items()}
+
+
+def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None,
+                native: Solution | None = None) -> pd.DataFrame:
     """Differences between a trajectory and the native solution at its inputs.
 
     Returns
@@ -115,24 +154,14 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
         ``max_rel`` (max_abs / scale),
         ``worst_sample`` (index) and ``worst_input`` (the first driver's value
         there, SI). Samples where the native solver did not succeed are left
-        out and counted in ``samples``.
+        out and counted in ``samples``. Pass ``native`` (from :func:`native_at`)
+        when it is already solved.
     """
-    native = kinematics.solve(trajectory.inputs, trajectory.input_rates, trajectory.input_accelerations,
-                              branch=branch)
+    if native is None:
+        native = native_at(kinematics, trajectory, branch)
     good = native.status <= 1
     rows = []
-    sources = [("body", name, q, native.body(name)) for name in trajectory.bodies
-               for q in BODY_QUANTITIES if q in trajectory.bodies[name]]
-    sources += [("point", label, q, native.point(label)) for label in trajectory.points
-                for q in POINT_QUANTITIES if q in trajectory.points[label]]
-    for kind, name, quantity, reference in sources:
-        values = (trajectory.bodies if kind == "body" else trajectory.points)[name][quantity]
-        exact = reference[quantity]
-        delta = values - exact
-        if quantity == "angle":
-            delta = _wrap(delta)
-        error = np.abs(delta) if delta.ndim == 1 else np.linalg.norm(delta, axis=1)
-        magnitude = np.abs(exact) if exact.ndim == 1 else np.linalg.norm(exact, axis=1)
+    for kind, name, quantity, error, magnitude in _errors(trajectory, native):
         error, magnitude = error[good], magnitude[good]
         if error.size == 0:
             continue

@@ -1,0 +1,358 @@
+"""The comparison runner: every solver and engine mode on one mechanism.
+
+:func:`run_mechanism` sweeps the mechanism's feasible input range with the
+native general solver, runs each requested mode (the seeds' other
+formulations, MuJoCo, Pinocchio and pymunk, kinematic and dynamic), and
+tabulates per mode and quantity category the largest and RMS difference from
+the native solution against a tolerance. A mode that fails is reported with its
+reason; the others still run.
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+import pandas as pd
+
+from . import __version__
+from .compare import ModeResult, Trajectory, differences, native_at, sample_errors
+from .engines import mode_function
+from .formulations import FORMULATIONS, NotApplicable, formulation
+from .kinematics import Kinematics, Solution
+
+__all__ = ["ALL_MODES", "CATEGORIES", "TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
+           "sweep_inputs", "versions", "convergence_table"]
+
+#: every mode, in the order tables show them
+ALL_MODES = ("native", *FORMULATIONS, "mujoco-kinematic", "pinocchio-kinematic", "mujoco-dynamic",
+             "pinocchio-dynamic", "pymunk-dynamic")
+#: quantity categories of the tables; body positions count with point positions
+CATEGORIES = ("position", "velocity", "acceleration", "angle", "omega", "alpha")
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """What a mode must meet.
+
+    ``position`` is a fraction of the mechanism's size, ``angle`` in rad,
+    ``velocity`` (velocities and angular velocities) and ``acceleration``
+    (accelerations and angular accelerations) fractions of the largest
+    magnitude of that quantity in the mechanism; ``basis`` says where the
+    numbers come from.
+    """
+
+    position: float
+    angle: float
+    velocity: float
+    acceleration: float
+    basis: str
+
+    def limit(self, category: str) -> float:
+        return {"position": self.position, "angle": self.angle, "velocity": self.velocity,
+                "omega": self.velocity, "acceleration": self.acceleration,
+                "alpha": self.acceleration}[category]
+
+
+_ROUND_OFF = Tolerance(1e-10, 1e-10, 1e-9, 1e-9, "round-off: the engine's own kinematics must reproduce the "
+                       "exact solution (measured at most 3e-14 of the size, 5e-13 relative, over all models)")
+_EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-off (measured at most "
+                   "8.7e-13 relative over all models)")
+#: Dynamic modes: about three times the worst error measured over every model in
+#: models/ with `xcheck run all` (worst: position / size, angle rad, velocity
+#: and acceleration relative), each falling with the time step at the order the
+#: convergence study in the report shows.
+TOLERANCES = {
+    "native": Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "the solver's own equations: loop closure and the velocity "
+                        "and acceleration equations satisfied to round-off"),
+    "formulation-I": _EXACT,
+    "formulation-II": _EXACT,
+    "mujoco-kinematic": _ROUND_OFF,
+    "pinocchio-kinematic": _ROUND_OFF,
+    "mujoco-dynamic": Tolerance(2e-6, 1e-6, 3e-4, 1.5e-2, "RK4, dt = 0.125 ms, stiff solref/solimp; measured worst "
+                                "5.2e-7, 2.2e-7 rad, 8.0e-5, 4.2e-3 (qacc accelerations carry MuJoCo's "
+                                "constraint stabilisation)"),
+    "pinocchio-dynamic": Tolerance(5e-8, 1e-7, 2e-7, 5e-7, "RK4, 800 steps over the window (order 4); measured "
+                                   "worst 1.4e-8, 3.3e-8 rad, 5.5e-8, 1.4e-7"),
+    "pymunk-dynamic": Tolerance(6e-6, 6e-6, 5e-3, 1.5e-2, "semi-implicit Euler, error_bias 0, 500 iterations, "
+                                "window/8000 steps (position order 2; accelerations by central differences of "
+                                "velocities); measured worst 1.7e-6, 1.8e-6 rad, 1.4e-3, 4.0e-3"),
+}
+
+
+@dataclass
+class ModeOutcome:
+    """One mode's comparison with the native solution.
+
+    Attributes
+    ----------
+    mode : str
+    ok : bool
+        False when the mode could not run or failed; ``reason`` says why.
+    reason : str
+    passed : bool
+        ok, and every category within its tolerance.
+    categories : DataFrame
+        One row per category: max_abs (SI), rms, relative (position per
+        mechanism size, angle in rad, others per the largest magnitude of
+        that quantity over all bodies and points), tolerance,
+        passed, worst (the body or point), worst_input (first driver, SI).
+    details : DataFrame
+        :func:`xcheck.compare.differences` of the compared trajectory.
+    result : ModeResult or None
+        The engine's own result: every trajectory and its summary table.
+    trajectory : Trajectory or None
+        The compared trajectory.
+    errors : dict of str to ndarray
+        Per quantity, the largest error over all bodies and points at each
+        sample of the trajectory (SI), for plots.
+    seconds : float
+        Wall time of the mode.
+    """
+
+    mode: str
+    ok: bool
+    reason: str = ""
+    passed: bool = False
+    categories: pd.DataFrame = field(default_factory=pd.DataFrame)
+    details: pd.DataFrame = field(default_factory=pd.DataFrame)
+    result: ModeResult | None = None
+    trajectory: Trajectory | None = None
+    errors: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+@dataclass
+class RunResult:
+    """Everything ``xcheck run`` found for one mechanism."""
+
+    kinematics: Kinematics
+    branch: str
+    native: Solution
+    outcomes: dict[str, ModeOutcome]
+    not_applicable: dict[str, str]
+    textbook: list[dict]
+    seconds: float
+
+    @property
+    def mechanism(self):
+        return self.kinematics.mechanism
+
+    @property
+    def passed(self) -> bool:
+        return all(o.passed for o in self.outcomes.values())
+
+    def worst(self) -> tuple[str, str, float, float] | None:
+        """(mode, category, relative error, tolerance) of the largest error
+        relative to its tolerance, over the modes that ran; None if none ran."""
+        best = None
+        for outcome in self.outcomes.values():
+            for _, row in outcome.categories.iterrows():
+                ratio = row.relative / row.tolerance if row.tolerance > 0 else math.inf
+                if best is None or ratio > best[0]:
+                    best = (ratio, (outcome.mode, row.category, float(row.relative), float(row.tolerance)))
+        return None if best is None else best[1]
+
+
+def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None, margin: float = 1e-3):
+    """The native sweep: the first driver over its feasible range (one turn for a
+    crank, ``margin`` of the range clear of each limit position), other drivers
+    at their assembly values; rates and accelerations from the motion laws.
+
+    Returns
+    -------
+    inputs, rates, accelerations : ndarray, shape (samples, k)
+    """
+    mech = kinematics.mechanism
+    ref = kinematics.reference_inputs()
+    rng = kinematics.input_range(0, branch)
+    if rng.full_turn:
+        low, high = ref[0], ref[0] + 2.0 * math.pi
+    else:
+        low = rng.low if rng.low is not None else ref[0] - rng.span
+        high = rng.high if rng.high is not None else ref[0] + rng.span
+        pad = margin * (high - low)
+        low, high = low + pad, high - pad
+    inputs = np.tile(ref, (samples, 1))
+    inputs[:, 0] = np.linspace(low, high, samples)
+    rates, accelerations = np.zeros_like(inputs), np.zeros_like(inputs)
+    for k, driver in enumerate(mech.drivers):
+        for i in range(samples):
+            state = driver.law.state_at(inputs[i, k])
+            if state is None:  # the law never reaches the value: its rates at t = 0 stand in
+                _, qd, qdd = driver.law.at_time(0.0)
+                state = (inputs[i, k], float(qd), float(qdd))
+            rates[i, k], accelerations[i, k] = state[1], state[2]
+    return inputs, rates, accelerations
+
+
+def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolerance) -> pd.DataFrame:
+    """Per category: the worst row of a differences table against the tolerance."""
+    size = kinematics.system.size
+    rows = []
+    for category in CATEGORIES:
+        part = details[details.quantity == category]
+        if part.empty:
+            continue
+        if category == "position":
+            relative = part.max_abs / size
+        elif category == "angle":
+            relative = part.max_abs
+        else:  # against the largest magnitude of the quantity anywhere in the mechanism
+            relative = part.max_abs / max(float(part.scale.max()), 1e-300)
+        worst = int(np.argmax(relative.to_numpy()))
+        row = part.iloc[worst]
+        limit = tolerance.limit(category)
+        rows.append({"category": category, "max_abs": float(part.max_abs.max()),
+                     "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
+                     "relative": float(relative.iloc[worst]), "tolerance": limit,
+                     "passed": bool(relative.iloc[worst] <= limit),
+                     "worst": f"{row['kind']} {row['name']}", "worst_input": float(row.worst_input)})
+    return pd.DataFrame(rows)
+
+
+def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance) -> ModeOutcome:
+    """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma."""
+    system = kinematics.system
+    good = native.status <= 1
+    if not good.any():
+        return ModeOutcome("native", False, "no sample of the sweep assembled")
+    q, qd, qdd = native.q[good], native.qd[good], native.qdd[good]
+    jac = system.jacobian(q)
+    velocity_gap = np.einsum("nij,nj->ni", jac, qd) - system.velocity_rhs(native.input_rates[good])
+    acceleration_gap = np.einsum("nij,nj->ni", jac, qdd) - system.gamma(q, qd, native.input_accelerations[good])
+    inputs = native.inputs[good, 0]
+    rows = []
+    for category, gap, scale in (
+        ("position", native.residual[good], system.size),
+        ("velocity", system.residual_metres(velocity_gap), system.size * max(1e-300, np.max(np.abs(qd)))),
+        ("acceleration", system.residual_metres(acceleration_gap), system.size * max(1e-300, np.max(np.abs(qdd)))),
+    ):
+        worst = int(np.argmax(gap))
+        relative = float(gap[worst] / scale)
+        rows.append({"category": category, "max_abs": float(gap[worst]), "rms": float(np.sqrt(np.mean(gap**2))),
+                     "relative": relative, "tolerance": tolerance.limit(category),
+                     "passed": relative <= tolerance.limit(category), "worst": "constraint equations",
+                     "worst_input": float(inputs[worst])})
+    table = pd.DataFrame(rows)
+    failed = int((~good).sum())
+    reason = f"{failed} of {len(good)} samples did not assemble" if failed else ""
+    return ModeOutcome("native", True, reason, bool(table.passed.all()) and not failed, table)
+
+
+def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None):
+    """Run one non-native mode; never raises (a failure is an outcome)."""
+    start = time.perf_counter()
+    tolerance = TOLERANCES[mode]
+    try:
+        if mode in FORMULATIONS:
+            trajectory = formulation(mode)(kinematics, native.inputs, native.input_rates,
+                                           native.input_accelerations, branch=branch)
+            result = ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+        else:
+            function = mode_function(mode)
+            options = {"samples": samples} if mode.endswith("-kinematic") else {}
+            result = function(kinematics, branch=branch, **options)
+    except NotApplicable:
+        raise
+    except Exception as err:  # an engine's failure is this mode's outcome, not the run's
+        return ModeOutcome(mode, False, f"{type(err).__name__}: {err}".splitlines()[0],
+                           seconds=time.perf_counter() - start)
+    if not result.ok or not result.trajectories:
+        return ModeOutcome(mode, False, result.reason or "no trajectory", result=result,
+                           seconds=time.perf_counter() - start)
+    trajectory = result.trajectories[0]
+    reference = native_at(kinematics, trajectory, branch)
+    details = differences(kinematics, trajectory, branch=branch, native=reference)
+    categories = _categorise(kinematics, details, tolerance)
+    passed = bool(not categories.empty and categories.passed.all())
+    return ModeOutcome(mode, True, "", passed, categories, details, result, trajectory,
+                       sample_errors(trajectory, reference), time.perf_counter() - start)
+
+
+def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, branch: str | None = None,
+                  textbook: list[dict] | None = None, progress=None) -> RunResult:
+    """Run the native solver and the requested modes on one mechanism.
+
+    Parameters
+    ----------
+    modes : sequence of str
+        Names from :data:`ALL_MODES`; "native" always runs.
+    samples : int
+        Samples of the native sweep and of the kinematic modes' sweeps.
+    textbook : list of dict, optional
+        The printed-answer checks to carry into the result.
+    progress : callable, optional
+        Called with each mode's name before it runs.
+    """
+    start = time.perf_counter()
+    branch_name = kinematics._branch_name(branch)
+    inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
+    native = kinematics.solve(inputs, rates, accelerations, branch=branch)
+    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"])}
+    not_applicable = {}
+    for mode in modes:
+        if mode == "native":
+            continue
+        if mode not in TOLERANCES:
+            raise ValueError(f"expected modes among {', '.join(ALL_MODES)}, found {mode!r}")
+        if progress is not None:
+            progress(mode)
+        try:
+            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch)
+        except NotApplicable as err:
+            not_applicable[mode] = err.reason
+    return RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [],
+                     time.perf_counter() - start)
+
+
+def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
+    """A dynamic mode's error against time step in one shape for every engine.
+
+    Returns
+    -------
+    DataFrame
+        Columns series (integrator and settings), timestep (s), position_error
+        (m), order (observed, between consecutive steps of a series), status.
+    """
+    summary = None if outcome.result is None else outcome.result.summary
+    if summary is None or summary.empty:
+        return pd.DataFrame(columns=["series", "timestep", "position_error", "order", "status"])
+    s = summary
+    if "dt" in s:  # pinocchio
+        table = pd.DataFrame({"series": s.integrator, "timestep": s.dt, "position_error": s.position_error_m})
+    elif "timestep" in s:  # mujoco
+        table = pd.DataFrame({"series": s.setting + " " + s.integrator, "timestep": s.timestep,
+                              "position_error": s.position_error})
+    else:  # pymunk
+        table = pd.DataFrame({"series": s.error_bias.astype(str) + ", " + s.iterations.astype(str) + " iterations",
+                              "timestep": s.time_step, "position_error": s.position_error})
+    table["status"] = s.status.astype(str)
+    table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
+    orders = []
+    for i, row in table.iterrows():
+        previous = table.iloc[i - 1] if i > 0 else None
+        if (previous is not None and previous.series == row.series and row.position_error > 0
+                and previous.position_error > 0 and previous.timestep != row.timestep):
+            orders.append(math.log(previous.position_error / row.position_error)
+                          / math.log(previous.timestep / row.timestep))
+        else:
+            orders.append(math.nan)
+    table["order"] = orders
+    return table
+
+
+def versions() -> dict[str, str]:
+    """Versions of xcheck, Python and every engine and library that shapes results."""
+    found = {"xcheck": __version__, "python": platform.python_version()}
+    for package in ("mujoco", "pin", "pymunk", "numpy", "scipy", "pandas", "matplotlib"):
+        try:
+            found[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            found[package] = "not installed"
+    return found
+
