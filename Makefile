@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/xcheck solve fourbar
+	$(BIN)/xcheck run fourbar
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -11,6 +11,8 @@ from typing import Annotated, Optional
 
 import numpy as np
 import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from . import __version__
@@ -20,8 +22,10 @@ from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
 from .kinematics import Kinematics, Status
 from .model import Mechanism, load_mechanism
-from .output import print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
+from .output import print_run, run_json, print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
 from .textbook import check_printed, load_comparisons
+from .report import index_entry, write_index, write_report
+from .runner import ALL_MODES, run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -171,6 +175,138 @@ def solve_command(
             print_textbook(console, textbook, document)
     if textbook_error is not None:
         raise textbook_error
+
+
+#: --engines shortcuts
+_ENGINE_GROUPS = {
+    "formulations": ("formulation-I", "formulation-II"),
+    "mujoco": ("mujoco-kinematic", "mujoco-dynamic"),
+    "pinocchio": ("pinocchio-kinematic", "pinocchio-dynamic"),
+    "pymunk": ("pymunk-dynamic",),
+    "kinematic": ("formulation-I", "formulation-II", "mujoco-kinematic", "pinocchio-kinematic"),
+    "dynamic": ("mujoco-dynamic", "pinocchio-dynamic", "pymunk-dynamic"),
+}
+
+
+def _parse_engines(text: str | None) -> tuple[str, ...]:
+    if text is None:
+        return ALL_MODES
+    chosen = []
+    for item in (part.strip() for part in text.split(",") if part.strip()):
+        if item in ALL_MODES:
+            chosen.append(item)
+        elif item in _ENGINE_GROUPS:
+            chosen.extend(_ENGINE_GROUPS[item])
+        else:
+            raise InputError(f"--engines: expected modes or groups among {', '.join(ALL_MODES)}, "
+                             f"{', '.join(_ENGINE_GROUPS)}, found {item!r}")
+    return tuple(dict.fromkeys(["native", *chosen]))
+
+
+def _textbook_for(path: Path, kin: Kinematics, models, comparisons) -> list[dict]:
+    found = comparisons_path(path, comparisons_dir(models_dir(models), comparisons))
+    return [] if found is None else check_printed(kin, load_comparisons(found, kin.mechanism))
+
+
+@app.command("run")
+@_reports_errors
+def run_command(
+    name: Annotated[str, typer.Argument(help="Mechanism name, path to a .toml file, or 'all'.")],
+    engines: Annotated[Optional[str], typer.Option(
+        "--engines", metavar="MODE[,MODE…]",
+        help="Modes to run (default: all): native, formulation-I, formulation-II, mujoco-kinematic, "
+             "mujoco-dynamic, pinocchio-kinematic, pinocchio-dynamic, pymunk-dynamic, or the groups "
+             "formulations, mujoco, pinocchio, pymunk, kinematic, dynamic.")] = None,
+    samples: Annotated[int, typer.Option("--samples", min=3, help="Samples of the sweeps over the feasible "
+                                         "input range.")] = 181,
+    branch: Annotated[Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Directory of the Markdown reports (default: "
+                                                "reports/ beside the models directory).")] = None,
+    report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown reports.")] = True,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors; the exit code "
+                                        "says whether all modes are within tolerance.")] = False,
+    models: ModelsOption = None,
+    comparisons: ComparisonsOption = None,
+):
+    """Compare every solver and engine mode with the exact native solution over the feasible input range.
+
+    Exit code 0 when every mode is within its tolerance, 1 when any is not (the
+    table says which quantity, where, by how much), 2 for bad input.
+
+    Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
+    """
+    modes = _parse_engines(engines)
+    directory = models_dir(models)
+    names = model_names(directory) if name == "all" else [name]
+    paths = [model_path(n, directory) for n in names]
+    kinematics = []
+    for path in paths:  # every file checked before any work
+        kin = Kinematics(load_mechanism(path))
+        kin.assemble(branch)
+        kinematics.append(kin)
+    reports_dir = out if out is not None else directory.parent / "reports"
+    command = "xcheck run " + name + (f" --engines {engines}" if engines else "") + \
+        (f" --samples {samples}" if samples != 181 else "") + (f" --branch {branch}" if branch else "")
+    stderr = Console(stderr=True)
+    results, entries = [], []
+    progress = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                        TimeElapsedColumn(), console=stderr, transient=True, disable=quiet or not stderr.is_terminal)
+    with progress:
+        task = progress.add_task("", total=len(paths) * len(modes))
+        for path, kin in zip(paths, kinematics):
+            label = kin.mechanism.name
+
+            def step(mode, label=label):
+                progress.update(task, description=f"{label}: {mode}", advance=1)
+
+            textbook = _textbook_for(path, kin, models, comparisons)
+            run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
+            progress.update(task, advance=1)  # native
+            if report:
+                progress.update(task, description=f"{label}: report")
+                write_report(run, reports_dir, command.replace(" " + name, " " + label, 1)
+                             if name == "all" else command)
+                entries.append(index_entry(run))
+            results.append(run)
+    if report:
+        _update_index(reports_dir, entries, models)
+    if as_json:
+        documents = [run_json(r) for r in results]
+        typer.echo(json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False,
+                              ensure_ascii=False))
+    elif not quiet:
+        console = wide_console()
+        for run in results:
+            print_run(console, run)
+            if report:
+                console.print(f"  report: {reports_dir / (run.mechanism.name + '.md')}")
+            console.print()
+    if not all(r.passed for r in results):
+        raise typer.Exit(1)
+
+
+def _update_index(reports_dir: Path, entries: list[dict], models) -> None:
+    """Rewrite reports/README.md with these entries, keeping the lines of mechanisms not run now."""
+    known = {e["name"]: e for e in _read_index(reports_dir)}
+    known.update({e["name"]: e for e in entries})
+    existing = set(model_names(models_dir(models)))
+    write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
+                reports_dir, "xcheck run all")
+
+
+def _read_index(reports_dir: Path) -> list[dict]:
+    """The entries of an existing reports/README.md (its table rows)."""
+    path = reports_dir / "README.md"
+    if not path.is_file():
+        return []
+    entries = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split(" | ")]
+        if len(cells) == 5 and cells[0].startswith("[") and "](" in cells[0]:
+            entries.append({"name": cells[0][1:cells[0].index("]")], "title": cells[1],
+                            "passed": cells[2] == "pass", "worst": cells[3], "textbook": cells[4]})
+    return entries
 
 
 @app.command("export")

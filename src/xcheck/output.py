@@ -10,7 +10,8 @@ from rich.table import Table
 
 from .kinematics import InputRange, Kinematics, Solution, Status
 
-__all__ = ["solution_json", "print_solution", "range_text", "wide_console", "textbook_json", "print_textbook"]
+__all__ = ["solution_json", "print_solution", "range_text", "wide_console", "textbook_json", "print_textbook",
+           "run_json", "print_run"]
 
 
 def _number(value) -> float | None:
@@ -196,3 +197,77 @@ def print_textbook(console: Console, results: list[dict], document: str = "") ->
         table.add_row(*cells)
     console.print(table)
     console.print()
+
+
+def run_json(run) -> dict:
+    """The JSON summary of ``xcheck run --json`` for one mechanism (SI units).
+
+    Per mode: the largest absolute difference per category (m, m/s, m/s^2,
+    rad, rad/s, rad/s^2), the same relative (see :class:`xcheck.runner.ModeOutcome`),
+    the tolerances, pass and reason.
+    """
+    from .runner import CATEGORIES
+
+    engines = {}
+    for mode, outcome in run.outcomes.items():
+        entry = {c: None for c in CATEGORIES}
+        entry["relative"] = {c: None for c in CATEGORIES}
+        entry["tolerance"] = {c: None for c in CATEGORIES}
+        for row in outcome.categories.itertuples():
+            entry[row.category] = _number(row.max_abs)
+            entry["relative"][row.category] = _number(row.relative)
+            entry["tolerance"][row.category] = _number(row.tolerance)
+        entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "seconds": round(outcome.seconds, 3)})
+        engines[mode] = entry
+    return {"mechanism": run.mechanism.name, "samples": int(run.native.inputs.shape[0]), "branch": run.branch,
+            "pass": run.passed, "engines": engines, "not_applicable": run.not_applicable,
+            "textbook": textbook_json(run.textbook)}
+
+
+def print_run(console: Console, run) -> None:
+    """The comparison table of one mechanism: per mode and category, the
+    largest difference and its tolerance; the worst place of a failing mode."""
+    from .runner import CATEGORIES
+
+    mech = run.mechanism
+    status = "[green]all modes within tolerance[/green]" if run.passed else "[red]some modes beyond tolerance[/red]"
+    console.print(f"[bold]{mech.name}[/bold] — {mech.title}: {status} ({run.seconds:.1f} s)")
+    table = Table(box=None, pad_edge=False, header_style="bold")
+    table.add_column("mode", no_wrap=True)
+    table.add_column("result", no_wrap=True)
+    for c in CATEGORIES:
+        table.add_column(c, justify="right", no_wrap=True)
+    failures = []
+    driver = mech.drivers[0]
+    scale, unit = ((mech.units.angle_factor, mech.units.angle) if driver.quantity == "angle"
+                   else (mech.units.length_factor, mech.units.length))
+    for mode, outcome in run.outcomes.items():
+        if not outcome.ok:
+            table.add_row(mode, "[red]failed[/red]", *["—"] * len(CATEGORIES))
+            failures.append(f"{mode}: {outcome.reason}")
+            continue
+        cells = []
+        rows = {r.category: r for r in outcome.categories.itertuples()}
+        for c in CATEGORIES:
+            r = rows.get(c)
+            if r is None:
+                cells.append("—")
+                continue
+            style = "green" if r.passed else "red"
+            cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:g}")
+            if not r.passed:
+                failures.append(f"{mode}: {c} {r.relative:.2e} > {r.tolerance:g} at {r.worst}, "
+                                f"{driver.name} = {r.worst_input / scale:.4g} {unit}")
+        table.add_row(mode, "[green]pass[/green]" if outcome.passed else "[red]FAIL[/red]", *cells)
+    console.print(table)
+    console.print("  largest difference from the native solution / tolerance: position per mechanism size, "
+                  "angle in rad, rates per the quantity's largest magnitude")
+    for failure in failures:
+        console.print(f"  [red]{failure}[/red]")
+    if run.not_applicable:
+        console.print("  not applicable: " + "; ".join(f"{m} ({r})" for m, r in run.not_applicable.items()))
+    if run.textbook:
+        counts = {v: sum(r["verdict"] == v for r in run.textbook) for v in ("agrees", "rounding", "disagrees")}
+        console.print(f"  printed answers: {len(run.textbook)} values — {counts['agrees']} agree, "
+                      f"{counts['rounding']} rounding, {counts['disagrees']} disagree (table: xcheck solve "
+                      f"{mech.name}, or the report)")

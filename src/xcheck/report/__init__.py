@@ -1,0 +1,73 @@
+"""Markdown reports of comparison runs: reports/NAME.md with its images in
+reports/NAME/, and reports/README.md indexing them.
+
+A report appears whole or not at all: its images are written into a fresh
+directory beside the old one, which replaces the old directory by renames; the
+Markdown file is written through a temporary file and a rename.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from ..fileio import write_atomic
+from ..runner import RunResult
+from . import _figures
+from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
+
+__all__ = ["write_report", "write_index", "index_entry"]
+
+
+def write_report(run: RunResult, directory: str | Path, command: str, gif: bool = True) -> Path:
+    """Write reports/NAME.md and reports/NAME/*.png|gif for one run; returns the Markdown path."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    name = run.mechanism.name
+    staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(staging, 0o777 & ~umask)
+    try:
+        images = {"drawing": "drawing.png", "quantities": "quantities.png", "errors": "differences.png"}
+        (staging / "drawing.png").write_bytes(_figures.drawing(run))
+        (staging / "quantities.png").write_bytes(_figures.quantities(run))
+        (staging / "differences.png").write_bytes(_figures.error_plots(run))
+        convergence = _figures.convergence_plot(run)
+        if convergence is not None:
+            (staging / "convergence.png").write_bytes(convergence)
+            images["convergence"] = "convergence.png"
+        if gif:
+            (staging / "motion.gif").write_bytes(_figures.motion_gif(run))
+            images["gif"] = "motion.gif"
+        text = report_markdown(run, {k: f"{name}/{v}" for k, v in images.items()}, command)
+        target = directory / name
+        retired = None
+        if target.exists():
+            retired = Path(tempfile.mkdtemp(prefix=f".{name}.old.", dir=directory))
+            os.replace(target, retired / name)
+        os.replace(staging, target)
+        if retired is not None:
+            shutil.rmtree(retired, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    markdown = directory / f"{name}.md"
+    write_atomic(markdown, text)
+    return markdown
+
+
+def index_entry(run: RunResult) -> dict:
+    """The line of reports/README.md for one run."""
+    return {"name": run.mechanism.name, "title": run.mechanism.title, "passed": run.passed,
+            "worst": worst_text(run), "textbook": textbook_text(run)}
+
+
+def write_index(entries: list[dict], directory: str | Path, command: str) -> Path:
+    """Write reports/README.md from index entries, keeping entries of other
+    mechanisms already listed there when only some were run."""
+    path = Path(directory) / "README.md"
+    write_atomic(path, index_markdown(sorted(entries, key=lambda e: e["name"]), command))
+    return path

@@ -1,0 +1,186 @@
+"""The Markdown report of a comparison run and the index of all reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kinematics import Status
+from ..output import range_text
+from ..runner import CATEGORIES, TOLERANCES, RunResult, convergence_table, versions
+
+__all__ = ["report_markdown", "index_markdown", "verdict_counts", "worst_text", "textbook_text"]
+
+_CATEGORY_UNIT = {"position": "of size", "angle": "rad", "velocity": "rel.", "omega": "rel.",
+                  "acceleration": "rel.", "alpha": "rel."}
+
+
+def _g(value, digits: int = 3) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if value == 0:
+        return "0"
+    return f"{value:.{digits}g}"
+
+
+def _table(headers: list[str], rows: list[list[str]], align: str | None = None) -> str:
+    align = align or "l" * len(headers)
+    marks = {"l": "---", "r": "---:", "c": ":---:"}
+    lines = ["| " + " | ".join(headers) + " |", "| " + " | ".join(marks[a] for a in align) + " |"]
+    lines += ["| " + " | ".join(str(c).replace("|", "\\|").replace("\n", " ") for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def verdict_counts(textbook: list[dict]) -> dict[str, int]:
+    return {v: sum(r["verdict"] == v for r in textbook) for v in ("agrees", "rounding", "disagrees")}
+
+
+def _comparison_section(run: RunResult) -> str:
+    headers = ["mode", "result"] + [f"{c} ({_CATEGORY_UNIT[c]})" for c in CATEGORIES] + ["worst at", "time"]
+    rows = []
+    for mode, outcome in run.outcomes.items():
+        if not outcome.ok:
+            rows.append([f"`{mode}`", f"**failed**: {outcome.reason}"] + ["—"] * len(CATEGORIES) + ["", ""])
+            continue
+        cells = []
+        table = outcome.categories.set_index("category") if not outcome.categories.empty else None
+        for c in CATEGORIES:
+            if table is None or c not in table.index:
+                cells.append("—")
+                continue
+            row = table.loc[c]
+            mark = "" if row.passed else " ✗"
+            cells.append(f"{_g(row.relative, 2)} / {_g(row.tolerance, 1)}{mark}")
+        worst = ""
+        if table is not None:
+            ratios = table.relative / table.tolerance
+            c = ratios.idxmax()
+            x = table.loc[c, "worst_input"]
+            worst = f"{c}: {table.loc[c, 'worst']} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
+        result = "pass" if outcome.passed else "**FAIL**"
+        if outcome.reason:
+            result += f" ({outcome.reason})"
+        rows.append([f"`{mode}`", result] + cells + [worst, f"{outcome.seconds:.1f} s"])
+    text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "lr")
+    text += ("\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
+             "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
+             "quantity over all bodies and points. `native` is checked against its own equations (loop "
+             "closure, velocity and acceleration equations). ✗ marks a difference beyond its tolerance.")
+    if run.not_applicable:
+        text += "\n\nNot applicable here: " + "; ".join(f"`{m}`: {r}" for m, r in run.not_applicable.items()) + "."
+    text += "\n\nTolerances and their basis:\n\n" + _table(
+        ["mode", "position", "angle", "velocity", "acceleration", "basis"],
+        [[f"`{m}`", _g(t.position, 1), _g(t.angle, 1), _g(t.velocity, 1), _g(t.acceleration, 1), t.basis]
+         for m, t in TOLERANCES.items() if m in run.outcomes])
+    return text
+
+
+def _input_text(run: RunResult, value: float) -> str:
+    driver, units = run.mechanism.drivers[0], run.mechanism.units
+    if driver.quantity == "angle":
+        return f"{value / units.angle_factor:.4g} {units.angle}"
+    return f"{value / units.length_factor:.4g} {units.length}"
+
+
+def _textbook_section(run: RunResult) -> str:
+    if not run.textbook:
+        return "The seeds print no answers for this mechanism."
+    counts = verdict_counts(run.textbook)
+    rows = []
+    for r in run.textbook:
+        rows.append([r.get("symbol", ""), r.get("quantity", ""), r.get("instant", ""), r.get("printed_text", _g(r["printed"], 6)),
+                     _g(r["computed"], 6), r.get("unit", ""), _g(r.get("deviation_percent"), 2),
+                     _g(r.get("deviation_digits"), 2), f"**{r['verdict']}**" if r["verdict"] == "disagrees"
+                     else r["verdict"], r.get("note", "")])
+    head = (f"{len(run.textbook)} printed values: {counts['agrees']} agree (within half a unit of the last printed "
+            f"digit), {counts['rounding']} within rounding (1 %), {counts['disagrees']} disagree.\n\n")
+    return head + _table(["symbol", "quantity", "instant", "printed", "computed", "unit", "deviation %",
+                          "last digits", "verdict", "note"], rows, "lllrrlrrll")
+
+
+def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
+    parts = []
+    for mode, outcome in run.outcomes.items():
+        if not mode.endswith("-dynamic") or outcome.result is None:
+            continue
+        table = convergence_table(outcome)
+        trajectory = outcome.trajectory
+        parts.append(f"**`{mode}`** — compared: {trajectory.notes if trajectory is not None else outcome.reason}")
+        if not table.empty:
+            parts.append(_table(["series", "time step [s]", "position error [m]", "observed order", "status"],
+                                [[r.series, _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3), r.status]
+                                 for r in table.itertuples()], "lrrrl"))
+    if "convergence" in images:
+        parts.insert(0, f"![error against time step]({images['convergence']})")
+    return "\n\n".join(parts) if parts else "No dynamic mode ran."
+
+
+def _solver_section(run: RunResult) -> str:
+    native, kin = run.native, run.kinematics
+    counts = {Status(code).label: int(n) for code, n in zip(*np.unique(native.status, return_counts=True))}
+    good = native.status <= 1
+    dof = kin.mobility()
+    rng = [kin.input_range(k, run.branch) for k in range(len(run.mechanism.drivers))]
+    lines = [
+        f"- Degrees of freedom: {dof['rank']} (Grübler count {dof['grubler']}, rank of the constraint "
+        f"Jacobian {dof['rank']}); drivers: {', '.join(d.name for d in run.mechanism.drivers)}.",
+        f"- Feasible input range: {'; '.join(range_text(kin, r) for r in rng)}; the sweep covers "
+        f"{_input_text(run, native.inputs[0, 0])} … {_input_text(run, native.inputs[-1, 0])} in "
+        f"{len(native.status)} samples.",
+        f"- Assembly branch: `{run.branch}` (of {', '.join(f'`{b}`' for b in kin.branches)}).",
+        f"- Sample status: {', '.join(f'{n} {s}' for s, n in counts.items())}.",
+    ]
+    if good.any():
+        lines.append(f"- Largest loop-closure residual: {_g(float(native.residual[good].max()), 2)} m; smallest "
+                     f"inverse condition number of the Jacobian: {_g(float(native.singularity[good].min()), 2)} "
+                     f"(0 would be a singular configuration: dead centre or limit position).")
+    return "\n".join(lines)
+
+
+def report_markdown(run: RunResult, images: dict[str, str], command: str) -> str:
+    """The report of one mechanism; ``images`` maps figure keys to paths relative to the report."""
+    mech = run.mechanism
+    verdict = "all modes within tolerance" if run.passed else "**some modes beyond tolerance**"
+    sections = [
+        f"# {mech.name}: {mech.title}",
+        f"Source: {mech.source or '—'}. Result: {verdict}.",
+        mech.notes.strip(),
+        f"![the mechanism]({images['drawing']})" + (f"  ![motion]({images['gif']})" if "gif" in images else ""),
+        "## Printed answers\n\n" + _textbook_section(run),
+        "## Comparison with the native solution\n\n" + _comparison_section(run),
+        f"![quantities]({images['quantities']})\n\n![differences]({images['errors']})",
+        "## Dynamic modes: error against time step\n\n" + _dynamic_section(run, images),
+        "## Native solver\n\n" + _solver_section(run),
+        "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),
+        f"Reproduce: `{command}`",
+    ]
+    return "\n\n".join(s for s in sections if s) + "\n"
+
+
+def index_markdown(entries: list[dict], command: str) -> str:
+    """reports/README.md: one line per mechanism with its worst disagreement."""
+    rows = []
+    for e in entries:
+        rows.append([f"[{e['name']}]({e['name']}.md)", e["title"], "pass" if e["passed"] else "**FAIL**",
+                     e["worst"], e["textbook"]])
+    return ("# Reports\n\nOne report per mechanism: every engine mode against the exact native solution, and "
+            "the textbook's printed answers checked value by value. Generated by `" + command + "`.\n\n"
+            + _table(["mechanism", "title", "result", "largest difference relative to its tolerance",
+                      "printed answers"], rows) + "\n")
+
+
+def worst_text(run: RunResult) -> str:
+    worst = run.worst()
+    if worst is None:
+        return "—"
+    mode, category, relative, tolerance = worst
+    return f"`{mode}` {category}: {_g(relative, 2)} (tolerance {_g(tolerance, 1)})"
+
+
+def textbook_text(run: RunResult) -> str:
+    if not run.textbook:
+        return "none printed"
+    c = verdict_counts(run.textbook)
+    return f"{c['agrees']} agree, {c['rounding']} rounding, {c['disagrees']} disagree"
+
