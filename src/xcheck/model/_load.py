@@ -31,6 +31,7 @@ from ._mechanism import (
     Body,
     Driver,
     Instant,
+    Load,
     Mechanism,
     MotionLaw,
     PinInSlot,
@@ -40,7 +41,8 @@ from ._mechanism import (
 
 __all__ = ["load_mechanism", "parse_mechanism"]
 
-_TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants")
+_TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants",
+             "dynamics", "loads")
 _JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
 #: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
 _TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
@@ -183,6 +185,8 @@ class _Reader:
         drivers = self.drivers(data["drivers"], joints, units)
         assembly = self.assembly(data.get("assembly", {}), drivers, by_name, units, sketches)
         instants = self.instants(data.get("instants", []), drivers, units)
+        gravity = self.dynamics(data.get("dynamics", {}))
+        loads = self.loads(data.get("loads", []), by_name, units)
         return Mechanism(
             name=name,
             title=title,
@@ -195,6 +199,8 @@ class _Reader:
             drivers=tuple(drivers),
             assembly=assembly,
             instants=tuple(instants),
+            gravity=gravity,
+            loads=tuple(loads),
         )
 
     def units(self, value: Any) -> Units:
@@ -517,6 +523,50 @@ class _Reader:
             self.fail(field, f"a value at which the motion of driver {driver.name!r} has a finite rate "
                       "and acceleration, or explicit qd/qdd", f"{_describe(value)} (the motion law overflows)")
         return state
+
+
+    def dynamics(self, value: Any) -> np.ndarray:
+        """Gravity (m/s^2, global frame, SI whatever [units] says); zero if not given."""
+        spec = self.table(value, "dynamics", ("gravity",))
+        return self.vector(spec.get("gravity", [0.0, 0.0]), "dynamics.gravity", 1.0)
+
+    def loads(self, value: Any, bodies: dict[str, Body], units: Units) -> list[Load]:
+        """Constant loads: a force (N, global frame) at a point of a moving body
+        (a label, or [x, y] in the body frame in the length unit) and/or a torque (N m)."""
+        if not isinstance(value, list):
+            self.fail("loads", "a list of [[loads]]", _describe(value))
+        loads: list[Load] = []
+        moving = [name for name in bodies if name != GROUND]
+        for i, spec in enumerate(value):
+            field = f"loads[{i}]"
+            spec = self.table(spec, field, ("name", "body", "point", "force", "torque"))
+            body_name = spec.get("body")
+            if not isinstance(body_name, str) or body_name not in moving:
+                self.fail(f"{field}.body", f"a moving body ({', '.join(moving)})", _describe(body_name))
+            body = bodies[body_name]
+            if "force" not in spec and "torque" not in spec:
+                self.fail(field, "a 'force' [Fx, Fy] (N), a 'torque' (N m), or both", "neither")
+            force = self.vector(spec.get("force", [0.0, 0.0]), f"{field}.force", 1.0)
+            torque = self.number(spec.get("torque", 0.0), f"{field}.torque")
+            label, point = None, np.zeros(2)
+            if "force" in spec:
+                where = spec.get("point")
+                if where is None:
+                    self.fail(f"{field}.point", f"where the force acts: a point of {body_name} "
+                              f"({', '.join(body.points)}) or [x, y] in its frame", "none")
+                if isinstance(where, str):
+                    label = self.point_of(where, body, f"{field}.point")
+                    point = body.points[label]
+                else:
+                    point = self.vector(where, f"{field}.point", units.length_factor)
+            elif "point" in spec:
+                self.fail(f"{field}.point", "a point only with a 'force' (a torque acts on the whole body)",
+                          _describe(spec["point"]))
+            name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
+            if any(load.name == name for load in loads):
+                self.fail(f"{field}.name", "a name no other load has", repr(name))
+            loads.append(Load(name, body_name, point, force, torque, label))
+        return loads
 
 
 def _connected(label: str, first: str, second: str, pinned: set) -> bool:

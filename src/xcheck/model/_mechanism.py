@@ -25,6 +25,7 @@ __all__ = [
     "Driver",
     "Instant",
     "Assembly",
+    "Load",
     "Mechanism",
 ]
 
@@ -246,6 +247,43 @@ class Assembly:
     branches: Mapping[str, Mapping[str, np.ndarray]]
 
 
+def _frozen_vector(value) -> np.ndarray:
+    arr = np.array(value, dtype=float).reshape(2)
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True)
+class Load:
+    """A constant applied load on a moving body (used by the dynamics only).
+
+    Attributes
+    ----------
+    name : str
+    body : str
+    point : ndarray, shape (2,), m
+        Where the force acts, in the body frame (the body frame's origin for
+        a pure torque).
+    force : ndarray, shape (2,), N
+        Constant in the global frame (it does not turn with the body).
+    torque : float, N m
+        A couple on the body, counter-clockwise positive.
+    label : str or None
+        The point's label when the file names one.
+    """
+
+    name: str
+    body: str
+    point: np.ndarray
+    force: np.ndarray
+    torque: float = 0.0
+    label: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "point", _frozen_vector(self.point))
+        object.__setattr__(self, "force", _frozen_vector(self.force))
+
+
 @dataclass(frozen=True)
 class Mechanism:
     """A planar mechanism as one immutable description (SI units).
@@ -263,6 +301,10 @@ class Mechanism:
     drivers : tuple of Driver
     assembly : Assembly
     instants : tuple of Instant
+    gravity : ndarray, shape (2,), m/s^2
+        Acceleration of gravity in the global frame; zero when the file gives none.
+    loads : tuple of Load
+        Constant applied forces and torques (dynamics only).
     """
 
     name: str
@@ -276,6 +318,11 @@ class Mechanism:
     drivers: tuple[Driver, ...]
     assembly: Assembly
     instants: tuple[Instant, ...] = field(default=())
+    gravity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    loads: tuple[Load, ...] = field(default=())
+
+    def __post_init__(self):
+        object.__setattr__(self, "gravity", _frozen_vector(self.gravity))
 
     @property
     def ground(self) -> Body:
@@ -296,6 +343,12 @@ class Mechanism:
             if j.name == name:
                 return j
         raise KeyError(name)
+
+    @property
+    def without_mass(self) -> tuple[str, ...]:
+        """Names of the moving bodies that have no mass properties (empty when
+        the dynamics can be computed)."""
+        return tuple(b.name for b in self.moving_bodies if b.mass is None or b.inertia is None)
 
     @property
     def point_owners(self) -> dict[str, str]:
