@@ -1,0 +1,37 @@
+"""Inverse dynamics: joint reactions and driving efforts for a prescribed motion.
+
+:func:`inverse_dynamics` (multipliers of M q'' - Phi_q^T lambda = Q) and
+:func:`newton_euler` (per-body M a = D R + Q, seed 003) give the native
+answers; :func:`energy_balance` checks them against the power balance;
+:func:`engine_forces` / :func:`compare_forces` run the engines' own inverse
+dynamics and tabulate :func:`force_differences`. The sign conventions are in
+:mod:`xcheck.dynamics._forces`.
+"""
+
+from ._compare import (ENGINES, WINDOW_SAMPLES, ForceResult, compare_forces, energy_summary, engine_forces,
+                       force_differences, window_states)
+from ._energy import energy_balance, mechanical_energy
+from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data
+from ._inverse import body_dynamics, inverse_dynamics, newton_euler
+
+__all__ = [
+    "DRIVER_QUANTITIES",
+    "ENGINES",
+    "JOINT_QUANTITIES",
+    "WINDOW_SAMPLES",
+    "ForceResult",
+    "Forces",
+    "body_dynamics",
+    "compare_forces",
+    "energy_balance",
+    "energy_summary",
+    "engine_forces",
+    "force_differences",
+    "inverse_dynamics",
+    "joint_quantities",
+    "mechanical_energy",
+    "newton_euler",
+    "quantity_unit",
+    "require_mass_data",
+    "window_states",
+]

@@ -1,0 +1,234 @@
+"""Reactions and efforts from the engines, and their differences from the native ones.
+
+Each engine module provides ``inverse_dynamics(kinematics, branch=None,
+**options) -> Forces`` (registered in :data:`ENGINES`); :func:`engine_forces`
+runs one and tabulates :func:`force_differences`, never raising: a failure is a
+:class:`ForceResult` with ``ok`` False and a one-line ``reason``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..compare import SCALE_FLOOR
+from ..errors import XcheckError
+from ..kinematics import Kinematics, Solution, Status
+from ..motion import simulation_window
+from ._energy import energy_balance, mechanical_energy
+from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
+from ._inverse import inverse_dynamics, newton_euler
+
+__all__ = ["ENGINES", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "engine_forces",
+           "compare_forces", "energy_summary"]
+
+#: engine -> (module, function); the function takes (kinematics, branch=None,
+#: **options) and returns Forces, raising on failure.
+ENGINES = {
+    "mujoco": ("xcheck.engines.mujoco", "inverse_dynamics"),
+    "pinocchio": ("xcheck.engines.pinocchio", "inverse_dynamics"),
+    "pymunk": ("xcheck.engines.pymunk", "inverse_dynamics"),
+}
+#: States sampled over the simulation window by default (every 5 degrees of a turning crank).
+WINDOW_SAMPLES = 73
+
+
+def window_states(kinematics: Kinematics, branch: str | None = None, samples: int = WINDOW_SAMPLES) -> Solution:
+    """The native solution at ``samples`` equally spaced times over the drivers'
+    simulation window (:func:`~xcheck.motion.simulation_window`): the states at
+    which reactions and efforts are compared.
+
+    Raises
+    ------
+    InputError
+        If the motion starts outside the feasible range.
+    """
+    window = simulation_window(kinematics, branch)
+    return kinematics.solve(*window.inputs(kinematics, window.times(samples)), branch=branch)
+
+
+def _magnitude(values: np.ndarray) -> np.ndarray:
+    return np.abs(values) if values.ndim == 1 else np.linalg.norm(values, axis=1)
+
+
+def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None = None) -> pd.DataFrame:
+    """Differences between a source's reactions and efforts and the native ones
+    at the source's own states.
+
+    The native kinematics are solved at ``forces``' inputs, rates and
+    accelerations and the native multiplier form
+    (:func:`~xcheck.dynamics.inverse_dynamics`) gives the reference.
+
+    Returns
+    -------
+    DataFrame
+        One row per (kind, name, quantity) the source gives: ``kind`` "joint"
+        or "driver"; ``quantity`` as in :class:`Forces` (``"|reaction|"``
+        etc. compare magnitudes); ``unit`` "N" or "N m"; ``max_abs``, ``rms``
+        (vectors by Euclidean norm of the difference); ``scale``: the largest
+        native magnitude over the states, but at least
+        :data:`~xcheck.compare.SCALE_FLOOR` of the largest scale of the same
+        unit in the table (a joint that carries almost nothing is not divided
+        by round-off); ``max_rel`` = max_abs / scale; ``worst_sample``,
+        ``worst_input`` (first driver's value there, SI); ``samples`` (states
+        where the native solution succeeded) and ``missing`` (of those, states
+        where the source gave no finite value: left out of the figures).
+    """
+    native = kinematics.solve(forces.inputs, forces.input_rates, forces.input_accelerations, branch=branch)
+    reference = inverse_dynamics(native)
+    good = native.status <= Status.NEAR_SINGULAR
+    mech = kinematics.mechanism
+    rows = []
+    for kind, source, exact_all, known in (("joint", forces.joints, reference.joints, JOINT_QUANTITIES),
+                                           ("driver", forces.drivers, reference.drivers, DRIVER_QUANTITIES)):
+        for name, quantities in source.items():
+            for quantity, values in quantities.items():
+                base = quantity.strip("|")
+                if base not in known or base not in exact_all[name]:
+                    raise ValueError(f"expected quantities of {kind} {name!r} among "
+                                     f"{', '.join(exact_all[name])}, found {quantity!r}")
+                exact = exact_all[name][base]
+                values = np.asarray(values, dtype=float)
+                if quantity != base:
+                    exact = _magnitude(exact)
+                delta = values - exact
+                error = _magnitude(delta)
+                finite = np.isfinite(error) & good
+                if not finite.any():
+                    continue
+                magnitude = _magnitude(exact)[good]
+                worst = int(np.flatnonzero(finite)[np.argmax(error[finite])])
+                rows.append({
+                    "kind": kind, "name": name, "quantity": quantity,
+                    "unit": quantity_unit(mech, kind, name, base),
+                    "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error[finite] ** 2))),
+                    "scale": float(np.max(magnitude)), "worst_sample": worst,
+                    "worst_input": float(forces.inputs[worst, 0]),
+                    "samples": int(good.sum()), "missing": int(good.sum() - finite.sum()),
+                })
+    table = pd.DataFrame(rows)
+    if not table.empty:
+        largest = table.groupby("unit")["scale"].transform("max")
+        table["scale"] = np.maximum(table["scale"], SCALE_FLOOR * largest)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            table.insert(7, "max_rel", np.where(table["scale"] > 0, table["max_abs"] / table["scale"],
+                                                table["max_abs"]))
+    return table
+
+
+@dataclass
+class ForceResult:
+    """One source's reactions and efforts on one mechanism.
+
+    Attributes
+    ----------
+    engine : str
+        A key of :data:`ENGINES`, or ``"newton-euler"`` (the native per-body form).
+    mechanism : str
+    ok : bool
+    reason : str
+        Why it failed, one line (empty when ok).
+    forces : Forces or None
+    table : DataFrame or None
+        :func:`force_differences` of ``forces``.
+    seconds : float
+        Run time.
+    """
+
+    engine: str
+    mechanism: str
+    ok: bool
+    reason: str = ""
+    forces: Forces | None = None
+    table: pd.DataFrame | None = None
+    seconds: float = 0.0
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split())
+    if isinstance(error, (XcheckError, ValueError)) and text:
+        return text
+    return f"{type(error).__name__}: {text}" if text else type(error).__name__
+
+
+def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None, **options) -> ForceResult:
+    """Run one engine's inverse dynamics and compare it with the native one.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    engine : str
+        A key of :data:`ENGINES`, or ``"newton-euler"``.
+    branch : str, optional
+    **options
+        Passed to the engine's function.
+
+    Returns
+    -------
+    ForceResult
+        Never raises: a mechanism without mass data, an engine that cannot
+        load it, or any failure gives ``ok`` False and the reason in one line.
+    """
+    mech = kinematics.mechanism
+    start = time.perf_counter()
+    try:
+        require_mass_data(mech)
+        if engine == "newton-euler":
+            forces = newton_euler(window_states(kinematics, branch, **options))
+        elif engine in ENGINES:
+            module, function = ENGINES[engine]
+            forces = getattr(importlib.import_module(module), function)(kinematics, branch=branch, **options)
+        else:
+            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *ENGINES])}), found {engine!r}")
+        table = force_differences(kinematics, forces, branch)
+    except Exception as error:  # noqa: BLE001 - a failed engine is data: reported, the others still run
+        return ForceResult(engine, mech.name, False, _one_line(error), seconds=time.perf_counter() - start)
+    return ForceResult(engine, mech.name, True, "", forces, table, time.perf_counter() - start)
+
+
+def compare_forces(kinematics: Kinematics, engines=("newton-euler", *ENGINES), branch: str | None = None,
+                   options: dict | None = None) -> list[ForceResult]:
+    """:func:`engine_forces` for each engine (``options``: engine -> keyword arguments)."""
+    options = options or {}
+    return [engine_forces(kinematics, engine, branch, **options.get(engine, {})) for engine in engines]
+
+
+def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: int = 721) -> dict:
+    """The power balance of the native solution over the simulation window.
+
+    Returns
+    -------
+    dict
+        ``residual`` (W): the largest |drive + loads - dT/dt - dV/dt| over the
+        states; ``scale`` (W): the largest of |drive|, |loads|, |dT/dt|,
+        |dV/dt|; ``relative`` = residual / scale; ``work_error`` (J): the
+        largest difference over the window between the work the drivers and
+        loads did since t = 0 (trapezoidal rule) and the change of T + V since
+        t = 0 (quadrature error, falling as samples^-2), with ``energy_swing``
+        (J), the largest |T + V - (T + V)(0)|; ``samples``.
+
+    Raises
+    ------
+    ModelError
+        If a moving body has no mass data.
+    """
+    require_mass_data(kinematics.mechanism)
+    window = simulation_window(kinematics, branch)
+    times = window.times(samples)
+    solution = kinematics.solve(*window.inputs(kinematics, times), branch=branch)
+    if not solution.success:
+        raise ValueError("the native solution does not assemble over the whole simulation window")
+    balance = energy_balance(solution, inverse_dynamics(solution))
+    scale = float(balance[["drive", "loads", "kinetic_rate", "potential_rate"]].abs().to_numpy().max())
+    residual = float(balance["residual"].abs().max())
+    power = (balance["drive"] + balance["loads"]).to_numpy()
+    kinetic, potential = mechanical_energy(solution)
+    work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(times))])
+    change = kinetic + potential - kinetic[0] - potential[0]
+    return {"residual": residual, "scale": scale, "relative": residual / scale if scale > 0 else residual,
+            "work_error": float(np.max(np.abs(work - change))), "energy_swing": float(np.max(np.abs(change))),
+            "samples": samples}

@@ -1,0 +1,292 @@
+"""Native inverse dynamics in body coordinates, in two independent forms.
+
+Multiplier form (:func:`inverse_dynamics`)
+    With the body coordinates q = (x, y, phi) of every moving body's frame,
+    the equations of motion of the constrained system are
+
+        M(q) q'' - Q_v(q, q') - Phi_q^T lambda = Q(q),
+
+    with M the mass matrix in frame coordinates (a centre of mass off the
+    frame's origin couples translation and rotation), Q_v the quadratic
+    velocity term of that offset, Q the generalised gravity and applied loads,
+    and Phi_q the Jacobian of the joint and driver equations of
+    :class:`~xcheck.kinematics.ConstraintSystem`. For a prescribed motion q,
+    q', q'' is the kinematic solution, so Phi_q^T lambda = M q'' - Q_v - Q is a
+    square linear system for the multipliers (one per constraint row), and
+    Phi_q^T lambda is the generalised constraint force. Each multiplier is
+    then read as a reaction, a moment or a driver's effort.
+
+Per-body Newton-Euler form (:func:`newton_euler`, seed 003: M a = D R + Q)
+    Free-body diagrams at the centres of mass: for every moving body,
+    m a_G = sum of forces and I_G alpha = sum of moments about G, with the
+    reactions, moments and efforts as unknowns R in engineering form (the
+    force components at each pin, the normal force and couple of each slider,
+    each driver's torque or force) placed at the points where they act. The
+    3n x 3n matrix D is assembled from geometry only (no constraint Jacobian);
+    D R = M a - Q gives R. The two forms agree to round-off: a check of each.
+
+Everything is vectorised over the N states of a :class:`~xcheck.kinematics.Solution`.
+States that did not assemble with determined velocities give NaN rows (their
+``status`` says why).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import Solution, Status
+from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from ._forces import Forces, joint_quantities, require_mass_data
+
+__all__ = ["inverse_dynamics", "newton_euler", "body_dynamics"]
+
+
+def _rot(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """A(phi) s for angles (N,) and body vectors (2,) or (N, 2); returns (N, 2)."""
+    c, sn = np.cos(phi), np.sin(phi)
+    s = np.broadcast_to(s, phi.shape + (2,))
+    return np.stack([c * s[..., 0] - sn * s[..., 1], sn * s[..., 0] + c * s[..., 1]], axis=-1)
+
+
+def _perp(v: np.ndarray) -> np.ndarray:
+    """R v, v turned by +90 degrees; (..., 2)."""
+    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """z component of u x v for (..., 2) arrays."""
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
+    """Per moving body, its centre of mass's motion and the loads on it.
+
+    Returns
+    -------
+    dict
+        Per body name: ``mass`` (kg), ``inertia`` (kg m^2 about G), ``com``
+        (N, 2) position of G, m; ``arm`` (N, 2) G minus the frame origin;
+        ``velocity``, ``acceleration`` (N, 2) of G; ``angle``, ``omega``,
+        ``alpha`` (N,); ``force`` (N, 2), N: gravity plus applied forces;
+        ``moment`` (N,), N m: their moment about G plus applied torques.
+    """
+    mech = solution.mechanism
+    out = {}
+    for body in mech.moving_bodies:
+        state = solution.body(body.name)
+        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        phi, omega, alpha = state["angle"], state["omega"], state["alpha"]
+        arm = _rot(phi, com)
+        normal = _perp(arm)
+        position = state["position"] + arm
+        force = np.broadcast_to(body.mass * mech.gravity, arm.shape).copy()
+        moment = np.zeros(phi.shape)
+        for load in mech.loads:
+            if load.body != body.name:
+                continue
+            at = state["position"] + _rot(phi, load.point)
+            force += load.force
+            moment += _cross(at - position, np.broadcast_to(load.force, at.shape)) + load.torque
+        out[body.name] = {
+            "mass": float(body.mass), "inertia": float(body.inertia), "com": position, "arm": arm,
+            "velocity": state["velocity"] + omega[:, None] * normal,
+            "acceleration": state["acceleration"] + alpha[:, None] * normal - (omega**2)[:, None] * arm,
+            "angle": phi, "omega": omega, "alpha": alpha, "force": force, "moment": moment,
+        }
+    return out
+
+
+def _good(solution: Solution) -> np.ndarray:
+    return solution.status <= Status.NEAR_SINGULAR
+
+
+def _solve(matrices: np.ndarray, rhs: np.ndarray, good: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve matrices x = rhs on the good samples; NaN elsewhere. Returns x (N, n)
+    and the relative residual |A x - b| / (|A| |x| + |b|) per sample (N,)."""
+    x = np.full(rhs.shape, np.nan)
+    residual = np.full(rhs.shape[0], np.nan)
+    if np.any(good):
+        a, b = matrices[good], rhs[good]
+        sol = np.linalg.solve(a, b[..., None])[..., 0]
+        x[good] = sol
+        r = np.einsum("nij,nj->ni", a, sol) - b
+        scale = (np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(sol, axis=1) + np.linalg.norm(b, axis=1))
+        residual[good] = np.linalg.norm(r, axis=1) / np.where(scale > 0.0, scale, 1.0)
+    return x, residual
+
+
+def _empty(mech: Mechanism, n: int) -> tuple[dict, dict]:
+    joints = {}
+    for joint in mech.joints:
+        joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(joint)}
+    drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
+    return joints, drivers
+
+
+def _line_frame(solution: Solution, joint) -> tuple[np.ndarray, np.ndarray]:
+    """Global unit direction u and left normal n = R u of a line joint, (N, 2) each."""
+    u = _rot(solution.body(joint.body_a)["angle"], joint.direction)
+    return u, _perp(u)
+
+
+def inverse_dynamics(solution: Solution) -> Forces:
+    """Reactions and efforts from the multipliers of M q'' - Phi_q^T lambda = Q.
+
+    Parameters
+    ----------
+    solution : Solution
+        The prescribed motion (N states) of a mechanism whose moving bodies
+        all have mass properties.
+
+    Returns
+    -------
+    Forces
+        Source ``"native"``; ``diagnostics["residual"]`` (N,) the relative
+        residual of the linear solve.
+
+    Raises
+    ------
+    ModelError
+        If a moving body has no mass or inertia.
+    """
+    mech = solution.mechanism
+    require_mass_data(mech)
+    system = solution.kinematics.system
+    n_samples, n = solution.q.shape
+    good = _good(solution)
+    # generalised inertia force minus applied forces, per body (x, y, phi): M q'' - Q_v - Q
+    rhs = np.zeros((n_samples, n))
+    for i, (name, b) in enumerate(body_dynamics(solution).items()):
+        m = b["mass"]
+        linear = m * b["acceleration"] - b["force"]
+        # moment about the frame origin: I_G alpha + arm x m a_G - (moments of the loads about the origin)
+        rotational = (b["inertia"] * b["alpha"] + _cross(b["arm"], m * b["acceleration"])
+                      - b["moment"] - _cross(b["arm"], b["force"]))
+        rhs[:, 3 * i:3 * i + 2] = linear
+        rhs[:, 3 * i + 2] = rotational
+    q = np.where(good[:, None], solution.q, 0.0)
+    jacobian = system.jacobian(q)  # (N, rows, n), rows = n after assembly
+    multipliers, residual = _solve(np.swapaxes(jacobian, 1, 2), rhs, good)
+
+    joints, drivers = _empty(mech, n_samples)
+    row = 0
+    for joint in mech.joints:
+        out = joints[joint.name]
+        if isinstance(joint, Revolute):
+            # Phi = r_a + A_a s_a - r_b - A_b s_b: the constraint force on b is -lambda
+            out["reaction"] = -multipliers[:, row:row + 2]
+            row += 2
+            continue
+        _, normal = _line_frame(solution, joint)
+        out["normal"] = multipliers[:, row]
+        out["reaction"] = multipliers[:, row, None] * normal
+        row += 1
+        if isinstance(joint, Prismatic):
+            out["moment"] = multipliers[:, row]  # phi_b - phi_a = angle: a couple +lambda on b
+            row += 1
+    for k, driver in enumerate(mech.drivers):
+        drivers[driver.name]["effort"] = multipliers[:, system.n_kinematic + k]
+    return Forces("native", solution.inputs, solution.input_rates, solution.input_accelerations, joints, drivers,
+                  diagnostics={"residual": residual},
+                  notes="Multipliers of M q'' - Phi_q^T lambda = Q in body-frame coordinates (x, y, phi), "
+                        "with the exact kinematic solution and the analytic constraint Jacobian.")
+
+
+def newton_euler(solution: Solution) -> Forces:
+    """Reactions and efforts from per-body Newton-Euler equations, M a = D R + Q.
+
+    Unknowns R, in this order: per joint in file order, a revolute's force
+    (Fx, Fy) at the pin, a line joint's normal force at its sliding point and
+    a prismatic joint's couple; then each driver's torque or force. Each acts
+    with + on ``body_b`` and - on ``body_a`` (see :mod:`._forces`). Rows: per
+    moving body, m a_G (x, y) and I_G alpha about its centre of mass.
+
+    Returns
+    -------
+    Forces
+        Source ``"native-newton-euler"``; ``diagnostics["residual"]``.
+    """
+    mech = solution.mechanism
+    require_mass_data(mech)
+    n_samples = solution.q.shape[0]
+    good = _good(solution)
+    bodies = body_dynamics(solution)
+    index = {name: i for i, name in enumerate(bodies)}
+    n = 3 * len(bodies)
+    d = np.zeros((n_samples, n, n))
+    column = 0
+
+    def act(col: int, body: str, sign: float, direction: np.ndarray | None, at: np.ndarray | None) -> None:
+        """Column ``col``: a unit force along ``direction`` (N, 2) at ``at`` (N, 2) on
+        ``body`` (with ``sign``), or a unit couple if ``direction`` is None."""
+        if body == GROUND:
+            return
+        i = 3 * index[body]
+        if direction is None:
+            d[:, i + 2, col] += sign
+            return
+        d[:, i:i + 2, col] += sign * direction
+        d[:, i + 2, col] += sign * _cross(at - bodies[body]["com"], direction)
+
+    def point(body: str, label: str) -> np.ndarray:
+        return solution.point(label, body)["position"]
+
+    layout = []  # (joint or driver, quantity, column)
+    for joint in mech.joints:
+        if isinstance(joint, Revolute):
+            at = point(joint.body_b, joint.point_b)
+            for axis in range(2):
+                e = np.zeros((n_samples, 2))
+                e[:, axis] = 1.0
+                act(column + axis, joint.body_b, 1.0, e, at)
+                act(column + axis, joint.body_a, -1.0, e, at)
+            layout.append((joint, "reaction", column))
+            column += 2
+            continue
+        _, normal = _line_frame(solution, joint)
+        at = point(joint.body_b, joint.point)
+        act(column, joint.body_b, 1.0, normal, at)
+        act(column, joint.body_a, -1.0, normal, at)
+        layout.append((joint, "normal", column))
+        column += 1
+        if isinstance(joint, Prismatic):
+            act(column, joint.body_b, 1.0, None, None)
+            act(column, joint.body_a, -1.0, None, None)
+            layout.append((joint, "moment", column))
+            column += 1
+    for driver in mech.drivers:
+        joint = mech.joint(driver.joint)
+        if isinstance(joint, Revolute):
+            act(column, joint.body_b, 1.0, None, None)
+            act(column, joint.body_a, -1.0, None, None)
+        else:
+            direction, _ = _line_frame(solution, joint)
+            at = point(joint.body_b, joint.point)
+            act(column, joint.body_b, 1.0, direction, at)
+            act(column, joint.body_a, -1.0, direction, at)
+        layout.append((driver, "effort", column))
+        column += 1
+
+    rhs = np.zeros((n_samples, n))
+    for name, b in bodies.items():
+        i = 3 * index[name]
+        rhs[:, i:i + 2] = b["mass"] * b["acceleration"] - b["force"]
+        rhs[:, i + 2] = b["inertia"] * b["alpha"] - b["moment"]
+    d = np.where(good[:, None, None], d, np.eye(n))
+    unknowns, residual = _solve(d, np.where(good[:, None], rhs, 0.0), good)
+
+    joints, drivers = _empty(mech, n_samples)
+    for owner, quantity, col in layout:
+        if quantity == "reaction":
+            joints[owner.name]["reaction"] = unknowns[:, col:col + 2]
+        elif quantity == "normal":
+            joints[owner.name]["normal"] = unknowns[:, col]
+            joints[owner.name]["reaction"] = unknowns[:, col, None] * _line_frame(solution, owner)[1]
+        elif quantity == "moment":
+            joints[owner.name]["moment"] = unknowns[:, col]
+        else:
+            drivers[owner.name]["effort"] = unknowns[:, col]
+    return Forces("native-newton-euler", solution.inputs, solution.input_rates, solution.input_accelerations,
+                  joints, drivers, diagnostics={"residual": residual},
+                  notes="Per-body Newton-Euler equations at the centres of mass (M a = D R + Q, seed 003), "
+                        "D assembled from the points where the reactions and efforts act.")
