@@ -270,8 +270,11 @@ def mjcf_text(kinematics: Kinematics) -> str:
         "of the model joint (axis -z where the tree runs from body_b to body_a); slide qpos = the joint's "
         "slide displacement. A pin-in-slot is a slide and a hinge in one body.",
         "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp). "
-        "Gravity is zero: the kinematic comparison does not depend on loads (for a vertical plane set "
-        "gravity to 0 -9.81 0). Links never collide (contype = conaffinity = 0).",
+        + (f"Gravity {_vec(*mech.gravity, 0.0)} m/s^2: the model's." if np.any(mech.gravity) else
+           "Gravity is zero: the model gives none (the kinematic comparison does not depend on loads).")
+        + (f" The model's applied loads ({', '.join(load.name for load in mech.loads)}) are not in the file: "
+           "xcheck's inverse dynamics applies them (xfrc_applied)." if mech.loads else "")
+        + " Links never collide (contype = conaffinity = 0).",
         "Mass properties: " + ("the model's." if not defaults else
                                f"defaults for {', '.join(defaults)} (the model gives none): "
                                f"{_num(DEFAULT_MASS)} kg at the centroid of the body's points, inertia "
@@ -286,7 +289,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
     for line in header:
         root.append(_comment(line))
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
-    ET.SubElement(root, "option", gravity="0 0 0")
+    ET.SubElement(root, "option", gravity=_vec(*mech.gravity, 0.0))
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0", rgba="0.3 0.5 0.8 1")
     ET.SubElement(default, "site", size=_num(_round(1.5 * radius)), rgba="0.9 0.3 0.2 1")

@@ -219,7 +219,7 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
                 "window": window.reason, "baumgarte_kp": gains[0] if gains else 0.0,
                 "baumgarte_kd": gains[1] if gains else 0.0, "proximal_mu": PROXIMAL_MU,
                 "proximal_accuracy": PROXIMAL_ACCURACY, "tracking_kp": kp, "tracking_kd": kd,
-                "gravity": "-z (normal to the plane: does no work)", "default_mass_properties": defaults}
+                "gravity": [float(g) for g in pm.model.gravity.linear], "default_mass_properties": defaults}
     notes = (f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
              f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
              "Inputs driven by a computed torque on the input joints: the torque that makes the input "

@@ -23,6 +23,7 @@ Conventions (planar mechanism in the x-y plane, rotation about z):
   between its two points, expressed LOCAL_WORLD_ALIGNED. Its z row is
   identically zero for a planar mechanism.
 * A body without mass properties gets defaults (see :func:`mass_properties`).
+* Gravity is the mechanism's, in the plane (zero when it gives none).
 """
 
 from __future__ import annotations
@@ -324,6 +325,9 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
     (``addJoint``, ``appendBodyToJoint``, ``addBodyFrame``, ``addFrame``)."""
     model = pin.Model()
     model.name = spec.mechanism.name
+    # the mechanism's gravity, in the plane (zero when it gives none; Pinocchio's default -z
+    # would act normal to the plane and do no work, but would load the joints out of plane)
+    model.gravity = pin.Motion(np.array([*spec.mechanism.gravity, 0.0]), np.zeros(3))
     frame_joint = {GROUND: (0, pin.SE3.Identity())}  # frame name -> (joint id, placement in joint)
     frame_id = {GROUND: 0}  # ... -> id of the Pinocchio frame standing for it
     hung = {b.link: b for b in spec.bodies}

@@ -125,7 +125,9 @@ def loops_json(spec: TreeSpec) -> str:
         "urdf": f"{mech.name}.urdf",
         "about": "Loop closures of the URDF tree: in each loop, the origins of links frame1 and frame2 "
                  "coincide (a revolute joint cut open). Only the x and y rows act: the mechanism is planar. "
-                 "Inputs: the driven joints; input = sign * joint coordinate (rad or m).",
+                 "Inputs: the driven joints; input = sign * joint coordinate (rad or m). Gravity: the "
+                 "mechanism's, in the plane (m/s^2; URDF has no field for it; zero when the model gives none).",
+        "gravity": [float(g) + 0.0 for g in mech.gravity] + [0.0],
         "loops": [{"cut": cut.name, "frame1": point_frame(cut.body_a, cut.point_a),
                    "frame2": point_frame(cut.body_b, cut.point_b), "contact_type": "CONTACT_3D",
                    "reference_frame": "LOCAL_WORLD_ALIGNED"} for cut in spec.cuts],

@@ -33,6 +33,12 @@ The inputs:
   between the point and a fixed anchor on the line, far behind the slide
   range, whose length is set before each step to the law's value one step
   ahead and corrected fully in one step (a servo on the slide).
+
+With ``kinematic_inputs=False`` no body is prescribed: every angle is driven
+by a motor and every slide by a slide servo, so that every joint is a
+constraint whose impulse pymunk reports (the inverse dynamics use this).
+The space has the mechanism's gravity; its applied loads are applied before
+every step (pymunk clears forces after each step).
 """
 
 from __future__ import annotations
@@ -206,6 +212,12 @@ class Scene:
         for drive in self.drives:
             if drive.kind != "kinematic-rate":
                 drive.before_step(t, dt)
+        for load in self.mechanism.loads:
+            body = self.bodies[load.body]
+            if body.body_type == pm.Body.DYNAMIC:
+                at = body.local_to_world(tuple(float(x) for x in load.point))
+                body.apply_force_at_world_point(tuple(float(f) for f in load.force), at)
+                body.torque += float(load.torque)
         self.space.step(dt)
 
     def world_point(self, body: str, label: str) -> np.ndarray:
@@ -282,7 +294,7 @@ def _slide_extent(mechanism: Mechanism, solution: Solution, joint) -> tuple[floa
 
 
 def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 10,
-                error_bias: float | None = None) -> Scene:
+                error_bias: float | None = None, kinematic_inputs: bool = True) -> Scene:
     """The mechanism as a pymunk space, at the first sample of ``native``.
 
     Parameters
@@ -298,6 +310,9 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         Each constraint's ``error_bias``: the fraction of a joint's error left
         uncorrected after one second (pymunk's default, 0.9 per 1/60 s, when
         None).
+    kinematic_inputs : bool
+        Prescribe the bodies whose input allows it (see the module notes);
+        False drives every input by a motor or a slide servo.
 
     Returns
     -------
@@ -308,6 +323,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         raise ValueError("the native solution does not assemble over the whole window")
     space = pm.Space()
     space.iterations = int(iterations)
+    space.gravity = (float(mech.gravity[0]), float(mech.gravity[1]))
     bodies = {GROUND: space.static_body}
     defaults = {}
     drives: list[_Drive] = []
@@ -315,7 +331,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
     # prescribed bodies: a constant-rate angle on a revolute to the ground, a
     # slide on a prismatic joint to the ground
     prescribed: dict[str, _Drive] = {}
-    for k, driver in enumerate(mech.drivers):
+    for k, driver in enumerate(mech.drivers if kinematic_inputs else ()):
         joint = mech.joint(driver.joint)
         on_ground = GROUND in (joint.body_a, joint.body_b) and joint.body_a != joint.body_b
         moving = joint.body_b if joint.body_a == GROUND else joint.body_a

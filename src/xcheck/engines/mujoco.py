@@ -24,10 +24,11 @@ from ..kinematics import Kinematics, Status
 from ..model import Mechanism
 from ..motion import simulation_window
 from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
+from ._mujoco_inverse import inverse_forces
 from ._mujoco_mjcf import joint_coordinates, layout, mjcf_text
 from ._mujoco_oracle import Oracle
 
-__all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error"]
+__all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error", "inverse_dynamics"]
 
 KINEMATIC_MODE = "mujoco-kinematic"
 DYNAMIC_MODE = "mujoco-dynamic"
@@ -399,6 +400,38 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
         {**settings, "accelerations": "oracle at simulated state"}, diagnostics,
         drive + "Accelerations: the kinematic oracle at the simulated states (J qdd = -Jdot qd with the input "
         "joints' qacc imposed), not qacc; shown beside the comparison, which uses qacc.")
+
+
+def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
+                     solution=None, xml: str | None = None):
+    """Joint reactions and input efforts from MuJoCo at the native states of the
+    simulation window (see :mod:`._mujoco_inverse` for how).
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    branch : str, optional
+    samples : int, optional
+        States over the window (default :data:`xcheck.dynamics.WINDOW_SAMPLES`).
+    solution : Solution, optional
+        Native states to use instead of the window's.
+    xml : str, optional
+        MJCF text to use instead of the writer's.
+
+    Returns
+    -------
+    xcheck.dynamics.Forces
+
+    Raises
+    ------
+    ValueError
+        If the MJCF cannot be written or compiled, or a state does not close
+        MuJoCo's loops (the reason in one line).
+    """
+    model, lay, failure = _compile(kinematics, xml)
+    if failure:
+        raise ValueError(failure)
+    return inverse_forces(kinematics, model, lay, branch, samples, solution)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,11 +30,12 @@ import numpy as np
 from ..compare import ModeResult, Trajectory, differences
 from ..kinematics import Kinematics
 from ._pinocchio_dynamics import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
+from ._pinocchio_inverse import inverse_forces
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
 from ._pinocchio_oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
 from ._pinocchio_urdf import export_texts
 
-__all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs"]
+__all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs", "inverse_dynamics"]
 
 KINEMATIC = "pinocchio-kinematic"
 #: Fraction of a bounded input's feasible range kept clear of each limit
@@ -232,3 +233,30 @@ def export_files(kinematics: Kinematics) -> dict[str, str]:
     """The tree as URDF and the loop closures as JSON: {``NAME.urdf``: text,
     ``NAME.loops.json``: text} (see ``_pinocchio_urdf`` for the layout)."""
     return export_texts(tree_spec(kinematics.mechanism))
+
+
+def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
+                     solution=None):
+    """Joint reactions and input efforts from Pinocchio (RNEA with the loop-cut
+    forces, see :mod:`._pinocchio_inverse`) at the native states of the
+    simulation window.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    branch : str, optional
+    samples : int, optional
+        States over the window (default :data:`xcheck.dynamics.WINDOW_SAMPLES`).
+    solution : Solution, optional
+        Native states to use instead of the window's.
+
+    Returns
+    -------
+    xcheck.dynamics.Forces
+
+    Raises
+    ------
+    ModelError, ValueError
+        If the model cannot be built or a state does not close Pinocchio's loops.
+    """
+    return inverse_forces(kinematics, branch, samples, solution)

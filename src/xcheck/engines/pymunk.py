@@ -30,10 +30,11 @@ from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
 
 from ._pymunk_figure import render_png, snapshot
+from ._pymunk_inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
 from ._pymunk_scene import DEFAULT_MASS, Scene, build_scene, native_window
 
 __all__ = ["MODE", "DEFAULT_MASS", "DEFAULT_SETTINGS", "Scene", "Setting", "build_scene", "run_dynamic",
-           "scene_figure", "trajectory_errors"]
+           "scene_figure", "trajectory_errors", "inverse_dynamics"]
 
 #: The mode this module provides.
 MODE = "pymunk-dynamic"
@@ -308,6 +309,36 @@ def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: i
         return ModeResult(MODE, mech.name, False, f"{MODE}: the scene {first.failure} "
                           f"(time step {first.dt:.3g} s, {first.setting.iterations} iterations)", [], summary)
     return ModeResult(MODE, mech.name, True, "", [r.trajectory for r in runs if r.trajectory is not None], summary)
+
+
+def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int = SAMPLES,
+                     steps_per_sample: int = STEPS_PER_SAMPLE, iterations: int = ITERATIONS,
+                     error_bias: float | None = 0.0):
+    """Magnitudes of the joint reactions and input efforts in a driven pymunk
+    simulation: constraint impulses over the time step (see
+    :mod:`._pymunk_inverse`).
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    branch : str, optional
+    samples : int
+        Sample times over the simulation window.
+    steps_per_sample : int
+        Time steps between samples.
+    iterations : int
+    error_bias : float or None
+
+    Returns
+    -------
+    xcheck.dynamics.Forces
+
+    Raises
+    ------
+    ValueError
+        If the scene cannot be built, comes apart or goes non-finite.
+    """
+    return inverse_forces(kinematics, branch, samples, steps_per_sample, iterations, error_bias)
 
 
 def scene_figure(kinematics: Kinematics, path, *, times=None, count: int = 4,

@@ -1,0 +1,152 @@
+"""Pinocchio's inverse dynamics of a prescribed motion: joint reactions and
+input efforts from RNEA on the tree with the loop-closure forces.
+
+At each state the kinematics are Pinocchio's own (the oracle: Newton
+projection onto the loops from the native configuration, velocities, and
+accelerations with the drift of the frames' classical accelerations). Then:
+
+* ``rnea(q, v, a, fext)`` with the applied loads as external forces gives the
+  generalised force the motion needs (gravity in the model's ``gravity``);
+* it equals J_cut^T f + S^T e: the loop cuts' forces f (x and y rows of the
+  loop Jacobian, force on the cut's first anchor, its opposite on the second)
+  and the drivers' efforts e (S: the signed input selector), a square system;
+* ``rnea`` again with the cut forces added to ``fext``: ``data.f[j]`` is the
+  spatial force joint j transmits from its parent to its subtree: the tree
+  joints' reactions and a prismatic joint's couple.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..dynamics import Forces, joint_quantities, window_states
+from ..kinematics import Kinematics, Status
+from ..model import GROUND, Prismatic, Revolute
+from ._pinocchio_model import build_model, joint_coordinates, point_frame, tree_spec
+from ._pinocchio_oracle import Oracle
+
+__all__ = ["inverse_forces"]
+
+
+def _force(linear_xy, point_xy, torque: float = 0.0) -> pin.Force:
+    """A planar force at a world point as a spatial force about the world origin."""
+    linear = np.array([linear_xy[0], linear_xy[1], 0.0])
+    moment = point_xy[0] * linear_xy[1] - point_xy[1] * linear_xy[0] + torque
+    return pin.Force(linear, np.array([0.0, 0.0, moment]))
+
+
+def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
+                   solution=None) -> Forces:
+    """Reactions and efforts from Pinocchio over the native states ``solution``
+    (default: :func:`~xcheck.dynamics.window_states` with ``samples`` states).
+
+    Raises
+    ------
+    ValueError
+        If a state does not close Pinocchio's loops or is not determined.
+    """
+    mech = kinematics.mechanism
+    if solution is None:
+        solution = window_states(kinematics, branch, **({} if samples is None else {"samples": samples}))
+    if not solution.success:
+        i = int(np.argmax(solution.status > Status.NEAR_SINGULAR))
+        raise ValueError(f"the native states are not all determined ({Status(int(solution.status[i])).message} "
+                         f"at sample {i})")
+    pm = build_model(tree_spec(mech))
+    model = pm.model
+    oracle = Oracle(pm)
+    data = model.createData()
+    size = kinematics.system.size
+    inputs, rates, accelerations = solution.inputs, solution.input_rates, solution.input_accelerations
+    n, nv = inputs.shape[0], model.nv
+    selector = pm.input_selector()
+    cuts = pm.spec.cuts
+    # per tree joint: the Pinocchio joint nearest the child (a pin-in-slot's second one) and its bodies
+    last = {}
+    for js in pm.spec.joints:
+        last[js.tree_joint] = js
+    tree = {name: (model.getJointId(js.name), js.bodies) for name, js in last.items()}
+    body_joint = {name: model.frames[fid].parentJoint for name, fid in pm.body_frames.items()}
+    point_ids = pm.point_frames
+
+    joints = {j.name: {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(j)}
+              for j in mech.joints}
+    drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
+    driven = {d.joint: k for k, d in enumerate(mech.drivers)}
+    residual, closure = np.zeros(n), np.zeros(n)
+    for i in range(n):
+        q, loop, _, converged = oracle.project(joint_coordinates(pm, solution.q[i]), inputs[i], size)
+        if not converged:
+            raise ValueError(f"Pinocchio's Newton projection did not close the loops at sample {i} "
+                             f"(violation {loop:.3g} m)")
+        closure[i] = loop
+        v = oracle.rates(q, rates[i])
+        a = oracle.acceleration(q, v, accelerations[i])
+        pin.forwardKinematics(model, data, q)
+        pin.updateFramePlacements(model, data)
+
+        def external(forces_world):
+            """Per-joint external forces (local frames) from (joint id, world spatial force) pairs."""
+            fext = pin.StdVec_Force()
+            for _ in range(model.njoints):
+                fext.append(pin.Force.Zero())
+            for jid, f in forces_world:
+                fext[jid] = fext[jid] + data.oMi[jid].actInv(f)
+            return fext
+
+        applied = []
+        for load in mech.loads:
+            frame = data.oMf[pm.body_frames[load.body]]
+            at = frame.act(np.array([*load.point, 0.0]))[:2]
+            applied.append((body_joint[load.body], _force(load.force, at, load.torque)))
+        tau = pin.rnea(model, data, q, v, a, external(applied)).copy()
+        oracle.loop_residual(q)
+        loop_jacobian = oracle.loop_jacobian(q)
+        columns = [loop_jacobian[3 * c:3 * c + 2].T for c in range(len(cuts))] + [selector.T]
+        matrix = np.hstack(columns) if columns else np.zeros((nv, 0))
+        x = np.linalg.solve(matrix, tau)
+        efforts = x[2 * len(cuts):]
+        for k, d in enumerate(mech.drivers):
+            drivers[d.name]["effort"][i] = efforts[k]
+
+        cut_forces = []
+        for c, cut in enumerate(cuts):
+            f = x[2 * c:2 * c + 2]
+            for body, label, sign in ((cut.body_a, cut.point_a, 1.0), (cut.body_b, cut.point_b, -1.0)):
+                if body == GROUND:
+                    continue
+                at = data.oMf[point_ids[point_frame(body, label)]].translation[:2]
+                cut_forces.append((body_joint[body], _force(sign * f, at)))
+            joints[cut.name]["reaction"][i] = -f  # f acts on body_a: body_a on body_b is -f
+        remaining = pin.rnea(model, data, q, v, a, external(applied + cut_forces))
+        residual[i] = np.linalg.norm(remaining - selector.T @ efforts) / max(np.linalg.norm(tau), 1e-300)
+
+        for joint in mech.joints:
+            if joint.name not in tree:
+                continue
+            jid, (parent, _) = tree[joint.name]
+            world = data.oMi[jid].act(data.f[jid])  # parent on the subtree, about the world origin
+            sign = 1.0 if parent == joint.body_a else -1.0
+            force = sign * world.linear[:2]
+            out = joints[joint.name]
+            if isinstance(joint, Revolute):
+                out["reaction"][i] = force
+                continue
+            at = data.oMf[point_ids[point_frame(joint.body_b, joint.point)]].translation[:2]
+            moment = sign * world.angular[2] - (at[0] * force[1] - at[1] * force[0])
+            line = np.eye(3) if joint.body_a == GROUND else data.oMf[pm.body_frames[joint.body_a]].rotation
+            u = line[:2, :2] @ joint.direction
+            normal = np.array([-u[1], u[0]])
+            if joint.name in driven:
+                force = force - efforts[driven[joint.name]] * u
+            out["reaction"][i] = force
+            out["normal"][i] = force @ normal
+            if isinstance(joint, Prismatic):
+                out["moment"][i] = moment
+    return Forces("pinocchio", inputs, rates, accelerations, joints, drivers,
+                  diagnostics={"residual": residual, "constraint_violation": closure},
+                  settings={"states": n, "gravity": [float(g) for g in model.gravity.linear]},
+                  notes="Pinocchio's kinematic oracle at each native state, then rnea (gravity and the applied "
+                        "loads as external forces); loop-cut forces and input efforts from [J_cut^T S^T] x = rnea; "
+                        "tree joints' reactions from data.f of a second rnea with the cut forces added.")
