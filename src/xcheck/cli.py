@@ -17,6 +17,7 @@ from rich.table import Table
 
 from . import __version__
 from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir
+from .dynamics import inverse_dynamics
 from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -155,6 +156,14 @@ def solve_command(
     _check_statuses(kin, solution, labels, fields)
     # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
     # after the solution, which still prints
+    # reactions and efforts when the file gives mass data; missing data on some
+    # bodies is reported after the solution, which still prints
+    forces, forces_error = None, None
+    if any(b.mass is not None for b in mech.moving_bodies):
+        try:
+            forces = inverse_dynamics(solution)
+        except XcheckError as err:
+            forces_error = err
     textbook, textbook_error, document = None, None, ""
     found = comparisons_path(path, comparisons_dir(models_dir(models), comparisons))
     if found is not None:
@@ -164,15 +173,17 @@ def solve_command(
         except XcheckError as err:
             textbook_error = err
     if as_json:
-        output = solution_json(solution, labels)
+        output = solution_json(solution, labels, forces)
         if textbook is not None:
             output["textbook"] = textbook_json(textbook)
         typer.echo(json.dumps(output, indent=2, allow_nan=False, ensure_ascii=False))
     else:
         console = wide_console()
-        print_solution(console, solution, labels)
+        print_solution(console, solution, labels, forces)
         if textbook is not None:
             print_textbook(console, textbook, document)
+    if forces_error is not None:
+        raise forces_error
     if textbook_error is not None:
         raise textbook_error
 

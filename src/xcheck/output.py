@@ -25,7 +25,7 @@ def _pair(values) -> list[float | None] | None:
     return None if any(v is None for v in pair) else pair
 
 
-def solution_json(solution: Solution, labels: list[str] | None = None) -> dict:
+def solution_json(solution: Solution, labels: list[str] | None = None, forces=None) -> dict:
     """The JSON document of ``xcheck solve --json`` (SI units).
 
     Parameters
@@ -33,6 +33,10 @@ def solution_json(solution: Solution, labels: list[str] | None = None) -> dict:
     solution : Solution
     labels : list of str, optional
         A label per sample (the model file's instant labels).
+    forces : xcheck.dynamics.Forces, optional
+        Reactions and efforts at the same states: adds ``"joints"``
+        (``{JOINT: {"reaction": [Fx, Fy], "normal": N, "moment": M}}``, N and
+        N m) and ``"drivers"`` (``{DRIVER: {"effort": E}}``, N m or N) per state.
     """
     mech = solution.mechanism
     bodies = {b.name: solution.body(b.name) for b in mech.moving_bodies}
@@ -61,6 +65,11 @@ def solution_json(solution: Solution, labels: list[str] | None = None) -> dict:
                 for label, p in points.items()
             },
         }
+        if forces is not None:
+            state["joints"] = {name: {q: (_pair(v[i]) if v.ndim == 2 else _number(v[i])) for q, v in values.items()}
+                               for name, values in forces.joints.items()}
+            state["drivers"] = {name: {q: _number(v[i]) for q, v in values.items()}
+                                for name, values in forces.drivers.items()}
         if labels is not None:
             state = {"label": labels[i], **state}
         states.append(state)
@@ -100,8 +109,9 @@ def wide_console(**kwargs) -> Console:
     return console
 
 
-def print_solution(console: Console, solution: Solution, labels: list[str] | None = None) -> None:
-    """Tables of bodies and points per state, in the model's display units."""
+def print_solution(console: Console, solution: Solution, labels: list[str] | None = None, forces=None) -> None:
+    """Tables of bodies and points per state, in the model's display units, and
+    of joint reactions and driver efforts (N, N m) when ``forces`` is given."""
     mech = solution.mechanism
     u = mech.units
     L, A, W = u.length_factor, u.angle_factor, u.angular_rate_factor
@@ -153,7 +163,34 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
                            _fmt(v[0] / V), _fmt(v[1] / V), _fmt(float(np.hypot(*v)) / V),
                            _fmt(a[0] / AC), _fmt(a[1] / AC), _fmt(float(np.hypot(*a)) / AC))
         console.print(points)
+        if forces is not None:
+            _print_forces(console, solution, forces, i)
         console.print()
+
+
+def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
+    """Reactions (first body on second) and efforts at state i, SI units."""
+    mech = solution.mechanism
+    reactions = Table(box=None, pad_edge=False, header_style="bold")
+    for header in ("joint", "type", "force of → on", "Fx [N]", "Fy [N]", "|F| [N]", "normal [N]", "moment [N·m]"):
+        reactions.add_column(header, justify="left" if header in ("joint", "type", "force of → on") else "right",
+                             no_wrap=True)
+    for joint in mech.joints:
+        values = forces.joints[joint.name]
+        f = values["reaction"][i]
+        reactions.add_row(joint.name, joint.kind, f"{joint.body_a} → {joint.body_b}", _fmt(f[0]), _fmt(f[1]),
+                          _fmt(float(np.hypot(*f))), _fmt(values["normal"][i]) if "normal" in values else "",
+                          _fmt(values["moment"][i]) if "moment" in values else "")
+    console.print(reactions)
+    efforts = Table(box=None, pad_edge=False, header_style="bold")
+    for header in ("driver", "joint", "effort", "unit", "power [W]"):
+        efforts.add_column(header, justify="left" if header in ("driver", "joint", "unit") else "right",
+                           no_wrap=True)
+    for k, driver in enumerate(mech.drivers):
+        effort = forces.drivers[driver.name]["effort"][i]
+        efforts.add_row(driver.name, driver.joint, _fmt(effort), "N·m" if driver.quantity == "angle" else "N",
+                        _fmt(effort * solution.input_rates[i, k]))
+    console.print(efforts)
 
 
 def textbook_json(results: list[dict]) -> list[dict]:
