@@ -1,0 +1,137 @@
+"""`xcheck run`: the runner on every mechanism, the JSON summary, exit codes,
+a perturbed engine model caught and named, and reports written whole."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import pytest
+from typer.testing import CliRunner
+
+from conftest import MODEL_NAMES, MODELS
+from xcheck import engines
+from xcheck.cli import app
+from xcheck.engines import mujoco as mujoco_engine
+from xcheck.runner import ALL_MODES, CATEGORIES, TOLERANCES, run_mechanism
+
+
+def _cli(*args, **env):
+    return CliRunner().invoke(app, [*args, "--models", str(MODELS)], env=env or None)
+
+
+def test_every_mode_has_a_tolerance():
+    assert set(TOLERANCES) == set(ALL_MODES)
+    assert set(engines.MODES) <= set(ALL_MODES)
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_every_mode_within_tolerance(kinematics, name):
+    """The whole comparison on every mechanism: every mode that applies runs,
+    and all are within their tolerances (the figures behind the dynamic
+    tolerances are in xcheck.runner.TOLERANCES)."""
+    run = run_mechanism(kinematics(name), samples=61)
+    failed = {m: (o.reason, o.categories.to_dict("records")) for m, o in run.outcomes.items() if not o.passed}
+    assert not failed
+    ran = set(run.outcomes) | set(run.not_applicable)
+    assert ran == set(ALL_MODES)
+    assert set(run.not_applicable) <= {"formulation-I"}  # formulation II applies to every model here
+    for outcome in run.outcomes.values():
+        expected = {"position", "velocity", "acceleration"} if outcome.mode == "native" else set(CATEGORIES)
+        assert set(outcome.categories.category) == expected
+
+
+def test_json_summary_shape():
+    result = _cli("run", "fourbar", "--json", "--no-report", "--samples", "31")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["mechanism"] == "fourbar" and doc["samples"] == 31 and doc["pass"] is True
+    assert set(doc["engines"]) == set(ALL_MODES)
+    for mode, entry in doc["engines"].items():
+        assert entry["pass"] is True and entry["reason"] is None
+        for category in ("position", "velocity", "acceleration"):
+            assert isinstance(entry[category], float) and entry[category] >= 0.0
+            assert entry["relative"][category] <= entry["tolerance"][category]
+    textbook = doc["textbook"]
+    assert len(textbook) == 96
+    assert {"quantity", "printed", "computed", "deviation_percent", "verdict", "note"} <= set(textbook[0])
+    assert sum(t["verdict"] == "disagrees" for t in textbook) == 1
+
+
+def test_run_all_json_is_a_list():
+    result = _cli("run", "all", "--json", "--no-report", "--samples", "11", "--engines", "formulations")
+    assert result.exit_code == 0, result.output
+    docs = json.loads(result.stdout)
+    assert [d["mechanism"] for d in docs] == MODEL_NAMES
+    assert all(set(d["engines"]) | set(d["not_applicable"]) == {"native", "formulation-I", "formulation-II"}
+               for d in docs)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["run", "nosuch"], "unknown mechanism 'nosuch'"),
+    (["run", "fourbar", "--engines", "bullet"], "--engines: expected modes or groups"),
+])
+def test_bad_input_exits_2(args, message):
+    result = _cli(*args)
+    assert result.exit_code == 2
+    assert message in result.stderr and "Traceback" not in result.output
+
+
+def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
+    """MuJoCo given a crank 1 mm longer than the model's: the run exits 1, the
+    table marks mujoco-kinematic as failing, names the place, and the other
+    modes still pass."""
+    text = mujoco_engine.mjcf_text
+
+    def longer_crank(kinematics):
+        root = ET.fromstring(text(kinematics))
+        site = next(s for s in root.iter("site") if s.get("name") == "crank.B")
+        coupler = next(b for b in root.iter("body") if b.get("name") == "coupler")
+        for element in (site, coupler):
+            x, y, z = (float(v) for v in element.get("pos").split())
+            element.set("pos", f"{x + 1e-3!r} {y!r} {z!r}")
+        return ET.tostring(root, encoding="unicode")
+
+    monkeypatch.setattr(mujoco_engine, "mjcf_text", longer_crank)
+    result = _cli("run", "fourbar", "--engines", "mujoco-kinematic,pinocchio-kinematic", "--no-report",
+                  "--samples", "31")
+    assert result.exit_code == 1, result.output
+    lines = result.stdout.splitlines()
+    row = next(line for line in lines if line.startswith("mujoco-kinematic"))
+    assert "FAIL" in row
+    assert next(line for line in lines if line.startswith("pinocchio-kinematic")).split()[1] == "pass"
+    failure = next(line for line in lines if line.strip().startswith("mujoco-kinematic: position"))
+    assert "point" in failure or "body" in failure
+
+
+def test_a_failing_mode_is_reported_and_others_run(monkeypatch):
+    def broken(kinematics, **options):
+        raise RuntimeError("engine crashed")
+
+    real = engines.mode_function
+    monkeypatch.setattr("xcheck.runner.mode_function",
+                        lambda mode: broken if mode == "pymunk-dynamic" else real(mode))
+    result = _cli("run", "slider-crank", "--engines", "pymunk,formulations", "--no-report", "--samples", "21")
+    assert result.exit_code == 1
+    assert "pymunk-dynamic: RuntimeError: engine crashed" in result.stdout
+    assert next(line for line in result.stdout.splitlines() if line.startswith("formulation-I ")).split()[1] == "pass"
+
+
+def test_reports_are_written_whole(tmp_path):
+    result = _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert result.stdout == ""
+    report = (tmp_path / "two-body-arm.md").read_text()
+    for heading in ("## Printed answers", "## Comparison with the native solution",
+                    "## Dynamic modes: error against time step", "## Native solver", "## Versions"):
+        assert heading in report
+    for image in ("drawing.png", "quantities.png", "differences.png", "convergence.png", "motion.gif"):
+        assert (tmp_path / "two-body-arm" / image).stat().st_size > 1000
+        assert f"two-body-arm/{image}" in report
+    assert "Reproduce: `xcheck run two-body-arm --samples 21`" in report
+    index = (tmp_path / "README.md").read_text()
+    assert "[two-body-arm](two-body-arm.md)" in index
+    # rerunning replaces the report; no staging directories are left behind
+    assert _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "-q",
+                "--engines", "formulations").exit_code == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "two-body-arm", "two-body-arm.md"]
