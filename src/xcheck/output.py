@@ -73,8 +73,10 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
         if labels is not None:
             state = {"label": labels[i], **state}
         states.append(state)
-    return {"mechanism": mech.name, "branch": solution.branch,
-            "units": {"length": "m", "angle": "rad", "time": "s"}, "states": states}
+    units = {"length": "m", "angle": "rad", "time": "s"}
+    if forces is not None:
+        units.update(force="N", torque="N m")
+    return {"mechanism": mech.name, "branch": solution.branch, "units": units, "states": states}
 
 
 def range_text(kin: Kinematics, rng: InputRange) -> str:
