@@ -23,7 +23,7 @@ from test_pymunk import BLOCK_DRIVEN
 from xcheck import Kinematics, ModelError, load_mechanism
 from xcheck.cli import app
 from xcheck.dynamics import (Forces, compare_forces, energy_balance, energy_summary, engine_forces,
-                             force_differences, inverse_dynamics, newton_euler, window_states)
+                             force_differences, force_summary, inverse_dynamics, newton_euler, window_states)
 from xcheck.model import parse_mechanism
 
 
@@ -340,6 +340,11 @@ def test_compare_forces_lists_every_engine():
     results = compare_forces(_kin("fourbar-dynamics"), options={"pymunk": {"steps_per_sample": 25}})
     assert [r.engine for r in results] == ["newton-euler", "mujoco", "pinocchio", "pymunk"]
     assert all(r.ok and not r.table.empty for r in results)
+    summary = force_summary(results + [engine_forces(_kin("fourbar-dynamics"), "bullet")])
+    assert list(summary.engine) == ["newton-euler", "mujoco", "pinocchio", "pymunk", "bullet"]
+    assert summary.ok.tolist() == [True, True, True, True, False]
+    assert summary.reason.iloc[-1].startswith("expected an engine (newton-euler, mujoco, pinocchio, pymunk)")
+    assert summary.max_rel.iloc[:3].max() < 1e-12 and summary.quantity.iloc[3].startswith("|")
 
 
 # -- bad input ------------------------------------------------------------------
@@ -415,6 +420,7 @@ def test_solve_json_has_reactions_and_efforts():
     result = runner.invoke(app, ["solve", "slider-crank", "--json", "--models", str(MODELS)])
     assert result.exit_code == 0, result.output
     document = json.loads(result.output)
+    assert document["units"] == {"length": "m", "angle": "rad", "time": "s", "force": "N", "torque": "N m"}
     kin = _kin("slider-crank")
     states = kin.mechanism.instants
     values = np.array([[inst.inputs[d.name] for d in kin.mechanism.drivers] for inst in states])
@@ -426,6 +432,7 @@ def test_solve_json_has_reactions_and_efforts():
         assert state["drivers"]["crank"]["effort"] == pytest.approx(forces.drivers["crank"]["effort"][i], rel=1e-12)
     bare = json.loads(runner.invoke(app, ["solve", "task-2-3", "--json", "--models", str(MODELS)]).output)
     assert "joints" not in bare["states"][0] and "drivers" not in bare["states"][0]
+    assert "force" not in bare["units"]
 
 
 def test_solve_table_shows_forces_and_partial_mass_data_fails_after_it(tmp_path):

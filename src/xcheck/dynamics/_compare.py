@@ -24,7 +24,7 @@ from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit,
 from ._inverse import inverse_dynamics, newton_euler
 
 __all__ = ["ENGINES", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "engine_forces",
-           "compare_forces", "energy_summary"]
+           "compare_forces", "force_summary", "energy_summary"]
 
 #: engine -> (module, function); the function takes (kinematics, branch=None,
 #: **options) and returns Forces, raising on failure.
@@ -195,6 +195,23 @@ def compare_forces(kinematics: Kinematics, engines=("newton-euler", *ENGINES), b
     """:func:`engine_forces` for each engine (``options``: engine -> keyword arguments)."""
     options = options or {}
     return [engine_forces(kinematics, engine, branch, **options.get(engine, {})) for engine in engines]
+
+
+def force_summary(results: list[ForceResult]) -> pd.DataFrame:
+    """One row per result of :func:`compare_forces`: ``engine``, ``ok``,
+    ``reason``, the worst ``max_rel`` with its ``name`` and ``quantity`` (NaN
+    and empty for a failed engine), ``max_abs`` there (SI, ``unit``),
+    ``states`` and ``seconds``."""
+    rows = []
+    for r in results:
+        row = {"engine": r.engine, "ok": r.ok, "reason": r.reason, "max_rel": np.nan, "name": "", "quantity": "",
+               "max_abs": np.nan, "unit": "", "states": 0, "seconds": r.seconds}
+        if r.ok and r.table is not None and not r.table.empty:
+            worst = r.table.loc[r.table["max_rel"].idxmax()]
+            row.update(max_rel=float(worst["max_rel"]), name=worst["name"], quantity=worst["quantity"],
+                       max_abs=float(worst["max_abs"]), unit=worst["unit"], states=int(worst["samples"]))
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: int = 721) -> dict:
