@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import Solution, Status
-from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from ..model import GROUND, Mechanism, Prismatic, Revolute
 from ._forces import Forces, joint_quantities, require_mass_data
 
 __all__ = ["inverse_dynamics", "newton_euler", "body_dynamics"]

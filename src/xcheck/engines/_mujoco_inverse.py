@@ -29,7 +29,7 @@ import numpy as np
 
 from ..dynamics import Forces, joint_quantities, window_states
 from ..kinematics import Kinematics, Status
-from ..model import GROUND, PinInSlot, Prismatic, Revolute
+from ..model import GROUND, Prismatic, Revolute
 from ._mujoco_mjcf import Layout, joint_coordinates
 from ._mujoco_oracle import Oracle
 
@@ -154,8 +154,6 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
             out["normal"][i] = force_ab @ normal
             if isinstance(joint, Prismatic):
                 out["moment"][i] = moment_ab
-            else:
-                assert isinstance(joint, PinInSlot)
     return Forces("mujoco", inputs, rates, accelerations, joints, drivers,
                   diagnostics={"residual": residual, "constraint_violation": projection.residual},
                   settings={"states": n, "gravity": [float(g) for g in dyn.opt.gravity]},

@@ -30,7 +30,7 @@ import pymunk as pm
 
 from ..dynamics import Forces
 from ..kinematics import Kinematics
-from ..model import PinInSlot, Prismatic, Revolute
+from ..model import Prismatic, Revolute
 from ._pymunk_scene import build_scene, native_window
 
 __all__ = ["inverse_forces", "SAMPLES", "STEPS_PER_SAMPLE", "ITERATIONS"]
@@ -96,8 +96,6 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
             sources += [("joint", joint.name, "|reaction|", groove), ("joint", joint.name, "|normal|", groove)]
             if isinstance(joint, Prismatic):
                 sources.append(("joint", joint.name, "|moment|", next(c for c in made if isinstance(c, pm.GearJoint))))
-            else:
-                assert isinstance(joint, PinInSlot)
     for driver in mech.drivers:
         sources.append(("driver", driver.name, "|effort|", scene.constraints[f"driver:{driver.name}"][0]))
     gap_bound = 0.05 * mech.size
