@@ -220,6 +220,8 @@ class Kinematics:
     _assembled: dict = field(init=False, default_factory=dict)
     _ranges: dict = field(init=False, default_factory=dict)
     _turns: dict = field(init=False, default_factory=dict)
+    _walked: dict = field(init=False, default_factory=dict)
+    _atlases: dict = field(init=False, default_factory=dict)
 
     def __post_init__(self):
         self.system = ConstraintSystem(self.mechanism)
@@ -396,15 +398,18 @@ class Kinematics:
             is_angle = drivers[k].quantity == "angle"
             span = 2.0 * math.pi if is_angle else 10.0 * self.system.size
             ends = []
+            walked = [(float(c_ref[k]), q_ref)]  # (input k, q) on the branch, for the atlas
             for direction in (-1.0, 1.0):
                 target = c_ref.copy()
                 target[k] += direction * span
-                q_end, c, reached, _ = continue_to(self.system, q_ref, c_ref, target)
+                q_end, c, reached, trail = continue_to(self.system, q_ref, c_ref, target)
+                walked += [(float(c_ref[k] + f * direction * span), q_step) for f, q_step in trail]
                 ends.append(None if reached else float(c[k]))
                 if reached and is_angle:  # turned round once: the input is a crank
                     ends = [None, None]
                     self._record_turn(name, k, direction * (q_end - q_ref))
                     break
+            self._walked[key] = walked
             self._ranges[key] = InputRange(drivers[k].name, ends[0], ends[-1], span)
         return self._ranges[key]
 
@@ -417,6 +422,58 @@ class Kinematics:
         shift = turns * 2.0 * math.pi
         if np.max(np.abs((change - shift) * scale)) <= 1e-9:
             self._turns[(branch, k)] = shift
+
+    def _atlas(self, branch: str):
+        """The branch mapped once, for a one-input mechanism: (inputs (M,),
+        configurations (M, n), period) from the feasible-range walk, whose steps
+        are short where the mechanism moves fast. ``period`` is the change of q
+        over one turn of a crank (None for a bounded input). None when there is
+        no atlas (several inputs, or a crank that is not back where it started
+        after one turn): sweeps then walk from the reference."""
+        if self.system.n_drivers != 1:
+            return None
+        if branch not in self._atlases:
+            rng = self.input_range(0, branch)
+            period = self._turns.get((branch, 0))
+            atlas = None
+            if not rng.full_turn or period is not None:
+                walked = sorted(self._walked[(branch, 0)], key=lambda item: item[0])
+                c = np.array([w[0] for w in walked])
+                q = np.array([w[1] for w in walked])
+                keep = np.concatenate([[True], np.diff(c) > 0.0])
+                atlas = (c[keep], q[keep], period)
+            self._atlases[branch] = atlas
+        return self._atlases[branch]
+
+    def _atlas_predictions(self, atlas, c: np.ndarray):
+        """Samples the atlas covers, their predicted configurations, and the atlas
+        point before each (shifted by whole turns) for the branch check.
+
+        Returns
+        -------
+        idx : ndarray of int
+            Samples inside the feasible range (the others lie past a limit).
+        guess : ndarray, shape (len(idx), n)
+        anchor_q, anchor_c : ndarray, shapes (len(idx), n), (len(idx), 1)
+        anchor : ndarray of int
+            Index of the atlas point before each sample (for its determinant sign).
+        """
+        c_atlas, q_atlas, period = atlas
+        x = c[:, 0]
+        if period is None:
+            turns = np.zeros_like(x)
+            idx = np.flatnonzero((x >= c_atlas[0] - _PATH_TOLERANCE) & (x <= c_atlas[-1] + _PATH_TOLERANCE))
+        else:
+            turns = np.floor((x - c_atlas[0]) / (2.0 * math.pi))
+            idx = np.arange(len(x))
+        reduced = x[idx] - 2.0 * math.pi * turns[idx]
+        scale = self.system.input_scale()[0]
+        anchor = np.clip(np.searchsorted(c_atlas, reduced, side="right") - 1, 0, len(c_atlas) - 1)
+        guess = _predict(self.system, c_atlas * scale, q_atlas, c_atlas[:, None], anchor, reduced * scale,
+                         reduced[:, None])
+        shift = 0.0 if period is None else turns[idx, None] * period
+        return (idx, guess + shift, q_atlas[anchor] + shift,
+                (c_atlas[anchor] + 2.0 * math.pi * turns[idx])[:, None], anchor)
 
     def _shift_by_turns(self, branch: str, q: np.ndarray, c: np.ndarray, target: np.ndarray):
         """(q, c) moved by whole turns of periodic inputs to within half a turn of target."""
@@ -445,10 +502,11 @@ class Kinematics:
         branch : str, optional
             Assembly branch (default: the model file's first).
         waypoint_spacing : float
-            Input distance (rad; slides per mechanism size) between the
-            waypoints that are tracked one by one by continuation; all other
-            samples are solved in one batch from predictions off the waypoint
-            before them.
+            For mechanisms with several inputs: input distance (rad; slides
+            per mechanism size) between the waypoints tracked one by one by
+            continuation. A one-input mechanism needs no waypoints: its branch
+            is mapped once (the feasible-range walk) and every sample is
+            predicted from that map.
 
         Returns
         -------
@@ -461,39 +519,21 @@ class Kinematics:
         cdd = np.zeros_like(c) if accelerations is None else self._as_inputs(accelerations, c.shape)
         n_samples = c.shape[0]
 
-        # 1. continuation through waypoints, one at a time
-        path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(),
-                                                        axis=1))])
-        bins = np.floor(path / waypoint_spacing)
-        waypoints = np.flatnonzero(np.concatenate([[True], bins[1:] != bins[:-1]]))
-        if waypoints[-1] != n_samples - 1:
-            waypoints = np.append(waypoints, n_samples - 1)
-        anchors, covered = self._walk_waypoints(name, c, path, waypoints)
-
-        # 2. every sample in one batch, predicted from the anchor before it
         q = np.full((n_samples, system.n), np.nan)
         residual = np.full(n_samples, np.inf)
         iterations = np.zeros(n_samples, dtype=int)
         status = np.full(n_samples, Status.NOT_CONVERGED, dtype=np.int8)
         jac = np.zeros((n_samples, system.n_rows, system.n))  # Phi_q where solved
-        if anchors:
-            anchors.sort(key=lambda a: a[0])
-            anchor_path, anchor_q, anchor_c = (np.array([a[i] for a in anchors]) for i in range(3))
-            # only samples on stretches of the sweep that continuation reached are attempted:
-            # the others lie past a limit position
-            lows, highs = (np.array(v) for v in zip(*sorted(covered)))
-            highs = np.maximum.accumulate(highs)
-            slot = np.searchsorted(lows, path + _PATH_TOLERANCE, side="right") - 1
-            idx = np.flatnonzero((slot >= 0) & (path <= highs[np.maximum(slot, 0)] + _PATH_TOLERANCE))
-            anchor = np.clip(np.searchsorted(anchor_path, path[idx], side="right") - 1, 0, None)
-            guess = _predict(system, anchor_path, anchor_q, anchor_c, anchor, path[idx], c[idx])
+        prediction = self._predictions(name, c, waypoint_spacing)
+        if prediction is not None:
+            # 2. every sample in one batch, predicted from the anchors around it
+            idx, guess, base_q, base_c, base_sign = prediction
             q_i, res_i, it_i, ok_i = newton(system, guess, c[idx])
             # stayed on the branch: small correction, same determinant sign as the anchor
             correction = np.max(np.abs((q_i - guess) * system.coordinate_scale()), axis=1)
             jac_i = system.jacobian(q_i)
             sign = det_sign(system, jac_i)
-            anchor_sign = det_sign(system, system.jacobian(anchor_q))[anchor]
-            on_branch = (correction <= MAX_CORRECTION) & ((sign == anchor_sign) | (sign == 0))
+            on_branch = (correction <= MAX_CORRECTION) & ((sign == base_sign) | (sign == 0))
             accept = ok_i & on_branch
             q[idx[accept]] = q_i[accept]
             jac[idx[accept]] = jac_i[accept]
@@ -502,8 +542,9 @@ class Kinematics:
             status[idx[accept]] = Status.OK
             status[idx[ok_i & ~on_branch]] = Status.BRANCH_JUMP
             # 3. the few that failed in the batch: walk to them from their anchor
-            for i, j in zip(idx[~accept], anchor[~accept]):
-                q_new, _, reached, _ = continue_to(system, anchor_q[j], anchor_c[j], c[i])
+            for j in np.flatnonzero(~accept):
+                i = idx[j]
+                q_new, _, reached, _ = continue_to(system, base_q[j], base_c[j], c[i])
                 if reached:
                     q[i], status[i] = q_new, Status.OK
                     jac[i] = system.jacobian(q_new[None])[0]
@@ -532,6 +573,46 @@ class Kinematics:
             status[flat] = Status.SINGULAR
             qd[flat] = qdd[flat] = np.nan
         return Solution(self, name, c, cd, cdd, q, qd, qdd, status, residual, singularity, iterations)
+
+    def _predictions(self, branch: str, c: np.ndarray, waypoint_spacing: float):
+        """Predicted configurations of the samples that can assemble, from the
+        branch's atlas (one input) or from continuation through waypoints.
+
+        Returns
+        -------
+        (idx, guess, anchor_q, anchor_c, anchor_sign) or None
+            Attempted samples, their predictions (len(idx), n), the assembled
+            configuration and inputs each was predicted from, and the sign of
+            det Phi_q there; None when no sample can be reached.
+        """
+        system = self.system
+        atlas = self._atlas(branch)
+        if atlas is not None:
+            idx, guess, base_q, base_c, anchor = self._atlas_predictions(atlas, c)
+            signs = det_sign(system, system.jacobian(atlas[1]))
+            return idx, guess, base_q, base_c, signs[anchor]
+        n_samples = c.shape[0]
+        path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(),
+                                                        axis=1))])
+        bins = np.floor(path / waypoint_spacing)
+        waypoints = np.flatnonzero(np.concatenate([[True], bins[1:] != bins[:-1]]))
+        if waypoints[-1] != n_samples - 1:
+            waypoints = np.append(waypoints, n_samples - 1)
+        anchors, covered = self._walk_waypoints(branch, c, path, waypoints)
+        if not anchors:
+            return None
+        anchors.sort(key=lambda a: a[0])
+        anchor_path, anchor_q, anchor_c = (np.array([a[i] for a in anchors]) for i in range(3))
+        # only samples on stretches of the sweep that continuation reached are attempted:
+        # the others lie past a limit position
+        lows, highs = (np.array(v) for v in zip(*sorted(covered)))
+        highs = np.maximum.accumulate(highs)
+        slot = np.searchsorted(lows, path + _PATH_TOLERANCE, side="right") - 1
+        idx = np.flatnonzero((slot >= 0) & (path <= highs[np.maximum(slot, 0)] + _PATH_TOLERANCE))
+        anchor = np.clip(np.searchsorted(anchor_path, path[idx], side="right") - 1, 0, None)
+        guess = _predict(system, anchor_path, anchor_q, anchor_c, anchor, path[idx], c[idx])
+        signs = det_sign(system, system.jacobian(anchor_q))
+        return idx, guess, anchor_q[anchor], anchor_c[anchor], signs[anchor]
 
     def _walk_waypoints(self, branch: str, c: np.ndarray, path: np.ndarray, waypoints: np.ndarray):
         """Continuation from the reference configuration through the waypoints.
