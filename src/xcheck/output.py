@@ -258,8 +258,17 @@ def run_json(run) -> dict:
             entry["tolerance"][row.category] = _number(row.tolerance)
         entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "seconds": round(outcome.seconds, 3)})
         engines[mode] = entry
+    forces = {}
+    for row in run.force_table.itertuples():
+        forces[row.engine] = {"max_abs": _number(row.max_abs), "unit": row.unit or None,
+                              "relative": _number(row.max_rel), "tolerance": _number(row.tolerance),
+                              "worst": f"{row.name} {row.quantity}".strip() or None, "states": int(row.states),
+                              "pass": bool(row.passed), "reason": row.reason or None}
+    energy = None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v)
+                                               for k, v in run.energy.items()}
     return {"mechanism": run.mechanism.name, "samples": int(run.native.inputs.shape[0]), "branch": run.branch,
             "pass": run.passed, "engines": engines, "not_applicable": run.not_applicable,
+            "forces": forces, "energy": energy, "forces_not_computed": run.no_forces or None,
             "textbook": textbook_json(run.textbook)}
 
 
@@ -305,6 +314,19 @@ def print_run(console: Console, run) -> None:
         console.print(f"  [red]{failure}[/red]")
     if run.not_applicable:
         console.print("  not applicable: " + "; ".join(f"{m} ({r})" for m, r in run.not_applicable.items()))
+    if not run.force_table.empty:
+        parts = []
+        for row in run.force_table.itertuples():
+            if not row.ok:
+                parts.append(f"[red]{row.engine} failed[/red] ({row.reason})")
+                continue
+            style = "green" if row.passed else "red"
+            parts.append(f"{row.engine} [{style}]{row.max_rel:.1e}[/{style}]/{row.tolerance:g}")
+        console.print("  joint reactions and driving effort vs native: " + ", ".join(parts))
+        e = run.energy
+        style = "green" if e["passed"] else "red"
+        console.print(f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] of "
+                      f"{e['scale']:.3g} W")
     if run.textbook:
         counts = {v: sum(r["verdict"] == v for r in run.textbook) for v in ("agrees", "rounding", "disagrees")}
         console.print(f"  printed answers: {len(run.textbook)} values — {counts['agrees']} agree, "

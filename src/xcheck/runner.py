@@ -21,11 +21,14 @@ import pandas as pd
 
 from . import __version__
 from .compare import ModeResult, Trajectory, differences, native_at, sample_errors
+from .dynamics import (Forces, ForceResult, compare_forces, energy_summary, force_summary, inverse_dynamics,
+                       require_mass_data, window_states)
+from .errors import XcheckError
 from .engines import mode_function
 from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
 
-__all__ = ["ALL_MODES", "CATEGORIES", "TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
+__all__ = ["ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
            "sweep_inputs", "versions", "convergence_table"]
 
 #: every mode, in the order tables show them
@@ -84,6 +87,19 @@ TOLERANCES = {
 }
 
 
+#: Reactions and efforts: the largest difference relative to the largest native
+#: magnitude of that force or moment. MuJoCo's and Pinocchio's inverse dynamics
+#: and the seed's Newton-Euler form agree to round-off (measured at most 1.7e-13);
+#: pymunk's are impulses over a step of the driven simulation, first order in the
+#: time step (measured at most 3.2e-2, about half the bound).
+FORCE_TOLERANCES = {"newton-euler": 1e-12, "mujoco": 1e-12, "pinocchio": 1e-12, "pymunk": 7e-2}
+#: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
+ENERGY_TOLERANCE = 1e-12
+#: which force sources a run includes, by the modes it runs
+_FORCE_SOURCES = {"mujoco": ("mujoco-kinematic", "mujoco-dynamic"),
+                  "pinocchio": ("pinocchio-kinematic", "pinocchio-dynamic"), "pymunk": ("pymunk-dynamic",)}
+
+
 @dataclass
 class ModeOutcome:
     """One mode's comparison with the native solution.
@@ -137,6 +153,11 @@ class RunResult:
     not_applicable: dict[str, str]
     textbook: list[dict]
     seconds: float
+    forces: list[ForceResult] = field(default_factory=list)
+    force_table: pd.DataFrame = field(default_factory=pd.DataFrame)
+    native_forces: Forces | None = None
+    energy: dict | None = None
+    no_forces: str = ""
 
     @property
     def mechanism(self):
@@ -144,7 +165,9 @@ class RunResult:
 
     @property
     def passed(self) -> bool:
-        return all(o.passed for o in self.outcomes.values())
+        forces_pass = self.force_table.empty or bool(self.force_table.passed.all())
+        energy_pass = self.energy is None or self.energy["passed"]
+        return all(o.passed for o in self.outcomes.values()) and forces_pass and energy_pass
 
     def worst(self) -> tuple[str, str, float, float] | None:
         """(mode, category, relative error, tolerance) of the largest error
@@ -312,8 +335,34 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
             outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch)
         except NotApplicable as err:
             not_applicable[mode] = err.reason
-    return RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [],
-                     time.perf_counter() - start)
+    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0)
+    _add_forces(run, modes, branch, progress)
+    run.seconds = time.perf_counter() - start
+    return run
+
+
+def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
+    """Reactions and efforts of every source against the native multipliers,
+    and the native power balance, when every moving body has mass data."""
+    kinematics = run.kinematics
+    try:
+        require_mass_data(kinematics.mechanism)
+    except XcheckError as err:
+        run.no_forces = str(err)
+        return
+    sources = ["newton-euler"] + [s for s, needs in _FORCE_SOURCES.items() if any(m in modes for m in needs)]
+    if progress is not None:
+        progress("forces")
+    run.native_forces = inverse_dynamics(window_states(kinematics, branch))
+    run.forces = compare_forces(kinematics, sources, branch)
+    table = force_summary(run.forces)
+    table["tolerance"] = table.engine.map(FORCE_TOLERANCES)
+    table["passed"] = table.ok & (table.max_rel <= table.tolerance)
+    run.force_table = table
+    energy = energy_summary(kinematics, branch)
+    energy["tolerance"] = ENERGY_TOLERANCE
+    energy["passed"] = bool(energy["relative"] <= ENERGY_TOLERANCE)
+    run.energy = energy
 
 
 def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:

@@ -39,6 +39,10 @@ def write_report(run: RunResult, directory: str | Path, command: str, gif: bool 
         if convergence is not None:
             (staging / "convergence.png").write_bytes(convergence)
             images["convergence"] = "convergence.png"
+        forces = _figures.forces_plot(run)
+        if forces is not None:
+            (staging / "forces.png").write_bytes(forces)
+            images["forces"] = "forces.png"
         if gif:
             (staging / "motion.gif").write_bytes(_figures.motion_gif(run))
             images["gif"] = "motion.gif"

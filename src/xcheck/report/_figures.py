@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import math
 import tempfile
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from scipy.spatial import ConvexHull, QhullError  # noqa: E402
 from ..model import PinInSlot, Prismatic  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 
-__all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "tracked"]
+__all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
 
 _STYLE = {  # mode -> matplotlib style
     "native": dict(color="black", lw=1.6, ls="-"),
@@ -36,7 +37,7 @@ _LINE_STYLE = {m: {"color": s["color"], "ls": "--" if m.endswith("-dynamic") els
 
 def _png(figure) -> bytes:
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
+    figure.savefig(buffer, format="png", dpi=90)
     plt.close(figure)
     return buffer.getvalue()
 
@@ -126,6 +127,7 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
     ax.set_xlabel(f"x [{unit}]")
     ax.set_ylabel(f"y [{unit}]")
     ax.grid(alpha=0.3)
+    figure.tight_layout()
     return _png(figure)
 
 
@@ -263,3 +265,53 @@ def convergence_plot(run: RunResult) -> bytes | None:
     figure.tight_layout()
     return _png(figure)
 
+
+
+def forces_plot(run: RunResult) -> bytes | None:
+    """Driving efforts and joint reaction magnitudes against the input, native
+    lines with every engine's values overlaid (PNG); None without forces."""
+    native = run.native_forces
+    if native is None:
+        return None
+    sources = [(r.engine, r.forces) for r in run.forces if r.ok and r.forces is not None and r.engine != "newton-euler"]
+    panels = [("driver", name) for name in native.drivers] + [("joint", name) for name in native.joints]
+    columns = min(3, len(panels))
+    rows = math.ceil(len(panels) / columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.4 * columns, 3.2 * rows), squeeze=False)
+    colors = {"mujoco": "tab:blue", "pinocchio": "tab:orange", "pymunk": "tab:green"}
+    for ax, (kind, name) in zip(axes.flat, panels):
+        key = "effort" if kind == "driver" else "reaction"
+        table = native.drivers if kind == "driver" else native.joints
+        x, xlabel = _input_axis(run, native.inputs[:, 0])
+        values = table[name][key]
+        magnitude = values if values.ndim == 1 else np.linalg.norm(values, axis=1)
+        if kind == "joint":
+            magnitude = np.abs(magnitude)
+        ax.plot(x, magnitude, color="black", lw=1.6, label="native")
+        if kind == "driver" and any(f"|{key}|" in (f.drivers.get(name) or {}) for _, f in sources):
+            ax.plot(x, np.abs(magnitude), color="black", lw=0.8, ls=":", label="|native|")
+        for engine, forces in sources:
+            source = forces.drivers if kind == "driver" else forces.joints
+            data = source.get(name, {})
+            series = data.get(key, data.get(f"|{key}|"))
+            if series is None:
+                continue
+            series = np.asarray(series)
+            series = series if series.ndim == 1 else np.linalg.norm(series, axis=1)
+            if kind == "joint" or f"|{key}|" in data:
+                series = np.abs(series)
+            ex, _ = _input_axis(run, forces.inputs[:, 0])
+            marker = dict(lw=0, marker=".", ms=4) if engine == "pymunk" else dict(lw=1, ls="--")
+            ax.plot(ex, series, color=colors.get(engine, "tab:gray"), label=engine, **marker)
+        driver = next((d for d in run.mechanism.drivers if d.name == name), None)
+        unit = "N m" if driver is not None and driver.quantity == "angle" else "N"
+        label = f"effort of {name} [{unit}]" if kind == "driver" else f"|reaction| at {name} [N]"
+        ax.set_ylabel(label)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7)
+    figure.suptitle(f"{run.mechanism.name}: driving effort and joint reactions over the simulation window", fontsize=10)
+    figure.tight_layout()
+    return _png(figure)

@@ -138,6 +138,36 @@ def _solver_section(run: RunResult) -> str:
     return "\n".join(lines)
 
 
+def _forces_section(run: RunResult, images: dict[str, str]) -> str:
+    if run.no_forces:
+        return f"Not computed: {run.no_forces}."
+    if run.force_table.empty:
+        return "Not computed in this run."
+    rows = []
+    for r in run.force_table.itertuples():
+        if not r.ok:
+            rows.append([f"`{r.engine}`", f"**failed**: {r.reason}", "—", "—", "—", "—"])
+            continue
+        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2), _g(r.tolerance, 1),
+                     f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}", str(r.states)])
+    e = run.energy
+    text = ("Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
+            "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
+            "each source against the native multipliers of M q'' - Phi_q^T lambda = Q at the source's own "
+            "states. `newton-euler` is the seed's per-body form M a = D R + Q; pymunk gives magnitudes only "
+            "(impulses over a step divided by the step).\n\n")
+    text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows,
+                   "llrrlr")
+    text += (f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
+             f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
+             f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 1)}); the work done since t = 0 matches the "
+             f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
+             f"energy swing {_g(e['energy_swing'], 3)} J).")
+    if "forces" in images:
+        text += f"\n\n![reactions and driving effort]({images['forces']})"
+    return text
+
+
 def report_markdown(run: RunResult, images: dict[str, str], command: str) -> str:
     """The report of one mechanism; ``images`` maps figure keys to paths relative to the report."""
     mech = run.mechanism
@@ -151,6 +181,7 @@ def report_markdown(run: RunResult, images: dict[str, str], command: str) -> str
         "## Comparison with the native solution\n\n" + _comparison_section(run),
         f"![quantities]({images['quantities']})\n\n![differences]({images['errors']})",
         "## Dynamic modes: error against time step\n\n" + _dynamic_section(run, images),
+        "## Joint reactions and driving effort\n\n" + _forces_section(run, images),
         "## Native solver\n\n" + _solver_section(run),
         "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),
         f"Reproduce: `{command}`",
