@@ -135,3 +135,18 @@ def test_reports_are_written_whole(tmp_path):
     assert _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "-q",
                 "--engines", "formulations").exit_code == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "two-body-arm", "two-body-arm.md"]
+
+
+def test_forces_and_energy_in_the_json_summary():
+    """A mechanism with mass data carries the reactions' comparison and the power
+    balance; one without says why there are none."""
+    result = _cli("run", "fourbar-dynamics", "--json", "--no-report", "--samples", "21", "--engines", "kinematic")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert set(doc["forces"]) == {"newton-euler", "mujoco", "pinocchio"}
+    for entry in doc["forces"].values():
+        assert entry["pass"] is True and entry["relative"] <= entry["tolerance"] == 1e-12
+    assert doc["energy"]["passed"] is True and doc["energy"]["relative"] <= 1e-12
+    result = _cli("run", "task-2-3", "--json", "--no-report", "--samples", "21", "--engines", "formulations")
+    doc = json.loads(result.stdout)
+    assert doc["forces"] == {} and "expected mass and inertia" in doc["forces_not_computed"]
