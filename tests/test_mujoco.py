@@ -156,7 +156,7 @@ def test_committed_mjcf_is_current_and_opens(case, name):
     kin, text = case(name)
     (file_name,) = export_files(kin)
     path = MODELS / "mjcf" / file_name
-    regenerate = "regenerate with: python -m xcheck.engines.mujoco models/*.toml"
+    regenerate = "regenerate with: xcheck export --format mjcf"
     assert path.exists(), f"{path} is missing; {regenerate}"
     assert path.read_text(encoding="utf-8") == text, f"{path} is stale; {regenerate}"
     model = mujoco.MjModel.from_xml_path(str(path))

@@ -51,6 +51,25 @@ def window_states(kinematics: Kinematics, branch: str | None = None, samples: in
     return kinematics.solve(*window.inputs(kinematics, window.times(samples)), branch=branch)
 
 
+def determined_states(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
+                      solution: Solution | None = None) -> Solution:
+    """``solution``, or :func:`window_states` with ``samples`` states, checked
+    to be determined everywhere: the states an engine's inverse dynamics runs at.
+
+    Raises
+    ------
+    ValueError
+        If a state did not assemble or is singular (the first one, in one line).
+    """
+    if solution is None:
+        solution = window_states(kinematics, branch, **({} if samples is None else {"samples": samples}))
+    if not solution.success:
+        i = int(np.argmax(solution.status > Status.NEAR_SINGULAR))
+        raise ValueError(f"the native states are not all determined ({Status(int(solution.status[i])).message} "
+                         f"at sample {i})")
+    return solution
+
+
 def _magnitude(values: np.ndarray) -> np.ndarray:
     return np.abs(values) if values.ndim == 1 else np.linalg.norm(values, axis=1)
 

@@ -27,8 +27,8 @@ import copy
 import mujoco
 import numpy as np
 
-from ..dynamics import Forces, joint_quantities, window_states
-from ..kinematics import Kinematics, Status
+from ..dynamics import Forces, determined_states, joint_quantities
+from ..kinematics import Kinematics
 from ..model import GROUND, Prismatic, Revolute
 from ._mujoco_mjcf import Layout, joint_coordinates
 from ._mujoco_oracle import Oracle
@@ -56,12 +56,7 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
         If a state does not close MuJoCo's loops or is not determined.
     """
     mech = kinematics.mechanism
-    if solution is None:
-        solution = window_states(kinematics, branch, **({} if samples is None else {"samples": samples}))
-    if not solution.success:
-        i = int(np.argmax(solution.status > Status.NEAR_SINGULAR))
-        raise ValueError(f"the native states are not all determined ({Status(int(solution.status[i])).message} "
-                         f"at sample {i})")
+    solution = determined_states(kinematics, branch, samples, solution)
     oracle = Oracle(model, mech, lay)
     inputs, rates, accelerations = solution.inputs, solution.input_rates, solution.input_accelerations
     start = joint_coordinates(mech, lay, solution.q[0])

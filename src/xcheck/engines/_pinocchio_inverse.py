@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..dynamics import Forces, joint_quantities, window_states
-from ..kinematics import Kinematics, Status
+from ..dynamics import Forces, determined_states, joint_quantities
+from ..kinematics import Kinematics
 from ..model import GROUND, Prismatic, Revolute
 from ._pinocchio_model import build_model, joint_coordinates, point_frame, tree_spec
 from ._pinocchio_oracle import Oracle
@@ -47,12 +47,7 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
         If a state does not close Pinocchio's loops or is not determined.
     """
     mech = kinematics.mechanism
-    if solution is None:
-        solution = window_states(kinematics, branch, **({} if samples is None else {"samples": samples}))
-    if not solution.success:
-        i = int(np.argmax(solution.status > Status.NEAR_SINGULAR))
-        raise ValueError(f"the native states are not all determined ({Status(int(solution.status[i])).message} "
-                         f"at sample {i})")
+    solution = determined_states(kinematics, branch, samples, solution)
     pm = build_model(tree_spec(mech))
     model = pm.model
     oracle = Oracle(pm)

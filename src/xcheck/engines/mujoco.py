@@ -3,15 +3,13 @@
 
 ``export_files`` writes the MJCF file (see :mod:`._mujoco_mjcf` for its
 conventions); both modes compile that text, so they test the file a user gets.
-Run ``python -m xcheck.engines.mujoco models/*.toml`` to regenerate models/mjcf/.
+Run ``xcheck export --format mjcf`` to regenerate models/mjcf/.
 """
 
 from __future__ import annotations
 
 import copy
 import math
-import sys
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -19,7 +17,6 @@ import pandas as pd
 
 from ..compare import ModeResult, Trajectory, differences
 from ..errors import InputError, XcheckError
-from ..fileio import write_atomic
 from ..kinematics import Kinematics, Status
 from ..model import Mechanism
 from ..motion import simulation_window
@@ -432,21 +429,3 @@ def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples:
     if failure:
         raise ValueError(failure)
     return inverse_forces(kinematics, model, lay, branch, samples, solution)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Write models/mjcf/NAME.xml for each TOML file named on the command line."""
-    from ..model import load_mechanism
-
-    paths = sys.argv[1:] if argv is None else argv
-    for path in paths:
-        kin = Kinematics(load_mechanism(path))
-        for name, text in export_files(kin).items():
-            target = Path(path).resolve().parent / "mjcf" / name
-            write_atomic(target, text)
-            print(target)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

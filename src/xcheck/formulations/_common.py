@@ -78,17 +78,8 @@ def as_inputs(kinematics: Kinematics, inputs, rates=None, accelerations=None):
     ValueError
         If a shape is not (N, k) (or (N,) when k = 1), or a value is not finite.
     """
-    k = len(kinematics.mechanism.drivers)
-
     def shaped(values, name, shape=None):
-        arr = np.asarray(values, dtype=float)
-        if arr.ndim == 0:
-            arr = arr.reshape(1, 1)
-        if arr.ndim == 1:
-            arr = arr[:, None] if k == 1 else arr[None, :]
-        if arr.ndim != 2 or arr.shape[1] != k or (shape is not None and arr.shape != shape):
-            want = f"({shape[0]}, {k})" if shape else f"(N, {k})"
-            raise ValueError(f"expected {name} of shape {want}, found {np.shape(values)}")
+        arr = kinematics.input_array(values, shape)
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"expected finite {name}, found NaN or infinity")
         return arr

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import ModelError
-from ..model import GROUND, Mechanism
+from ..model import Mechanism
 from ._newton import MAX_CORRECTION, continue_to, det_sign, newton, tangent
 from ._system import ConstraintSystem, _perp, _rotate
 
@@ -514,9 +514,9 @@ class Kinematics:
         """
         system = self.system
         name = self._branch_name(branch)
-        c = self._as_inputs(inputs)
-        cd = np.zeros_like(c) if rates is None else self._as_inputs(rates, c.shape)
-        cdd = np.zeros_like(c) if accelerations is None else self._as_inputs(accelerations, c.shape)
+        c = self.input_array(inputs)
+        cd = np.zeros_like(c) if rates is None else self.input_array(rates, c.shape)
+        cdd = np.zeros_like(c) if accelerations is None else self.input_array(accelerations, c.shape)
         n_samples = c.shape[0]
 
         q = np.full((n_samples, system.n), np.nan)
@@ -661,7 +661,15 @@ class Kinematics:
                 previous, stop = None, float(c_new[0])
         return anchors, covered
 
-    def _as_inputs(self, values, shape=None) -> np.ndarray:
+    def input_array(self, values, shape=None) -> np.ndarray:
+        """Inputs (or their rates or accelerations) as an array of shape (N, k):
+        (N,) is N samples of a one-input mechanism, (k,) one sample.
+
+        Raises
+        ------
+        ValueError
+            If the shape does not fit (or differs from ``shape``).
+        """
         k = self.system.n_drivers
         arr = np.asarray(values, dtype=float)
         if arr.ndim == 0:
