@@ -37,11 +37,11 @@ def verdict_counts(textbook: list[dict]) -> dict[str, int]:
 
 
 def _comparison_section(run: RunResult) -> str:
-    headers = ["mode", "result"] + [f"{c} ({_CATEGORY_UNIT[c]})" for c in CATEGORIES] + ["worst at", "time"]
+    headers = ["mode", "result"] + [f"{c} ({_CATEGORY_UNIT[c]})" for c in CATEGORIES] + ["worst at"]
     rows = []
     for mode, outcome in run.outcomes.items():
         if not outcome.ok:
-            rows.append([f"`{mode}`", f"**failed**: {outcome.reason}"] + ["—"] * len(CATEGORIES) + ["", ""])
+            rows.append([f"`{mode}`", f"**failed**: {outcome.reason}"] + ["—"] * len(CATEGORIES) + [""])
             continue
         cells = []
         table = outcome.categories.set_index("category") if not outcome.categories.empty else None
@@ -51,7 +51,7 @@ def _comparison_section(run: RunResult) -> str:
                 continue
             row = table.loc[c]
             mark = "" if row.passed else " ✗"
-            cells.append(f"{_g(row.relative, 2)} / {_g(row.tolerance, 1)}{mark}")
+            cells.append(f"{_g(row.relative, 2)} / {_g(row.tolerance, 2)}{mark}")
         worst = ""
         if table is not None:
             ratios = table.relative / table.tolerance
@@ -61,8 +61,8 @@ def _comparison_section(run: RunResult) -> str:
         result = "pass" if outcome.passed else "**FAIL**"
         if outcome.reason:
             result += f" ({outcome.reason})"
-        rows.append([f"`{mode}`", result] + cells + [worst, f"{outcome.seconds:.1f} s"])
-    text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "lr")
+        rows.append([f"`{mode}`", result] + cells + [worst])
+    text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
     text += ("\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
              "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
              "quantity over all bodies and points. `native` is checked against its own equations (loop "
@@ -71,7 +71,7 @@ def _comparison_section(run: RunResult) -> str:
         text += "\n\nNot applicable here: " + "; ".join(f"`{m}`: {r}" for m, r in run.not_applicable.items()) + "."
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
-        [[f"`{m}`", _g(t.position, 1), _g(t.angle, 1), _g(t.velocity, 1), _g(t.acceleration, 1), t.basis]
+        [[f"`{m}`", _g(t.position, 2), _g(t.angle, 2), _g(t.velocity, 2), _g(t.acceleration, 2), t.basis]
          for m, t in TOLERANCES.items() if m in run.outcomes])
     return text
 
@@ -148,7 +148,7 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
         if not r.ok:
             rows.append([f"`{r.engine}`", f"**failed**: {r.reason}", "—", "—", "—", "—"])
             continue
-        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2), _g(r.tolerance, 1),
+        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2), _g(r.tolerance, 2),
                      f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}", str(r.states)])
     e = run.energy
     text = ("Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
@@ -160,7 +160,7 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
                    "llrrlr")
     text += (f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
              f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
-             f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 1)}); the work done since t = 0 matches the "
+             f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 2)}); the work done since t = 0 matches the "
              f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
              f"energy swing {_g(e['energy_swing'], 3)} J).")
     if "forces" in images:
@@ -206,7 +206,7 @@ def worst_text(run: RunResult) -> str:
     if worst is None:
         return "—"
     mode, category, relative, tolerance = worst
-    return f"`{mode}` {category}: {_g(relative, 2)} (tolerance {_g(tolerance, 1)})"
+    return f"`{mode}` {category}: {_g(relative, 2)} (tolerance {_g(tolerance, 2)})"
 
 
 def textbook_text(run: RunResult) -> str:
