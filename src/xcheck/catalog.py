@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["models_dir", "model_path", "model_names", "comparisons_dir", "comparisons_path"]
+__all__ = ["models_dir", "model_path", "model_names", "reports_dir", "comparisons_dir", "comparisons_path"]
 
 #: The repository's models/ (an editable or source install).
 _BUNDLED = Path(__file__).resolve().parents[2] / "models"
@@ -51,14 +51,29 @@ def model_path(name: str, directory: Path) -> Path:
     raise InputError(f"unknown mechanism {name!r}: expected one of {known} (in {directory})")
 
 
-def comparisons_dir(models: Path, override: str | Path | None = None) -> Path:
-    """The directory of printed textbook answers: ``override``, else
-    $XCHECK_COMPARISONS, else ``comparisons/`` beside the models directory."""
+def _home(model_file: Path) -> Path:
+    """Where a mechanism file's companions live: beside the ``models/`` directory
+    it is in, or beside the file itself when it is elsewhere."""
+    folder = Path(model_file).resolve().parent
+    return folder.parent if folder.name == "models" else folder
+
+
+def comparisons_dir(model_file: Path, override: str | Path | None = None) -> Path:
+    """The directory of printed textbook answers for a mechanism file:
+    ``override``, else $XCHECK_COMPARISONS, else ``comparisons/`` at the file's
+    home (beside its ``models/`` directory, or beside the file)."""
     if override is not None:
         return Path(override)
     if os.environ.get("XCHECK_COMPARISONS"):
         return Path(os.environ["XCHECK_COMPARISONS"])
-    return Path(models).parent / "comparisons"
+    return _home(model_file) / "comparisons"
+
+
+def reports_dir(model_file: Path, override: str | Path | None = None) -> Path:
+    """Where ``xcheck run`` writes a mechanism's report: ``override``, else
+    ``reports/`` at the file's home (so a file of one's own never writes into
+    the repository's reports)."""
+    return Path(override) if override is not None else _home(model_file) / "reports"
 
 
 def comparisons_path(model_file: Path, directory: Path) -> Path | None:

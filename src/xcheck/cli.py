@@ -1,4 +1,4 @@
-"""The command line: ``xcheck list`` and ``xcheck solve``."""
+"""The command line: ``xcheck list``, ``solve``, ``run`` and ``export``."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 from rich.table import Table
 
 from . import __version__
-from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir
+from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
@@ -26,7 +26,7 @@ from .model import Mechanism, load_mechanism
 from .output import print_run, run_json, print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
 from .textbook import check_printed, load_comparisons
 from .report import index_entry, write_index, write_report
-from .runner import ALL_MODES, run_mechanism
+from .runner import ALL_MODES, require_motion, run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -147,7 +147,7 @@ def solve_command(
         fields = [f"instants[{i}]" for i in range(len(states))]
     else:
         states = _parse_at(at, mech)
-        labels = ["at " + ", ".join(f"{d.name} = {_display(mech, d, value[0])}" for d, value in zip(mech.drivers, s))
+        labels = ["at " + ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, value[0])}" for d, value in zip(mech.drivers, s))
                   for s in states]
         fields = None
     _check_ranges(kin, states, branch, fields)
@@ -165,13 +165,10 @@ def solve_command(
         except XcheckError as err:
             forces_error = err
     textbook, textbook_error, document = None, None, ""
-    found = comparisons_path(path, comparisons_dir(models_dir(models), comparisons))
-    if found is not None:
-        try:
-            printed = load_comparisons(found, mech)
-            textbook, document = check_printed(kin, printed), printed.document
-        except XcheckError as err:
-            textbook_error = err
+    try:
+        textbook, document = _textbook_for(path, kin, comparisons)
+    except XcheckError as err:
+        textbook_error = err
     if as_json:
         output = solution_json(solution, labels, forces)
         if textbook is not None:
@@ -214,9 +211,20 @@ def _parse_engines(text: str | None) -> tuple[str, ...]:
     return tuple(dict.fromkeys(["native", *chosen]))
 
 
-def _textbook_for(path: Path, kin: Kinematics, models, comparisons) -> list[dict]:
-    found = comparisons_path(path, comparisons_dir(models_dir(models), comparisons))
-    return [] if found is None else check_printed(kin, load_comparisons(found, kin.mechanism))
+def _textbook_for(path: Path, kin: Kinematics, comparisons) -> tuple[list[dict] | None, str]:
+    """The printed answers of a mechanism file checked (None if it has no
+    comparisons file), and the document they come from.
+
+    Raises
+    ------
+    XcheckError
+        If the comparisons file is bad.
+    """
+    found = comparisons_path(path, comparisons_dir(path, comparisons))
+    if found is None:
+        return None, ""
+    printed = load_comparisons(found, kin.mechanism)
+    return check_printed(kin, printed), printed.document
 
 
 @app.command("run")
@@ -235,8 +243,9 @@ def run_command(
     out: Annotated[Optional[Path], typer.Option("--out", help="Directory of the Markdown reports (default: "
                                                 "reports/ beside the models directory).")] = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown reports.")] = True,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors; the exit code "
-                                        "says whether all modes are within tolerance.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no tables (--json still "
+                                        "prints); the exit code says whether all modes are within "
+                                        "tolerance.")] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
 ):
@@ -251,12 +260,14 @@ def run_command(
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
     paths = [model_path(n, directory) for n in names]
+    if out is not None and out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: expected a directory for the reports, found a file")
     kinematics = []
     for path in paths:  # every file checked before any work
         kin = Kinematics(load_mechanism(path))
         kin.assemble(branch)
+        require_motion(kin.mechanism)
         kinematics.append(kin)
-    reports_dir = out if out is not None else directory.parent / "reports"
     command = "xcheck run " + name + (f" --engines {engines}" if engines else "") + \
         (f" --samples {samples}" if samples != 181 else "") + (f" --branch {branch}" if branch else "")
     stderr = Console(stderr=True)
@@ -271,17 +282,19 @@ def run_command(
             def step(mode, label=label):
                 progress.update(task, description=f"{label}: {mode}", advance=1)
 
-            textbook = _textbook_for(path, kin, models, comparisons)
+            textbook, _ = _textbook_for(path, kin, comparisons)
             run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
             progress.update(task, advance=1)  # native
             if report:
                 progress.update(task, description=f"{label}: report")
-                write_report(run, reports_dir, command.replace(" " + name, " " + label, 1)
+                target = reports_dir(path, out)
+                write_report(run, target, command.replace(" " + name, " " + label, 1)
                              if name == "all" else command)
-                entries.append(index_entry(run))
+                entries.append((target, path.parent, index_entry(run)))
             results.append(run)
-    if report:
-        _update_index(reports_dir, entries, models)
+    for target in {t for t, _, _ in entries}:
+        folder = next(f for t, f, _ in entries if t == target)
+        _update_index(target, [e for t, _, e in entries if t == target], folder)
     if as_json:
         documents = [run_json(r) for r in results]
         typer.echo(json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False,
@@ -291,19 +304,20 @@ def run_command(
         for run in results:
             print_run(console, run)
             if report:
-                console.print(f"  report: {reports_dir / (run.mechanism.name + '.md')}")
+                console.print(f"  report: {reports_dir(Path(run.mechanism.path), out) / (run.mechanism.name + '.md')}")
             console.print()
     if not all(r.passed for r in results):
         raise typer.Exit(1)
 
 
-def _update_index(reports_dir: Path, entries: list[dict], models) -> None:
-    """Rewrite reports/README.md with these entries, keeping the lines of mechanisms not run now."""
-    known = {e["name"]: e for e in _read_index(reports_dir)}
+def _update_index(target: Path, entries: list[dict], model_folder: Path) -> None:
+    """Rewrite the reports' README.md with these entries, keeping the lines of
+    the other mechanisms of the same folder not run now."""
+    known = {e["name"]: e for e in _read_index(target)}
     known.update({e["name"]: e for e in entries})
-    existing = set(model_names(models_dir(models)))
+    existing = set(model_names(model_folder))
     write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
-                reports_dir, "xcheck run all")
+                target, "xcheck run all")
 
 
 def _read_index(reports_dir: Path) -> list[dict]:
@@ -346,7 +360,7 @@ def export_command(
         for f in formats:
             function, subdirectory = exporter(f)
             for file_name, text in function(kin).items():
-                target = directory / subdirectory / file_name
+                target = model_path(name, directory).parent / subdirectory / file_name
                 current = target.read_text(encoding="utf-8") if target.is_file() else None
                 if current == text:
                     continue
@@ -394,25 +408,36 @@ def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float
     return states
 
 
-def _display(mech: Mechanism, driver, value: float) -> str:
-    u = mech.units
-    if driver.quantity == "angle":
-        return f"{value / u.angle_factor:.6g} {u.angle}"
-    return f"{value / u.length_factor:.6g} {u.length}"
+#: inputs closer than this to a limit position (rad; slides per mechanism size)
+#: are refused: the mechanism is singular there and its rates grow without bound
+LIMIT_CLEARANCE = 1e-8
 
 
 def _check_ranges(kin: Kinematics, states, branch, fields) -> None:
+    """Refuse inputs outside the feasible range or at a limit position.
+
+    Only for one-input mechanisms: with several inputs the range of one
+    depends on the others, and the solve's own status decides.
+    """
     mech = kin.mechanism
+    if len(mech.drivers) != 1:
+        return
+    driver = mech.drivers[0]
+    rng = kin.input_range(0, branch)
+    clearance = LIMIT_CLEARANCE * (1.0 if driver.quantity == "angle" else kin.system.size)
     for i, state in enumerate(states):
-        for k, driver in enumerate(mech.drivers):
-            rng = kin.input_range(k, branch)
-            q = state[k][0]
-            if not rng.contains(q):
-                expected = f"an input within the feasible range ({range_text(kin, rng)})"
-                found = _display(mech, driver, q)
-                if fields:
-                    raise ModelError(mech.path, f"{fields[i]}.{driver.name}", expected, found)
-                raise InputError(f"{mech.path}: --at {driver.name}: expected {expected}, found {found}")
+        q = state[0][0]
+        if not rng.contains(q):
+            expected = f"an input within the feasible range ({range_text(kin, rng)})"
+        elif any(limit is not None and abs(q - limit) <= clearance for limit in (rng.low, rng.high)):
+            expected = (f"an input clear of the limit positions ({range_text(kin, rng)}): the mechanism is "
+                        "singular there and its rates are not determined")
+        else:
+            continue
+        found = mech.units.show_input(driver.quantity, q, digits=12)
+        if fields:
+            raise ModelError(mech.path, f"{fields[i]}.{driver.name}", expected, found)
+        raise InputError(f"{mech.path}: --at {driver.name}: expected {expected}, found {found}")
 
 
 def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
@@ -421,7 +446,7 @@ def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
         status = Status(int(code))
         if status <= Status.NEAR_SINGULAR:
             continue
-        inputs = ", ".join(f"{d.name} = {_display(mech, d, solution.inputs[i, k])}"
+        inputs = ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, solution.inputs[i, k])}"
                            for k, d in enumerate(mech.drivers))
         field = fields[i] if fields else "--at"
         raise ModelError(mech.path, field, "a state where the mechanism assembles with determined velocities",

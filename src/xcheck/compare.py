@@ -154,7 +154,8 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
         ``max_rel`` (max_abs / scale),
         ``worst_sample`` (index) and ``worst_input`` (the first driver's value
         there, SI). Samples where the native solver did not succeed are left
-        out and counted in ``samples``. Pass ``native`` (from :func:`native_at`)
+        out (``samples`` counts the others); ``missing`` counts those of them
+        where the trajectory has no finite value. Pass ``native`` (from :func:`native_at`)
         when it is already solved.
     """
     if native is None:
@@ -162,17 +163,17 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
     good = native.status <= 1
     rows = []
     for kind, name, quantity, error, magnitude in _errors(trajectory, native):
-        error, magnitude = error[good], magnitude[good]
-        if error.size == 0:
+        determined = good & np.isfinite(error)
+        if not determined.any():
             continue
-        worst = int(np.argmax(error))
+        where = np.flatnonzero(determined)
+        worst = where[int(np.argmax(error[where]))]
         rows.append({
             "kind": kind, "name": name, "quantity": quantity,
-            "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error**2))),
-            "scale": float(np.max(magnitude)),
-            "worst_sample": int(np.flatnonzero(good)[worst]),
-            "worst_input": float(trajectory.inputs[np.flatnonzero(good)[worst], 0]),
-            "samples": int(good.sum()),
+            "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error[where] ** 2))),
+            "scale": float(np.max(magnitude[where])),
+            "worst_sample": int(worst), "worst_input": float(trajectory.inputs[worst, 0]),
+            "samples": int(good.sum()), "missing": int(good.sum() - determined.sum()),
         })
     table = pd.DataFrame(rows)
     if not table.empty:

@@ -79,8 +79,17 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
     return {"mechanism": mech.name, "branch": solution.branch, "units": units, "states": states}
 
 
+def _inward(value: float, up: bool, digits: int = 6) -> float:
+    """``value`` rounded to ``digits`` significant digits towards the inside of a range."""
+    if value == 0.0 or not math.isfinite(value):
+        return value
+    step = 10.0 ** (math.floor(math.log10(abs(value))) - digits + 1)
+    return (math.ceil(value / step) if up else math.floor(value / step)) * step
+
+
 def range_text(kin: Kinematics, rng: InputRange) -> str:
-    """A driver's feasible range in display units, e.g. ``crank -129.02 … 129.02 deg``."""
+    """A driver's feasible range in display units, e.g. ``crank: -129.022 … 129.022 deg``
+    (the ends rounded inwards, so every value shown is feasible)."""
     units = kin.mechanism.units
     driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
     if driver.quantity == "angle":
@@ -89,8 +98,8 @@ def range_text(kin: Kinematics, rng: InputRange) -> str:
         scale, unit = units.length_factor, units.length
     if rng.full_turn:
         return f"{rng.driver}: full turn"
-    low = "-inf" if rng.low is None else f"{rng.low / scale:.6g}"
-    high = "+inf" if rng.high is None else f"{rng.high / scale:.6g}"
+    low = "-inf" if rng.low is None else f"{_inward(rng.low / scale, up=True):.6g}"
+    high = "+inf" if rng.high is None else f"{_inward(rng.high / scale, up=False):.6g}"
     return f"{rng.driver}: {low} … {high} {unit}"
 
 

@@ -23,12 +23,12 @@ from . import __version__
 from .compare import ModeResult, Trajectory, differences, native_at, sample_errors
 from .dynamics import (Forces, ForceResult, compare_forces, energy_summary, force_summary, inverse_dynamics,
                        require_mass_data, window_states)
-from .errors import XcheckError
+from .errors import InputError, XcheckError
 from .engines import mode_function
 from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
 
-__all__ = ["ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
+__all__ = ["require_motion", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
            "sweep_inputs", "versions", "convergence_table"]
 
 #: every mode, in the order tables show them
@@ -181,6 +181,25 @@ class RunResult:
         return None if best is None else best[1]
 
 
+def require_motion(mechanism) -> None:
+    """Refuse a mechanism none of whose drivers moves: comparing rates needs motion.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the drivers.
+    """
+    for driver in mechanism.drivers:
+        law = driver.law
+        if law.kind == "harmonic" and law.amplitude != 0.0 and law.frequency != 0.0:
+            return
+        if law.kind != "harmonic" and (law.rate != 0.0 or (law.kind == "constant-acceleration"
+                                                           and law.acceleration != 0.0)):
+            return
+    raise InputError(f"{mechanism.path}: drivers: expected a driver that moves (a nonzero rate, acceleration or "
+                     "harmonic amplitude; xcheck run compares motion), found none")
+
+
 def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None, margin: float = 1e-2):
     """The native sweep: the first driver over its feasible range (one turn for a
     crank, ``margin`` of the range clear of each limit position), other drivers
@@ -236,11 +255,14 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
         worst = int(np.argmax(relative.to_numpy()))
         row = part.iloc[worst]
         limit = tolerance.limit(category)
+        missing = int(part.missing.max()) if "missing" in part else 0
         rows.append({"category": category, "max_abs": float(part.max_abs.max()),
                      "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
                      "relative": float(relative.iloc[worst]), "tolerance": limit,
-                     "passed": bool(relative.iloc[worst] <= limit),
-                     "worst": f"{row['kind']} {row['name']}", "worst_input": float(row.worst_input)})
+                     "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
+                     "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing
+                                                                else ""),
+                     "worst_input": float(row.worst_input)})
     return pd.DataFrame(rows)
 
 
@@ -319,6 +341,7 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
         Called with each mode's name before it runs.
     """
     start = time.perf_counter()
+    require_motion(kinematics.mechanism)
     branch_name = kinematics._branch_name(branch)
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)

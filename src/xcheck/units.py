@@ -71,6 +71,12 @@ class Units:
     def acceleration_factor(self) -> float:
         return ACCELERATION_UNITS[self.acceleration]
 
+    def show_input(self, quantity: str, value: float, digits: int = 6) -> str:
+        """An input's SI value (rad for an "angle", m for a "slide") in display units."""
+        if quantity == "angle":
+            return f"{value / self.angle_factor:.{digits}g} {self.angle}"
+        return f"{value / self.length_factor:.{digits}g} {self.length}"
+
     @property
     def angular_acceleration(self) -> str:
         """Display name of angular accelerations (the rate unit per second)."""

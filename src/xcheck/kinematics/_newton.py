@@ -22,6 +22,13 @@ CONVERGED_TOLERANCE = 1e-10
 #: Largest accepted correction from the predicted configuration (scaled units:
 #: radians, or lengths per mechanism size) before a step counts as a jump.
 MAX_CORRECTION = 0.1
+#: Continuation does not step onto a configuration whose dimensionless Jacobian
+#: has an inverse condition number below this. Near a limit position (a fold)
+#: the number falls like the square root of the distance, so the walk still gets
+#: within 1e-10 of it; at a bifurcation (the change point of a parallelogram,
+#: where two branches cross) it falls linearly, and the walk stops there instead
+#: of carrying on along whichever branch keeps the determinant's sign.
+MIN_CONDITION = 1e-8
 
 
 def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -98,6 +105,14 @@ def tangent(system: ConstraintSystem, q: np.ndarray, jac: np.ndarray | None = No
     return solve_linear(system.jacobian(q) if jac is None else jac, rhs)
 
 
+def inverse_condition(system: ConstraintSystem, jac: np.ndarray) -> np.ndarray:
+    """1 / cond_1 of the dimensionless Jacobian per sample, shape (N,); 0 if singular."""
+    scaled = system.scaled_jacobian(jac)
+    with np.errstate(all="ignore"):
+        conditions = np.linalg.cond(scaled, 1)
+    return np.where(np.isfinite(conditions), 1.0 / conditions, 0.0)
+
+
 def det_sign(system: ConstraintSystem, jac: np.ndarray) -> np.ndarray:
     """Sign of det Phi_q per sample, shape (N,): it flips only through a singular
     configuration, so a change marks a branch jump or a crossed singularity."""
@@ -151,7 +166,8 @@ def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: 
             correction = np.max(np.abs((q_new[0] - guess) * system.coordinate_scale()))
             new_jac = system.jacobian(q_new)
             new_sign = det_sign(system, new_jac)[0]
-            accepted = correction <= MAX_CORRECTION and (new_sign == sign or sign == 0.0)
+            accepted = (correction <= MAX_CORRECTION and (new_sign == sign or sign == 0.0)
+                        and inverse_condition(system, new_jac)[0] >= MIN_CONDITION)
         if accepted:
             sign, jac = new_sign, new_jac
             q, c = q_new[0], c_next

@@ -283,7 +283,7 @@ class Kinematics:
             raise ModelError(mech.path, "assembly.branches",
                              "a rough sketch of a few points that picks the assembly branch "
                              f"(the mechanism has {loops} closed loop(s))", "none")
-        where = ", ".join(f"{d.name} = {self._show_input(d, v)}" for d, v in zip(mech.drivers, c_ref))
+        where = ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, c_ref))
 
         def no_assembly(why: str):
             return ModelError(mech.path, field_name, f"a sketch from which the mechanism assembles at {where}",
@@ -325,12 +325,6 @@ class Kinematics:
         q[2::3] = np.mod(q[2::3] + math.pi, 2.0 * math.pi) - math.pi  # body angles in [-pi, pi)
         self._assembled[name] = q
         return q
-
-    def _show_input(self, driver, value: float) -> str:
-        units = self.mechanism.units
-        if driver.quantity == "angle":
-            return f"{value / units.angle_factor:.6g} {units.angle}"
-        return f"{value / units.length_factor:.6g} {units.length}"
 
     def _sketch_guess(self, sketch: dict[str, np.ndarray]) -> np.ndarray:
         """Best rigid fit of each moving body's points to the sketch, shape (n,)."""

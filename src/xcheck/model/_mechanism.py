@@ -178,8 +178,9 @@ class MotionLaw:
             if self.amplitude == 0.0:
                 return 0.0 if value == self.centre else None
             ratio = (value - self.centre) / self.amplitude
-            if abs(ratio) > 1.0:
+            if abs(ratio) > 1.0 + 1e-12:  # a turning point computed in floating point may overshoot
                 return None
+            ratio = max(-1.0, min(1.0, ratio))
             w = 2.0 * math.pi * self.frequency
             period = 2.0 * math.pi / w
             candidates = []
@@ -205,6 +206,8 @@ class MotionLaw:
         if t is None:
             return None
         _, qd, qdd = self.at_time(t)
+        if self.kind == "harmonic" and abs(value - self.centre) >= abs(self.amplitude) * (1.0 - 1e-12):
+            qd = 0.0  # a turning point: the rate vanishes exactly
         return (value, float(qd), float(qdd))
 
 
