@@ -14,7 +14,7 @@ import pytest
 
 from conftest import MODEL_NAMES
 from test_kinematics import INVERTED, SLIDER_DRIVEN
-from test_textbook_answers import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
+from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
 from xcheck import Kinematics, Status
 from xcheck.compare import differences
 from xcheck.formulations import (
@@ -425,7 +425,7 @@ def _with_relative(table):
 
 def test_formulation_i_thetas_against_the_printed_table(kinematics):
     """Seed 000's formulation I table: theta1, theta2, theta3 at phi = 30, 60,
-    120 deg, with the verdicts of tests/test_textbook_answers.py (agrees, or
+    120 deg, with the verdicts of tests/printed_fourbar.py (agrees, or
     off by rounding where the general solver found so)."""
     trajectory = FORMULATIONS["formulation-I"](kinematics("fourbar"), np.radians([30.0, 60.0, 120.0]))
     rows = [(q, printed) for q, printed in PRINTED_FOURBAR if q.startswith("theta")]
