@@ -17,7 +17,7 @@ import pandas as pd
 from .kinematics import Kinematics, Solution
 
 __all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
-           "sample_errors", "trajectory_from_solution"]
+           "relative_to_floored_scale", "sample_errors", "trajectory_from_solution"]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
@@ -175,11 +175,17 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
             "worst_sample": int(worst), "worst_input": float(trajectory.inputs[worst, 0]),
             "samples": int(good.sum()), "missing": int(good.sum() - determined.sum()),
         })
-    table = pd.DataFrame(rows)
+    return relative_to_floored_scale(pd.DataFrame(rows), "quantity")
+
+
+def relative_to_floored_scale(table: pd.DataFrame, kind_column: str) -> pd.DataFrame:
+    """Floor each row's ``scale`` at :data:`SCALE_FLOOR` of the largest scale of
+    its kind (rows with equal ``kind_column``) and add ``max_rel`` = max_abs /
+    scale after ``scale``; the table is changed in place and returned."""
     if not table.empty:
-        largest = table.groupby("quantity")["scale"].transform("max")
+        largest = table.groupby(kind_column)["scale"].transform("max")
         table["scale"] = np.maximum(table["scale"], SCALE_FLOOR * largest)
         with np.errstate(divide="ignore", invalid="ignore"):
-            table.insert(6, "max_rel", np.where(table["scale"] > 0, table["max_abs"] / table["scale"],
-                                                table["max_abs"]))
+            table.insert(table.columns.get_loc("scale") + 1, "max_rel",
+                         np.where(table["scale"] > 0, table["max_abs"] / table["scale"], table["max_abs"]))
     return table

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..compare import SCALE_FLOOR
+from ..compare import relative_to_floored_scale
 from ..errors import XcheckError
 from ..kinematics import Kinematics, Solution, Status
 from ..motion import simulation_window
@@ -129,14 +129,7 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                     "worst_input": float(forces.inputs[worst, 0]),
                     "samples": int(good.sum()), "missing": int(good.sum() - finite.sum()),
                 })
-    table = pd.DataFrame(rows)
-    if not table.empty:
-        largest = table.groupby("unit")["scale"].transform("max")
-        table["scale"] = np.maximum(table["scale"], SCALE_FLOOR * largest)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            table.insert(7, "max_rel", np.where(table["scale"] > 0, table["max_abs"] / table["scale"],
-                                                table["max_abs"]))
-    return table
+    return relative_to_floored_scale(pd.DataFrame(rows), "unit")
 
 
 @dataclass
