@@ -28,7 +28,7 @@ import mujoco
 import numpy as np
 
 from ..dynamics import Forces, determined_states, joint_quantities
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, rotate
 from ..model import GROUND, Prismatic, Revolute
 from ._mujoco_mjcf import Layout, joint_coordinates
 from ._mujoco_oracle import Oracle
@@ -38,11 +38,6 @@ __all__ = ["inverse_forces"]
 
 def _cross(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
-
-
-def _rotate(angle: float, v) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
 def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, branch: str | None = None,
@@ -141,7 +136,7 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
             at = _site_position(dyn, data, joint.body_b, joint.point)
             moment = wrench[2] + _cross(reference[:2] - at, force)
             force_ab, moment_ab = sign * force, sign * moment
-            u = _rotate(_angle(data, body_ids, joint.body_a), joint.direction)
+            u = rotate(_angle(data, body_ids, joint.body_a), joint.direction)
             normal = np.array([-u[1], u[0]])
             if joint.name in driven:
                 force_ab = force_ab - tau[driven[joint.name]] * u

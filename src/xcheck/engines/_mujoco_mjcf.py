@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import XcheckError
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, rotate
 from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 from ..motion import simulation_window
 from ..topology import Topology, TreeJoint, spanning_tree
@@ -52,12 +52,6 @@ def _num(x: float) -> str:
 
 def _vec(*values: float) -> str:
     return " ".join(_num(v) for v in values)
-
-
-def _rotate(angle, v: np.ndarray) -> np.ndarray:
-    """A body vector v (2,) turned by angle(s) (rad, scalar or (N,)); shape (2,) or (N, 2)."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -188,7 +182,7 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
 
     def world(body: str, label: str) -> np.ndarray:
         r, phi = frames[body]
-        return r + _rotate(phi, mechanism.body(body).points[label])
+        return r + rotate(phi, mechanism.body(body).points[label])
 
     qpos = []
     for mj in lay.joints:
@@ -196,7 +190,7 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
         if mj.kind == "hinge":
             qpos.append(frames[joint.body_b][1] - frames[joint.body_a][1])
         else:
-            direction = _rotate(frames[joint.body_a][1], joint.direction)
+            direction = rotate(frames[joint.body_a][1], joint.direction)
             qpos.append(float(direction @ (world(joint.body_b, joint.point) - world(joint.body_a, joint.line_point))))
     return np.array(qpos)
 
@@ -226,7 +220,7 @@ def _servo_inertia(kinematics: Kinematics, masses: dict[str, MassProperties]) ->
         per_body = []
         for body in mech.moving_bodies:
             state, props = solution.body(body.name), masses[body.name]
-            arm = _rotate(state["angle"], props.com)
+            arm = rotate(state["angle"], props.com)
             v_com = state["velocity"] + state["omega"][:, None] * np.stack([-arm[:, 1], arm[:, 0]], axis=1)
             per_body.append((props, v_com, state["omega"]))
         velocities.append(per_body)
@@ -312,7 +306,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
             s_parent, s_child, angle = parent.points[point_b], body.points[point_a], -angle
         else:
             s_parent, s_child = parent.points[point_a], body.points[point_b]
-        pos, anchor = s_parent - _rotate(angle, s_child), s_child
+        pos, anchor = s_parent - rotate(angle, s_child), s_child
         attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
         if angle != 0.0:
             attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
@@ -324,7 +318,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
             else:
                 # the line's direction in the child frame (reversed: the child carries the line
                 # and moves against it)
-                axis = -joint.direction if tj.reversed else _rotate(-angle, joint.direction)
+                axis = -joint.direction if tj.reversed else rotate(-angle, joint.direction)
                 j_attrs["axis"] = _vec(axis[0], axis[1], 0.0)
             ET.SubElement(el, "joint", j_attrs)
         props = masses[body.name]

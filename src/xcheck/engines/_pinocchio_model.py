@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ModelError
+from ..kinematics import rotate
 from ..model import GROUND, Body, Mechanism, Prismatic, Revolute
 from ..topology import spanning_tree
 
@@ -179,11 +180,6 @@ def _unit3(xy) -> np.ndarray:
     return np.array([float(xy[0]), float(xy[1]), 0.0])
 
 
-def _rotated(angle: float, xy: np.ndarray) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
-
-
 _Z = np.array([0.0, 0.0, 1.0])
 
 
@@ -215,7 +211,7 @@ def tree_spec(mechanism: Mechanism) -> TreeSpec:
             d = j.direction
             if isinstance(j, Prismatic):
                 if not tj.reversed:  # frame at the sliding point, turned by the locked angle
-                    steps = [("prismatic", j.name, s_line, j.angle, _unit3(_rotated(-j.angle, d)))]
+                    steps = [("prismatic", j.name, s_line, j.angle, _unit3(rotate(-j.angle, d)))]
                     s_parent, s_child = s_line, s_point
                 else:  # frame at the line point of the child, axis reversed
                     steps = [("prismatic", j.name, s_point, -j.angle, -_unit3(d))]
@@ -394,7 +390,7 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
 
     def where(body, xy):
         r, phi = pose(body)
-        return r + _rotated(phi, xy)
+        return r + rotate(phi, xy)
 
     q = np.zeros(pm.model.nq)
     model = pm.model
@@ -407,5 +403,5 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
             j = mech.joint(js.tree_joint)
             gap = (where(j.body_b, mech.body(j.body_b).points[j.point])
                    - where(j.body_a, mech.body(j.body_a).points[j.line_point]))
-            q[idx] = float(_rotated(pose(j.body_a)[1], j.direction) @ gap)
+            q[idx] = float(rotate(pose(j.body_a)[1], j.direction) @ gap)
     return q

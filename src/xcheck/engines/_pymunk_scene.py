@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk as pm
 
-from xcheck.kinematics import Kinematics, Solution, Status
+from xcheck.kinematics import Kinematics, Solution, Status, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.motion import SimulationWindow, simulation_window
 
@@ -63,11 +63,6 @@ _GROOVE_MARGIN = (0.25, 0.05)
 #: The slide servo's fixed anchor sits this many mechanism sizes behind the
 #: line point, so the servo's length never passes through zero.
 _SERVO_BACKOFF = 2.0
-
-
-def _rotate(angle: float, xy) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
 
 
 def _groove_free_com(mechanism: Mechanism, name: str, centroid: np.ndarray) -> np.ndarray | None:
@@ -240,7 +235,7 @@ class Scene:
                 gap = max(gap, float(math.hypot(*d)))
                 continue
             a = self.bodies[joint.body_a]
-            u = _rotate(a.angle, joint.direction)
+            u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
             gap = max(gap, abs(float(u[0] * r[1] - u[1] * r[0])))
             if isinstance(joint, Prismatic):
@@ -258,7 +253,7 @@ class Scene:
             if driver.quantity == "angle":
                 q[k], qd[k] = b.angle - a.angle, b.angular_velocity - a.angular_velocity
                 continue
-            u = _rotate(a.angle, joint.direction)
+            u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
             v = (self.point_velocity(joint.body_b, joint.point)
                  - self.point_velocity(joint.body_a, joint.line_point))
@@ -274,7 +269,7 @@ def _place(body: pm.Body, origin, angle: float, origin_velocity, omega: float) -
     the centre of gravity."""
     body.angle = float(angle)
     body.position = (float(origin[0]), float(origin[1]))
-    arm = _rotate(angle, body.center_of_gravity)
+    arm = rotate(angle, body.center_of_gravity)
     v = np.asarray(origin_velocity, dtype=float) + omega * np.array([-arm[1], arm[0]])
     body.velocity = (float(v[0]), float(v[1]))
     body.angular_velocity = float(omega)
@@ -376,7 +371,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
             else:
                 joint = mech.joint(mech.drivers[drive.driver_index].joint)
                 line_angle = 0.0 if joint.body_a == GROUND else angle
-                drive.direction = _rotate(line_angle, joint.direction)
+                drive.direction = rotate(line_angle, joint.direction)
             drives.append(drive)
         _place(pb, origin, angle, frame["velocity"][first], float(frame["omega"][first]))
         if drive is not None and drive.kind == "kinematic-rate":

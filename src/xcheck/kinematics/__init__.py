@@ -2,7 +2,7 @@
 
 from ._newton import CONVERGED_TOLERANCE
 from ._solve import NEAR_SINGULAR, SINGULAR, InputRange, Kinematics, Solution, Status
-from ._system import ConstraintSystem
+from ._system import ConstraintSystem, rotate
 
 __all__ = [
     "CONVERGED_TOLERANCE",
@@ -13,4 +13,5 @@ __all__ = [
     "Kinematics",
     "Solution",
     "Status",
+    "rotate",
 ]

@@ -14,7 +14,7 @@ from scipy.optimize import least_squares
 from ..errors import ModelError
 from ..model import Mechanism
 from ._newton import MAX_CORRECTION, continue_to, det_sign, newton, tangent
-from ._system import ConstraintSystem, _perp, _rotate
+from ._system import ConstraintSystem, _perp, rotate
 
 __all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
 
@@ -149,7 +149,7 @@ class Solution:
         body = body or self.mechanism.point_owners[label]
         s = self.mechanism.body(body).points[label]
         r, phi, rd, phid, rdd, phidd = self._frame(body)
-        arm = _rotate(phi, s)
+        arm = rotate(phi, s)
         normal = _perp(arm)
         return {
             "position": r + arm,
@@ -341,7 +341,7 @@ class Kinematics:
                 phi = math.atan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a * b))
             else:
                 phi = 0.0
-            q[3 * i:3 * i + 2] = wc - _rotate(np.array([phi]), lc)[0]
+            q[3 * i:3 * i + 2] = wc - rotate(np.array([phi]), lc)[0]
             q[3 * i + 2] = phi
         return q
 
@@ -359,7 +359,7 @@ class Kinematics:
 
         def residuals(q, weight):
             phi = system.residual(q[None], c_ref[None])[0] * row_scale
-            pulls = [weight * (q[3 * i:3 * i + 2] + _rotate(q[3 * i + 2:3 * i + 3], s)[0] - xy) / size
+            pulls = [weight * (q[3 * i:3 * i + 2] + rotate(q[3 * i + 2:3 * i + 3], s)[0] - xy) / size
                      for i, s, xy in targets]
             return np.concatenate([phi] + pulls) if pulls else phi
 
@@ -369,7 +369,7 @@ class Kinematics:
             for i, s, _ in targets:
                 row = np.zeros((2, system.n))
                 row[:, 3 * i:3 * i + 2] = np.eye(2)
-                row[:, 3 * i + 2] = _perp(_rotate(q[3 * i + 2:3 * i + 3], s))[0]
+                row[:, 3 * i + 2] = _perp(rotate(q[3 * i + 2:3 * i + 3], s))[0]
                 rows.append(weight * row / size)
             return np.vstack([jac] + rows) if rows else jac
 

@@ -21,8 +21,9 @@ from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 __all__ = ["ConstraintSystem"]
 
 
-def _rotate(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """A(phi) s for phi of shape (N,) and a body vector s of shape (2,); returns (N, 2)."""
+def rotate(phi, s) -> np.ndarray:
+    """A(phi) s: a body vector s (2,) turned by phi (rad, a scalar or shape (N,));
+    returns shape (2,) or (N, 2)."""
     return _rotate_cs(np.cos(phi), np.sin(phi), s)
 
 
