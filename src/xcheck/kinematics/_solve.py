@@ -292,7 +292,8 @@ class Kinematics:
         sketch = {**{lbl: xy for lbl, xy in mech.ground.points.items()}, **drawn}
         try:
             with np.errstate(all="ignore"):  # absurd sizes overflow: reported below, not warned
-                fitted = self._fit_sketch(self._sketch_guess(sketch), c_ref, sketch)
+                guess = system.unwind_angles(self._sketch_guess(sketch), c_ref)
+                fitted = system.unwind_angles(self._fit_sketch(guess, c_ref, sketch), c_ref)
                 joint_gap = float(system.residual_metres(system.residual(fitted[None], c_ref[None],
                                                                          kinematic_only=True))[0])
                 dof = self.mobility(fitted)
@@ -321,8 +322,7 @@ class Kinematics:
             raise no_assembly(f"Newton-Raphson left a violation of {gap:.3g} {mech.units.length}"
                               if np.isfinite(gap) and gap < 1e3 * system.size / mech.units.length_factor
                               else "Newton-Raphson diverged from the sketch")
-        q = q[0]
-        q[2::3] = np.mod(q[2::3] + math.pi, 2.0 * math.pi) - math.pi  # body angles in [-pi, pi)
+        q = q[0]  # body angles continuous: never wrapped, the angle rows hold exactly
         self._assembled[name] = q
         return q
 

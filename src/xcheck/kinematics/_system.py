@@ -12,6 +12,7 @@ body-frame vector into the global frame, ``R`` rotates by +90 degrees, so
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -290,6 +291,47 @@ class ConstraintSystem:
         """The drivers' current inputs (joint angles, slides) at q, shape (N, k)."""
         zero = np.zeros((q.shape[0], self.n_drivers))
         return -self.residual(q, zero)[:, self.n_kinematic:]
+
+    def unwind_angles(self, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """q with body angles moved by whole turns so that every angle row holds.
+
+        The angle rows (relative angles of prismatic joints, revolute drivers)
+        are linear in the body angles, so a sketch fitted with ``atan2`` may
+        satisfy them only modulo 2 pi: a crank drawn at 200 deg comes out at
+        -160 deg. Walking the angle rows outwards from the ground (they form a
+        forest: redundant rows are refused) fixes each body's turn count once.
+
+        Parameters
+        ----------
+        q : ndarray, shape (n,)
+        c : ndarray, shape (k,)
+            The drivers' inputs (rad or m).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+        """
+        q = np.array(q, dtype=float)
+        edges = [(t, start) for t, start in zip(self.terms, self._offsets) if isinstance(t, _RelativeAngle)]
+        placed = {-1}
+        while edges:
+            progress = False
+            for t, start in list(edges):
+                if t.a not in placed and t.b not in placed:
+                    continue
+                r = float(self.residual(q[None], c[None])[0, start])
+                turns = round(r / (2.0 * math.pi))
+                if turns:
+                    if t.b not in placed:
+                        q[3 * t.b + 2] -= 2.0 * math.pi * turns
+                    else:
+                        q[3 * t.a + 2] += 2.0 * math.pi * turns
+                placed.update((t.a, t.b))
+                edges.remove((t, start))
+                progress = True
+            if not progress:  # a group of bodies not tied to the ground by angle rows
+                placed.add(edges[0][0].b)
+        return q
 
     # -- scaling ----------------------------------------------------------
     def residual_metres(self, phi: np.ndarray) -> np.ndarray:
