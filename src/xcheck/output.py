@@ -73,7 +73,8 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
         if labels is not None:
             state = {"label": labels[i], **state}
         states.append(state)
-    units = {"length": "m", "angle": "rad", "time": "s"}
+    units = {"length": "m", "angle": "rad", "time": "s",
+             "angles": "continuous radians: never wrapped, a crank two turns on is 4 pi further"}
     if forces is not None:
         units.update(force="N", torque="N m")
     return {"mechanism": mech.name, "branch": solution.branch, "units": units, "states": states}

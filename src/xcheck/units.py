@@ -96,6 +96,9 @@ _FUNCTIONS = {
     "sin": math.sin,
     "cos": math.cos,
     "tan": math.tan,
+    "asin": math.asin,
+    "acos": math.acos,
+    "atan": math.atan,
     "atan2": math.atan2,
     "radians": math.radians,
     "degrees": math.degrees,
@@ -107,8 +110,8 @@ def evaluate_expression(text: str) -> float:
     """Evaluate an arithmetic expression such as ``"600/sqrt(2)"``.
 
     Numbers, ``+ - * / **``, parentheses, ``pi`` and the functions sqrt, sin,
-    cos, tan, atan2, radians, degrees (trigonometry in radians) are allowed;
-    nothing else is evaluated.
+    cos, tan, asin, acos, atan, atan2, radians, degrees (trigonometry in
+    radians) are allowed; nothing else is evaluated.
 
     Raises
     ------

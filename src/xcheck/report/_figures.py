@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import math
 import tempfile
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -121,8 +122,9 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
     for n, i in enumerate(chosen):
         _draw_pose(ax, run, i, alpha=0.25 + 0.75 * (n == len(chosen) // 2), labels=n == len(chosen) // 2)
     values, label = _input_axis(run, native.inputs[chosen, 0])
-    ax.set_title(f"{mech.name}: {label.split(' [')[0]} = " + ", ".join(f"{v:.4g}" for v in values)
-                 + f" {label.split('[')[1].rstrip(']')} (labels at the middle pose; grey: paths)", fontsize=9)
+    title = (f"{mech.name}: {label.split(' [')[0]} = " + ", ".join(f"{v:.4g}" for v in values)
+             + f" {label.split('[')[1].rstrip(']')} (labels at the middle pose; grey: paths)")
+    ax.set_title(textwrap.fill(title, 80), fontsize=9)  # 80 characters of 9 pt fit the 7 in figure
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel(f"x [{unit}]")
     ax.set_ylabel(f"y [{unit}]")
