@@ -43,9 +43,13 @@ def write(tmp_path: Path, text: str, name: str = "bad.toml") -> Path:
 
 
 def library_error(path: Path) -> ModelError:
-    """The ModelError that loading and assembling ``path`` raises."""
+    """The ModelError that loading and assembling ``path``, or taking its
+    instants' states (checked when used, not at load), raises."""
     with pytest.raises(ModelError) as info:
-        Kinematics(load_mechanism(path)).assemble()
+        mechanism = load_mechanism(path)
+        Kinematics(mechanism).assemble()
+        for instant in mechanism.instants:
+            instant.states(mechanism)
     err = info.value
     assert err.path == str(path)
     assert str(err) == (f"{path}: {err.field}: expected {err.expected}, found {err.found}" if err.field

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import xml.etree.ElementTree as ET
 
+from pathlib import Path
+
 import pytest
 from typer.testing import CliRunner
 
@@ -128,7 +130,9 @@ def test_reports_are_written_whole(tmp_path):
     for image in ("drawing.png", "quantities.png", "differences.png", "convergence.png", "motion.gif"):
         assert (tmp_path / "two-body-arm" / image).stat().st_size > 1000
         assert f"two-body-arm/{image}" in report
-    assert "Reproduce: `xcheck run two-body-arm --samples 21`" in report
+    models = Path(MODELS).resolve()
+    shown = models.relative_to(Path.cwd().resolve()) if models.is_relative_to(Path.cwd().resolve()) else models
+    assert f"Reproduce: `xcheck run two-body-arm --samples 21 --models {shown} --out {tmp_path}`" in report
     index = (tmp_path / "README.md").read_text()
     assert "[two-body-arm](two-body-arm.md)" in index
     # rerunning replaces the report; no staging directories are left behind

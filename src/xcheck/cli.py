@@ -26,7 +26,7 @@ from .model import Mechanism, load_mechanism
 from .output import print_run, run_json, print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
 from .textbook import check_printed, load_comparisons
 from .report import index_entry, write_index, write_report
-from .runner import ALL_MODES, require_motion, run_mechanism
+from .runner import ALL_MODES, run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -80,39 +80,59 @@ def _main(
 @app.command("list")
 @_reports_errors
 def list_command(
+    where: Annotated[Optional[Path], typer.Argument(
+        help="A directory of mechanism files or one .toml file (default: the models directory).",
+        show_default=False)] = None,
     models: ModelsOption = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON (ranges in SI, with the display text) "
+                                          "instead of a table.")] = False,
 ):
     """List the mechanisms: name, title, source, degrees of freedom, input range.
 
-    Example: xcheck list
+    Examples: xcheck list;  xcheck list my-models/;  xcheck list my-linkage.toml --json
     """
-    directory = models_dir(models)
+    chosen = where if where is not None else models
+    if chosen is not None and chosen.suffix == ".toml":
+        if not chosen.is_file():
+            raise InputError(f"{chosen}: expected a mechanism file, found no such file")
+        paths = [chosen]
+    else:
+        directory = models_dir(chosen)
+        paths = [directory / f"{name}.toml" for name in model_names(directory)]
     rows, failures = [], []
-    for name in model_names(directory):
+    for path in paths:  # one bad file is reported at the end; the others are listed
         try:
-            mech = load_mechanism(directory / f"{name}.toml")
+            mech = load_mechanism(path)
             kin = Kinematics(mech)
             dof = kin.mobility()
-            ranges = [range_text(kin, kin.input_range(k)) for k in range(len(mech.drivers))]
+            ranges = [kin.input_range(k) for k in range(len(mech.drivers))]
         except XcheckError as err:
             failures.append(str(err))
             continue
-        rows.append({"name": mech.name, "title": mech.title, "source": mech.source,
-                     "dof": dof["rank"], "ranges": ranges})
+        rows.append({"name": mech.name, "title": mech.title, "source": mech.source, "file": str(path),
+                     "dof": dof["rank"], "ranges": [_range_json(kin, rng) for rng in ranges]})
     if as_json:
-        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, allow_nan=False))
     else:
         table = Table(header_style="bold")
         for header in ("name", "title", "source", "DOF", "input range"):
             table.add_column(header, overflow="fold")
         for row in rows:
-            table.add_row(row["name"], row["title"], row["source"], str(row["dof"]), "\n".join(row["ranges"]))
+            table.add_row(row["name"], row["title"], row["source"], str(row["dof"]),
+                          "\n".join(r["text"] for r in row["ranges"]))
         wide_console().print(table)
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
         raise typer.Exit(2)
+
+
+def _range_json(kin: Kinematics, rng) -> dict:
+    """A driver's feasible range for JSON: SI bounds (rad or m; null where a
+    crank turns round or no limit was met) and the display text."""
+    driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
+    return {"driver": rng.driver, "quantity": driver.quantity, "unit": "rad" if driver.quantity == "angle" else "m",
+            "low": rng.low, "high": rng.high, "full_turn": rng.full_turn, "text": range_text(kin, rng)}
 
 
 @app.command("solve")
@@ -123,7 +143,15 @@ def solve_command(
         "--at", metavar="V[,V…]",
         help="Input values in display units (degrees for angles, the model's length unit for slides); "
              "separate states by commas and, for several drivers, their values by colons (30:45). "
-             "Rates come from the drivers' motion. Default: the instants in the model file.")] = None,
+             "Rates come from the drivers' motion (angles modulo a turn; a driver that stands still gives "
+             "a static position) unless --rate gives them. Default: the instants in the model file.")] = None,
+    rate: Annotated[Optional[str], typer.Option(
+        "--rate", metavar="V[:V…]",
+        help="With --at: the drivers' rates for every state (angular_rate of [units] for angles, length "
+             "unit/s for slides), instead of the motion laws'; 0 gives a static position.")] = None,
+    accel: Annotated[Optional[str], typer.Option(
+        "--accel", metavar="V[:V…]",
+        help="With --rate: the drivers' accelerations (rate unit per s), default 0.")] = None,
     branch: Annotated[Optional[str], typer.Option(
         "--branch", help="Assembly branch (default: the model file's first).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
@@ -133,20 +161,25 @@ def solve_command(
     """Solve a mechanism's position, velocity and acceleration at its instants.
 
     Examples: xcheck solve fourbar;  xcheck solve fourbar --at 45,90 --json;
-    xcheck solve two-body-arm --at 30:30
+    xcheck solve two-body-arm --at 30:30;  xcheck solve fourbar --at 60 --rate 1.5 --accel 0
     """
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
+    if at is None and (rate is not None or accel is not None):
+        raise InputError(f"{mech.path}: {'--rate' if rate is not None else '--accel'}: expected it with --at "
+                         "(the instants of the file carry their own rates), found no --at")
+    if accel is not None and rate is None:
+        raise InputError(f"{mech.path}: --accel: expected it with --rate, found --accel alone")
     kin = Kinematics(mech)
     kin.assemble(branch)
     if at is None:
         if not mech.instants:
             raise ModelError(mech.path, "instants", "[[instants]] to solve (or use --at)", "none")
         labels = [inst.label for inst in mech.instants]
-        states = [[inst.inputs[d.name] for d in mech.drivers] for inst in mech.instants]
+        states = [inst.states(mech) for inst in mech.instants]
         fields = [f"instants[{i}]" for i in range(len(states))]
     else:
-        states = _parse_at(at, mech)
+        states = _parse_at(at, mech, rate, accel)
         labels = ["at " + ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, value[0])}" for d, value in zip(mech.drivers, s))
                   for s in states]
         fields = None
@@ -259,46 +292,49 @@ def run_command(
     modes = _parse_engines(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
-    paths = [model_path(n, directory) for n in names]
     if out is not None and out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: expected a directory for the reports, found a file")
-    kinematics = []
-    for path in paths:  # every file checked before any work
-        kin = Kinematics(load_mechanism(path))
-        kin.assemble(branch)
-        require_motion(kin.mechanism)
-        kinematics.append(kin)
-    command = "xcheck run " + name + (f" --engines {engines}" if engines else "") + \
-        (f" --samples {samples}" if samples != 181 else "") + (f" --branch {branch}" if branch else "")
+    options = ((f" --engines {engines}" if engines else "") + (f" --samples {samples}" if samples != 181 else "")
+               + (f" --branch {branch}" if branch else "") + _shown_option("--models", models)
+               + _shown_option("--comparisons", comparisons) + _shown_option("--out", out))
     stderr = Console(stderr=True)
-    results, entries = [], []
+    results, entries, failures = [], [], []
     progress = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                         TimeElapsedColumn(), console=stderr, transient=True, disable=quiet or not stderr.is_terminal)
     with progress:
-        task = progress.add_task("", total=len(paths) * len(modes))
-        for path, kin in zip(paths, kinematics):
-            label = kin.mechanism.name
+        task = progress.add_task("", total=len(names) * len(modes))
+        for model in names:
+            try:  # one bad file is reported at the end; the others run
+                path = model_path(model, directory)
+                kin = Kinematics(load_mechanism(path))
+                kin.assemble(branch)
+                label = kin.mechanism.name
 
-            def step(mode, label=label):
-                progress.update(task, description=f"{label}: {mode}", advance=1)
+                def step(mode, label=label):
+                    progress.update(task, description=f"{label}: {mode}", advance=1)
 
-            textbook, _ = _textbook_for(path, kin, comparisons)
-            run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
+                textbook, _ = _textbook_for(path, kin, comparisons)
+                run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
+            except XcheckError as err:
+                failures.append(str(err))
+                progress.update(task, advance=len(modes))
+                continue
             progress.update(task, advance=1)  # native
             if report:
                 progress.update(task, description=f"{label}: report")
                 target = reports_dir(path, out)
-                write_report(run, target, command.replace(" " + name, " " + label, 1)
-                             if name == "all" else command)
+                write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
                 entries.append((target, path.parent, index_entry(run)))
             results.append(run)
+    command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
         folder = next(f for t, f, _ in entries if t == target)
-        _update_index(target, [e for t, _, e in entries if t == target], folder)
+        _update_index(target, [e for t, _, e in entries if t == target], folder, command)
     if as_json:
         documents = [run_json(r) for r in results]
-        typer.echo(json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False,
-                              ensure_ascii=False))
+        if name == "all" or documents:
+            typer.echo(json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False,
+                                  ensure_ascii=False))
     elif not quiet:
         console = wide_console()
         for run in results:
@@ -306,18 +342,41 @@ def run_command(
             if report:
                 console.print(f"  report: {reports_dir(Path(run.mechanism.path), out) / (run.mechanism.name + '.md')}")
             console.print()
+    for failure in failures:
+        typer.echo(f"xcheck: error: {failure}", err=True)
+    if failures:
+        raise typer.Exit(2)
     if not all(r.passed for r in results):
         raise typer.Exit(1)
 
 
-def _update_index(target: Path, entries: list[dict], model_folder: Path) -> None:
+def _shown_path(path: Path) -> str:
+    """A path as a command line would give it: relative to the working
+    directory when it lies below it, else as it is."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+def _shown_model(name: str) -> str:
+    """A mechanism argument (a name, 'all' or a path) as a reproducible command line gives it."""
+    return _shown_path(Path(name)) if Path(name).suffix == ".toml" or "/" in name else name
+
+
+def _shown_option(option: str, value: Path | None) -> str:
+    return "" if value is None else f" {option} {_shown_path(Path(value))}"
+
+
+def _update_index(target: Path, entries: list[dict], model_folder: Path, command: str) -> None:
     """Rewrite the reports' README.md with these entries, keeping the lines of
-    the other mechanisms of the same folder not run now."""
+    the other mechanisms of the same folder not run now; ``command`` is the
+    run that wrote it last."""
     known = {e["name"]: e for e in _read_index(target)}
     known.update({e["name"]: e for e in entries})
     existing = set(model_names(model_folder))
     write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
-                target, "xcheck run all")
+                target, command)
 
 
 def _read_index(reports_dir: Path) -> list[dict]:
@@ -375,34 +434,66 @@ def export_command(
         raise typer.Exit(1)
 
 
-def _parse_at(text: str, mech: Mechanism) -> list[list[tuple[float, float, float]]]:
-    """``--at`` values (display units) to per-state (q, qd, qdd) per driver, SI."""
+def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[list[float]]:
+    """Comma-separated states of colon-separated per-driver values (display
+    units) to SI; ``scale_of(driver)`` is SI per display unit."""
     states = []
-    u = mech.units
     for item in text.split(","):
         parts = item.split(":")
         if len(parts) != len(mech.drivers):
-            raise InputError(f"{mech.path}: --at: expected {len(mech.drivers)} value(s) per state separated "
+            raise InputError(f"{mech.path}: {option}: expected {len(mech.drivers)} value(s) per state separated "
                              f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {item!r}")
         state = []
         for driver, part in zip(mech.drivers, parts):
             try:
                 value = evaluate_expression(part.strip())
             except ValueError as err:
-                raise InputError(f"{mech.path}: --at {driver.name}: expected a number or an arithmetic "
+                raise InputError(f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
                                  f"expression, found {part!r} ({err})") from None
-            scale = u.angle_factor if driver.quantity == "angle" else u.length_factor
+            state.append(value * scale_of(driver))
+        states.append(state)
+    return states
+
+
+def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
+              accel: str | None = None) -> list[list[tuple[float, float, float]]]:
+    """``--at`` values (display units) to per-state (q, qd, qdd) per driver, SI.
+
+    Rates and accelerations come from ``--rate``/``--accel`` (one state each,
+    applied to every ``--at`` state) or else from the motion laws.
+    """
+    u = mech.units
+    values = _parse_values(text, mech, "--at",
+                           lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)
+    if rate is not None:
+        def per_second(driver):
+            return u.angular_rate_factor if driver.quantity == "angle" else u.length_factor
+        rates = _parse_values(rate, mech, "--rate", per_second)
+        accels = _parse_values(accel, mech, "--accel", per_second) if accel is not None else [[0.0] * len(mech.drivers)]
+        for option, given in (("--rate", rates), ("--accel", accels)):
+            if len(given) != 1:
+                raise InputError(f"{mech.path}: {option}: expected one state (applied to every --at state), "
+                                 f"found {len(given)}")
+            if not all(math.isfinite(v) for v in given[0]):
+                raise InputError(f"{mech.path}: {option}: expected finite values, found {given[0]}")
+        return [[(q, qd, qdd) for q, qd, qdd in zip(state, rates[0], accels[0])] for state in values]
+    states = []
+    for state_values in values:
+        state = []
+        for driver, value in zip(mech.drivers, state_values):
             try:
-                result = driver.law.state_at(value * scale)
+                result = driver.law.state_at(value)
             except OverflowError:  # absurd rates or accelerations
                 result = (math.inf,)
+            shown = mech.units.show_input(driver.quantity, value, digits=12)
             if result is None:
                 raise InputError(f"{mech.path}: --at {driver.name}: expected a value that the driver's "
-                                 f"{driver.law.kind} motion reaches, found {part.strip()}, which it never does")
+                                 f"{driver.law.kind} motion reaches (or give the rates with --rate), found "
+                                 f"{shown}, which it never does")
             if not all(math.isfinite(v) for v in result):
                 raise InputError(f"{mech.path}: --at {driver.name}: expected a value at which the driver's "
                                  f"{driver.law.kind} motion has a finite rate and acceleration, "
-                                 f"found {part.strip()} (the motion law overflows)")
+                                 f"found {shown} (the motion law overflows)")
             state.append(result)
         states.append(state)
     return states

@@ -15,7 +15,7 @@ import numpy as np
 from .errors import InputError
 from .kinematics import Kinematics
 
-__all__ = ["SimulationWindow", "simulation_window"]
+__all__ = ["SimulationWindow", "law_states", "reached_span", "simulation_window"]
 
 
 @dataclass(frozen=True)
@@ -85,3 +85,59 @@ def simulation_window(kinematics: Kinematics, branch: str | None = None, margin:
     if not inside.all():
         duration, reason = float(times[np.argmin(inside) - 1]), "feasible range"
     return SimulationWindow(duration, reason)
+
+
+def law_states(mechanism, inputs: np.ndarray):
+    """The drivers' rates and accelerations where their motion laws pass ``inputs``.
+
+    One rule for every sweep and for ``xcheck solve --at``: the law's state at
+    the time nearest t = 0 at which it passes the value (angles modulo a
+    turn); a law that stands still gives zeros (a static position).
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (N, k)
+        The drivers' values, SI.
+
+    Returns
+    -------
+    rates, accelerations : ndarray, shape (N, k)
+        Zero where the law never passes the value.
+    reached : ndarray of bool, shape (N, k)
+    """
+    rates, accelerations = np.zeros_like(inputs), np.zeros_like(inputs)
+    reached = np.zeros(inputs.shape, dtype=bool)
+    for k, driver in enumerate(mechanism.drivers):
+        for i, value in enumerate(inputs[:, k]):
+            state = driver.law.state_at(float(value))
+            if state is not None and all(math.isfinite(v) for v in state):
+                rates[i, k], accelerations[i, k], reached[i, k] = state[1], state[2], True
+    return rates, accelerations, reached
+
+
+def reached_span(driver, low: float, high: float, count: int = 4001) -> tuple[float, float] | None:
+    """The part of ``[low, high]`` (SI) that the driver's motion law reaches,
+    to (high - low) / (count - 1); None if it reaches no value there.
+
+    A harmonic slide in a wider feasible range covers only centre +- amplitude;
+    a law that stands still reaches every value.
+    """
+    values = np.linspace(low, high, count)
+    hit = np.array([driver.law.state_at(float(v)) is not None for v in values])
+    if not hit.any():
+        return None
+    first, last = int(np.argmax(hit)), count - 1 - int(np.argmax(hit[::-1]))
+    lo = values[first] if first == 0 else _edge(driver, values[first - 1], values[first])
+    hi = values[last] if last == count - 1 else _edge(driver, values[last + 1], values[last])
+    return float(lo), float(hi)
+
+
+def _edge(driver, outside: float, inside: float) -> float:
+    """The last value the law reaches between ``inside`` (reached) and ``outside``, by bisection."""
+    for _ in range(60):
+        middle = 0.5 * (outside + inside)
+        if driver.law.state_at(middle) is None:
+            outside = middle
+        else:
+            inside = middle
+    return inside

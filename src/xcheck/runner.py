@@ -27,8 +27,9 @@ from .errors import InputError, XcheckError
 from .engines import mode_function
 from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
+from .motion import law_states, reached_span
 
-__all__ = ["require_motion", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
+__all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
            "sweep_inputs", "versions", "convergence_table"]
 
 #: every mode, in the order tables show them
@@ -182,29 +183,18 @@ class RunResult:
         return None if best is None else best[1]
 
 
-def require_motion(mechanism) -> None:
-    """Refuse a mechanism none of whose drivers moves: comparing rates needs motion.
-
-    Raises
-    ------
-    InputError
-        Naming the file and the drivers.
-    """
-    for driver in mechanism.drivers:
-        law = driver.law
-        if law.kind == "harmonic" and law.amplitude != 0.0 and law.frequency != 0.0:
-            return
-        if law.kind != "harmonic" and (law.rate != 0.0 or (law.kind == "constant-acceleration"
-                                                           and law.acceleration != 0.0)):
-            return
-    raise InputError(f"{mechanism.path}: drivers: expected a driver that moves (a nonzero rate, acceleration or "
-                     "harmonic amplitude; xcheck run compares motion), found none")
+def is_static(mechanism) -> bool:
+    """True when no driver moves: every state of the sweep is a static position
+    (rates and accelerations zero), so there is no motion to integrate."""
+    return all(d.law.static for d in mechanism.drivers)
 
 
 def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None, margin: float = 1e-2):
     """The native sweep: the first driver over its feasible range (one turn for a
     crank, ``margin`` of the range clear of each limit position), other drivers
-    at their assembly values; rates and accelerations from the motion laws.
+    at their assembly values; rates and accelerations from the motion laws
+    (:func:`xcheck.motion.law_states`, the rule of ``xcheck solve --at``), the
+    sweep narrowed to the values the first driver's law reaches.
 
     Near a limit position every method loses digits in proportion to the
     condition number of the equations (the exact formulations differ from the
@@ -226,16 +216,20 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
         high = rng.high if rng.high is not None else ref[0] + rng.span
         pad = margin * (high - low)
         low, high = low + pad, high - pad
+    span = reached_span(mech.drivers[0], low, high)
+    if span is None:
+        shown = " … ".join(mech.units.show_input(mech.drivers[0].quantity, v) for v in (low, high))
+        raise InputError(f"{mech.path}: drivers[0]: expected a motion that reaches the feasible range "
+                         f"({shown}), found one that never does")
     inputs = np.tile(ref, (samples, 1))
-    inputs[:, 0] = np.linspace(low, high, samples)
-    rates, accelerations = np.zeros_like(inputs), np.zeros_like(inputs)
+    inputs[:, 0] = np.linspace(*span, samples)
+    rates, accelerations, reached = law_states(mech, inputs)
     for k, driver in enumerate(mech.drivers):
-        for i in range(samples):
-            state = driver.law.state_at(inputs[i, k])
-            if state is None:  # the law never reaches the value: its rates at t = 0 stand in
-                _, qd, qdd = driver.law.at_time(0.0)
-                state = (inputs[i, k], float(qd), float(qdd))
-            rates[i, k], accelerations[i, k] = state[1], state[2]
+        if not reached[:, k].all():
+            shown = mech.units.show_input(driver.quantity, float(inputs[np.argmin(reached[:, k]), k]))
+            raise InputError(f"{mech.path}: assembly.at.{driver.name}: expected a value that the driver's "
+                             f"{driver.law.kind} motion reaches (the sweep takes the rates from the laws), "
+                             f"found {shown}, which it never does")
     return inputs, rates, accelerations
 
 
@@ -342,7 +336,7 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
         Called with each mode's name before it runs.
     """
     start = time.perf_counter()
-    require_motion(kinematics.mechanism)
+    static = is_static(kinematics.mechanism)
     branch_name = kinematics._branch_name(branch)
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
@@ -355,6 +349,10 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
             raise ValueError(f"expected modes among {', '.join(ALL_MODES)}, found {mode!r}")
         if progress is not None:
             progress(mode)
+        if static and mode.endswith("-dynamic"):
+            not_applicable[mode] = ("the drivers stand still (every state is a static position): there is no "
+                                    "motion to integrate")
+            continue
         try:
             outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch)
         except NotApplicable as err:

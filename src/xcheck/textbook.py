@@ -428,7 +428,7 @@ def check_printed(kinematics: Kinematics, comparisons: Comparisons) -> list[dict
         else:
             key = (entry.instant, entry.branch)
             if key not in solutions:
-                state = np.array([instants[entry.instant].inputs[d.name] for d in mech.drivers])
+                state = np.array(instants[entry.instant].states(mech))
                 solution = kinematics.solve(state[None, :, 0], state[None, :, 1], state[None, :, 2],
                                             branch=entry.branch)
                 status = Status(int(solution.status[0]))

@@ -88,6 +88,10 @@ def _describe(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+class _Unreached(Exception):
+    """An instant's value that its driver's motion never reaches: (field, expected, found)."""
+
+
 class _Reader:
     """Turns the parsed TOML into a :class:`Mechanism`, one checked field at a time."""
 
@@ -436,10 +440,10 @@ class _Reader:
             if kind == "harmonic":
                 law = MotionLaw(kind, centre=get("centre", q_scale), amplitude=get("amplitude", q_scale),
                                 frequency=self.number(spec.get("frequency"), f"{field}.frequency", positive=True),
-                                phase=get("phase", units.angle_factor))
+                                phase=get("phase", units.angle_factor), turns=quantity == "angle")
             else:
                 law = MotionLaw(kind, start=get("start", q_scale), rate=get("rate", rate_scale),
-                                acceleration=get("acceleration", rate_scale))
+                                acceleration=get("acceleration", rate_scale), turns=quantity == "angle")
             name = self.text(spec.get("name", joint_name), f"{field}.name")
             if any(d.name == name for d in drivers):
                 self.fail(f"{field}.name", "a name no other driver has", repr(name))
@@ -492,12 +496,16 @@ class _Reader:
                 if key != "label" and key not in {d.name for d in drivers}:
                     self.fail(f"{field}.{key}", f"'label' or a driver ({', '.join(d.name for d in drivers)})",
                               repr(key))
-            inputs = {}
+            inputs, problem = {}, None
             for d in drivers:
                 if d.name not in spec:
                     self.fail(f"{field}.{d.name}", f"the value of driver {d.name!r}", "none")
-                inputs[d.name] = self.instant_input(spec[d.name], f"{field}.{d.name}", d, units)
-            instants.append(Instant(label, inputs))
+                try:
+                    inputs[d.name] = self.instant_input(spec[d.name], f"{field}.{d.name}", d, units)
+                except _Unreached as unreached:  # raised when the instant is used, not at load
+                    problem = problem or unreached.args
+                    inputs[d.name] = (math.nan, math.nan, math.nan)
+            instants.append(Instant(label, inputs, problem))
         return instants
 
     def instant_input(self, value: Any, field: str, driver: Driver, units: Units):
@@ -517,11 +525,11 @@ class _Reader:
         except OverflowError:  # absurd rates or accelerations
             state = (math.inf,)
         if state is None:
-            self.fail(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit qd/qdd",
-                      _describe(value))
+            raise _Unreached(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit "
+                             "qd/qdd", _describe(value))
         if not all(math.isfinite(v) for v in state):
-            self.fail(field, f"a value at which the motion of driver {driver.name!r} has a finite rate "
-                      "and acceleration, or explicit qd/qdd", f"{_describe(value)} (the motion law overflows)")
+            raise _Unreached(field, f"a value at which the motion of driver {driver.name!r} has a finite rate "
+                             "and acceleration, or explicit qd/qdd", f"{_describe(value)} (the motion law overflows)")
         return state
 
 

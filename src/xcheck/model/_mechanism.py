@@ -12,6 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import ModelError
 from ..units import Units
 
 __all__ = [
@@ -135,6 +136,9 @@ class MotionLaw:
     ``constant-rate``: q = start + rate t; ``constant-acceleration``:
     q = start + rate t + acceleration t^2 / 2; ``harmonic``:
     q = centre + amplitude sin(2 pi frequency t + phase).
+
+    ``turns`` is True for a joint angle: its values are then taken modulo a
+    full turn by :meth:`state_at` (q and q + 2 pi are one position).
     """
 
     kind: str
@@ -145,6 +149,7 @@ class MotionLaw:
     amplitude: float = 0.0
     frequency: float = 0.0
     phase: float = 0.0
+    turns: bool = False
 
     KINDS = ("constant-rate", "constant-acceleration", "harmonic")
 
@@ -187,7 +192,7 @@ class MotionLaw:
             for arg in (math.asin(ratio), math.pi - math.asin(ratio)):
                 t = ((arg - self.phase) / w) % period
                 candidates += [t, t - period]
-            return min(candidates, key=abs)
+            return min(candidates, key=lambda t: (abs(t), -t))
         acc = self.acceleration if self.kind == "constant-acceleration" else 0.0
         dq = value - self.start
         if acc == 0.0:
@@ -198,11 +203,43 @@ class MotionLaw:
         if disc < 0.0:
             return None
         roots = [(-self.rate + s * math.sqrt(disc)) / acc for s in (1.0, -1.0)]
-        return min(roots, key=abs)
+        return min(roots, key=lambda t: (abs(t), -t))
+
+    @property
+    def static(self) -> bool:
+        """True for a law that stands still: every value is a static position."""
+        if self.kind == "harmonic":
+            return self.amplitude == 0.0
+        return self.rate == 0.0 and (self.kind != "constant-acceleration" or self.acceleration == 0.0)
+
+    def _time_modulo_turn(self, value: float) -> float | None:
+        """The time nearest t = 0 at which the input equals ``value`` plus any
+        whole number of turns (ties: the later time); None if never."""
+        two_pi = 2.0 * math.pi
+        if self.kind == "harmonic":
+            low, high = self.centre - abs(self.amplitude), self.centre + abs(self.amplitude)
+            turns = range(math.ceil((low - value) / two_pi - 1e-12), math.floor((high - value) / two_pi + 1e-12) + 1)
+            if len(turns) > 1000:  # an amplitude of more than a thousand turns: the nearest ones suffice
+                k0 = round((self.centre - value) / two_pi)
+                turns = range(k0 - 500, k0 + 501)
+        else:  # the law moves one way near t = 0: the turn nearest the start and its neighbours suffice
+            k0 = round((self.start - value) / two_pi)
+            turns = range(k0 - 1, k0 + 2)
+        times = [t for t in (self.time_at(value + two_pi * k) for k in turns) if t is not None]
+        return min(times, key=lambda t: (abs(t), -t)) if times else None
 
     def state_at(self, value: float) -> tuple[float, float, float] | None:
-        """(q, qd, qdd) when the input passes ``value`` nearest t = 0; None if never."""
-        t = self.time_at(value)
+        """(q, qd, qdd) when the input passes ``value`` nearest t = 0; None if never.
+
+        A law that stands still (:attr:`static`) gives a static position,
+        ``(value, 0, 0)``, at any value. With ``turns``, the law may pass
+        ``value`` plus any whole number of turns; ``q`` is ``value`` as given.
+        Of two times equally near t = 0 (a harmonic law passes each value twice
+        a period) the later one is taken.
+        """
+        if self.static:
+            return (value, 0.0, 0.0)
+        t = self._time_modulo_turn(value) if self.turns else self.time_at(value)
         if t is None:
             return None
         _, qd, qdd = self.at_time(t)
@@ -230,11 +267,28 @@ class Driver:
 class Instant:
     """A state at which a worked solution states its results.
 
-    ``inputs`` maps each driver's name to (q, qd, qdd) in SI units.
+    ``inputs`` maps each driver's name to (q, qd, qdd) in SI units. An
+    instant whose value a driver's motion never reaches keeps the fault in
+    ``problem`` (field, expected, found) instead of failing the load, so that
+    a file stays usable with ``--at``; :meth:`states` raises it when the
+    instant is used.
     """
 
     label: str
     inputs: Mapping[str, tuple[float, float, float]]
+    problem: tuple[str, str, str] | None = None
+
+    def states(self, mechanism: "Mechanism") -> list[tuple[float, float, float]]:
+        """(q, qd, qdd) per driver in the mechanism's driver order, SI.
+
+        Raises
+        ------
+        ModelError
+            If a value of the instant is one its driver's motion never reaches.
+        """
+        if self.problem is not None:
+            raise ModelError(mechanism.path, *self.problem)
+        return [self.inputs[d.name] for d in mechanism.drivers]
 
 
 @dataclass(frozen=True)

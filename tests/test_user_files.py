@@ -1,0 +1,299 @@
+"""Mechanism files written the way a user writes them (issue 12): body angles
+beyond +-180 deg, inputs given with their rates, static positions, motion laws
+that reach a value modulo a turn, a directory with one bad file, and what a
+user of their own file reads. Every expected value is a closed form derived
+here, not xcheck's output."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from conftest import MODELS
+from xcheck import Kinematics, load_mechanism
+from xcheck.cli import app
+from xcheck.model import parse_mechanism
+from xcheck.runner import sweep_inputs
+from xcheck.units import evaluate_expression
+
+DATA = Path(__file__).parent / "data"
+FOURBAR_200 = DATA / "fourbar-200.toml"
+YOKE = DATA / "scotch-yoke.toml"
+TRAMMEL = DATA / "elliptic-trammel.toml"
+
+
+def _cli(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def _json(*args) -> dict:
+    result = _cli(*args, "--json")
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+# -- closed forms ----------------------------------------------------------
+def _fourbar_200(theta: float, omega: float = 0.0):
+    """Crank 0.1, coupler 0.4, rocker 0.3 m, ground A = 0, D = (0.35, 0):
+    B, C (left of B -> D) and the coupler's and rocker's angular velocities."""
+    b = 0.1 * np.array([math.cos(theta), math.sin(theta)])
+    d = np.array([0.35, 0.0])
+    bd = d - b
+    dist = float(np.linalg.norm(bd))
+    along = (0.4**2 - 0.3**2 + dist**2) / (2.0 * dist)
+    height = math.sqrt(0.4**2 - along**2)
+    unit = bd / dist
+    c = b + along * unit + height * np.array([-unit[1], unit[0]])
+    theta3 = math.atan2(*(c - b)[::-1])
+    theta4 = math.atan2(*(c - d)[::-1])
+    # velocity loop r2 w2 e2' + r3 w3 e3' = r4 w4 e4' solved by Cramer's rule
+    w3 = omega * 0.1 * math.sin(theta4 - theta) / (0.4 * math.sin(theta3 - theta4))
+    w4 = omega * 0.1 * math.sin(theta3 - theta) / (0.3 * math.sin(theta3 - theta4))
+    return b, c, w3, w4
+
+
+# -- 1. body angles are continuous -------------------------------------------
+@pytest.mark.parametrize("degrees", [200.0, 300.0, 200.0 + 720.0, -160.0, 10.0, 200.0 - 1080.0])
+def test_crank_assembled_at_200_deg_solves_at_any_angle(degrees):
+    state = _json("solve", FOURBAR_200, "--at", repr(degrees))["states"][0]
+    theta = math.radians(degrees)
+    b, c, w3, w4 = _fourbar_200(theta, 1.5)
+    assert state["status"] == "ok"
+    assert state["bodies"]["crank"]["angle"] == pytest.approx(theta, abs=1e-12)  # continuous, never wrapped
+    assert np.allclose(state["points"]["B"]["position"], b, atol=1e-13)
+    assert np.allclose(state["points"]["C"]["position"], c, atol=1e-13)
+    assert state["bodies"]["coupler"]["omega"] == pytest.approx(w3, abs=1e-12)
+    assert state["bodies"]["rocker"]["omega"] == pytest.approx(w4, abs=1e-12)
+
+
+def test_crank_assembled_at_200_deg_turns_fully():
+    kin = Kinematics(load_mechanism(FOURBAR_200))
+    assert kin.input_range("crank").full_turn
+    assert kin.assemble()[2] == pytest.approx(math.radians(200.0), abs=1e-12)  # the crank's phi
+
+
+# A block on a turning arm, locked at 120 deg to it: at an arm angle of 150 deg
+# the block's angle is 270 deg, outside +-180.
+ARM_AND_BLOCK = """
+[mechanism]
+name = "arm-block"
+[units]
+length = "m"
+angle = "deg"
+[ground]
+points = { O = [0, 0] }
+[bodies.arm]
+points = { O = [0, 0], E = [1, 0] }
+[bodies.block]
+points = { P = [0, 0] }
+[[joints]]
+type = "revolute"
+bodies = ["ground", "arm"]
+point = "O"
+[[joints]]
+name = "slide"
+type = "prismatic"
+bodies = ["arm", "block"]
+line = "O"
+direction = 0
+point = "P"
+angle = 120
+[[drivers]]
+name = "theta"
+joint = "O"
+start = 150
+rate = 1.0
+[[drivers]]
+name = "s"
+joint = "slide"
+start = 0.2
+rate = 0.1
+"""
+
+
+@pytest.mark.parametrize("theta_deg", [150.0, 250.0, 150.0 + 360.0])
+def test_a_prismatic_angle_offset_beyond_180_deg(theta_deg):
+    kin = Kinematics(parse_mechanism(ARM_AND_BLOCK))
+    theta, s = math.radians(theta_deg), 0.3
+    solution = kin.solve(np.array([[theta, s]]), np.array([[1.0, 0.1]]), np.zeros((1, 2)))
+    assert solution.success
+    block = solution.body("block")
+    e, n = np.array([math.cos(theta), math.sin(theta)]), np.array([-math.sin(theta), math.cos(theta)])
+    assert block["angle"][0] == pytest.approx(theta + math.radians(120.0), abs=1e-12)
+    assert np.allclose(block["position"][0], s * e, atol=1e-14)
+    assert np.allclose(block["velocity"][0], 0.1 * e + s * 1.0 * n, atol=1e-13)  # s' e + s theta' n
+    assert block["omega"][0] == pytest.approx(1.0, abs=1e-13)
+
+
+# -- 5. --at with rates; static positions; laws modulo a turn -------------------
+def test_at_with_explicit_rate_and_acceleration():
+    state = _json("solve", FOURBAR_200, "--at", "250", "--rate", "2", "--accel", "0.5")["states"][0]
+    _, _, w3, w4 = _fourbar_200(math.radians(250.0), 2.0)
+    assert state["bodies"]["crank"]["omega"] == 2.0 and state["bodies"]["crank"]["alpha"] == 0.5
+    assert state["bodies"]["coupler"]["omega"] == pytest.approx(w3, abs=1e-12)
+    assert state["bodies"]["rocker"]["omega"] == pytest.approx(w4, abs=1e-12)
+
+
+def test_rate_needs_at_and_accel_needs_rate():
+    assert "expected it with --at" in _cli("solve", FOURBAR_200, "--rate", "1").stderr
+    result = _cli("solve", FOURBAR_200, "--at", "250", "--accel", "1")
+    assert result.exit_code == 2 and "expected it with --rate" in result.stderr
+
+
+def _static_yoke(tmp_path, force: float) -> Path:
+    """The Scotch yoke with its crank standing still and a force along the guide on the yoke."""
+    text = YOKE.read_text().replace("rate = 2.0             # rad/s", "rate = 0").split("[[instants]]")[0]
+    path = tmp_path / "static-yoke.toml"
+    path.write_text(text + f'\n[[loads]]\nbody = "yoke"\npoint = "Y"\nforce = [{force}, 0]\n')
+    return path
+
+
+def test_a_driver_that_stands_still_gives_statics(tmp_path):
+    """Virtual work: tau d(theta) + F dx = 0 with x = r cos(theta), so tau = F r sin(theta)."""
+    path = _static_yoke(tmp_path, 10.0)
+    for degrees in (60.0, 200.0, 60.0 + 720.0):
+        state = _json("solve", path, "--at", repr(degrees))["states"][0]
+        assert state["bodies"]["crank"]["omega"] == 0.0 and state["bodies"]["yoke"]["velocity"] == [0.0, 0.0]
+        assert state["drivers"]["crank"]["effort"] == pytest.approx(10.0 * 0.1 * math.sin(math.radians(degrees)),
+                                                                    abs=1e-12)
+
+
+def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
+    text = (MODELS / "fourbar.toml").read_text().replace("rate = 1.0            # rad/s (chosen)", "rate = 0")
+    path = tmp_path / "still.toml"
+    path.write_text(text.replace('name = "fourbar"', 'name = "still"').split("[[instants]]")[0])
+    result = _cli("run", path, "--engines", "formulations,dynamic", "--samples", "11", "--no-report", "--json")
+    document = json.loads(result.stdout)
+    assert result.exit_code == 0, result.output
+    assert set(document["not_applicable"]) == {"mujoco-dynamic", "pinocchio-dynamic", "pymunk-dynamic"}
+
+
+def test_constant_acceleration_crank_reaches_any_angle_modulo_a_turn(tmp_path):
+    """From rest at 200 deg with alpha = 1 rad/s^2: 0 deg (= 360) is reached after
+    160 deg, where omega = sqrt(2 alpha * 160 deg)."""
+    text = FOURBAR_200.read_text().replace('motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
+                                           'motion = "constant-acceleration"\nstart = 200\nacceleration = 1.0')
+    path = tmp_path / "accelerating.toml"
+    path.write_text(text)
+    for degrees in ("0", "360", "-360"):
+        state = _json("solve", path, "--at", degrees)["states"][0]
+        assert state["bodies"]["crank"]["omega"] == pytest.approx(math.sqrt(2.0 * math.radians(160.0)), rel=1e-14)
+        assert state["bodies"]["crank"]["alpha"] == 1.0
+        assert state["bodies"]["crank"]["angle"] == pytest.approx(math.radians(float(degrees)), abs=1e-14)
+
+
+def test_harmonic_law_takes_the_time_nearest_zero():
+    """x_A = 0.5 sin(pi t / 2) passes 0.25 m at t = 1/3 s: x_A' = 0.5 (pi/2) cos(pi/6)."""
+    state = _json("solve", TRAMMEL, "--at", "0.25")["states"][0]
+    w = math.pi / 2.0
+    assert state["bodies"]["slider_a"]["velocity"][0] == pytest.approx(0.5 * w * math.cos(math.pi / 6.0), rel=1e-14)
+    assert state["bodies"]["bar"]["omega"] == pytest.approx(w, rel=1e-13)  # phi = 90 deg + w t
+    assert state["bodies"]["bar"]["angle"] == pytest.approx(math.pi / 2.0 + w / 3.0, rel=1e-14)
+
+
+def test_an_unreachable_instant_does_not_block_at(tmp_path):
+    path = tmp_path / "trammel.toml"
+    path.write_text(TRAMMEL.read_text() + '\n[[instants]]\nlabel = "beyond"\nx_A = 0.7\n')
+    assert _cli("solve", path, "--at", "0.25").exit_code == 0
+    result = _cli("solve", path)
+    assert result.exit_code == 2 and "instants[1].x_A" in result.stderr and "0.7" in result.stderr
+
+
+SLIDER_HARMONIC = (MODELS / "slider-crank.toml").read_text().replace(
+    'name = "crank"\njoint = "O"\nmotion = "constant-rate"\nstart = 0\nrate = 100                # rad/s',
+    'name = "slide"\njoint = "slide"\nmotion = "harmonic"\ncentre = 340\namplitude = 80\nfrequency = 5',
+).replace("at = { crank = 0 }", "at = { slide = 400 }").split("[[instants]]")[0]
+
+
+def test_one_rule_for_harmonic_inputs_in_solve_and_run(tmp_path):
+    """The slide's law reaches 340 +- 80 mm only; the feasible range is wider.
+    run sweeps only what the law reaches, with the law's own rates; solve refuses
+    a value beyond it unless --rate gives the rates."""
+    path = tmp_path / "slider.toml"
+    path.write_text(SLIDER_HARMONIC)
+    kin = Kinematics(load_mechanism(path))
+    rng = kin.input_range(0)
+    assert rng.low < 0.26 or rng.high > 0.42  # the case needs a range wider than the law
+    inputs, rates, _ = sweep_inputs(kin, 21)
+    assert inputs[:, 0].min() >= 0.26 - 1e-12 and inputs[:, 0].max() <= 0.42 + 1e-12
+    w = 2.0 * math.pi * 5.0
+    expected = 0.08 * w * np.sqrt(np.clip(1.0 - ((inputs[:, 0] - 0.34) / 0.08) ** 2, 0.0, None))
+    assert np.allclose(np.abs(rates[:, 0]), expected, atol=1e-9)
+    beyond = 1e3 * (rng.high - 1e-3) if rng.high > 0.42 else 1e3 * (rng.low + 1e-3)
+    refused = _cli("solve", path, "--at", repr(beyond))
+    assert refused.exit_code == 2 and "--rate" in refused.stderr
+    assert _cli("solve", path, "--at", repr(beyond), "--rate", "0").exit_code == 0
+
+
+# -- 6. one bad file does not stop a directory -------------------------------
+def test_run_all_reports_a_bad_file_and_runs_the_rest(tmp_path):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "aaa-bad.toml").write_text("[mechanism]\nname = 'bad'\n[[joints]]\ntype = 'welded'\n")
+    (folder / "fourbar-200.toml").write_text(FOURBAR_200.read_text())
+    result = _cli("run", "all", "--models", folder, "--engines", "formulations", "--samples", "11",
+                  "--out", tmp_path / "out", "-q")
+    assert result.exit_code == 2
+    assert "aaa-bad.toml" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert (tmp_path / "out" / "fourbar-200.md").is_file()
+
+
+def test_list_reports_a_bad_file_and_lists_the_rest(tmp_path):
+    (tmp_path / "bad.toml").write_text("not toml [")
+    (tmp_path / "fourbar-200.toml").write_text(FOURBAR_200.read_text())
+    result = _cli("list", tmp_path, "--json")
+    assert result.exit_code == 2 and "bad.toml" in result.stderr
+    assert [row["name"] for row in json.loads(result.stdout)] == ["fourbar-200"]
+
+
+# -- 7. what a user of their own file reads ----------------------------------
+def test_list_gives_ranges_in_si_and_takes_a_file_or_a_folder():
+    """The trammel's end A reaches +-L = +-0.5 m, where the bar lies along the guide."""
+    rows = _json("list", TRAMMEL)
+    assert [r["name"] for r in rows] == ["elliptic-trammel"]
+    x_range = rows[0]["ranges"][0]
+    assert x_range["unit"] == "m" and not x_range["full_turn"]
+    assert x_range["low"] == pytest.approx(-0.5, abs=1e-8) and x_range["high"] == pytest.approx(0.5, abs=1e-8)
+    assert x_range["text"].startswith("x_A: ")
+    assert _json("list", "--models", FOURBAR_200)[0]["ranges"][0]["full_turn"] is True
+    assert {r["name"] for r in _json("list", DATA)} >= {"fourbar-200", "scotch-yoke", "elliptic-trammel"}
+
+
+def test_a_users_report_and_index_say_what_was_run(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fourbar-200.toml").write_text(FOURBAR_200.read_text())
+    result = _cli("run", "fourbar-200.toml", "--engines", "formulations", "--samples", "11", "--out", "rep", "-q")
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "rep" / "fourbar-200.md").read_text()
+    assert "No printed answers were given" in report and "comparisons/fourbar-200.toml" in report
+    reproduce = next(line for line in report.splitlines() if line.startswith("Reproduce:"))
+    assert reproduce == ("Reproduce: `xcheck run fourbar-200.toml --engines formulations --samples 11 "
+                         "--out rep`")
+    index = (tmp_path / "rep" / "README.md").read_text()
+    assert "xcheck run all" not in index and "`xcheck run fourbar-200.toml" in index
+
+
+@pytest.mark.parametrize("text,expected", [("degrees(asin(0.5))", 30.0), ("acos(-1)", math.pi),
+                                           ("4 * atan(1)", math.pi), ("degrees(atan(1 / sqrt(3)))", 30.0)])
+def test_inverse_trigonometry_in_expressions(text, expected):
+    assert evaluate_expression(text) == pytest.approx(expected, rel=1e-15)
+
+
+def test_inverse_trigonometry_out_of_its_domain_is_one_clear_line(tmp_path):
+    path = tmp_path / "fourbar-200.toml"
+    path.write_text(FOURBAR_200.read_text().replace("start = 200", 'start = "degrees(asin(2))"'))
+    result = _cli("solve", path)
+    assert result.exit_code == 2 and "drivers[0].start" in result.stderr and "Traceback" not in result.output
+
+
+def test_mujoco_dynamic_says_it_used_default_masses():
+    from xcheck.engines.mujoco import run_dynamic
+
+    result = run_dynamic(Kinematics(load_mechanism(FOURBAR_200)), duration=0.05)
+    assert result.ok, result.reason
+    assert "Default mass properties (none in the model) for crank, coupler, rocker" in result.trajectories[0].notes
