@@ -297,3 +297,16 @@ def test_mujoco_dynamic_says_it_used_default_masses():
     result = run_dynamic(Kinematics(load_mechanism(FOURBAR_200)), duration=0.05)
     assert result.ok, result.reason
     assert "Default mass properties (none in the model) for crank, coupler, rocker" in result.trajectories[0].notes
+
+
+def test_a_harmonic_crank_angle_sweeps_its_arc_across_the_start_of_a_turn():
+    """A crank of the turning four-bar rocked by 190 +- 40 deg: the sweep covers
+    150 ... 230 deg, rates from the law (0 at the turning points, 40 deg * 2 pi at 190)."""
+    text = FOURBAR_200.read_text().replace('motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
+                                           'motion = "harmonic"\ncentre = 190\namplitude = 40\nfrequency = 1')
+    kin = Kinematics(parse_mechanism(text.replace("at = { crank = 200 }", "at = { crank = 190 }")))
+    inputs, rates, _ = sweep_inputs(kin, 11)
+    assert np.allclose(np.degrees(inputs[:, 0]), np.linspace(150.0, 230.0, 11), atol=1e-7)
+    amplitude, w = math.radians(40.0), 2.0 * math.pi
+    expected = amplitude * w * np.sqrt(np.clip(1.0 - ((inputs[:, 0] - math.radians(190.0)) / amplitude) ** 2, 0, None))
+    assert np.allclose(np.abs(rates[:, 0]), expected, atol=1e-6)

@@ -115,18 +115,27 @@ def law_states(mechanism, inputs: np.ndarray):
     return rates, accelerations, reached
 
 
-def reached_span(driver, low: float, high: float, count: int = 4001) -> tuple[float, float] | None:
-    """The part of ``[low, high]`` (SI) that the driver's motion law reaches,
-    to (high - low) / (count - 1); None if it reaches no value there.
+def reached_span(driver, low: float, high: float, around: float | None = None,
+                 count: int = 4001) -> tuple[float, float] | None:
+    """The stretch of ``[low, high]`` (SI) that the driver's motion law reaches
+    without a gap, to (high - low) / (count - 1) refined by bisection at its
+    ends; None if it reaches no value there.
 
-    A harmonic slide in a wider feasible range covers only centre +- amplitude;
-    a law that stands still reaches every value.
+    Of several stretches (a harmonic angle reaches an arc, which a window of a
+    full turn may cut in two) the one holding ``around`` is taken, else the
+    longest. A harmonic slide in a wider feasible range covers only
+    centre +- amplitude; a law that stands still reaches every value.
     """
     values = np.linspace(low, high, count)
     hit = np.array([driver.law.state_at(float(v)) is not None for v in values])
     if not hit.any():
         return None
-    first, last = int(np.argmax(hit)), count - 1 - int(np.argmax(hit[::-1]))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], hit.astype(int), [0]])))
+    runs = list(zip(edges[::2], edges[1::2] - 1))  # (first, last) index of each stretch
+    if around is not None:
+        near = int(np.argmin(np.abs(values - around)))
+        holding = [r for r in runs if r[0] <= near <= r[1]]
+    first, last = holding[0] if around is not None and holding else max(runs, key=lambda r: r[1] - r[0])
     lo = values[first] if first == 0 else _edge(driver, values[first - 1], values[first])
     hi = values[last] if last == count - 1 else _edge(driver, values[last + 1], values[last])
     return float(lo), float(hi)

@@ -216,7 +216,10 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
         high = rng.high if rng.high is not None else ref[0] + rng.span
         pad = margin * (high - low)
         low, high = low + pad, high - pad
-    span = reached_span(mech.drivers[0], low, high)
+    span = reached_span(mech.drivers[0], low, high, around=ref[0])
+    if rng.full_turn and span is not None and span[1] - span[0] < 2.0 * math.pi * (1.0 - 1e-9):
+        # a law that does not turn round (a harmonic crank angle): its arc about the reference
+        span = reached_span(mech.drivers[0], ref[0] - 2.0 * math.pi, ref[0] + 2.0 * math.pi, around=ref[0])
     if span is None:
         shown = " … ".join(mech.units.show_input(mech.drivers[0].quantity, v) for v in (low, high))
         raise InputError(f"{mech.path}: drivers[0]: expected a motion that reaches the feasible range "
