@@ -310,3 +310,9 @@ def test_a_harmonic_crank_angle_sweeps_its_arc_across_the_start_of_a_turn():
     amplitude, w = math.radians(40.0), 2.0 * math.pi
     expected = amplitude * w * np.sqrt(np.clip(1.0 - ((inputs[:, 0] - math.radians(190.0)) / amplitude) ** 2, 0, None))
     assert np.allclose(np.abs(rates[:, 0]), expected, atol=1e-6)
+
+
+def test_json_says_angles_are_continuous():
+    document = _json("solve", FOURBAR_200, "--at", "920")
+    assert document["units"]["angle"] == "rad" and document["angles"].startswith("continuous")
+    assert document["states"][0]["bodies"]["crank"]["angle"] == pytest.approx(math.radians(920.0), abs=1e-12)

@@ -73,11 +73,11 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
         if labels is not None:
             state = {"label": labels[i], **state}
         states.append(state)
-    units = {"length": "m", "angle": "rad", "time": "s",
-             "angles": "continuous radians: never wrapped, a crank two turns on is 4 pi further"}
+    units = {"length": "m", "angle": "rad", "time": "s"}
     if forces is not None:
         units.update(force="N", torque="N m")
-    return {"mechanism": mech.name, "branch": solution.branch, "units": units, "states": states}
+    return {"mechanism": mech.name, "branch": solution.branch, "units": units,
+            "angles": "continuous: never wrapped (a crank two turns on is 4 pi further)", "states": states}
 
 
 def _inward(value: float, up: bool, digits: int = 6) -> float:
