@@ -146,7 +146,8 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
                 if body == 0:
                     continue
                 data.xfrc_applied[body, :3] += sign * f
-                data.xfrc_applied[body, 3:] += np.cross(data.site_xpos[site] - data.xipos[body], sign * f) + sign * couple
+                arm = data.site_xpos[site] - data.xipos[body]
+                data.xfrc_applied[body, 3:] += np.cross(arm, sign * f) + sign * couple
             out = joints[cut.name]
             out["reaction"][i] = -f[:2]  # f acts on body_a (through the carrier): body_a on body_b is -f
             if not isinstance(cut, Revolute):

@@ -47,9 +47,9 @@ from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 from ..motion import simulation_window
 from ..topology import Topology, TreeJoint, carrier_share, spanning_tree
 
-__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "CARRIER_INERTIA", "CARRIER_INERTIA_FLOOR", "MassProperties", "MjJoint", "Layout", "layout",
-           "mass_properties", "carrier_name", "weld_site", "carrier_split", "file_mass_properties", "joint_coordinates",
-           "mjcf_text"]
+__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "CARRIER_INERTIA", "CARRIER_INERTIA_FLOOR", "MassProperties", "MjJoint",
+           "Layout", "layout", "mass_properties", "carrier_name", "carrier_note", "weld_site", "carrier_split",
+           "file_mass_properties", "joint_coordinates", "mjcf_text"]
 
 #: Mass (kg) of a body whose model gives no mass properties.
 DEFAULT_MASS = 1.0
@@ -140,6 +140,23 @@ def carrier_split(mechanism: Mechanism, cut, held: MassProperties | None,
 
 def _carrier_inertia(mass: float, size2: float) -> float:
     return max(CARRIER_INERTIA * mass * size2, CARRIER_INERTIA_FLOOR)
+
+
+def carrier_note(mechanism: Mechanism, topology: Topology) -> str:
+    """One or two sentences on the carriers of a file, for a mode's notes ("" if none)."""
+    _, carriers = file_mass_properties(mechanism, topology)
+    if not carriers:
+        return ""
+    pins = {name: props for name, props in carriers.items()
+            if isinstance(mechanism.joint(name[:-len(".carrier")]), PinInSlot)}
+    text = (f"Loops with no undriven revolute are closed through carrier bodies ({', '.join(carriers)}) whose "
+            "mass is taken from the bodies they are held to, so the mass distribution is the model's.")
+    if pins:
+        largest = max(props.inertia for props in pins.values())
+        text += (f" The only term not in the model: the pin-in-slot carriers' rotational inertia (at most "
+                 f"{largest:.3g} kg m^2, turning with the slot's body), a moment of that times the slot's "
+                 "angular acceleration.")
+    return text
 
 
 def weld_site(joint) -> str:

@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from ..dynamics import Forces, determined_states, joint_quantities
 from ..kinematics import Kinematics
-from ..model import GROUND, PinInSlot, Prismatic, Revolute
+from ..model import GROUND, Prismatic, Revolute
 from ._pinocchio_model import build_model, joint_coordinates, point_frame, tree_spec
 from ._pinocchio_oracle import Oracle
 

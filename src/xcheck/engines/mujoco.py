@@ -22,7 +22,7 @@ from ..model import Mechanism
 from ..motion import simulation_window
 from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
 from ._mujoco_inverse import inverse_forces
-from ._mujoco_mjcf import joint_coordinates, layout, mjcf_text
+from ._mujoco_mjcf import carrier_note, joint_coordinates, layout, mjcf_text
 from ._mujoco_oracle import Oracle
 
 __all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error", "inverse_dynamics"]
@@ -378,6 +378,8 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
     drive = (f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
              "by the file's servos, controls = the laws' value and rate at each step's start; the native solver "
              "is evaluated at the inputs as MuJoCo realised them (input joints' qpos, qvel, qacc). ")
+    note = carrier_note(oracle.mechanism, layout(oracle.mechanism).topology)
+    drive += f"{note} " if note else ""
     bodies, points = oracle.states(run.qpos, run.qvel, run.qacc)
     trajectory = Trajectory(DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times, settings,
                             diagnostics, drive + "Accelerations: qacc from mj_forward at each sampled state (what "
