@@ -483,3 +483,68 @@ def test_a_motion_leaving_the_feasible_range_fails(case):
     result = run_dynamic(Kinematics(parse_mechanism(outside, "fourbar-outside")))
     assert not result.ok
     assert "feasible range" in result.reason and "\n" not in result.reason
+
+
+# -- xcheck export (issue 12, item 6) ----------------------------------------------
+
+
+def _export(*args):
+    from typer.testing import CliRunner
+
+    from xcheck.cli import app
+
+    return CliRunner().invoke(app, ["export", *args])
+
+
+@pytest.fixture
+def models_with_a_bad_file(tmp_path):
+    """A models directory: a malformed file sorting first, the four-bar and the Scotch yoke."""
+    models = tmp_path / "models"
+    models.mkdir()
+    (models / "aaa-broken.toml").write_text('[mechanism]\nname = "broken"\n')
+    (models / "fourbar.toml").write_text((MODELS / "fourbar.toml").read_text())
+    (models / "scotch-yoke.toml").write_text(YOKE_TEXT)
+    return models
+
+
+def test_export_reports_a_bad_file_and_writes_the_rest(models_with_a_bad_file):
+    """One line for the malformed file (file, field, expected, found), every other
+    file written, exit 2 at the end."""
+    models = models_with_a_bad_file
+    result = _export("--format", "mjcf", "--models", str(models))
+    assert result.exit_code == 2
+    (line,) = result.stderr.splitlines()
+    assert "aaa-broken.toml: bodies: expected" in line and "found" in line
+    for name in ("fourbar", "scotch-yoke"):
+        text = (models / "mjcf" / f"{name}.xml").read_text()
+        assert text == export_files(Kinematics(parse_mechanism((models / f"{name}.toml").read_text(),
+                                                               models / f"{name}.toml"))).popitem()[1]
+
+
+def test_export_check_lists_missing_and_stale_files(models_with_a_bad_file):
+    """--check writes nothing and names each file: "missing" where there is none,
+    "stale" where it differs; exit 1 (2 with a bad file)."""
+    models = models_with_a_bad_file
+    (models / "aaa-broken.toml").unlink()
+    (models / "mjcf").mkdir()
+    (models / "mjcf" / "fourbar.xml").write_text("<mujoco/>\n")
+    result = _export("--check", "--format", "mjcf", "--models", str(models))
+    assert result.exit_code == 1
+    assert result.stdout.splitlines() == [f"stale: {models / 'mjcf' / 'fourbar.xml'}",
+                                          f"missing: {models / 'mjcf' / 'scotch-yoke.xml'}"]
+    assert not (models / "mjcf" / "scotch-yoke.xml").exists()
+    assert _export("--format", "mjcf", "--models", str(models)).exit_code == 0
+    assert _export("--check", "--format", "mjcf", "--models", str(models)).exit_code == 0
+
+
+def test_export_reports_a_file_that_cannot_be_written_and_goes_on(models_with_a_bad_file):
+    """A plain file where the urdf/ directory should be: the URDF files cannot be
+    written (one line each), the MJCF files are, exit 2; nothing half-written."""
+    models = models_with_a_bad_file
+    (models / "aaa-broken.toml").unlink()
+    (models / "urdf").write_text("not a directory\n")
+    result = _export("--models", str(models))
+    assert result.exit_code == 2
+    errors = result.stderr.splitlines()
+    assert len(errors) == 4 and all("expected a file that can be written" in e for e in errors)
+    assert sorted(p.name for p in (models / "mjcf").iterdir()) == ["fourbar.xml", "scotch-yoke.xml"]
