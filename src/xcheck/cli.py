@@ -400,11 +400,16 @@ def export_command(
         help="Mechanisms to export (default: all in the models directory).")] = None,
     fmt: Annotated[str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the "
                                      "loop-closure list), or all.")] = "all",
-    check: Annotated[bool, typer.Option("--check", help="Write nothing; exit 1 if a file is missing "
-                                        "or differs from what would be written.")] = False,
+    check: Annotated[bool, typer.Option("--check", help="Write nothing; list each file that is missing or "
+                                        "differs from what would be written, exit 1 if any.")] = False,
     models: ModelsOption = None,
 ):
     """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf) from the mechanism files.
+
+    Each file is written whole or not at all (a temporary file renamed). A
+    mechanism that cannot be exported is reported in one line on stderr (file,
+    field, expected, found) and the others are still exported; the exit code
+    is then 2. With --check, each file is listed as "missing" or "stale".
 
     Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
     """
@@ -413,24 +418,44 @@ def export_command(
     for f in formats:
         if f not in EXPORTERS:
             raise InputError(f"--format: expected one of {', '.join(EXPORTERS)} or all, found {f!r}")
-    stale = []
+    outdated, failed = [], 0
     for name in names or model_names(directory):
-        kin = Kinematics(load_mechanism(model_path(name, directory)))
+        try:
+            path = model_path(name, directory)
+            kin = Kinematics(load_mechanism(path))
+        except XcheckError as err:
+            typer.echo(f"xcheck: error: {' '.join(str(err).split())}", err=True)
+            failed += 1
+            continue
         for f in formats:
             function, subdirectory = exporter(f)
-            for file_name, text in function(kin).items():
-                target = model_path(name, directory).parent / subdirectory / file_name
+            try:
+                texts = function(kin)
+            except XcheckError as err:
+                typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)
+                failed += 1
+                continue
+            for file_name, text in texts.items():
+                target = path.parent / subdirectory / file_name
                 current = target.read_text(encoding="utf-8") if target.is_file() else None
                 if current == text:
                     continue
                 if check:
-                    stale.append(str(target))
-                else:
+                    outdated.append(("missing" if current is None else "stale", target))
+                    continue
+                try:
                     write_atomic(target, text)
-                    typer.echo(f"wrote {target}")
-    for path in stale:
-        typer.echo(f"stale: {path}")
-    if stale:
+                except OSError as err:
+                    typer.echo(f"xcheck: error: {target}: expected a file that can be written, found "
+                               f"{err.strerror or err}", err=True)
+                    failed += 1
+                    continue
+                typer.echo(f"wrote {target}")
+    for state, target in outdated:
+        typer.echo(f"{state}: {target}")
+    if failed:
+        raise typer.Exit(2)
+    if outdated:
         raise typer.Exit(1)
 
 

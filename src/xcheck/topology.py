@@ -1,20 +1,28 @@
 """The mechanism as a kinematic tree plus loop closures, for tree-based engines.
 
 MuJoCo and Pinocchio describe a mechanism as a tree of joints; each closed loop
-is cut at one revolute joint and closed again by a point constraint. This module
+is cut at one joint and closed again by an equality constraint. This module
 picks the tree: driven joints first (an engine drives tree joints), then
-prismatic and pin-in-slot joints (a loop cannot be closed at them by a point
-constraint), then revolutes in file order; every joint left over is a cut.
+prismatic and pin-in-slot joints, then revolutes, each group in file order;
+every joint left over is a cut. So a loop is cut at a revolute (closed by a
+point constraint) whenever it has a non-driven one; a loop closed only through
+driven, prismatic and pin-in-slot joints is cut at its last prismatic or
+pin-in-slot joint, which the engines close through a "carrier" (a slide along
+the joint's line on ``body_a``, held to ``body_b`` by a point constraint for a
+pin-in-slot, by a weld for a prismatic joint).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .errors import ModelError
-from .model import GROUND, Joint, Mechanism, Revolute
+import numpy as np
 
-__all__ = ["TreeJoint", "Topology", "spanning_tree"]
+from .errors import ModelError
+from .kinematics import rotate
+from .model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
+
+__all__ = ["TreeJoint", "Topology", "spanning_tree", "carrier_share"]
 
 
 @dataclass(frozen=True)
@@ -43,10 +51,11 @@ class TreeJoint:
 
 @dataclass(frozen=True)
 class Topology:
-    """``tree`` lists joints parents-first; ``cuts`` are the revolutes that close loops."""
+    """``tree`` lists joints parents-first; ``cuts`` are the joints that close loops
+    (revolutes where a loop has a non-driven one)."""
 
     tree: tuple[TreeJoint, ...]
-    cuts: tuple[Revolute, ...]
+    cuts: tuple[Joint, ...]
 
     def parent_of(self, body: str) -> TreeJoint:
         for tj in self.tree:
@@ -56,13 +65,12 @@ class Topology:
 
 
 def spanning_tree(mechanism: Mechanism) -> Topology:
-    """Split the joints into a tree rooted at the ground and loop-closing revolutes.
+    """Split the joints into a tree rooted at the ground and loop-closing cuts.
 
     Raises
     ------
     ModelError
-        If a body is not connected to the ground, or a loop has no revolute
-        joint at which it could be cut.
+        If a body is not connected to the ground, or a loop has only driven joints.
     """
     driven = {d.joint: d.name for d in mechanism.drivers}
     order = sorted(range(len(mechanism.joints)),
@@ -83,12 +91,11 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
         if ra != rb:
             root[ra] = rb
             tree_edges.append(joint)
-        elif isinstance(joint, Revolute):
-            cuts.append(joint)
+        elif joint.name in driven:
+            raise ModelError(mechanism.path, f"joints[{i}]", "a loop with a joint that is not driven (engines "
+                             "drive tree joints and cut loops at undriven ones)", "a loop of driven joints only")
         else:
-            raise ModelError(mechanism.path, f"joints[{i}]",
-                             "a loop that can be cut at a revolute joint (engines close loops with point "
-                             "constraints)", f"a loop closed only by {joint.kind} joints")
+            cuts.append(joint)
 
     tree, placed, pending = [], {GROUND}, list(tree_edges)
     while pending:
@@ -108,3 +115,49 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
         raise ModelError(mechanism.path, f"bodies.{loose[0]}", "a body connected to the ground through joints",
                          "a body with no path of joints to the ground")
     return Topology(tuple(tree), tuple(cuts))
+
+
+def carrier_share(mechanism: Mechanism, cut: Joint, held: tuple[float, np.ndarray, float] | None,
+                  line_mass: float) -> tuple[tuple[float, np.ndarray, float], tuple[float, np.ndarray, float] | None]:
+    """The mass a cut's carrier takes from the body it is held to, keeping the
+    mechanism's mass distribution exact.
+
+    An engine that needs mass on a carrier (a body with a joint) takes it from
+    ``body_b``: the carrier is held to ``body_b`` at the sliding point, so
+
+    * a prismatic carrier moves rigidly with the block: it takes half of it
+      (mass, centre of mass, inertia); the block keeps the other half;
+    * a pin-in-slot carrier moves with the pin point (it turns with the slot):
+      it is a point mass m_c at the pin p, and the pin's body (m, c, I) keeps
+      m - m_c at c' = (m c - m_c p) / (m - m_c) with I' = I - m m_c |p - c|^2
+      / (m - m_c), so that both together have the body's mass, centre of mass
+      and inertia; m_c = min(m / 2, I m / (2 m |p - c|^2 + I)) keeps I' >= I / 2.
+
+    A carrier held to the ground stands still; it gets half ``line_mass``.
+
+    Parameters
+    ----------
+    cut : PinInSlot or Prismatic
+    held : (mass kg, com (2,) m, inertia kg m^2) or None
+        ``body_b``'s mass properties in its frame; None for the ground.
+    line_mass : float, kg
+        ``body_a``'s mass (used only when ``body_b`` is the ground).
+
+    Returns
+    -------
+    carrier : (mass, com (2,), inertia)
+        In the carrier frame: origin at the sliding point, axes of ``body_a``.
+        A pin-in-slot carrier's inertia is 0.
+    rest : (mass, com (2,), inertia) or None
+        What ``body_b`` keeps (its frame); None for the ground.
+    """
+    if held is None:
+        m = 0.5 * line_mass
+        return (m, np.zeros(2), 0.0 if isinstance(cut, PinInSlot) else m * mechanism.size**2), None
+    m, c, inertia = float(held[0]), np.asarray(held[1], dtype=float), float(held[2])
+    p = mechanism.body(cut.body_b).points[cut.point]
+    if isinstance(cut, Prismatic):
+        return (0.5 * m, rotate(cut.angle, c - p), 0.5 * inertia), (0.5 * m, c, 0.5 * inertia)
+    d2 = float((p - c) @ (p - c))
+    mc = min(0.5 * m, inertia * m / (2.0 * m * d2 + inertia))
+    return (mc, np.zeros(2), 0.0), (m - mc, (m * c - mc * p) / (m - mc), inertia - m * mc * d2 / (m - mc))

@@ -9,9 +9,13 @@ MuJoCo's soft-constraint model does not enter):
   included) that the motion needs;
 * the applied loads' generalised force comes from ``mj_applyFT``;
 * the unknowns are the force of each loop cut (2 components, at the cut's
-  two sites, Jacobians from ``mj_jacSite``) and the input joints' forces:
-  [J_cut^T  S^T] [f; tau] = rne - loads, square (tree dofs = 2 per cut +
-  inputs);
+  two sites, Jacobians from ``mj_jacSite``; a prismatic cut's weld also a
+  moment) and the input joints' forces: [J_cut^T  S^T] [f; tau] = rne - loads,
+  square (tree dofs, carriers' slides included = the cuts' rows + inputs);
+* the carriers of pin-in-slot and prismatic cuts are given zero mass and the
+  bodies they took their mass from get the model's mass properties back (the
+  equalities are disabled, so nothing needs the carriers' mass here): the
+  carrier transmits the cut force to the line's body through its slide;
 * with the cut forces and loads as ``xfrc_applied``, ``mj_rnePostConstraint``
   gives ``cfrc_int``, the force each body's parent transmits through its
   joint(s): the tree joints' reactions and a prismatic joint's couple.
@@ -29,8 +33,8 @@ import numpy as np
 
 from ..dynamics import Forces, determined_states, joint_quantities
 from ..kinematics import Kinematics, rotate
-from ..model import GROUND, Prismatic, Revolute
-from ._mujoco_mjcf import Layout, joint_coordinates
+from ..model import GROUND, PinInSlot, Prismatic, Revolute
+from ._mujoco_mjcf import Layout, carrier_name, joint_coordinates, mass_properties, weld_site
 from ._mujoco_oracle import Oracle
 
 __all__ = ["inverse_forces"]
@@ -63,10 +67,24 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
 
     dyn = copy.deepcopy(model)
     dyn.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    for name, props in mass_properties(mech).items():  # the model's, not the file's carrier split
+        body = dyn.body(name).id
+        dyn.body_mass[body], dyn.body_inertia[body] = props.mass, props.inertia
+        dyn.body_ipos[body], dyn.body_iquat[body] = [*props.com, 0.0], [1.0, 0.0, 0.0, 0.0]
     data = mujoco.MjData(dyn)
     nv, n = dyn.nv, inputs.shape[0]
     cuts = lay.topology.cuts
-    cut_sites = [(dyn.site(f"{c.body_a}.{c.point_a}").id, dyn.site(f"{c.body_b}.{c.point_b}").id) for c in cuts]
+    cut_sites = []  # per cut: (site on body_a's side, site on body_b, with a moment?)
+    for c in cuts:
+        if isinstance(c, Revolute):
+            cut_sites.append((dyn.site(f"{c.body_a}.{c.point_a}").id, dyn.site(f"{c.body_b}.{c.point_b}").id, False))
+            continue
+        carrier = dyn.body(carrier_name(c)).id
+        dyn.body_mass[carrier], dyn.body_inertia[carrier] = 0.0, 0.0
+        other = f"{c.body_b}.{c.point}" if isinstance(c, PinInSlot) else weld_site(c)
+        cut_sites.append((dyn.site(carrier_name(c)).id, dyn.site(other).id, isinstance(c, Prismatic)))
+    carriers = any(not isinstance(c, Revolute) for c in cuts)
+    unknowns = sum(3 if moment else 2 for _, _, moment in cut_sites)
     loads = [(load, dyn.body(load.body).id) for load in mech.loads]
     body_ids = {b.name: dyn.body(b.name).id for b in mech.moving_bodies}
     joints, drivers = {}, {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
@@ -74,7 +92,7 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
         joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(joint)}
     driven = {d.joint: k for k, d in enumerate(mech.drivers)}
     residual = np.zeros(n)
-    jacp_a, jacp_b = np.zeros((3, nv)), np.zeros((3, nv))
+    jacp_a, jacp_b, jacr_a, jacr_b = (np.zeros((3, nv)) for _ in range(4))
     rne = np.zeros(nv)
     for i in range(n):
         qpos = projection.qpos[i]
@@ -82,8 +100,13 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
         qacc = oracle.acceleration(qpos, qvel, accelerations[i])
         data.qpos[:], data.qvel[:] = qpos, qvel
         data.xfrc_applied[:] = 0.0
-        mujoco.mj_fwdPosition(dyn, data)
-        mujoco.mj_fwdVelocity(dyn, data)
+        if carriers:  # positions and com quantities only: a massless carrier makes M singular (not needed here)
+            mujoco.mj_kinematics(dyn, data)
+            mujoco.mj_comPos(dyn, data)
+            mujoco.mj_comVel(dyn, data)
+        else:
+            mujoco.mj_fwdPosition(dyn, data)
+            mujoco.mj_fwdVelocity(dyn, data)
         data.qacc[:] = qacc
         mujoco.mj_rne(dyn, data, 1, rne)
         applied = np.zeros(nv)
@@ -94,16 +117,18 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
             mujoco.mj_applyFT(dyn, data, force, torque, at, body, applied)
             load_wrenches.append((body, force, torque, at))
         columns = []
-        for site_a, site_b in cut_sites:
-            mujoco.mj_jacSite(dyn, data, jacp_a, None, site_a)
-            mujoco.mj_jacSite(dyn, data, jacp_b, None, site_b)
+        for site_a, site_b, moment in cut_sites:
+            mujoco.mj_jacSite(dyn, data, jacp_a, jacr_a, site_a)
+            mujoco.mj_jacSite(dyn, data, jacp_b, jacr_b, site_b)
             columns.append((jacp_a[:2] - jacp_b[:2]).T)  # force on site a's body; its opposite on b's
+            if moment:  # a couple on site a's body; its opposite on b's
+                columns.append((jacr_a[2:] - jacr_b[2:]).T)
         columns.append(oracle.selector.T)
         matrix = np.hstack(columns)
         rhs = rne - applied
         x = np.linalg.solve(matrix, rhs)
         residual[i] = np.linalg.norm(matrix @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
-        tau = x[2 * len(cuts):]
+        tau = x[unknowns:]
         for k, d in enumerate(mech.drivers):
             drivers[d.name]["effort"][i] = tau[k]
 
@@ -111,15 +136,25 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
         for body, force, torque, at in load_wrenches:
             data.xfrc_applied[body, :3] += force
             data.xfrc_applied[body, 3:] += torque + np.cross(at - data.xipos[body], force)
-        for c, (cut, (site_a, site_b)) in enumerate(zip(cuts, cut_sites)):
-            f = np.array([x[2 * c], x[2 * c + 1], 0.0])
+        offset = 0
+        for cut, (site_a, site_b, has_moment) in zip(cuts, cut_sites):
+            f = np.array([x[offset], x[offset + 1], 0.0])
+            couple = np.array([0.0, 0.0, x[offset + 2] if has_moment else 0.0])
+            offset += 3 if has_moment else 2
             for site, sign in ((site_a, 1.0), (site_b, -1.0)):
                 body = dyn.site_bodyid[site]
                 if body == 0:
                     continue
                 data.xfrc_applied[body, :3] += sign * f
-                data.xfrc_applied[body, 3:] += np.cross(data.site_xpos[site] - data.xipos[body], sign * f)
-            joints[cut.name]["reaction"][i] = -f[:2]
+                arm = data.site_xpos[site] - data.xipos[body]
+                data.xfrc_applied[body, 3:] += np.cross(arm, sign * f) + sign * couple
+            out = joints[cut.name]
+            out["reaction"][i] = -f[:2]  # f acts on body_a (through the carrier): body_a on body_b is -f
+            if not isinstance(cut, Revolute):
+                u = rotate(_angle(data, body_ids, cut.body_a), cut.direction)
+                out["normal"][i] = -f[:2] @ np.array([-u[1], u[0]])
+                if has_moment:  # about the sliding point, where both sites are
+                    out["moment"][i] = -couple[2]
         mujoco.mj_rnePostConstraint(dyn, data)
 
         for tj in lay.topology.tree:

@@ -14,6 +14,23 @@ of the file, which the adapter relies on:
   (MuJoCo applies a body's joints in order). MuJoCo rejects the massless
   intermediate body of the textbook construction ("mass and inertia of moving
   bodies must be larger than mjMINVAL"); two joints in one body are exact.
+- A loop cut at a revolute is closed by a ``connect`` between its two sites. A
+  loop cut at a pin-in-slot or prismatic joint (one with no undriven revolute,
+  see :mod:`xcheck.topology`) is closed through a carrier body
+  ``"<joint>.carrier"``: a child of the line's body (``body_a``) with one slide
+  ``"<joint>.carrier"`` along the line (its ``qpos`` the joint's slide
+  displacement), held by a ``connect`` to the pin (pin-in-slot) or by a site
+  ``weld`` to the sliding body turned by the locked angle (prismatic).
+- MuJoCo needs mass on the carrier, so it is taken from the body it is held to
+  and the total is exact (:func:`carrier_split`): a prismatic carrier moves
+  rigidly with its block and takes half of the block's mass, centre of mass and
+  inertia; a pin-in-slot carrier is a point mass at the pin (it moves with the
+  pin point but turns with the slot), taken from the pin's body with its centre
+  of mass and inertia moved so that the body plus the point mass have the
+  body's mass properties. The carrier's only own term is a rotational inertia
+  of 1e-9 m size^2 (at least 1e-14 kg m^2; MuJoCo refuses zero).
+  Where the pin or block is the ground, the carrier stands still (a mass from
+  the line's body; it does no work).
 """
 
 from __future__ import annotations
@@ -28,10 +45,11 @@ from ..errors import XcheckError
 from ..kinematics import Kinematics, rotate
 from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 from ..motion import simulation_window
-from ..topology import Topology, TreeJoint, spanning_tree
+from ..topology import Topology, TreeJoint, carrier_share, spanning_tree
 
-__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "MassProperties", "MjJoint", "Layout", "layout",
-           "mass_properties", "joint_coordinates", "mjcf_text"]
+__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "CARRIER_INERTIA", "CARRIER_INERTIA_FLOOR", "MassProperties", "MjJoint",
+           "Layout", "layout", "mass_properties", "carrier_name", "carrier_note", "weld_site", "carrier_split",
+           "file_mass_properties", "joint_coordinates", "mjcf_text"]
 
 #: Mass (kg) of a body whose model gives no mass properties.
 DEFAULT_MASS = 1.0
@@ -41,6 +59,11 @@ DEFAULT_DISC_FRACTION = 0.05
 #: Natural frequency (rad/s) of each input's servo, critically damped. With
 #: MuJoCo's default 2 ms Euler step, omega dt = 0.5: stable (the limit is 1).
 SERVO_FREQUENCY = 250.0
+#: Rotational inertia of a pin-in-slot carrier, times its mass and the
+#: mechanism's size squared (MuJoCo refuses a body with zero inertia) ...
+CARRIER_INERTIA = 1e-9
+#: ... and at least this, kg m^2 (MuJoCo's floor, mjMINVAL, is 1e-15).
+CARRIER_INERTIA_FLOOR = 1e-14
 
 
 def _num(x: float) -> str:
@@ -84,6 +107,76 @@ def mass_properties(mechanism: Mechanism) -> dict[str, MassProperties]:
         m = DEFAULT_MASS
         out[body.name] = MassProperties(m, pts.mean(axis=0), m * (length**2 / 12.0 + radius**2 / 2.0), True)
     return out
+
+
+def carrier_name(joint) -> str:
+    """Name of the carrier body, its slide joint and its site: ``"<joint>.carrier"``."""
+    return f"{joint.name}.carrier"
+
+
+def carrier_split(mechanism: Mechanism, cut, held: MassProperties | None,
+                  line_body: MassProperties | None) -> tuple[MassProperties, MassProperties | None]:
+    """(carrier's mass properties in its own frame, what is left to the held body).
+
+    :func:`xcheck.topology.carrier_share`, plus, for a pin-in-slot carrier, a
+    rotational inertia of :data:`CARRIER_INERTIA` m_c size^2 (at least
+    :data:`CARRIER_INERTIA_FLOOR`), which MuJoCo requires and nothing offsets.
+
+    Parameters
+    ----------
+    cut : PinInSlot or Prismatic
+        The loop cut; the carrier slides on ``body_a`` and is held to ``body_b``.
+    held, line_body : MassProperties or None
+        ``body_b``'s and ``body_a``'s current mass properties; None for the ground.
+    """
+    carrier, rest = carrier_share(mechanism, cut, None if held is None else (held.mass, held.com, held.inertia),
+                                  line_body.mass if line_body is not None else DEFAULT_MASS)
+    mass, com, inertia = carrier
+    if isinstance(cut, PinInSlot):
+        inertia = _carrier_inertia(mass, mechanism.size**2)
+    return (MassProperties(mass, com, inertia, False),
+            None if rest is None else MassProperties(*rest, held.default))
+
+
+def _carrier_inertia(mass: float, size2: float) -> float:
+    return max(CARRIER_INERTIA * mass * size2, CARRIER_INERTIA_FLOOR)
+
+
+def carrier_note(mechanism: Mechanism, topology: Topology) -> str:
+    """One or two sentences on the carriers of a file, for a mode's notes ("" if none)."""
+    _, carriers = file_mass_properties(mechanism, topology)
+    if not carriers:
+        return ""
+    pins = {name: props for name, props in carriers.items()
+            if isinstance(mechanism.joint(name[:-len(".carrier")]), PinInSlot)}
+    text = (f"Loops with no undriven revolute are closed through carrier bodies ({', '.join(carriers)}) whose "
+            "mass is taken from the bodies they are held to, so the mass distribution is the model's.")
+    if pins:
+        largest = max(props.inertia for props in pins.values())
+        text += (f" The only term not in the model: the pin-in-slot carriers' rotational inertia (at most "
+                 f"{largest:.3g} kg m^2, turning with the slot's body), a moment of that times the slot's "
+                 "angular acceleration.")
+    return text
+
+
+def weld_site(joint) -> str:
+    """Name of the site on the block that a prismatic cut's carrier is welded to: ``"<joint>.block"``."""
+    return f"{joint.name}.block"
+
+
+def file_mass_properties(mechanism: Mechanism, topology: Topology) -> tuple[dict, dict]:
+    """(bodies' mass properties as written, carriers' by carrier name): the
+    model's (or defaults) with each carrier's share taken from its held body."""
+    bodies = mass_properties(mechanism)
+    carriers = {}
+    for cut in topology.cuts:
+        if isinstance(cut, Revolute):
+            continue
+        carrier, rest = carrier_split(mechanism, cut, bodies.get(cut.body_b), bodies.get(cut.body_a))
+        carriers[carrier_name(cut)] = carrier
+        if rest is not None:
+            bodies[cut.body_b] = rest
+    return bodies, carriers
 
 
 @dataclass(frozen=True)
@@ -138,13 +231,18 @@ def _children(topology: Topology) -> dict[str, list[TreeJoint]]:
     return children
 
 
+def _carried(topology: Topology, body: str) -> list:
+    """The pin-in-slot and prismatic cuts whose line is on ``body`` (their carriers hang from it)."""
+    return [cut for cut in topology.cuts if not isinstance(cut, Revolute) and cut.body_a == body]
+
+
 def layout(mechanism: Mechanism) -> Layout:
     """The MJCF layout of a mechanism.
 
     Raises
     ------
     ModelError
-        If a loop cannot be cut at a revolute joint (see :func:`spanning_tree`).
+        If the joints have no spanning tree (see :func:`spanning_tree`).
     """
     topology = spanning_tree(mechanism)
     children = _children(topology)
@@ -154,6 +252,8 @@ def layout(mechanism: Mechanism) -> Layout:
         for tj in children.get(body, []):
             joints.extend(MjJoint(name, kind, tj.joint, tj.child) for name, kind in _tree_joints(tj))
             visit(tj.child)
+        for cut in _carried(topology, body):
+            joints.append(MjJoint(carrier_name(cut), "slide", cut, carrier_name(cut)))
 
     visit(GROUND)
     driver_joints = []
@@ -248,11 +348,12 @@ def mjcf_text(kinematics: Kinematics) -> str:
     Raises
     ------
     ModelError
-        If the mechanism cannot be written as a tree with revolute loop cuts.
+        If the mechanism's joints have no spanning tree.
     """
     mech = kinematics.mechanism
     lay = layout(mech)
     masses = mass_properties(mech)
+    written, carriers = file_mass_properties(mech, lay.topology)
     size = mech.size
     radius = _round(0.01 * size)  # visual only
 
@@ -263,7 +364,16 @@ def mjcf_text(kinematics: Kinematics) -> str:
         "SI units; angles in radians. Body frames are the model's body frames. Hinge qpos = phi_b - phi_a "
         "of the model joint (axis -z where the tree runs from body_b to body_a); slide qpos = the joint's "
         "slide displacement. A pin-in-slot is a slide and a hinge in one body.",
-        "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp). "
+        "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp)"
+        + ("" if not carriers else
+           "; a loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J and closed through "
+           "a carrier body 'J.carrier' with a slide along J's line (qpos = J's slide displacement), held to the "
+           "pin by a connect or to the block by a site weld. Carrier masses are taken from the held bodies "
+           "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep its "
+           "totals; prismatic: half the block), so the mass distribution is the model's; a pin-in-slot carrier "
+           f"adds only a rotational inertia of {_num(CARRIER_INERTIA)} m size^2, at least "
+           f"{_num(CARRIER_INERTIA_FLOOR)} kg m^2 (MuJoCo needs one)")
+        + ". "
         + (f"Gravity {_vec(*mech.gravity, 0.0)} m/s^2: the model's." if np.any(mech.gravity) else
            "Gravity is zero: the model gives none (the kinematic comparison does not depend on loads).")
         + (f" The model's applied loads ({', '.join(load.name for load in mech.loads)}) are not in the file: "
@@ -288,9 +398,21 @@ def mjcf_text(kinematics: Kinematics) -> str:
     ET.SubElement(default, "geom", contype="0", conaffinity="0", rgba="0.3 0.5 0.8 1")
     ET.SubElement(default, "site", size=_num(_round(1.5 * radius)), rgba="0.9 0.3 0.2 1")
 
+    def add_weld_sites(el: ET.Element, body: str) -> None:
+        """The sites that prismatic cuts weld to: at the sliding point, turned by -angle (so that the
+        weld holds phi_b - phi_a = angle)."""
+        for cut in lay.topology.cuts:
+            if isinstance(cut, Prismatic) and cut.body_b == body:
+                xy = mech.body(body).points[cut.point]
+                attrs = {"name": weld_site(cut), "pos": _vec(xy[0], xy[1], 0.0)}
+                if cut.angle != 0.0:
+                    attrs["axisangle"] = _vec(0.0, 0.0, 1.0, -cut.angle)
+                ET.SubElement(el, "site", attrs)
+
     worldbody = ET.SubElement(root, "worldbody")
     for label, xy in mech.ground.points.items():
         ET.SubElement(worldbody, "site", name=_site(GROUND, label), pos=_vec(xy[0], xy[1], 0.0))
+    add_weld_sites(worldbody, GROUND)
 
     children = _children(lay.topology)
 
@@ -321,7 +443,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
                 axis = -joint.direction if tj.reversed else rotate(-angle, joint.direction)
                 j_attrs["axis"] = _vec(axis[0], axis[1], 0.0)
             ET.SubElement(el, "joint", j_attrs)
-        props = masses[body.name]
+        props = written[body.name]
         ET.SubElement(el, "inertial", pos=_vec(props.com[0], props.com[1], 0.0), mass=_num(props.mass),
                       diaginertia=_vec(props.inertia, props.inertia, props.inertia))
         labels = list(body.points)
@@ -334,17 +456,37 @@ def mjcf_text(kinematics: Kinematics) -> str:
                           fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0))
         for label, xy in zip(labels, pts):
             ET.SubElement(el, "site", name=_site(body.name, label), pos=_vec(xy[0], xy[1], 0.0))
+        add_weld_sites(el, body.name)
         for child in children.get(body.name, []):
             add_body(el, child)
+        add_carriers(el, body.name)
+
+    def add_carriers(parent_el: ET.Element, body: str) -> None:
+        for cut in _carried(lay.topology, body):
+            name, line = carrier_name(cut), mech.body(body).points[cut.line_point]
+            el = ET.SubElement(parent_el, "body", name=name, pos=_vec(line[0], line[1], 0.0))
+            ET.SubElement(el, "joint", name=name, type="slide", pos="0 0 0",
+                          axis=_vec(cut.direction[0], cut.direction[1], 0.0))
+            props = carriers[name]
+            ET.SubElement(el, "inertial", pos=_vec(props.com[0], props.com[1], 0.0), mass=_num(props.mass),
+                          diaginertia=_vec(props.inertia, props.inertia, props.inertia))
+            ET.SubElement(el, "site", name=name, pos="0 0 0")
 
     for tj in children.get(GROUND, []):
         add_body(worldbody, tj)
+    add_carriers(worldbody, GROUND)
 
     if lay.topology.cuts:
         equality = ET.SubElement(root, "equality")
         for cut in lay.topology.cuts:
-            ET.SubElement(equality, "connect", name=cut.name, site1=_site(cut.body_a, cut.point_a),
-                          site2=_site(cut.body_b, cut.point_b))
+            if isinstance(cut, Revolute):
+                ET.SubElement(equality, "connect", name=cut.name, site1=_site(cut.body_a, cut.point_a),
+                              site2=_site(cut.body_b, cut.point_b))
+            elif isinstance(cut, PinInSlot):
+                ET.SubElement(equality, "connect", name=cut.name, site1=carrier_name(cut),
+                              site2=_site(cut.body_b, cut.point))
+            else:
+                ET.SubElement(equality, "weld", name=cut.name, site1=carrier_name(cut), site2=weld_site(cut))
 
     actuator = ET.SubElement(root, "actuator")
     for driver, mj_joint, inertia in zip(mech.drivers, lay.driver_joints, _servo_inertia(kinematics, masses)):

@@ -72,8 +72,9 @@ class Oracle:
         self.bodies = [(b.name, model.body(b.name).id) for b in mechanism.moving_bodies]
         owners = mechanism.point_owners
         self.points = [(label, model.site(f"{owners[label]}.{label}").id) for label in owners]
-        self.connects = [(model.eq_obj1id[i], model.eq_obj2id[i]) for i in range(model.neq)
-                         if model.eq_type[i] == mujoco.mjtEq.mjEQ_CONNECT]
+        # (site 1, site 2, weld?) per equality: connects give 3 rows, welds 6 (translation, then rotation)
+        self.equalities = [(model.eq_obj1id[i], model.eq_obj2id[i], model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD)
+                           for i in range(model.neq)]
         self._jacp, self._jacr = np.zeros((3, self.nv)), np.zeros((3, self.nv))
 
     # -- loop closure -------------------------------------------------------
@@ -169,14 +170,21 @@ class Oracle:
         return self._lstsq(matrix, np.concatenate([np.zeros(loop.size), rates]))
 
     def drift(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
-        """J-dot qd of the loop rows (m/s^2), from ``mj_jacDot`` at both sites of each connect; (r,)."""
+        """J-dot qd of the loop rows (m/s^2), from ``mj_jacDot`` at both sites of each connect or weld; (r,).
+
+        A weld's rotation rows have no drift in a plane: their Jacobian is
+        constant (rotations about z only) and their residual, the vector part
+        of the relative quaternion, has a zero second-order term where it is zero.
+        """
         m, d = self.model, self.data
         d.qpos[:], d.qvel[:] = qpos, qvel
         mujoco.mj_fwdPosition(m, d)
         mujoco.mj_comVel(m, d)
         out = []
-        for site1, site2 in self.connects:
+        for site1, site2, weld in self.equalities:
             out.append(self._point_drift(site1, qvel) - self._point_drift(site2, qvel))
+            if weld:
+                out.append(np.zeros(3))
         return np.concatenate(out) if out else np.zeros(0)
 
     def _point_drift(self, site: int, qvel: np.ndarray) -> np.ndarray:

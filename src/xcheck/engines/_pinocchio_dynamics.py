@@ -227,6 +227,10 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
              f"(kp = {kp:.4g} 1/s^2, kd = {kd:.4g} 1/s) on the tracking error. Accelerations are "
              "constraintDynamics' own at each recorded state."
              + (f" Baumgarte correction Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
+             + (f" Loops with no undriven revolute are closed through carriers "
+                f"({', '.join(c.name for c in pm.spec.carriers)}: a prismatic joint along the cut joint's line, "
+                "CONTACT_3D to a pin, CONTACT_6D to a block) whose mass is taken from the bodies they are held "
+                "to, so the mass distribution is the model's." if pm.spec.carriers else "")
              + (f" Default mass properties (none in the model) for {', '.join(defaults)}: 1 kg at the "
                 "centroid of the body's points, a slender bar's inertia." if defaults else ""))
     trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)

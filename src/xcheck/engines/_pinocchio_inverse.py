@@ -8,8 +8,11 @@ accelerations with the drift of the frames' classical accelerations). Then:
 * ``rnea(q, v, a, fext)`` with the applied loads as external forces gives the
   generalised force the motion needs (gravity in the model's ``gravity``);
 * it equals J_cut^T f + S^T e: the loop cuts' forces f (x and y rows of the
-  loop Jacobian, force on the cut's first anchor, its opposite on the second)
-  and the drivers' efforts e (S: the signed input selector), a square system;
+  loop Jacobian, force on the cut's first anchor, its opposite on the second;
+  a prismatic cut's CONTACT_6D also a couple, its rotation z row) and the
+  drivers' efforts e (S: the signed input selector), a square system. The
+  first anchor of a pin-in-slot or prismatic cut is its massless carrier, which
+  passes the force on to the line's body;
 * ``rnea`` again with the cut forces added to ``fext``: ``data.f[j]`` is the
   spatial force joint j transmits from its parent to its subtree: the tree
   joints' reactions and a prismatic joint's couple.
@@ -48,7 +51,7 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
     """
     mech = kinematics.mechanism
     solution = determined_states(kinematics, branch, samples, solution)
-    pm = build_model(tree_spec(mech))
+    pm = build_model(tree_spec(mech, carrier_mass=False))  # the cut force acts on the line body directly
     model = pm.model
     oracle = Oracle(pm)
     data = model.createData()
@@ -57,6 +60,10 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
     n, nv = inputs.shape[0], model.nv
     selector = pm.input_selector()
     cuts = pm.spec.cuts
+    # per cut: its rows of the loop Jacobian that carry unknowns (x, y; a CONTACT_6D's rotation z too)
+    rows = [[start, start + 1] + ([start + 5] if n == 6 else []) for start, n in pm.constraint_rows()]
+    offsets = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(int)
+    unknowns = int(offsets[-1])
     # per tree joint: the Pinocchio joint nearest the child (a pin-in-slot's second one) and its bodies
     last = {}
     for js in pm.spec.joints:
@@ -98,22 +105,39 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
         tau = pin.rnea(model, data, q, v, a, external(applied)).copy()
         oracle.loop_residual(q)
         loop_jacobian = oracle.loop_jacobian(q)
-        columns = [loop_jacobian[3 * c:3 * c + 2].T for c in range(len(cuts))] + [selector.T]
+        columns = [loop_jacobian[rows[c]].T for c in range(len(cuts))] + [selector.T]
         matrix = np.hstack(columns) if columns else np.zeros((nv, 0))
         x = np.linalg.solve(matrix, tau)
-        efforts = x[2 * len(cuts):]
+        efforts = x[unknowns:]
         for k, d in enumerate(mech.drivers):
             drivers[d.name]["effort"][i] = efforts[k]
 
         cut_forces = []
         for c, cut in enumerate(cuts):
-            f = x[2 * c:2 * c + 2]
-            for body, label, sign in ((cut.body_a, cut.point_a, 1.0), (cut.body_b, cut.point_b, -1.0)):
-                if body == GROUND:
-                    continue
-                at = data.oMf[point_ids[point_frame(body, label)]].translation[:2]
-                cut_forces.append((body_joint[body], _force(sign * f, at)))
-            joints[cut.name]["reaction"][i] = -f  # f acts on body_a: body_a on body_b is -f
+            f = x[offsets[c]:offsets[c] + 2]
+            couple = x[offsets[c] + 2] if isinstance(cut, Prismatic) else 0.0
+            if isinstance(cut, Revolute):
+                for body, label, sign in ((cut.body_a, cut.point_a, 1.0), (cut.body_b, cut.point_b, -1.0)):
+                    if body == GROUND:
+                        continue
+                    at = data.oMf[point_ids[point_frame(body, label)]].translation[:2]
+                    cut_forces.append((body_joint[body], _force(sign * f, at)))
+            else:  # anchor 1 on the carrier, anchor 2 on body_b, both at the sliding point
+                cm = pm.constraints[c]
+                for jid, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0),
+                                             (cm.joint2_id, cm.joint2_placement, -1.0)):
+                    if jid == 0:
+                        continue
+                    at = (data.oMi[jid] * placement).translation[:2]
+                    cut_forces.append((jid, _force(sign * f, at, sign * couple)))
+            out = joints[cut.name]
+            out["reaction"][i] = -f  # f acts on body_a: body_a on body_b is -f
+            if not isinstance(cut, Revolute):
+                line = np.eye(3) if cut.body_a == GROUND else data.oMf[pm.body_frames[cut.body_a]].rotation
+                u = line[:2, :2] @ cut.direction
+                out["normal"][i] = -f @ np.array([-u[1], u[0]])
+                if isinstance(cut, Prismatic):
+                    out["moment"][i] = -couple  # about the sliding point
         remaining = pin.rnea(model, data, q, v, a, external(applied + cut_forces))
         residual[i] = np.linalg.norm(remaining - selector.T @ efforts) / max(np.linalg.norm(tau), 1e-300)
 

@@ -22,6 +22,16 @@ Conventions (planar mechanism in the x-y plane, rotation about z):
 * Each cut revolute becomes a ``RigidConstraintModel`` of type CONTACT_3D
   between its two points, expressed LOCAL_WORLD_ALIGNED. Its z row is
   identically zero for a planar mechanism.
+* A loop with no undriven revolute is cut at a pin-in-slot or prismatic joint
+  (:mod:`xcheck.topology`). Its line's body gets a carrier: a
+  prismatic joint ``"<joint>.carrier"`` along the line (coordinate: the joint's
+  slide displacement), after the tree joints, with the mass it takes from the
+  body it is held to (:func:`xcheck.topology.carrier_share`; the mass
+  distribution stays the model's). A pin-in-slot cut is a
+  CONTACT_3D between the carrier's link origin and the pin; a prismatic cut a
+  CONTACT_6D between it and the frame ``"<joint>.block"`` of the block (at the
+  sliding point, turned by -angle so that the frames align when
+  phi_b - phi_a = angle); its rows x, y and rotation z act.
 * A body without mass properties gets defaults (see :func:`mass_properties`).
 * Gravity is the mechanism's, in the plane (zero when it gives none).
 """
@@ -36,11 +46,11 @@ import pinocchio as pin
 
 from ..errors import ModelError
 from ..kinematics import rotate
-from ..model import GROUND, Body, Mechanism, Prismatic, Revolute
-from ..topology import spanning_tree
+from ..model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
+from ..topology import carrier_share, spanning_tree
 
 __all__ = ["JointSpec", "BodySpec", "DriverCoordinate", "TreeSpec", "PinocchioMechanism",
-           "tree_spec", "build_model", "mass_properties", "joint_coordinates"]
+           "tree_spec", "build_model", "mass_properties", "joint_coordinates", "carrier_joint", "block_frame"]
 
 
 @dataclass(frozen=True)
@@ -139,9 +149,10 @@ class TreeSpec:
         Moving bodies in ``mechanism.moving_bodies`` order.
     points : tuple of (str, str, ndarray)
         (body, label, local position (2,) m) of every named point, ground first.
-    cuts : tuple of Revolute
-        Loop-closing revolutes: point ``point_a`` of ``body_a`` on ``point_b``
-        of ``body_b``.
+    cuts : tuple of Joint
+        Loop-closing joints: a revolute's point ``point_a`` of ``body_a`` on
+        ``point_b`` of ``body_b``; a pin-in-slot's or prismatic's carrier on
+        ``body_b`` (see the module notes).
     drivers : tuple of (str, str, float)
         Per driver: its name, the joint carrying its input, and the sign.
     """
@@ -150,8 +161,12 @@ class TreeSpec:
     joints: tuple[JointSpec, ...]
     bodies: tuple[BodySpec, ...]
     points: tuple[tuple[str, str, np.ndarray], ...]
-    cuts: tuple[Revolute, ...]
+    cuts: tuple[Joint, ...]
     drivers: tuple[tuple[str, str, float], ...]
+    #: (body, frame name, position (2,) m, angle rad) of each prismatic cut's block frame
+    blocks: tuple[tuple[str, str, np.ndarray, float], ...] = ()
+    #: mass properties of the carriers that have mass (name: the carrier joint; link: its link)
+    carriers: tuple[BodySpec, ...] = ()
 
 
 def point_frame(body: str, label: str) -> str:
@@ -183,14 +198,24 @@ def _unit3(xy) -> np.ndarray:
 _Z = np.array([0.0, 0.0, 1.0])
 
 
-def tree_spec(mechanism: Mechanism) -> TreeSpec:
+def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     """The Pinocchio description of a mechanism (see the module notes).
+
+    Parameters
+    ----------
+    carrier_mass : bool
+        Give the carriers of pin-in-slot and prismatic cuts the mass that
+        :func:`xcheck.topology.carrier_share` takes from the bodies they are
+        held to (the mass distribution stays the model's). A massless carrier
+        at the end of the tree makes the joint-space inertia singular, which
+        ``constraintDynamics`` cannot factor; inverse dynamics (RNEA) works
+        with massless carriers and reads the cut's force directly.
 
     Raises
     ------
     ModelError
-        If the mechanism has no spanning tree with revolute cuts, or two
-        generated frame names clash.
+        If the mechanism's joints have no spanning tree, or two generated
+        frame names clash.
     """
     topology = spanning_tree(mechanism)
     joints: list[JointSpec] = []
@@ -237,18 +262,42 @@ def tree_spec(mechanism: Mechanism) -> TreeSpec:
             frame = link
         attach[child] = (frame, np.array(s_child, dtype=float))
 
+    blocks = []
+    for cut in topology.cuts:  # carriers of the cuts at pin-in-slot and prismatic joints
+        if isinstance(cut, Revolute):
+            continue
+        line = mechanism.body(cut.body_a).points[cut.line_point]
+        name = carrier_joint(cut)
+        joints.append(JointSpec(name, "prismatic", cut.body_a, np.array(line, dtype=float), 0.0,
+                                _unit3(cut.direction), f"{name}.link", cut.name, (cut.body_a, cut.body_a)))
+        if isinstance(cut, Prismatic):
+            blocks.append((cut.body_b, block_frame(cut),
+                           np.array(mechanism.body(cut.body_b).points[cut.point], dtype=float), -float(cut.angle)))
+
     size = mechanism.size
+    props = {body.name: mass_properties(body, size) for body in mechanism.moving_bodies}
+    carriers = []
+    for cut in topology.cuts if carrier_mass else ():
+        if isinstance(cut, Revolute):
+            continue
+        held = props.get(cut.body_b)
+        line_mass = props[cut.body_a][0] if cut.body_a in props else 1.0
+        (mass, com, inertia), rest = carrier_share(mechanism, cut, None if held is None else held[:3], line_mass)
+        name = carrier_joint(cut)
+        carriers.append(BodySpec(name, f"{name}.link", np.zeros(2), mass, com, inertia, False))
+        if rest is not None:
+            props[cut.body_b] = (*rest, held[3])
     bodies = []
     for body in mechanism.moving_bodies:
         link, s_child = attach[body.name]
-        mass, com, inertia, default = mass_properties(body, size)
+        mass, com, inertia, default = props[body.name]
         bodies.append(BodySpec(body.name, link, -s_child, mass, com, inertia, default))
     points = tuple((b.name, label, np.array(xy, dtype=float))
                    for b in mechanism.bodies for label, xy in b.points.items())
     spec = TreeSpec(mechanism, tuple(joints), tuple(bodies), points, topology.cuts,
-                    tuple((d.name, *drivers[d.name]) for d in mechanism.drivers))
+                    tuple((d.name, *drivers[d.name]) for d in mechanism.drivers), tuple(blocks), tuple(carriers))
     links = ([GROUND] + [j.link for j in spec.joints] + [b.name for b in spec.bodies]
-             + [point_frame(b, lbl) for b, lbl, _ in spec.points])
+             + [point_frame(b, lbl) for b, lbl, _ in spec.points] + [name for _, name, _, _ in spec.blocks])
     joint_names = [j.name for j in spec.joints] + [fixed_joint(link) for link in links[1:]]
     for kind, names in (("link", links), ("joint", joint_names)):
         clash = sorted({n for n in names if names.count(n) > 1})
@@ -256,6 +305,16 @@ def tree_spec(mechanism: Mechanism) -> TreeSpec:
             raise ModelError(mechanism.path, "bodies", f"body, joint and point names that give distinct "
                              f"Pinocchio/URDF {kind} names", f"{clash[0]!r} more than once")
     return spec
+
+
+def carrier_joint(joint: Joint) -> str:
+    """Name of the carrier joint of a cut pin-in-slot or prismatic joint: ``"<joint>.carrier"``."""
+    return f"{joint.name}.carrier"
+
+
+def block_frame(joint: Joint) -> str:
+    """Name of the block frame a prismatic cut's carrier is held to: ``"<joint>.block"``."""
+    return f"{joint.name}.block"
 
 
 def fixed_joint(link: str) -> str:
@@ -285,7 +344,8 @@ class PinocchioMechanism:
     spec : TreeSpec
     model : pin.Model
     constraints : list of pin.RigidConstraintModel
-        One CONTACT_3D per cut, LOCAL_WORLD_ALIGNED, in ``spec.cuts`` order.
+        One per cut, LOCAL_WORLD_ALIGNED, in ``spec.cuts`` order: CONTACT_3D
+        (revolute, pin-in-slot) or CONTACT_6D (prismatic).
     body_frames : dict of str to int
         Moving body -> frame id of its body frame.
     point_frames : dict of str to int
@@ -307,6 +367,16 @@ class PinocchioMechanism:
     def constraint_datas(self) -> list:
         """Fresh workspaces for the constraints (one per constraint model)."""
         return [cm.createData() for cm in self.constraints]
+
+    def constraint_rows(self) -> list[tuple[int, int]]:
+        """(first row, rows) of each constraint in the stacked loop rows: 3 for a
+        CONTACT_3D (x, y, z), 6 for a CONTACT_6D (x, y, z, then rotation x, y, z)."""
+        out, offset = [], 0
+        for cm in self.constraints:
+            rows = 6 if cm.type == pin.ContactType.CONTACT_6D else 3
+            out.append((offset, rows))
+            offset += rows
+        return out
 
     def input_selector(self) -> np.ndarray:
         """S, shape (k, nv): the drivers' inputs are ``S q`` (and their rates ``S v``)."""
@@ -343,20 +413,35 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
             model.appendBodyToJoint(jid, spatial_inertia(body), placement)
             body_frames[body.name] = model.addBodyFrame(body.name, jid, placement, joint_frame)
             frame_joint[body.name], frame_id[body.name] = (jid, placement), body_frames[body.name]
+    for carrier in spec.carriers:
+        model.appendBodyToJoint(frame_joint[carrier.link][0], spatial_inertia(carrier), pin.SE3.Identity())
     for body, label, xy in spec.points:
         jid, placement = frame_joint[body]
         parent_frame = 0 if body == GROUND else body_frames[body]
         name = point_frame(body, label)
         point_frames[name] = model.addFrame(
             pin.Frame(name, jid, parent_frame, placement * _se3(0.0, xy), pin.FrameType.OP_FRAME), False)
+    block_frames = {}
+    for body, name, xy, angle in spec.blocks:
+        jid, placement = frame_joint[body]
+        parent_frame = 0 if body == GROUND else body_frames[body]
+        block_frames[name] = model.addFrame(
+            pin.Frame(name, jid, parent_frame, placement * _se3(angle, xy), pin.FrameType.OP_FRAME), False)
     constraints = []
     for cut in spec.cuts:
-        anchors = []
-        for body, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b)):
-            frame = model.frames[point_frames[point_frame(body, label)]]
+        anchors, kind = [], pin.ContactType.CONTACT_3D
+        if isinstance(cut, Revolute):
+            frames = [point_frames[point_frame(cut.body_a, cut.point_a)],
+                      point_frames[point_frame(cut.body_b, cut.point_b)]]
+        elif isinstance(cut, Prismatic):
+            frames = [frame_id[f"{carrier_joint(cut)}.link"], block_frames[block_frame(cut)]]
+            kind = pin.ContactType.CONTACT_6D
+        else:
+            frames = [frame_id[f"{carrier_joint(cut)}.link"], point_frames[point_frame(cut.body_b, cut.point)]]
+        for fid in frames:
+            frame = model.frames[fid]
             anchors += [frame.parentJoint, frame.placement]
-        cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, *anchors,
-                                      pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        cm = pin.RigidConstraintModel(kind, model, *anchors, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
         cm.name = cut.name
         constraints.append(cm)
     index = {model.names[j]: model.idx_qs[j] for j in range(1, model.njoints)}

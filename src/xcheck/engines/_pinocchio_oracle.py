@@ -28,8 +28,9 @@ _MAX_ITERATIONS = 30
 class Oracle:
     """Newton projection, velocity and acceleration of a mechanism in Pinocchio.
 
-    The rows of the full system are the loop closures (3 per cut, the z row
-    identically zero) followed by one row per driver, ``sign * q[index] = c``.
+    The rows of the full system are the loop closures (3 per CONTACT_3D cut,
+    the z row identically zero; 6 per CONTACT_6D, rows z, rotation x and y
+    zero) followed by one row per driver, ``sign * q[index] = c``.
     Systems are solved in the least-squares sense (``lstsq``), which is exact
     for a consistent system of full column rank.
 
@@ -48,21 +49,25 @@ class Oracle:
         self.data = self._model.createData()
         self.cds = self.pm.constraint_datas()
         self.selector = self.pm.input_selector()
-        self.n_loop = 3 * len(self.pm.constraints)
+        self.rows = self.pm.constraint_rows()
+        self.n_loop = sum(n for _, n in self.rows)
 
     # -- loop closure ------------------------------------------------------
     def loop_residual(self, q: np.ndarray) -> np.ndarray:
-        """Anchor 1 minus anchor 2 of each cut, world axes, shape (3 cuts,), m."""
+        """Anchor 1 minus anchor 2 of each cut, world axes, shape (loop rows,), m; a
+        CONTACT_6D's rotation rows: the rotation vector from anchor 2 to anchor 1 (rad)."""
         model, data = self._model, self.data
         pin.forwardKinematics(model, data, q)
         out = np.empty(self.n_loop)
-        for i, (cm, cd) in enumerate(zip(self.pm.constraints, self.cds)):
+        for (start, n), cm, cd in zip(self.rows, self.pm.constraints, self.cds):
             cm.calc(model, data, cd)
-            out[3 * i:3 * i + 3] = cd.oMc1.translation - cd.oMc2.translation
+            out[start:start + 3] = cd.oMc1.translation - cd.oMc2.translation
+            if n == 6:
+                out[start + 3:start + 6] = pin.log3(cd.oMc1.rotation @ cd.oMc2.rotation.T)
         return out
 
     def loop_jacobian(self, q: np.ndarray) -> np.ndarray:
-        """d(loop_residual)/dq from ``getConstraintsJacobian``, shape (3 cuts, nv).
+        """d(loop_residual)/dq from ``getConstraintsJacobian``, shape (loop rows, nv).
 
         Call after :meth:`loop_residual` at the same q.
         """
@@ -72,7 +77,7 @@ class Oracle:
         return pin.getConstraintsJacobian(self._model, self.data, self.pm.constraints, self.cds)
 
     def system(self, q: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(residual (3 cuts + k,), Jacobian (3 cuts + k, nv)) of loops and drivers."""
+        """(residual (loop rows + k,), Jacobian (loop rows + k, nv)) of loops and drivers."""
         residual = np.concatenate([self.loop_residual(q), self.selector @ q - c])
         return residual, np.vstack([self.loop_jacobian(q), self.selector])
 
@@ -111,15 +116,18 @@ class Oracle:
         return np.linalg.lstsq(jac, rhs, rcond=None)[0]
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Loop acceleration at zero joint acceleration, shape (3 cuts,), m/s^2:
-        classical acceleration of anchor 1 minus anchor 2 (world axes)."""
+        """Loop acceleration at zero joint acceleration, shape (loop rows,), m/s^2:
+        classical acceleration of anchor 1 minus anchor 2 (world axes); a
+        CONTACT_6D's rotation rows: angular acceleration 1 minus 2 (rad/s^2)."""
         model, data = self._model, self.data
         pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
         out = np.empty(self.n_loop)
-        for i, cm in enumerate(self.pm.constraints):
+        for (start, n), cm in zip(self.rows, self.pm.constraints):
             a1 = pin.getFrameClassicalAcceleration(model, data, cm.joint1_id, cm.joint1_placement, LWA)
             a2 = pin.getFrameClassicalAcceleration(model, data, cm.joint2_id, cm.joint2_placement, LWA)
-            out[3 * i:3 * i + 3] = a1.linear - a2.linear
+            out[start:start + 3] = a1.linear - a2.linear
+            if n == 6:
+                out[start + 3:start + 6] = a1.angular - a2.angular
         return out
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, input_accelerations: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from ..model import Mechanism
 from ..motion import simulation_window
 from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
 from ._mujoco_inverse import inverse_forces
-from ._mujoco_mjcf import DEFAULT_MASS, joint_coordinates, layout, mass_properties, mjcf_text
+from ._mujoco_mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
 from ._mujoco_oracle import Oracle
 
 __all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error", "inverse_dynamics"]
@@ -37,19 +37,14 @@ def export_files(kinematics: Kinematics) -> dict[str, str]:
     Raises
     ------
     ModelError
-        If the mechanism cannot be written (a loop with no revolute to cut).
+        If the mechanism cannot be written (its joints have no spanning tree).
     """
     return {f"{kinematics.mechanism.name}.xml": mjcf_text(kinematics)}
 
 
 def _writer_failure(mechanism: Mechanism, error: XcheckError) -> str:
-    """One line saying which joint the writer cannot express and why."""
-    field = getattr(error, "field", "")
-    if field.startswith("joints["):
-        joint = mechanism.joints[int(field[len("joints["):field.index("]")])]
-        return (f"MJCF writer: joint {joint.name!r} ({joint.kind}) closes a loop that has no revolute joint; "
-                "MuJoCo closes loops with connect constraints at revolutes, so the loop cannot be written")
-    return f"MJCF writer: {error}"
+    """One line saying why the writer cannot express the mechanism."""
+    return f"MJCF writer: {' '.join(str(error).split())}"
 
 
 def _compile(kinematics: Kinematics, xml: str | None):
@@ -387,6 +382,8 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
     if defaults:
         drive += (f"Default mass properties (none in the model) for {', '.join(defaults)}: {DEFAULT_MASS:g} kg at "
                   "the centroid of the body's points, a slender bar's inertia plus a small disc term. ")
+    note = carrier_note(oracle.mechanism, layout(oracle.mechanism).topology)
+    drive += f"{note} " if note else ""
     bodies, points = oracle.states(run.qpos, run.qvel, run.qacc)
     trajectory = Trajectory(DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times, settings,
                             diagnostics, drive + "Accelerations: qacc from mj_forward at each sampled state (what "

@@ -52,7 +52,7 @@ def build(kinematics: Kinematics) -> PinocchioMechanism:
     Raises
     ------
     ModelError
-        If the mechanism cannot be expressed as a tree with revolute cuts.
+        If the mechanism's joints have no spanning tree.
     """
     return build_model(tree_spec(kinematics.mechanism))
 
