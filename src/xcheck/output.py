@@ -252,7 +252,8 @@ def run_json(run) -> dict:
 
     Per mode: the largest absolute difference per category (m, m/s, m/s^2,
     rad, rad/s, rad/s^2), the same relative (see :class:`xcheck.runner.ModeOutcome`),
-    the tolerances, pass and reason.
+    the tolerances, the physical floor of each category's scale (SI; ``scale_floors``:
+    the run's, :func:`xcheck.compare.scale_floors`), pass and reason.
     """
     from .runner import CATEGORIES
 
@@ -261,22 +262,26 @@ def run_json(run) -> dict:
         entry = {c: None for c in CATEGORIES}
         entry["relative"] = {c: None for c in CATEGORIES}
         entry["tolerance"] = {c: None for c in CATEGORIES}
+        entry["scale_floor"] = {c: None for c in CATEGORIES}
         for row in outcome.categories.itertuples():
             entry[row.category] = _number(row.max_abs)
             entry["relative"][row.category] = _number(row.relative)
             entry["tolerance"][row.category] = _number(row.tolerance)
+            entry["scale_floor"][row.category] = _number(getattr(row, "floor", math.nan))
         entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "seconds": round(outcome.seconds, 3)})
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
         forces[row.engine] = {"max_abs": _number(row.max_abs), "unit": row.unit or None,
                               "relative": _number(row.max_rel), "tolerance": _number(row.tolerance),
+                              "scale_floor": _number(getattr(row, "floor", math.nan)),
                               "worst": f"{row.name} {row.quantity}".strip() or None, "states": int(row.states),
                               "pass": bool(row.passed), "reason": row.reason or None}
     energy = None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v)
                                                for k, v in run.energy.items()}
     return {"mechanism": run.mechanism.name, "samples": int(run.native.inputs.shape[0]), "branch": run.branch,
-            "pass": run.passed, "engines": engines, "not_applicable": run.not_applicable,
+            "pass": run.passed, "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
+            "engines": engines, "not_applicable": run.not_applicable,
             "forces": forces, "energy": energy, "forces_not_computed": run.no_forces or None,
             "textbook": textbook_json(run.textbook)}
 

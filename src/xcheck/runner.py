@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
-from .compare import ModeResult, Trajectory, differences, native_at, sample_errors
+from .compare import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
 from .dynamics import (Forces, ForceResult, compare_forces, energy_summary, force_summary, inverse_dynamics,
                        require_mass_data, window_states)
 from .errors import InputError, XcheckError
@@ -45,7 +45,8 @@ class Tolerance:
     ``position`` is a fraction of the mechanism's size, ``angle`` in rad,
     ``velocity`` (velocities and angular velocities) and ``acceleration``
     (accelerations and angular accelerations) fractions of the largest
-    magnitude of that quantity in the mechanism; ``basis`` says where the
+    magnitude of that quantity in the mechanism, but at least of its physical
+    floor (:func:`xcheck.compare.scale_floors`); ``basis`` says where the
     numbers come from.
     """
 
@@ -116,7 +117,8 @@ class ModeOutcome:
     categories : DataFrame
         One row per category: max_abs (SI), rms, relative (position per
         mechanism size, angle in rad, others per the largest magnitude of
-        that quantity over all bodies and points), tolerance,
+        that quantity over all bodies and points, but at least ``floor``, its
+        physical floor from :func:`xcheck.compare.scale_floors`), tolerance,
         passed, worst (the body or point), worst_input (first driver, SI).
     details : DataFrame
         :func:`xcheck.compare.differences` of the compared trajectory.
@@ -159,6 +161,7 @@ class RunResult:
     native_forces: Forces | None = None
     energy: dict | None = None
     no_forces: str = ""
+    floors: dict = field(default_factory=dict)
 
     @property
     def mechanism(self):
@@ -240,7 +243,8 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
 
 
 def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolerance) -> pd.DataFrame:
-    """Per category: the worst row of a differences table against the tolerance."""
+    """Per category: the worst row of a differences table against the tolerance;
+    ``floor`` is the physical floor of the category's scale (the table's)."""
     size = kinematics.system.size
     rows = []
     for category in CATEGORIES:
@@ -251,8 +255,8 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
             relative = part.max_abs / size
         elif category == "angle":
             relative = part.max_abs
-        else:  # against the largest magnitude of the quantity anywhere in the mechanism
-            relative = part.max_abs / max(float(part.scale.max()), 1e-300)
+        else:  # against the largest magnitude of the quantity anywhere in the mechanism, floored
+            relative = part.max_abs / float(part.scale.max())
         worst = int(np.argmax(relative.to_numpy()))
         row = part.iloc[worst]
         limit = tolerance.limit(category)
@@ -260,6 +264,7 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
         rows.append({"category": category, "max_abs": float(part.max_abs.max()),
                      "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
                      "relative": float(relative.iloc[worst]), "tolerance": limit,
+                     "floor": float(part["floor"].max()) if "floor" in part else math.nan,
                      "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
                      "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing
                                                                 else ""),
@@ -267,8 +272,10 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
     return pd.DataFrame(rows)
 
 
-def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance) -> ModeOutcome:
-    """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma."""
+def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance,
+                       floors: dict[str, float]) -> ModeOutcome:
+    """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma;
+    rates relative to size x the largest |qd| or |qdd|, floored by ``floors`` (:func:`scale_floors`)."""
     system = kinematics.system
     good = native.status <= 1
     if not good.any():
@@ -281,13 +288,15 @@ def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tole
     rows = []
     for category, gap, scale in (
         ("position", native.residual[good], system.size),
-        ("velocity", system.residual_metres(velocity_gap), system.size * max(1e-300, np.max(np.abs(qd)))),
-        ("acceleration", system.residual_metres(acceleration_gap), system.size * max(1e-300, np.max(np.abs(qdd)))),
+        ("velocity", system.residual_metres(velocity_gap), max(floors["velocity"], system.size * np.max(np.abs(qd)))),
+        ("acceleration", system.residual_metres(acceleration_gap),
+         max(floors["acceleration"], system.size * np.max(np.abs(qdd)))),
     ):
         worst = int(np.argmax(gap))
         relative = float(gap[worst] / scale)
         rows.append({"category": category, "max_abs": float(gap[worst]), "rms": float(np.sqrt(np.mean(gap**2))),
                      "relative": relative, "tolerance": tolerance.limit(category),
+                     "floor": floors.get(category, math.nan),
                      "passed": relative <= tolerance.limit(category), "worst": "constraint equations",
                      "worst_input": float(inputs[worst])})
     table = pd.DataFrame(rows)
@@ -296,8 +305,10 @@ def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tole
     return ModeOutcome("native", True, reason, bool(table.passed.all()) and not failed, table)
 
 
-def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None):
-    """Run one non-native mode; never raises (a failure is an outcome)."""
+def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None,
+              floors: dict[str, float]):
+    """Run one non-native mode; never raises (a failure is an outcome). ``floors``:
+    the physical floors of the scales (:func:`scale_floors` of the native sweep)."""
     start = time.perf_counter()
     tolerance = TOLERANCES[mode]
     try:
@@ -319,7 +330,7 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
                            seconds=time.perf_counter() - start)
     trajectory = result.trajectories[0]
     reference = native_at(kinematics, trajectory, branch)
-    details = differences(kinematics, trajectory, branch=branch, native=reference)
+    details = differences(kinematics, trajectory, branch=branch, native=reference, floors=floors)
     categories = _categorise(kinematics, details, tolerance)
     passed = bool(not categories.empty and categories.passed.all())
     return ModeOutcome(mode, True, "", passed, categories, details, result, trajectory,
@@ -346,7 +357,8 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
     branch_name = kinematics._branch_name(branch)
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
-    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"])}
+    floors = scale_floors(kinematics.mechanism, rates, accelerations)
+    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"], floors)}
     not_applicable = {}
     for mode in modes:
         if mode == "native":
@@ -356,10 +368,10 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
         if progress is not None:
             progress(mode)
         try:
-            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch)
+            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch, floors)
         except NotApplicable as err:
             not_applicable[mode] = err.reason
-    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0)
+    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0, floors=floors)
     _add_forces(run, modes, branch, progress)
     run.seconds = time.perf_counter() - start
     return run
