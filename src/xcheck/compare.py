@@ -18,8 +18,8 @@ import pandas as pd
 from .kinematics import Kinematics, Solution
 
 __all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
-           "relative_to_floored_scale", "sample_errors", "scale_floors", "trajectory_from_solution",
-           "STANDARD_GRAVITY"]
+           "observed_order", "relative_to_floored_scale", "sample_errors", "scale_floors",
+           "trajectory_from_solution", "STANDARD_GRAVITY"]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
@@ -29,6 +29,35 @@ POINT_QUANTITIES = {"position": 2, "velocity": 2, "acceleration": 2}
 SCALE_FLOOR = 1e-3
 #: m/s^2: sets the time scale sqrt(L / g) of a mechanism whose inputs do not move
 STANDARD_GRAVITY = 9.80665
+
+
+def observed_order(coarse_error: float, fine_error: float, coarse_step: float, fine_step: float,
+                   floor: float = 0.0) -> float:
+    """The observed order of convergence between two runs,
+    log(e_coarse / e_fine) / log(h_coarse / h_fine).
+
+    Parameters
+    ----------
+    coarse_error, fine_error : float
+        The errors of the runs at the time steps ``coarse_step`` and
+        ``fine_step`` (any consistent units).
+    floor : float
+        Errors at or below this are round-off: no order.
+
+    Returns
+    -------
+    float
+        NaN where either error is not finite or not above ``floor``, or the
+        steps are equal or not positive.
+    """
+    values = (coarse_error, fine_error, coarse_step, fine_step)
+    if not all(math.isfinite(float(v)) for v in values):
+        return math.nan
+    if coarse_error <= floor or fine_error <= floor or coarse_error <= 0.0 or fine_error <= 0.0:
+        return math.nan
+    if coarse_step <= 0.0 or fine_step <= 0.0 or coarse_step == fine_step:
+        return math.nan
+    return math.log(coarse_error / fine_error) / math.log(coarse_step / fine_step)
 
 
 def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float]:

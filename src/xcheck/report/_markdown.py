@@ -118,6 +118,11 @@ def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
             parts.append(_table(["series", "time step [s]", "position error [m]", "observed order", "status"],
                                 [[r.series, _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3), r.status]
                                  for r in table.itertuples()], "lrrrl"))
+        if "basis" in outcome.categories:
+            parts.append("Verdict (the compared run against the next coarser one of the same settings):\n\n" + _table(
+                ["category", "difference", "limit", "result", "basis"],
+                [[r.category, _g(r.relative, 3), _g(r.tolerance, 3), "pass" if r.passed else "**FAIL**", r.basis]
+                 for r in outcome.categories.itertuples()], "lrrll"))
     if "convergence" in images:
         parts.insert(0, f"![error against time step]({images['convergence']})")
     return "\n\n".join(parts) if parts else "No dynamic mode ran."
