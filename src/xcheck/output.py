@@ -333,8 +333,8 @@ def print_run(console: Console, run) -> None:
         table.add_row(mode, "[green]pass[/green]" if outcome.passed else "[red]FAIL[/red]", *cells)
     console.print(table)
     console.print("  largest difference from the native solution / tolerance: position per mechanism size, "
-                  "angle in rad, rates per the quantity's largest magnitude (floored); a dynamic mode's tolerance is the "
-                  "largest error its own convergence at the expected order allows (basis in the report and JSON)")
+                  "angle in rad, rates per the quantity's largest magnitude (floored); a dynamic mode's tolerance "
+                  "is the largest error its own convergence at the expected order allows (basis: report, JSON)")
     for failure in failures:
         console.print(f"  [red]{failure}[/red]")
     if run.not_applicable:

@@ -65,8 +65,10 @@ def _comparison_section(run: RunResult) -> str:
     text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
     text += ("\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
              "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
-             "quantity over all bodies and points, but at least its scale floor (below). `native` is checked against its own equations (loop "
-             "closure, velocity and acceleration equations). ✗ marks a difference beyond its tolerance.")
+             "quantity over all bodies and points, but at least its scale floor (below). `native` is checked "
+             "against its own equations (loop closure, velocity and acceleration equations). A dynamic mode's "
+             "tolerance is the largest error its own convergence at the expected order allows (the verdict's "
+             "basis is under the dynamic modes). ✗ marks a difference beyond its tolerance.")
     if run.not_applicable:
         text += "\n\nNot applicable here: " + "; ".join(f"`{m}`: {r}" for m, r in run.not_applicable.items()) + "."
     text += "\n\nTolerances and their basis:\n\n" + _table(
