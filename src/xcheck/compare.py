@@ -9,6 +9,7 @@ largest and RMS difference per body and point quantity.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +18,8 @@ import pandas as pd
 from .kinematics import Kinematics, Solution
 
 __all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
-           "relative_to_floored_scale", "sample_errors", "trajectory_from_solution"]
+           "observed_order", "relative_to_floored_scale", "sample_errors", "scale_floors",
+           "trajectory_from_solution", "STANDARD_GRAVITY"]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
@@ -25,6 +27,76 @@ BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "accele
 POINT_QUANTITIES = {"position": 2, "velocity": 2, "acceleration": 2}
 #: smallest scale of a quantity, as a fraction of the largest of its kind (see differences)
 SCALE_FLOOR = 1e-3
+#: m/s^2: sets the time scale sqrt(L / g) of a mechanism whose inputs do not move
+STANDARD_GRAVITY = 9.80665
+
+
+def observed_order(coarse_error: float, fine_error: float, coarse_step: float, fine_step: float,
+                   floor: float = 0.0) -> float:
+    """The observed order of convergence between two runs,
+    log(e_coarse / e_fine) / log(h_coarse / h_fine).
+
+    Parameters
+    ----------
+    coarse_error, fine_error : float
+        The errors of the runs at the time steps ``coarse_step`` and
+        ``fine_step`` (any consistent units).
+    floor : float
+        Errors at or below this are round-off: no order.
+
+    Returns
+    -------
+    float
+        NaN where either error is not finite or not above ``floor``, or the
+        steps are equal or not positive.
+    """
+    values = (coarse_error, fine_error, coarse_step, fine_step)
+    if not all(math.isfinite(float(v)) for v in values):
+        return math.nan
+    if coarse_error <= floor or fine_error <= floor or coarse_error <= 0.0 or fine_error <= 0.0:
+        return math.nan
+    if coarse_step <= 0.0 or fine_step <= 0.0 or coarse_step == fine_step:
+        return math.nan
+    return math.log(coarse_error / fine_error) / math.log(coarse_step / fine_step)
+
+
+def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float]:
+    """The smallest scale of each quantity, from the mechanism itself.
+
+    With L the mechanism's size (m), the characteristic angular rate is
+    w = the largest |rate| of a revolute input or |rate| / L of a sliding one
+    over the samples, and the characteristic angular acceleration
+    a = max(w^2, a_in), a_in the largest |acceleration| of a revolute input or
+    |acceleration| / L of a sliding one. When every rate is zero, w =
+    sqrt(a_in), or where a_in is zero too (a static mechanism) w = sqrt(g / L)
+    (g: the mechanism's gravity, else :data:`STANDARD_GRAVITY`), the rate of a
+    pendulum of the mechanism's size.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    input_rates, input_accelerations : array_like, shape (N, k)
+        The drivers' rates (rad/s or m/s) and accelerations (rad/s^2 or m/s^2).
+
+    Returns
+    -------
+    dict of str to float
+        ``size`` L (m), ``rate`` w (rad/s), ``angular_acceleration`` a
+        (rad/s^2), and per quantity of :data:`BODY_QUANTITIES`: position L,
+        angle 1 rad, omega w, alpha a, velocity w L (m/s), acceleration a L (m/s^2).
+    """
+    size = mechanism.size
+    per = np.array([1.0 if d.quantity == "angle" else 1.0 / size for d in mechanism.drivers])
+    rates = np.abs(np.asarray(input_rates, dtype=float).reshape(-1, len(per))) * per
+    accelerations = np.abs(np.asarray(input_accelerations, dtype=float).reshape(-1, len(per))) * per
+    a_in = float(np.nanmax(accelerations, initial=0.0))
+    w = float(np.nanmax(rates, initial=0.0))
+    if w == 0.0:  # inputs at rest: accelerating from rest, or static
+        g = float(np.hypot(*mechanism.gravity)) or STANDARD_GRAVITY
+        w = math.sqrt(a_in) if a_in > 0.0 else math.sqrt(g / size)
+    a = max(w * w, a_in)
+    return {"size": size, "rate": w, "angular_acceleration": a, "position": size, "angle": 1.0,
+            "omega": w, "alpha": a, "velocity": w * size, "acceleration": a * size}
 
 
 @dataclass
@@ -138,7 +210,7 @@ def sample_errors(trajectory: Trajectory, native: Solution) -> dict[str, np.ndar
 
 
 def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None,
-                native: Solution | None = None) -> pd.DataFrame:
+                native: Solution | None = None, floors: dict[str, float] | None = None) -> pd.DataFrame:
     """Differences between a trajectory and the native solution at its inputs.
 
     Returns
@@ -150,7 +222,11 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
         the native quantity over the samples, but at least
         :data:`SCALE_FLOOR` of the largest among all bodies' and points' of the
         same quantity, so that a quantity that is zero, such as the velocity
-        of a frame on a ground pivot, is not divided by round-off),
+        of a frame on a ground pivot, is not divided by round-off, and at
+        least the quantity's physical floor ``floors`` (default
+        :func:`scale_floors` of the trajectory's inputs), so that a quantity
+        that is zero everywhere, such as the angular acceleration of a bar
+        turning uniformly, is not either), ``floor`` (that physical floor),
         ``max_rel`` (max_abs / scale),
         ``worst_sample`` (index) and ``worst_input`` (the first driver's value
         there, SI). Samples where the native solver did not succeed are left
@@ -160,6 +236,8 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
     """
     if native is None:
         native = native_at(kinematics, trajectory, branch)
+    if floors is None:
+        floors = scale_floors(kinematics.mechanism, trajectory.input_rates, trajectory.input_accelerations)
     good = native.status <= 1
     rows = []
     for kind, name, quantity, error, magnitude in _errors(trajectory, native):
@@ -175,17 +253,22 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
             "worst_sample": int(worst), "worst_input": float(trajectory.inputs[worst, 0]),
             "samples": int(good.sum()), "missing": int(good.sum() - determined.sum()),
         })
-    return relative_to_floored_scale(pd.DataFrame(rows), "quantity")
+    return relative_to_floored_scale(pd.DataFrame(rows), "quantity", floors)
 
 
-def relative_to_floored_scale(table: pd.DataFrame, kind_column: str) -> pd.DataFrame:
+def relative_to_floored_scale(table: pd.DataFrame, kind_column: str,
+                              floors: dict[str, float] | None = None) -> pd.DataFrame:
     """Floor each row's ``scale`` at :data:`SCALE_FLOOR` of the largest scale of
-    its kind (rows with equal ``kind_column``) and add ``max_rel`` = max_abs /
-    scale after ``scale``; the table is changed in place and returned."""
+    its kind (rows with equal ``kind_column``) and at the physical floor
+    ``floors[kind]`` (SI, 0 where not given; stated in a ``floor`` column),
+    and add ``max_rel`` = max_abs / scale after ``scale``; the table is
+    changed in place and returned."""
     if not table.empty:
         largest = table.groupby(kind_column)["scale"].transform("max")
-        table["scale"] = np.maximum(table["scale"], SCALE_FLOOR * largest)
+        floor = table[kind_column].map(lambda kind: (floors or {}).get(kind, 0.0)).astype(float)
+        table["scale"] = np.maximum(np.maximum(table["scale"], SCALE_FLOOR * largest), floor)
+        table.insert(table.columns.get_loc("scale") + 1, "floor", floor)
         with np.errstate(divide="ignore", invalid="ignore"):
-            table.insert(table.columns.get_loc("scale") + 1, "max_rel",
+            table.insert(table.columns.get_loc("floor") + 1, "max_rel",
                          np.where(table["scale"] > 0, table["max_abs"] / table["scale"], table["max_abs"]))
     return table

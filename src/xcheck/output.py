@@ -253,7 +253,12 @@ def run_json(run) -> dict:
 
     Per mode: the largest absolute difference per category (m, m/s, m/s^2,
     rad, rad/s, rad/s^2), the same relative (see :class:`xcheck.runner.ModeOutcome`),
-    the tolerances, pass and reason.
+    the tolerances, the physical floor of each category's scale (SI; ``scale_floors``:
+    the run's, :func:`xcheck.compare.scale_floors`), pass and reason; a
+    dynamic mode adds ``convergence`` per category: the basis of its verdict
+    (expected and observed order, the coarser run's error and time step (s),
+    the time step compared, the error the expected order predicts there and
+    the measured one; see :func:`xcheck.runner._convergence_verdict`).
     """
     from .runner import CATEGORIES
 
@@ -262,22 +267,32 @@ def run_json(run) -> dict:
         entry = {c: None for c in CATEGORIES}
         entry["relative"] = {c: None for c in CATEGORIES}
         entry["tolerance"] = {c: None for c in CATEGORIES}
+        entry["scale_floor"] = {c: None for c in CATEGORIES}
         for row in outcome.categories.itertuples():
             entry[row.category] = _number(row.max_abs)
             entry["relative"][row.category] = _number(row.relative)
             entry["tolerance"][row.category] = _number(row.tolerance)
+            entry["scale_floor"][row.category] = _number(getattr(row, "floor", math.nan))
+            if hasattr(row, "basis"):  # a dynamic mode judged by its convergence
+                entry.setdefault("convergence", {})[row.category] = {
+                    "basis": row.basis, "expected_order": _number(row.expected_order),
+                    "observed_order": _number(row.observed_order), "coarse_error": _number(row.coarse_error),
+                    "coarse_step": _number(row.coarse_step), "step": _number(row.step),
+                    "estimate": _number(row.estimate), "measured": _number(row.relative)}
         entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "seconds": round(outcome.seconds, 3)})
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
         forces[row.engine] = {"max_abs": _number(row.max_abs), "unit": row.unit or None,
                               "relative": _number(row.max_rel), "tolerance": _number(row.tolerance),
+                              "scale_floor": _number(getattr(row, "floor", math.nan)),
                               "worst": f"{row.name} {row.quantity}".strip() or None, "states": int(row.states),
                               "pass": bool(row.passed), "reason": row.reason or None}
     energy = None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v)
                                                for k, v in run.energy.items()}
     return {"mechanism": run.mechanism.name, "samples": int(run.native.inputs.shape[0]), "branch": run.branch,
-            "pass": run.passed, "engines": engines, "not_applicable": run.not_applicable,
+            "pass": run.passed, "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
+            "engines": engines, "not_applicable": run.not_applicable,
             "forces": forces, "energy": energy, "forces_not_computed": run.no_forces or None,
             "textbook": textbook_json(run.textbook)}
 
@@ -312,14 +327,15 @@ def print_run(console: Console, run) -> None:
                 cells.append("—")
                 continue
             style = "green" if r.passed else "red"
-            cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:g}")
+            cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:.2g}")
             if not r.passed:
-                failures.append(f"{mode}: {c} {r.relative:.2e} > {r.tolerance:g} at {r.worst}, "
+                failures.append(f"{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
                                 f"{driver.name} = {r.worst_input / scale:.4g} {unit}")
         table.add_row(mode, "[green]pass[/green]" if outcome.passed else "[red]FAIL[/red]", *cells)
     console.print(table)
     console.print("  largest difference from the native solution / tolerance: position per mechanism size, "
-                  "angle in rad, rates per the quantity's largest magnitude")
+                  "angle in rad, rates per the quantity's largest magnitude (floored); a dynamic mode's tolerance "
+                  "is the largest error its own convergence at the expected order allows (basis: report, JSON)")
     for failure in failures:
         console.print(f"  [red]{failure}[/red]")
     if run.not_applicable:

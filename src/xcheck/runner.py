@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
-from .compare import ModeResult, Trajectory, differences, native_at, sample_errors
+from .compare import ModeResult, Trajectory, differences, native_at, observed_order, sample_errors, scale_floors
 from .dynamics import (Forces, ForceResult, compare_forces, energy_summary, force_summary, inverse_dynamics,
                        require_mass_data, window_states)
 from .errors import InputError, XcheckError
@@ -29,8 +29,9 @@ from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
 from .motion import law_states, reached_span
 
-__all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome", "RunResult", "run_mechanism",
-           "sweep_inputs", "versions", "convergence_table"]
+__all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome",
+           "RunResult", "run_mechanism", "sweep_inputs", "versions", "convergence_table", "CONVERGENCE",
+           "ORDER_MARGIN", "convergence_limit"]
 
 #: every mode, in the order tables show them
 ALL_MODES = ("native", *FORMULATIONS, "mujoco-kinematic", "pinocchio-kinematic", "mujoco-dynamic",
@@ -46,7 +47,8 @@ class Tolerance:
     ``position`` is a fraction of the mechanism's size, ``angle`` in rad,
     ``velocity`` (velocities and angular velocities) and ``acceleration``
     (accelerations and angular accelerations) fractions of the largest
-    magnitude of that quantity in the mechanism; ``basis`` says where the
+    magnitude of that quantity in the mechanism, but at least of its physical
+    floor (:func:`xcheck.compare.scale_floors`); ``basis`` says where the
     numbers come from.
     """
 
@@ -66,10 +68,10 @@ _ROUND_OFF = Tolerance(1e-10, 1e-10, 1e-9, 1e-9, "round-off: the engine's own ki
                        "exact solution (measured at most 3.4e-14 of the size, 1.2e-12 relative, over all models)")
 _EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-off (measured at most "
                    "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)")
-#: Dynamic modes: about three times the worst error measured over every model in
-#: models/ with `xcheck run all` (worst: position / size, angle rad, velocity
-#: and acceleration relative), each falling with the time step at the order the
-#: convergence study in the report shows.
+_CONVERGES = math.nan  # a dynamic mode's category judged by its convergence (see CONVERGENCE), not a fixed bound
+#: Dynamic modes: the verdict of each category follows from the mode's own
+#: convergence study on the mechanism at hand (see CONVERGENCE and
+#: _convergence_verdict); a fixed bound only where the quantity does not converge.
 TOLERANCES = {
     "native": Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "the solver's own equations: loop closure and the velocity "
                         "and acceleration equations satisfied to round-off"),
@@ -77,16 +79,40 @@ TOLERANCES = {
     "formulation-II": _EXACT,
     "mujoco-kinematic": _ROUND_OFF,
     "pinocchio-kinematic": _ROUND_OFF,
-    "mujoco-dynamic": Tolerance(2e-6, 1e-6, 3e-4, 1.5e-2, "RK4, dt = 0.125 ms, stiff solref/solimp; measured worst "
-                                "6.0e-7, 2.3e-7 rad, 8.6e-5, 4.0e-3 (qacc accelerations carry MuJoCo's "
-                                "constraint stabilisation)"),
-    "pinocchio-dynamic": Tolerance(5e-8, 1e-7, 2e-7, 5e-7, "RK4, 800 steps over the window (order 4); measured "
-                                   "worst 1.4e-8, 3.3e-8 rad, 5.5e-8, 1.4e-7"),
-    "pymunk-dynamic": Tolerance(6e-6, 6e-6, 5e-3, 1.5e-2, "semi-implicit Euler, error_bias 0, 500 iterations, "
-                                "window/8000 steps (position order 2; accelerations by central differences of "
-                                "velocities); measured worst over models/ 1.7e-6, 1.8e-6 rad, 1.4e-3, 4.0e-3 "
-                                "(9.1e-3 on the inverted slider-crank of the tests)"),
+    "mujoco-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, 1.5e-2, "converges to the exact answer: "
+                                "RK4, stiff solref = 2 dt, order 2 in positions and angles, 1 in rates; "
+                                "accelerations (qacc) carry MuJoCo's constraint stabilisation, which does not "
+                                "vanish as dt -> 0 (observed orders -0.9 to 0.1 over models/ and the test "
+                                "mechanisms): bound about 4 x the worst measured there (3.5e-3)"),
+    "pinocchio-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
+                                   "answer: RK4 over 200, 400, 800 steps per window, order 4 in every quantity"),
+    "pymunk-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
+                                "answer: semi-implicit Euler, error_bias 0, 500 iterations, window/2000, /4000, "
+                                "/8000 steps: order 2 in positions and angles, 1 in rates and accelerations "
+                                "(central differences of velocities)"),
 }
+#: Expected order of convergence in the time step of each category of a
+#: dynamic mode's error (None: judged by the fixed bound of TOLERANCES).
+#: Measured over the models and the test mechanisms, observed orders between
+#: the two finest steps: pinocchio RK4 3.9 to 4.1 in every category; MuJoCo
+#: tight RK4 2.0 (positions, angles), 1.0 (rates); pymunk 2.0, 1.0.
+CONVERGENCE = {
+    "pinocchio-dynamic": dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
+    "mujoco-dynamic": {"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None,
+                       "alpha": None},
+    "pymunk-dynamic": {"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0,
+                       "alpha": 1.0},
+}
+#: Accepted observed orders: at least the expected one less ORDER_MARGIN. An
+#: error C h^p (1 + e h) shows the order p - log2(1 + e h) + ... between h and
+#: h / 2; a margin of 0.5 is halfway to the next lower integer order, so a
+#: lower-order defect (p - 1) fails and the next term may still be a good part
+#: of the leading one. A higher order means the error falls at least as fast.
+ORDER_MARGIN = 0.5
+#: Errors at or below this (position per size, angle rad, rates relative) are
+#: round-off, where no order can be observed: the independent exact methods'
+#: bound.
+CONVERGENCE_ROUND_OFF = 1e-12
 
 
 #: Reactions and efforts: the largest difference relative to the largest native
@@ -117,8 +143,12 @@ class ModeOutcome:
     categories : DataFrame
         One row per category: max_abs (SI), rms, relative (position per
         mechanism size, angle in rad, others per the largest magnitude of
-        that quantity over all bodies and points), tolerance,
-        passed, worst (the body or point), worst_input (first driver, SI).
+        that quantity over all bodies and points, but at least ``floor``, its
+        physical floor from :func:`xcheck.compare.scale_floors`), tolerance,
+        passed, worst (the body or point), worst_input (first driver, SI);
+        a dynamic mode's also the basis of its verdict (expected_order,
+        observed_order, coarse_error, coarse_step, step, estimate, basis:
+        see :func:`_convergence_verdict`), its tolerance the limit found there.
     details : DataFrame
         :func:`xcheck.compare.differences` of the compared trajectory.
     result : ModeResult or None
@@ -160,6 +190,7 @@ class RunResult:
     native_forces: Forces | None = None
     energy: dict | None = None
     no_forces: str = ""
+    floors: dict = field(default_factory=dict)
 
     @property
     def mechanism(self):
@@ -237,7 +268,8 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
 
 
 def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolerance) -> pd.DataFrame:
-    """Per category: the worst row of a differences table against the tolerance."""
+    """Per category: the worst row of a differences table against the tolerance;
+    ``floor`` is the physical floor of the category's scale (the table's)."""
     size = kinematics.system.size
     rows = []
     for category in CATEGORIES:
@@ -248,8 +280,8 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
             relative = part.max_abs / size
         elif category == "angle":
             relative = part.max_abs
-        else:  # against the largest magnitude of the quantity anywhere in the mechanism
-            relative = part.max_abs / max(float(part.scale.max()), 1e-300)
+        else:  # against the largest magnitude of the quantity anywhere in the mechanism, floored
+            relative = part.max_abs / float(part.scale.max())
         worst = int(np.argmax(relative.to_numpy()))
         row = part.iloc[worst]
         limit = tolerance.limit(category)
@@ -257,15 +289,96 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
         rows.append({"category": category, "max_abs": float(part.max_abs.max()),
                      "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
                      "relative": float(relative.iloc[worst]), "tolerance": limit,
-                     "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
+                     "floor": float(part["floor"].max()) if "floor" in part else math.nan,
+                     "passed": bool(relative.iloc[worst] <= limit) and missing == 0, "missing": missing,
                      "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing
                                                                 else ""),
                      "worst_input": float(row.worst_input)})
     return pd.DataFrame(rows)
 
 
-def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance) -> ModeOutcome:
-    """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma."""
+def convergence_limit(coarse_error: float, coarse_step: float, fine_step: float, order: float) -> float:
+    """The largest error at ``fine_step`` that still shows convergence at an
+    order of at least ``order`` - :data:`ORDER_MARGIN` from ``coarse_error`` at
+    ``coarse_step``, but at least :data:`CONVERGENCE_ROUND_OFF`; NaN when the
+    coarse error is not finite."""
+    if not math.isfinite(coarse_error):
+        return math.nan
+    return max(CONVERGENCE_ROUND_OFF, coarse_error * (fine_step / coarse_step) ** (order - ORDER_MARGIN))
+
+
+#: settings keys of a dynamic mode's trajectory: the time step, and what makes a series
+_STEP_KEYS = ("dt", "timestep", "time_step")
+_SERIES_KEYS = ("integrator", "setting", "accelerations", "iterations", "error_bias")
+
+
+def _step_and_series(trajectory: Trajectory) -> tuple[float, tuple]:
+    settings = trajectory.settings
+    step = next((float(settings[k]) for k in _STEP_KEYS if k in settings), math.nan)
+    return step, tuple((k, str(settings[k])) for k in _SERIES_KEYS if k in settings)
+
+
+def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, categories: pd.DataFrame,
+                         tolerance: Tolerance, floors: dict, branch: str | None) -> pd.DataFrame:
+    """Judge a dynamic mode's categories by its convergence to the exact answer.
+
+    The compared run (time step h_f) and the next coarser run of the same
+    series (h_c, same integrator and settings) give per category the errors
+    e_f and e_c (relative as in :func:`_categorise`) and the observed order
+    :func:`~xcheck.compare.observed_order`. A category with an expected order
+    p (:data:`CONVERGENCE`) passes when e_f <= :func:`convergence_limit`
+    (e_c, h_c, h_f, p), i.e. the observed order is at least p -
+    :data:`ORDER_MARGIN`, or e_f is at round-off; ``tolerance`` becomes that
+    limit. Added columns: expected_order, observed_order, coarse_error,
+    coarse_step, step (s), estimate (e_c (h_f / h_c)^p, the error the expected
+    order predicts for the compared run), basis (one line).
+    """
+    expected = CONVERGENCE[mode]
+    compared = result.trajectories[0]
+    step, series = _step_and_series(compared)
+    coarser = [t for t in result.trajectories[1:] if _step_and_series(t)[1] == series
+               and _step_and_series(t)[0] > step]
+    coarse = min(coarser, key=lambda t: _step_and_series(t)[0]) if coarser else None
+    coarse_errors, coarse_step = {}, math.nan
+    if coarse is not None:
+        coarse_step = _step_and_series(coarse)[0]
+        table = _categorise(kinematics, differences(kinematics, coarse, branch=branch, floors=floors), tolerance)
+        coarse_errors = dict(zip(table.category, table.relative))
+    categories = categories.copy()
+    for column in ("expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate"):
+        categories[column] = math.nan
+    categories["basis"] = ""
+    for i, row in categories.iterrows():
+        order = expected.get(row.category)
+        if order is None:
+            categories.loc[i, "basis"] = f"fixed bound {row.tolerance:g} (the quantity does not converge)"
+            continue
+        fine = float(row.relative)
+        coarse_error = float(coarse_errors.get(row.category, math.nan))
+        limit = convergence_limit(coarse_error, coarse_step, step, order)
+        estimate = coarse_error * (step / coarse_step) ** order if math.isfinite(coarse_error) else math.nan
+        observed = observed_order(coarse_error, fine, coarse_step, step, CONVERGENCE_ROUND_OFF)
+        if fine <= CONVERGENCE_ROUND_OFF:
+            basis = f"at round-off ({fine:.2g} <= {CONVERGENCE_ROUND_OFF:g}): no order to observe"
+            limit = CONVERGENCE_ROUND_OFF if math.isnan(limit) else limit
+        elif coarse is None:
+            basis = "no coarser run of the same settings ran through: the order cannot be observed"
+        else:
+            basis = (f"observed order {observed:.3g} (expected {order:g}, accepted >= {order - ORDER_MARGIN:g}) "
+                     f"from {coarse_error:.3g} at dt = {coarse_step:.4g} s to {fine:.3g} at dt = {step:.4g} s; "
+                     f"the expected order predicts {estimate:.3g}")
+        categories.loc[i, ["expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate",
+                           "tolerance"]] = [order, observed, coarse_error, coarse_step, step, estimate, limit]
+        categories.loc[i, "passed"] = bool(fine <= limit) and int(row.missing) == 0
+        categories.loc[i, "basis"] = basis
+    categories["passed"] = categories["passed"].astype(bool)
+    return categories
+
+
+def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance,
+                       floors: dict[str, float]) -> ModeOutcome:
+    """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma;
+    rates relative to size x the largest |qd| or |qdd|, floored by ``floors`` (:func:`scale_floors`)."""
     system = kinematics.system
     good = native.status <= 1
     if not good.any():
@@ -278,13 +391,15 @@ def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tole
     rows = []
     for category, gap, scale in (
         ("position", native.residual[good], system.size),
-        ("velocity", system.residual_metres(velocity_gap), system.size * max(1e-300, np.max(np.abs(qd)))),
-        ("acceleration", system.residual_metres(acceleration_gap), system.size * max(1e-300, np.max(np.abs(qdd)))),
+        ("velocity", system.residual_metres(velocity_gap), max(floors["velocity"], system.size * np.max(np.abs(qd)))),
+        ("acceleration", system.residual_metres(acceleration_gap),
+         max(floors["acceleration"], system.size * np.max(np.abs(qdd)))),
     ):
         worst = int(np.argmax(gap))
         relative = float(gap[worst] / scale)
         rows.append({"category": category, "max_abs": float(gap[worst]), "rms": float(np.sqrt(np.mean(gap**2))),
                      "relative": relative, "tolerance": tolerance.limit(category),
+                     "floor": floors.get(category, math.nan),
                      "passed": relative <= tolerance.limit(category), "worst": "constraint equations",
                      "worst_input": float(inputs[worst])})
     table = pd.DataFrame(rows)
@@ -293,8 +408,10 @@ def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tole
     return ModeOutcome("native", True, reason, bool(table.passed.all()) and not failed, table)
 
 
-def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None):
-    """Run one non-native mode; never raises (a failure is an outcome)."""
+def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None,
+              floors: dict[str, float]):
+    """Run one non-native mode; never raises (a failure is an outcome). ``floors``:
+    the physical floors of the scales (:func:`scale_floors` of the native sweep)."""
     start = time.perf_counter()
     tolerance = TOLERANCES[mode]
     try:
@@ -316,8 +433,10 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
                            seconds=time.perf_counter() - start)
     trajectory = result.trajectories[0]
     reference = native_at(kinematics, trajectory, branch)
-    details = differences(kinematics, trajectory, branch=branch, native=reference)
+    details = differences(kinematics, trajectory, branch=branch, native=reference, floors=floors)
     categories = _categorise(kinematics, details, tolerance)
+    if mode in CONVERGENCE and not categories.empty:
+        categories = _convergence_verdict(kinematics, mode, result, categories, tolerance, floors, branch)
     passed = bool(not categories.empty and categories.passed.all())
     return ModeOutcome(mode, True, "", passed, categories, details, result, trajectory,
                        sample_errors(trajectory, reference), time.perf_counter() - start)
@@ -343,7 +462,8 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
     branch_name = kinematics._branch_name(branch)
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
-    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"])}
+    floors = scale_floors(kinematics.mechanism, rates, accelerations)
+    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"], floors)}
     not_applicable = {}
     for mode in modes:
         if mode == "native":
@@ -357,10 +477,10 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
                                     "motion to integrate")
             continue
         try:
-            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch)
+            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch, floors)
         except NotApplicable as err:
             not_applicable[mode] = err.reason
-    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0)
+    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0, floors=floors)
     _add_forces(run, modes, branch, progress)
     run.seconds = time.perf_counter() - start
     return run
@@ -416,12 +536,9 @@ def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
     orders = []
     for i, row in table.iterrows():
         previous = table.iloc[i - 1] if i > 0 else None
-        if (previous is not None and previous.series == row.series and row.position_error > 0
-                and previous.position_error > 0 and previous.timestep != row.timestep):
-            orders.append(math.log(previous.position_error / row.position_error)
-                          / math.log(previous.timestep / row.timestep))
-        else:
-            orders.append(math.nan)
+        same = previous is not None and previous.series == row.series
+        orders.append(observed_order(previous.position_error, row.position_error, previous.timestep, row.timestep)
+                      if same else math.nan)
     table["order"] = orders
     return table
 

@@ -9,7 +9,7 @@ dynamics and tabulate :func:`force_differences`. The sign conventions are in
 """
 
 from ._compare import (ENGINES, WINDOW_SAMPLES, ForceResult, compare_forces, determined_states, energy_summary,
-                       engine_forces, force_differences, force_summary, window_states)
+                       engine_forces, force_differences, force_floors, force_summary, window_states)
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data
 from ._inverse import body_dynamics, inverse_dynamics, newton_euler
@@ -28,6 +28,7 @@ __all__ = [
     "energy_summary",
     "engine_forces",
     "force_differences",
+    "force_floors",
     "force_summary",
     "inverse_dynamics",
     "joint_quantities",

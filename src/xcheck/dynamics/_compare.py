@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..compare import relative_to_floored_scale
+from ..compare import relative_to_floored_scale, scale_floors
 from ..errors import XcheckError
 from ..kinematics import Kinematics, Solution, Status
 from ..motion import simulation_window
@@ -23,8 +23,8 @@ from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
 
-__all__ = ["ENGINES", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "engine_forces",
-           "compare_forces", "force_summary", "energy_summary"]
+__all__ = ["ENGINES", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "force_floors",
+           "engine_forces", "compare_forces", "force_summary", "energy_summary"]
 
 #: engine -> (module, function); the function takes (kinematics, branch=None,
 #: **options) and returns Forces, raising on failure.
@@ -74,6 +74,29 @@ def _magnitude(values: np.ndarray) -> np.ndarray:
     return np.abs(values) if values.ndim == 1 else np.linalg.norm(values, axis=1)
 
 
+def force_floors(mechanism, floors: dict[str, float]) -> dict[str, float]:
+    """The smallest scale of forces and moments, from the mechanism itself.
+
+    With M the total mass of the moving bodies (kg), L the size, a the
+    characteristic angular acceleration (``floors``, from
+    :func:`~xcheck.compare.scale_floors`) and g the gravity: a force's scale
+    is at least F = max(M |g|, M a L, the largest applied load force) (N), a
+    moment's at least max(F L, the largest applied torque) (N m).
+
+    Returns
+    -------
+    dict
+        ``{"N": F, "N m": F L or more}``, keyed by the unit column of
+        :func:`force_differences`.
+    """
+    mass = sum(b.mass or 0.0 for b in mechanism.moving_bodies)
+    size = floors["size"]
+    loads = [float(np.hypot(*load.force)) for load in mechanism.loads]
+    torques = [abs(load.torque) for load in mechanism.loads]
+    force = max([mass * float(np.hypot(*mechanism.gravity)), mass * floors["acceleration"], *loads])
+    return {"N": force, "N m": max([force * size, *torques])}
+
+
 def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None = None) -> pd.DataFrame:
     """Differences between a source's reactions and efforts and the native ones
     at the source's own states.
@@ -92,7 +115,9 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
         native magnitude over the states, but at least
         :data:`~xcheck.compare.SCALE_FLOOR` of the largest scale of the same
         unit in the table (a joint that carries almost nothing is not divided
-        by round-off); ``max_rel`` = max_abs / scale; ``worst_sample``,
+        by round-off) and at least ``floor``, :func:`force_floors` of the
+        source's inputs (a mechanism that carries almost nothing is not
+        either); ``max_rel`` = max_abs / scale; ``worst_sample``,
         ``worst_input`` (first driver's value there, SI); ``samples`` (states
         where the native solution succeeded) and ``missing`` (of those, states
         where the source gave no finite value: left out of the figures).
@@ -129,7 +154,8 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                     "worst_input": float(forces.inputs[worst, 0]),
                     "samples": int(good.sum()), "missing": int(good.sum() - finite.sum()),
                 })
-    return relative_to_floored_scale(pd.DataFrame(rows), "unit")
+    floors = force_floors(mech, scale_floors(mech, forces.input_rates, forces.input_accelerations))
+    return relative_to_floored_scale(pd.DataFrame(rows), "unit", floors)
 
 
 @dataclass
@@ -212,16 +238,18 @@ def compare_forces(kinematics: Kinematics, engines=("newton-euler", *ENGINES), b
 def force_summary(results: list[ForceResult]) -> pd.DataFrame:
     """One row per result of :func:`compare_forces`: ``engine``, ``ok``,
     ``reason``, the worst ``max_rel`` with its ``name`` and ``quantity`` (NaN
-    and empty for a failed engine), ``max_abs`` there (SI, ``unit``),
+    and empty for a failed engine), ``max_abs`` there (SI, ``unit``), the
+    physical ``floor`` of that unit's scale (:func:`force_floors`),
     ``states`` and ``seconds``."""
     rows = []
     for r in results:
         row = {"engine": r.engine, "ok": r.ok, "reason": r.reason, "max_rel": np.nan, "name": "", "quantity": "",
-               "max_abs": np.nan, "unit": "", "states": 0, "seconds": r.seconds}
+               "max_abs": np.nan, "unit": "", "floor": np.nan, "states": 0, "seconds": r.seconds}
         if r.ok and r.table is not None and not r.table.empty:
             worst = r.table.loc[r.table["max_rel"].idxmax()]
             row.update(max_rel=float(worst["max_rel"]), name=worst["name"], quantity=worst["quantity"],
-                       max_abs=float(worst["max_abs"]), unit=worst["unit"], states=int(worst["samples"]))
+                       max_abs=float(worst["max_abs"]), unit=worst["unit"], floor=float(worst["floor"]),
+                       states=int(worst["samples"]))
         rows.append(row)
     return pd.DataFrame(rows)
 

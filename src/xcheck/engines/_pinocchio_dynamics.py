@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from ..compare import ModeResult, Trajectory, differences
+from ..compare import ModeResult, Trajectory, differences, observed_order
 from ..kinematics import Kinematics
 from ..motion import simulation_window
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
@@ -185,14 +185,10 @@ def _worst(table: pd.DataFrame, quantities, column: str) -> float:
 
 
 def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
-    """Observed order log(e_i / e_{i-1}) / log(dt_i / dt_{i-1}), NaN for the
-    first run and where either error is not above ``floor`` (round-off)."""
-    out = [math.nan]
-    for i in range(1, len(errors)):
-        e0, e1 = errors[i - 1], errors[i]
-        ok = e0 > floor and e1 > floor and math.isfinite(e0) and math.isfinite(e1)
-        out.append(math.log(e1 / e0) / math.log(dts[i] / dts[i - 1]) if ok else math.nan)
-    return out
+    """:func:`~xcheck.compare.observed_order` of each run against the one before,
+    NaN for the first run and where either error is not above ``floor`` (round-off)."""
+    return [math.nan] + [observed_order(errors[i - 1], errors[i], dts[i - 1], dts[i], floor)
+                         for i in range(1, len(errors))]
 
 
 def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, baumgarte, branch, defaults):

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from ..compare import ModeResult, Trajectory, differences
+from ..compare import ModeResult, Trajectory, differences, observed_order
 from ..errors import InputError, XcheckError
 from ..kinematics import Kinematics, Status
 from ..model import Mechanism
@@ -355,12 +355,11 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         elif trajectory is not None:
             trajectories.append(trajectory)
     summary = pd.DataFrame(rows)
-    with np.errstate(all="ignore"):  # an exact zero error has no order
-        for name in summary.setting.unique():
-            group = summary[summary.setting == name]
-            errors, steps = group.position_error.to_numpy(), group.timestep.to_numpy()
-            summary.loc[group.index[1:], "observed_order"] = np.log(errors[:-1] / errors[1:]) / np.log(
-                steps[:-1] / steps[1:])
+    for name in summary.setting.unique():  # an exact zero error has no order
+        group = summary[summary.setting == name]
+        errors, steps = group.position_error.to_numpy(), group.timestep.to_numpy()
+        summary.loc[group.index[1:], "observed_order"] = [
+            observed_order(errors[i - 1], errors[i], steps[i - 1], steps[i]) for i in range(1, len(errors))]
     if primary_failure:
         return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary)
     return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary)

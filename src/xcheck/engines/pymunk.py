@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk)
 
-from xcheck.compare import ModeResult, Trajectory, differences
+from xcheck.compare import ModeResult, Trajectory, differences, observed_order
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
@@ -238,9 +238,8 @@ def _summary(kinematics: Kinematics, runs: list[_Run], branch: str | None) -> pd
         for _, group in table.groupby(["error_bias", "iterations"]):
             group = group[group["status"] == "ok"].sort_values("time_step")
             for (i, fine), (_, coarse) in zip(group.iterrows(), list(group.iterrows())[1:]):
-                if fine["position_error"] > 0.0 and coarse["position_error"] > 0.0:
-                    table.loc[i, "order"] = (math.log(coarse["position_error"] / fine["position_error"])
-                                             / math.log(coarse["time_step"] / fine["time_step"]))
+                table.loc[i, "order"] = observed_order(coarse["position_error"], fine["position_error"],
+                                                       coarse["time_step"], fine["time_step"])
     return table
 
 

@@ -66,14 +66,23 @@ def _comparison_section(run: RunResult) -> str:
     text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
     text += ("\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
              "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
-             "quantity over all bodies and points. `native` is checked against its own equations (loop "
-             "closure, velocity and acceleration equations). ✗ marks a difference beyond its tolerance.")
+             "quantity over all bodies and points, but at least its scale floor (below). `native` is checked "
+             "against its own equations (loop closure, velocity and acceleration equations). A dynamic mode's "
+             "tolerance is the largest error its own convergence at the expected order allows (the verdict's "
+             "basis is under the dynamic modes). ✗ marks a difference beyond its tolerance.")
     if run.not_applicable:
         text += "\n\nNot applicable here: " + "; ".join(f"`{m}`: {r}" for m, r in run.not_applicable.items()) + "."
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
         [[f"`{m}`", _g(t.position, 2), _g(t.angle, 2), _g(t.velocity, 2), _g(t.acceleration, 2), t.basis]
          for m, t in TOLERANCES.items() if m in run.outcomes])
+    f = run.floors
+    if f:
+        text += (f"\n\nScale floors (rates relative to at least these, from the mechanism's size L = "
+                 f"{_g(f['size'])} m and its inputs' characteristic rate w = {_g(f['rate'])} rad/s and "
+                 f"angular acceleration a = max(w², inputs') = {_g(f['angular_acceleration'])} rad/s²): omega "
+                 f"{_g(f['omega'])} rad/s, alpha {_g(f['alpha'])} rad/s², velocity w·L = {_g(f['velocity'])} m/s, "
+                 f"acceleration a·L = {_g(f['acceleration'])} m/s².")
     return text
 
 
@@ -116,6 +125,11 @@ def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
             parts.append(_table(["series", "time step [s]", "position error [m]", "observed order", "status"],
                                 [[r.series, _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3), r.status]
                                  for r in table.itertuples()], "lrrrl"))
+        if "basis" in outcome.categories:
+            parts.append("Verdict (the compared run against the next coarser one of the same settings):\n\n" + _table(
+                ["category", "difference", "limit", "result", "basis"],
+                [[r.category, _g(r.relative, 3), _g(r.tolerance, 3), "pass" if r.passed else "**FAIL**", r.basis]
+                 for r in outcome.categories.itertuples()], "lrrll"))
     if "convergence" in images:
         parts.insert(0, f"![error against time step]({images['convergence']})")
     return "\n\n".join(parts) if parts else "No dynamic mode ran."
@@ -153,14 +167,17 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
         if not r.ok:
             rows.append([f"`{r.engine}`", f"**failed**: {r.reason}", "—", "—", "—", "—"])
             continue
-        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2), _g(r.tolerance, 2),
+        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2),
+                     f"{_g(r.tolerance, 2)} (scale ≥ {_g(r.floor, 3)} {r.unit})",
                      f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}", str(r.states)])
     e = run.energy
     text = ("Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
             "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
             "each source against the native multipliers of M q'' - Phi_q^T lambda = Q at the source's own "
             "states. `newton-euler` is the seed's per-body form M a = D R + Q; pymunk gives magnitudes only "
-            "(impulses over a step divided by the step).\n\n")
+            "(impulses over a step divided by the step). Differences are relative to the largest native "
+            "magnitude, but at least M·max(g, a·L) for forces and that times L for moments (M: the moving "
+            "mass).\n\n")
     text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows,
                    "llrrlr")
     text += (f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
