@@ -15,7 +15,7 @@ import numpy as np
 from .errors import InputError
 from .kinematics import Kinematics
 
-__all__ = ["SimulationWindow", "law_states", "reached_span", "simulation_window"]
+__all__ = ["SimulationWindow", "law_states", "reached_span", "simulation_window", "sweep_span"]
 
 
 @dataclass(frozen=True)
@@ -138,6 +138,9 @@ def reached_span(driver, low: float, high: float, around: float | None = None,
     first, last = holding[0] if around is not None and holding else max(runs, key=lambda r: r[1] - r[0])
     lo = values[first] if first == 0 else _edge(driver, values[first - 1], values[first])
     hi = values[last] if last == count - 1 else _edge(driver, values[last + 1], values[last])
+    law = driver.law
+    if law.kind == "harmonic" and not law.turns:  # time_at admits 1e-12 of overshoot at a turning point
+        lo, hi = max(lo, law.centre - abs(law.amplitude)), min(hi, law.centre + abs(law.amplitude))
     return float(lo), float(hi)
 
 
@@ -150,3 +153,38 @@ def _edge(driver, outside: float, inside: float) -> float:
         else:
             inside = middle
     return inside
+
+
+def sweep_span(kinematics: Kinematics, k: int, branch: str | None = None, margin: float = 1e-2) -> tuple[float, float]:
+    """The values (SI) over which driver ``k`` is swept, the others held at their
+    reference values: one turn up from the reference for a crank that turns
+    round, else the feasible range less ``margin`` of its width at each limit
+    position (an unbounded side: the range's search span); either narrowed to
+    the stretch about the reference that the driver's law reaches
+    (:func:`reached_span`), so that every sample's rates are the law's.
+
+    Raises
+    ------
+    InputError
+        If the law reaches no value of the range.
+    """
+    mech = kinematics.mechanism
+    driver, ref = mech.drivers[k], float(kinematics.reference_inputs()[k])
+    rng = kinematics.input_range(k, branch)
+    turns = rng.full_turn and driver.quantity == "angle"
+    if turns:
+        low, high = ref, ref + 2.0 * math.pi
+    else:
+        low = rng.low if rng.low is not None else ref - rng.span
+        high = rng.high if rng.high is not None else ref + rng.span
+        pad = margin * (high - low)
+        low, high = low + pad, high - pad
+    span = reached_span(driver, low, high, around=ref)
+    if turns and span is not None and span[1] - span[0] < 2.0 * math.pi * (1.0 - 1e-9):
+        # a law that does not turn round (a harmonic crank angle): its arc about the reference
+        span = reached_span(driver, ref - 2.0 * math.pi, ref + 2.0 * math.pi, around=ref)
+    if span is None:
+        shown = " … ".join(mech.units.show_input(driver.quantity, v) for v in (low, high))
+        raise InputError(f"{mech.path}: drivers[{k}]: expected a motion that reaches the feasible range "
+                         f"({shown}), found one that never does")
+    return span

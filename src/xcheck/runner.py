@@ -27,7 +27,7 @@ from .errors import InputError, XcheckError
 from .engines import mode_function
 from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
-from .motion import law_states, reached_span
+from .motion import law_states, sweep_span
 
 __all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome",
            "RunResult", "run_mechanism", "sweep_inputs", "versions", "convergence_table", "CONVERGENCE",
@@ -239,22 +239,7 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     """
     mech = kinematics.mechanism
     ref = kinematics.reference_inputs()
-    rng = kinematics.input_range(0, branch)
-    if rng.full_turn:
-        low, high = ref[0], ref[0] + 2.0 * math.pi
-    else:
-        low = rng.low if rng.low is not None else ref[0] - rng.span
-        high = rng.high if rng.high is not None else ref[0] + rng.span
-        pad = margin * (high - low)
-        low, high = low + pad, high - pad
-    span = reached_span(mech.drivers[0], low, high, around=ref[0])
-    if rng.full_turn and span is not None and span[1] - span[0] < 2.0 * math.pi * (1.0 - 1e-9):
-        # a law that does not turn round (a harmonic crank angle): its arc about the reference
-        span = reached_span(mech.drivers[0], ref[0] - 2.0 * math.pi, ref[0] + 2.0 * math.pi, around=ref[0])
-    if span is None:
-        shown = " … ".join(mech.units.show_input(mech.drivers[0].quantity, v) for v in (low, high))
-        raise InputError(f"{mech.path}: drivers[0]: expected a motion that reaches the feasible range "
-                         f"({shown}), found one that never does")
+    span = sweep_span(kinematics, 0, branch, margin)
     inputs = np.tile(ref, (samples, 1))
     inputs[:, 0] = np.linspace(*span, samples)
     rates, accelerations, reached = law_states(mech, inputs)

@@ -18,7 +18,7 @@ import pandas as pd
 from ..compare import relative_to_floored_scale, scale_floors
 from ..errors import XcheckError
 from ..kinematics import Kinematics, Solution, Status
-from ..motion import simulation_window
+from ..motion import law_states, simulation_window
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
@@ -154,7 +154,10 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                     "worst_input": float(forces.inputs[worst, 0]),
                     "samples": int(good.sum()), "missing": int(good.sum() - finite.sum()),
                 })
-    floors = force_floors(mech, scale_floors(mech, forces.input_rates, forces.input_accelerations))
+    # the floors follow the drivers' laws at the source's inputs: an engine's realised rates of a driver
+    # that stands still are round-off, not zero, and would drop the static fallback of scale_floors
+    law_rates, law_accelerations, _ = law_states(mech, forces.inputs)
+    floors = force_floors(mech, scale_floors(mech, law_rates, law_accelerations))
     return relative_to_floored_scale(pd.DataFrame(rows), "unit", floors)
 
 

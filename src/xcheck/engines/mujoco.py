@@ -9,7 +9,6 @@ Run ``xcheck export --format mjcf`` to regenerate models/mjcf/.
 from __future__ import annotations
 
 import copy
-import math
 
 import mujoco
 import numpy as np
@@ -19,7 +18,7 @@ from ..compare import ModeResult, Trajectory, differences, observed_order
 from ..errors import InputError, XcheckError
 from ..kinematics import Kinematics, Status
 from ..model import Mechanism
-from ..motion import simulation_window
+from ..motion import law_states, simulation_window, sweep_span
 from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
 from ._mujoco_inverse import inverse_forces
 from ._mujoco_mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
@@ -62,33 +61,13 @@ def _compile(kinematics: Kinematics, xml: str | None):
         return None, None, f"MuJoCo rejects the MJCF: {error}".splitlines()[0]
 
 
-def _law_states(mechanism: Mechanism, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Rates and accelerations of the drivers' laws where they pass ``values`` (N, k).
-
-    Where a law never reaches a value (a harmonic law inside a wider feasible
-    range), its rate and acceleration at t = 0 stand in. Returns rates,
-    accelerations (N, k) and the number of such stand-ins.
-    """
-    rates, accelerations = np.empty_like(values), np.empty_like(values)
-    stand_ins = 0
-    for k, driver in enumerate(mechanism.drivers):
-        _, qd0, qdd0 = driver.law.at_time(0.0)
-        for i, value in enumerate(values[:, k]):
-            state = driver.law.state_at(float(value))
-            if state is None:
-                state, stand_ins = (value, float(qd0), float(qdd0)), stand_ins + 1
-            rates[i, k], accelerations[i, k] = state[1], state[2]
-    return rates, accelerations, stand_ins
-
-
 def _sweeps(kinematics: Kinematics, samples: int, branch: str | None, margin: float):
     """Input sweeps, one per driver, the other inputs held at their reference values.
 
-    A crank that turns round sweeps one turn up from its reference value; a
-    bounded input sweeps its feasible range less ``margin`` of its width at
-    each limit position, split at the reference value into a piece going up
-    and one going down, so that Newton can walk out from the reference
-    configuration.
+    Each driver sweeps :func:`~xcheck.motion.sweep_span` (one turn of a crank,
+    else the feasible range less ``margin`` at each limit, within what its law
+    reaches), split at the reference value into a piece going up and one
+    going down, so that Newton can walk out from the reference configuration.
 
     Returns
     -------
@@ -98,16 +77,9 @@ def _sweeps(kinematics: Kinematics, samples: int, branch: str | None, margin: fl
     """
     ref = kinematics.reference_inputs()
     sweeps = []
-    for k, driver in enumerate(kinematics.mechanism.drivers):
-        rng = kinematics.input_range(k, branch)
-        if rng.full_turn and driver.quantity == "angle":
-            ups, downs = ref[k] + np.linspace(0.0, 2.0 * math.pi, samples), np.zeros(0)
-        else:
-            low = rng.low if rng.low is not None else ref[k] - rng.span / 2.0
-            high = rng.high if rng.high is not None else ref[k] + rng.span / 2.0
-            pad = margin * (high - low)
-            values = np.linspace(low + pad, high - pad, samples)
-            ups, downs = values[values >= ref[k]], values[values < ref[k]][::-1]
+    for k in range(len(kinematics.mechanism.drivers)):
+        values = np.linspace(*sweep_span(kinematics, k, branch, margin), samples)
+        ups, downs = values[values >= ref[k]], values[values < ref[k]][::-1]
         pair = []
         for part in (ups, downs):
             c = np.tile(ref, (part.size, 1))
@@ -166,7 +138,8 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         return ModeResult(KINEMATIC_MODE, mech.name, False,
                           f"MuJoCo's Newton projection did not close the loops at {where} "
                           f"(violation {residual[i]:.3g} m)")
-    rates, accelerations, stand_ins = _law_states(mech, inputs)
+    rates, accelerations, reached = law_states(mech, inputs)
+    stand_ins = int((~reached).sum())
     qvel = np.array([oracle.velocity(q[i], rates[i]) for i in range(len(q))])
     qacc = np.array([oracle.acceleration(q[i], qvel[i], accelerations[i]) for i in range(len(q))])
     bodies, points = oracle.states(q, qvel, qacc)
@@ -175,8 +148,8 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
              "drift -Jdot qd from mj_jacDot at both sites of each connect. Bodies from xpos/xmat, mj_jac, "
              "mj_jacDot; points from their sites.")
     if stand_ins:
-        notes += (f" At {stand_ins} input value(s) a driver's law never passes, its rate and acceleration at "
-                  "t = 0 were used.")
+        notes += (f" At {stand_ins} input value(s) a driver's law never passes (a driver held at a reference "
+                  "value its law never reaches), its rate and acceleration are 0.")
     trajectory = Trajectory(
         source=KINEMATIC_MODE, inputs=inputs, input_rates=rates, input_accelerations=accelerations,
         bodies=bodies, points=points,

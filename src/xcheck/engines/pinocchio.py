@@ -29,6 +29,7 @@ import numpy as np
 
 from ..compare import ModeResult, Trajectory, differences
 from ..kinematics import Kinematics
+from ..motion import law_states, sweep_span
 from ._pinocchio_dynamics import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
 from ._pinocchio_inverse import inverse_forces
 from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
@@ -66,13 +67,13 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     """The inputs of the kinematic sweep: each driver in turn over its feasible
     range, the others held at their reference values.
 
-    A driver that turns round sweeps one turn from its reference value; a
-    bounded one sweeps its feasible range less :data:`RANGE_MARGIN` at each
-    end. Either is narrowed to the values its motion law reaches (a harmonic
+    Each driver sweeps :func:`~xcheck.motion.sweep_span` with
+    :data:`RANGE_MARGIN` (one turn of a crank, else the feasible range less
+    the margin at each end, within the values its law reaches: a harmonic
     slide covers only centre +- amplitude). Rates and accelerations are the
-    laws' where they pass each value (:meth:`MotionLaw.state_at`); where a law
-    never passes a value (a law that stands still, or a driver held at a
-    reference value its law never reaches) they are zero, and the notes say so.
+    laws' (:func:`~xcheck.motion.law_states`, the rule of ``xcheck solve
+    --at``); where a law never passes a value (a driver held at a reference
+    value its law never reaches) they are zero, and the notes say so.
 
     Returns
     -------
@@ -84,34 +85,17 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     """
     mech = kinematics.mechanism
     ref = kinematics.reference_inputs()
-    k = len(ref)
     blocks, starts, notes = [], [], []
     for i, driver in enumerate(mech.drivers):
-        rng = kinematics.input_range(i, branch)
-        if rng.full_turn and driver.quantity == "angle":
-            low, high, what = ref[i], ref[i] + 2.0 * math.pi, "one turn"
-        else:
-            size = kinematics.system.size
-            low = rng.low if rng.low is not None else ref[i] - size
-            high = rng.high if rng.high is not None else ref[i] + size
-            pad = RANGE_MARGIN * (high - low)
-            low, high, what = low + pad, high - pad, f"feasible range less {RANGE_MARGIN:.0%} at each limit"
-        dense = np.linspace(low, high, 20 * samples)
-        reached = dense[[driver.law.state_at(float(x)) is not None for x in dense]]
-        if reached.size >= 2 and (reached[0] > low or reached[-1] < high):
-            low, high = float(reached[0]), float(reached[-1])
-            what += ", within the values the motion law reaches"
+        low, high = sweep_span(kinematics, i, branch, RANGE_MARGIN)
         values = np.linspace(low, high, samples)
-        notes.append(f"{driver.name} from {low:.6g} to {high:.6g} ({what})")
+        notes.append(f"{driver.name} from {low:.6g} to {high:.6g} (motion.sweep_span: one turn of a crank, else "
+                     f"the feasible range less {RANGE_MARGIN:.0%} at each limit, within what the law reaches)")
         inputs = np.tile(ref, (samples, 1))
         inputs[:, i] = values
-        rates, accelerations = np.zeros((samples, k)), np.zeros((samples, k))
+        rates, accelerations, reached = law_states(mech, inputs)
         for j, d in enumerate(mech.drivers):
-            states = [d.law.state_at(float(x)) for x in inputs[:, j]]
-            for s, state in enumerate(states):
-                if state is not None:
-                    rates[s, j], accelerations[s, j] = state[1], state[2]
-            if any(state is None for state in states):
+            if not reached[:, j].all():
                 notes.append(f"{d.name}: its motion law does not pass some of the values used: "
                              "rate and acceleration 0 there")
         starts.append(len(blocks) * samples + int(np.argmin(np.abs(values - ref[i]))))
