@@ -18,7 +18,7 @@ from conftest import MODELS
 from xcheck import Kinematics, load_mechanism
 from xcheck.cli import app
 from xcheck.model import parse_mechanism
-from xcheck.runner import sweep_inputs
+from xcheck.runner import ALL_MODES, sweep_inputs
 from xcheck.units import evaluate_expression
 
 DATA = Path(__file__).parent / "data"
@@ -316,3 +316,26 @@ def test_json_says_angles_are_continuous():
     document = _json("solve", FOURBAR_200, "--at", "920")
     assert document["units"]["angle"] == "rad" and document["angles"].startswith("continuous")
     assert document["states"][0]["bodies"]["crank"]["angle"] == pytest.approx(math.radians(920.0), abs=1e-12)
+
+
+def test_wedge_closed_form():
+    """Plunger at y = 50 - s/2 mm on the face of slope 1/2; rates -s'/2, -s''/2; nothing turns."""
+    state = _json("solve", DATA / "wedge.toml", "--at", "30")["states"][0]
+    s, s_dot, s_ddot = 0.030, math.sqrt(0.020**2 + 2.0 * 0.005 * 0.030), 0.005  # s' = sqrt(v0^2 + 2 a s)
+    plunger = state["bodies"]["plunger"]
+    assert plunger["position"] == pytest.approx([0.100, 0.050 - s / 2.0], abs=1e-15)
+    assert plunger["velocity"] == pytest.approx([0.0, -s_dot / 2.0], abs=1e-15)
+    assert plunger["acceleration"] == pytest.approx([0.0, -s_ddot / 2.0], abs=1e-15)
+    assert plunger["omega"] == 0.0 and state["bodies"]["wedge"]["alpha"] == 0.0
+
+
+@pytest.mark.parametrize("name", ["scotch-yoke", "elliptic-trammel", "fourbar-200", "wedge"])
+def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path):
+    """The bar of issue 12: the user-written mechanisms through `xcheck run FILE`,
+    every mode within its tolerance (exit 0), none failing or refused."""
+    result = _cli("run", DATA / f"{name}.toml", "--out", tmp_path, "--json", "--samples", "61")
+    document = json.loads(result.stdout)
+    failed = {m: e for m, e in document["engines"].items() if not e.get("pass")}
+    assert result.exit_code == 0 and not failed, failed
+    assert set(document["engines"]) | set(document["not_applicable"]) == set(ALL_MODES)
+    assert set(document["not_applicable"]) <= {"formulation-I"}

@@ -31,7 +31,7 @@ from .motion import law_states, sweep_span
 
 __all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome",
            "RunResult", "run_mechanism", "sweep_inputs", "versions", "convergence_table", "CONVERGENCE",
-           "ORDER_MARGIN", "convergence_limit"]
+           "ORDER_MARGIN", "convergence_limit", "convergence_round_off"]
 
 #: every mode, in the order tables show them
 ALL_MODES = ("native", *FORMULATIONS, "mujoco-kinematic", "pinocchio-kinematic", "mujoco-dynamic",
@@ -109,10 +109,14 @@ CONVERGENCE = {
 #: lower-order defect (p - 1) fails and the next term may still be a good part
 #: of the leading one. A higher order means the error falls at least as fast.
 ORDER_MARGIN = 0.5
-#: Errors at or below this (position per size, angle rad, rates relative) are
-#: round-off, where no order can be observed: the independent exact methods'
-#: bound.
-CONVERGENCE_ROUND_OFF = 1e-12
+#: Errors at or below an engine's round-off bound per category (the bound its
+#: own kinematics must meet, ``_ROUND_OFF``: 1e-10 of the size or rad, 1e-9
+#: relative for rates) show no order: there the error is the engine's solver
+#: noise, not truncation; differenced over +-h it even grows as h falls
+#: (pymunk's accelerations on an all-sliding wedge: 4.4e-11 at h = 2.5 ms,
+#: 5.3e-10 at 1.25 ms).
+def convergence_round_off(category: str) -> float:
+    return _ROUND_OFF.limit(category)
 
 
 #: Reactions and efforts: the largest difference relative to the largest native
@@ -282,14 +286,15 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
     return pd.DataFrame(rows)
 
 
-def convergence_limit(coarse_error: float, coarse_step: float, fine_step: float, order: float) -> float:
+def convergence_limit(coarse_error: float, coarse_step: float, fine_step: float, order: float,
+                      round_off: float) -> float:
     """The largest error at ``fine_step`` that still shows convergence at an
     order of at least ``order`` - :data:`ORDER_MARGIN` from ``coarse_error`` at
-    ``coarse_step``, but at least :data:`CONVERGENCE_ROUND_OFF`; NaN when the
-    coarse error is not finite."""
+    ``coarse_step``, but at least ``round_off`` (:func:`convergence_round_off`);
+    NaN when the coarse error is not finite."""
     if not math.isfinite(coarse_error):
         return math.nan
-    return max(CONVERGENCE_ROUND_OFF, coarse_error * (fine_step / coarse_step) ** (order - ORDER_MARGIN))
+    return max(round_off, coarse_error * (fine_step / coarse_step) ** (order - ORDER_MARGIN))
 
 
 #: settings keys of a dynamic mode's trajectory: the time step, and what makes a series
@@ -340,12 +345,13 @@ def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, 
             continue
         fine = float(row.relative)
         coarse_error = float(coarse_errors.get(row.category, math.nan))
-        limit = convergence_limit(coarse_error, coarse_step, step, order)
+        round_off = convergence_round_off(row.category)
+        limit = convergence_limit(coarse_error, coarse_step, step, order, round_off)
         estimate = coarse_error * (step / coarse_step) ** order if math.isfinite(coarse_error) else math.nan
-        observed = observed_order(coarse_error, fine, coarse_step, step, CONVERGENCE_ROUND_OFF)
-        if fine <= CONVERGENCE_ROUND_OFF:
-            basis = f"at round-off ({fine:.2g} <= {CONVERGENCE_ROUND_OFF:g}): no order to observe"
-            limit = CONVERGENCE_ROUND_OFF if math.isnan(limit) else limit
+        observed = observed_order(coarse_error, fine, coarse_step, step, round_off)
+        if fine <= round_off:
+            basis = f"at the engine's round-off ({fine:.2g} <= {round_off:g}): no order to observe"
+            limit = round_off if math.isnan(limit) else limit
         elif coarse is None:
             basis = "no coarser run of the same settings ran through: the order cannot be observed"
         else:
