@@ -514,15 +514,19 @@ def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
     if summary is None or summary.empty:
         return pd.DataFrame(columns=["series", "timestep", "position_error", "order", "status"])
     s = summary
+
+    def column(name: str) -> pd.Series:  # a column no run filled (every run failed) is NaN
+        return s[name] if name in s else pd.Series(math.nan, index=s.index)
+
     if "dt" in s:  # pinocchio
-        table = pd.DataFrame({"series": s.integrator, "timestep": s.dt, "position_error": s.position_error_m})
+        table = pd.DataFrame({"series": s.integrator, "timestep": s.dt, "position_error": column("position_error_m")})
     elif "timestep" in s:  # mujoco
         table = pd.DataFrame({"series": s.setting + " " + s.integrator, "timestep": s.timestep,
-                              "position_error": s.position_error})
+                              "position_error": column("position_error")})
     else:  # pymunk
         table = pd.DataFrame({"series": s.error_bias.astype(str) + ", " + s.iterations.astype(str) + " iterations",
-                              "timestep": s.time_step, "position_error": s.position_error})
-    table["status"] = s.status.astype(str)
+                              "timestep": s.time_step, "position_error": column("position_error")})
+    table["status"] = column("status").astype(str)
     table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
     orders = []
     for i, row in table.iterrows():
