@@ -339,3 +339,19 @@ def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path
     assert result.exit_code == 0 and not failed, failed
     assert set(document["engines"]) | set(document["not_applicable"]) == set(ALL_MODES)
     assert set(document["not_applicable"]) <= {"formulation-I"}
+
+
+def test_a_report_that_cannot_be_written_is_one_line_and_the_rest_run(tmp_path):
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file where the reports directory should be")
+    folder = tmp_path / "two"
+    folder.mkdir()
+    for name in ("fourbar-200", "wedge"):
+        (folder / f"{name}.toml").write_text((DATA / f"{name}.toml").read_text())
+    result = _cli("run", "all", "--models", folder, "--engines", "formulations", "--samples", "11",
+                  "--out", blocked / "reports", "--json")
+    lines = result.stderr.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 2, result.output
+    assert all("expected a directory where the report of" in line for line in lines)
+    assert [run["mechanism"] for run in json.loads(result.stdout)] == ["fourbar-200", "wedge"]  # both ran
+    assert "Traceback" not in result.output

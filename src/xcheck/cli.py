@@ -323,8 +323,15 @@ def run_command(
             if report:
                 progress.update(task, description=f"{label}: report")
                 target = reports_dir(path, out)
-                write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
-                entries.append((target, path.parent, index_entry(run)))
+                try:  # a report that cannot be written is reported; the run's results still count
+                    write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
+                    entries.append((target, path.parent, index_entry(run)))
+                except OSError as err:
+                    failures.append(f"{target}: expected a directory where the report of {label} can be "
+                                    f"written, found {err.strerror or err}")
+                except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
+                    failures.append(f"{path}: report: expected a written report, found an internal error "
+                                    f"({type(err).__name__}: {err}); please report it")
             results.append(run)
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
