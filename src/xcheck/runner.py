@@ -348,16 +348,19 @@ def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, 
         round_off = convergence_round_off(row.category)
         limit = convergence_limit(coarse_error, coarse_step, step, order, round_off)
         estimate = coarse_error * (step / coarse_step) ** order if math.isfinite(coarse_error) else math.nan
-        observed = observed_order(coarse_error, fine, coarse_step, step, round_off)
-        if fine <= round_off:
-            basis = f"at the engine's round-off ({fine:.2g} <= {round_off:g}): no order to observe"
+        observed = observed_order(coarse_error, fine, coarse_step, step)
+        by_order = coarse is not None and math.isfinite(coarse_error) and \
+            fine <= coarse_error * (step / coarse_step) ** (order - ORDER_MARGIN)
+        ladder = (f"from {coarse_error:.3g} at dt = {coarse_step:.4g} s to {fine:.3g} at dt = {step:.4g} s; "
+                  f"the expected order predicts {estimate:.3g}")
+        if by_order or (coarse is not None and fine > round_off):
+            basis = f"observed order {observed:.3g} (expected {order:g}, accepted >= {order - ORDER_MARGIN:g}) " + ladder
+        elif fine <= round_off:
+            basis = (f"within the engine's round-off bound ({fine:.2g} <= {round_off:g}), where no order shows"
+                     + (f" (observed {observed:.3g} " + ladder + ")" if coarse is not None else ""))
             limit = round_off if math.isnan(limit) else limit
-        elif coarse is None:
-            basis = "no coarser run of the same settings ran through: the order cannot be observed"
         else:
-            basis = (f"observed order {observed:.3g} (expected {order:g}, accepted >= {order - ORDER_MARGIN:g}) "
-                     f"from {coarse_error:.3g} at dt = {coarse_step:.4g} s to {fine:.3g} at dt = {step:.4g} s; "
-                     f"the expected order predicts {estimate:.3g}")
+            basis = "no coarser run of the same settings ran through: the order cannot be observed"
         categories.loc[i, ["expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate",
                            "tolerance"]] = [order, observed, coarse_error, coarse_step, step, estimate, limit]
         categories.loc[i, "passed"] = bool(fine <= limit) and int(row.missing) == 0
