@@ -355,3 +355,20 @@ def test_a_report_that_cannot_be_written_is_one_line_and_the_rest_run(tmp_path):
     assert all("expected a directory where the report of" in line for line in lines)
     assert [run["mechanism"] for run in json.loads(result.stdout)] == ["fourbar-200", "wedge"]  # both ran
     assert "Traceback" not in result.output
+
+
+def test_exact_methods_near_a_change_point_are_judged_by_the_conditioning():
+    """A parallelogram swept to 1 % of its change points (kappa up to 323): the
+    formulations lose digits as eps kappa^2 in accelerations (3.4e-11), and
+    their bound says so: max(1e-12, 10 eps kappa^2), kappa measured on the sweep."""
+    result = _cli("run", DATA / "para.toml", "--engines", "kinematic", "--no-report", "--json")
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    kin = Kinematics(load_mechanism(DATA / "para.toml"))
+    native = kin.solve(*sweep_inputs(kin, 181))
+    kappa = 1.0 / native.singularity.min()
+    assert 250.0 < kappa < 400.0
+    alpha = document["engines"]["formulation-I"]
+    assert alpha["tolerance"]["alpha"] == pytest.approx(10.0 * np.finfo(float).eps * kappa**2, rel=1e-9)
+    assert alpha["tolerance"]["angle"] == 1e-12  # 10 eps kappa = 7e-13 does not bind
+    assert alpha["relative"]["alpha"] > 1e-12  # the loss is real: the fixed round-off bound would fail it
