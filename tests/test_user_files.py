@@ -329,7 +329,7 @@ def test_wedge_closed_form():
     assert plunger["omega"] == 0.0 and state["bodies"]["wedge"]["alpha"] == 0.0
 
 
-@pytest.mark.parametrize("name", ["scotch-yoke", "elliptic-trammel", "fourbar-200", "wedge"])
+@pytest.mark.parametrize("name", ["scotch-yoke", "elliptic-trammel", "fourbar-200", "wedge", "rocker-driven"])
 def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path):
     """The bar of issue 12: the user-written mechanisms through `xcheck run FILE`,
     every mode within its tolerance (exit 0), none failing or refused."""
@@ -372,3 +372,13 @@ def test_exact_methods_near_a_change_point_are_judged_by_the_conditioning():
     assert alpha["tolerance"]["alpha"] == pytest.approx(10.0 * np.finfo(float).eps * kappa**2, rel=1e-9)
     assert alpha["tolerance"]["angle"] == 1e-12  # 10 eps kappa = 7e-13 does not bind
     assert alpha["relative"]["alpha"] > 1e-12  # the loss is real: the fixed round-off bound would fail it
+
+
+def test_rocker_driven_range_closed_form():
+    """The rocker's limits where crank (0.1) and coupler (|BC| = sqrt(0.13)) line up."""
+    r4_sq, ad = 0.05**2 + 0.3**2, 0.35
+    coupler = math.sqrt(0.2**2 + 0.3**2)
+    limits = sorted(math.acos((ac**2 - ad**2 - r4_sq) / (2.0 * ad * math.sqrt(r4_sq)))
+                    for ac in (coupler + 0.1, coupler - 0.1))
+    rng = _json("list", DATA / "rocker-driven.toml")[0]["ranges"][0]
+    assert rng["low"] == pytest.approx(limits[0], abs=1e-9) and rng["high"] == pytest.approx(limits[1], abs=1e-9)
