@@ -382,3 +382,10 @@ def test_rocker_driven_range_closed_form():
                     for ac in (coupler + 0.1, coupler - 0.1))
     rng = _json("list", DATA / "rocker-driven.toml")[0]["ranges"][0]
     assert rng["low"] == pytest.approx(limits[0], abs=1e-9) and rng["high"] == pytest.approx(limits[1], abs=1e-9)
+
+
+def test_an_unbounded_slide_is_not_a_full_turn():
+    """The wedge's push meets no limit (the face is a line): not "full turn", which is for cranks."""
+    rng = _json("list", DATA / "wedge.toml")[0]["ranges"][0]
+    assert rng["low"] is None and rng["high"] is None and rng["full_turn"] is False
+    assert "no limit within" in rng["text"] and "mm" in rng["text"]

@@ -129,10 +129,12 @@ def list_command(
 
 def _range_json(kin: Kinematics, rng) -> dict:
     """A driver's feasible range for JSON: SI bounds (rad or m; null where a
-    crank turns round or no limit was met) and the display text."""
+    crank turns round or a slide met no limit within its search span) and the
+    display text."""
     driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
     return {"driver": rng.driver, "quantity": driver.quantity, "unit": "rad" if driver.quantity == "angle" else "m",
-            "low": rng.low, "high": rng.high, "full_turn": rng.full_turn, "text": range_text(kin, rng)}
+            "low": rng.low, "high": rng.high, "full_turn": rng.full_turn and driver.quantity == "angle",
+            "text": range_text(kin, rng)}
 
 
 @app.command("solve")

@@ -97,8 +97,12 @@ def range_text(kin: Kinematics, rng: InputRange) -> str:
         scale, unit = units.angle_factor, units.angle
     else:
         scale, unit = units.length_factor, units.length
-    if rng.full_turn:
+    if rng.full_turn and driver.quantity == "angle":
         return f"{rng.driver}: full turn"
+    if rng.full_turn:  # a slide that met no limit position within its search span
+        ref = float(kin.reference_inputs()[[d.name for d in kin.mechanism.drivers].index(rng.driver)])
+        return (f"{rng.driver}: no limit within {(ref - rng.span) / scale:.6g} … {(ref + rng.span) / scale:.6g} "
+                f"{unit}")
     low = "-inf" if rng.low is None else f"{_inward(rng.low / scale, up=True):.6g}"
     high = "+inf" if rng.high is None else f"{_inward(rng.high / scale, up=False):.6g}"
     return f"{rng.driver}: {low} … {high} {unit}"
