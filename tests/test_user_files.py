@@ -77,48 +77,9 @@ def test_crank_assembled_at_200_deg_turns_fully():
     assert kin.assemble()[2] == pytest.approx(math.radians(200.0), abs=1e-12)  # the crank's phi
 
 
-# A block on a turning arm, locked at 120 deg to it: at an arm angle of 150 deg
-# the block's angle is 270 deg, outside +-180.
-ARM_AND_BLOCK = """
-[mechanism]
-name = "arm-block"
-[units]
-length = "m"
-angle = "deg"
-[ground]
-points = { O = [0, 0] }
-[bodies.arm]
-points = { O = [0, 0], E = [1, 0] }
-[bodies.block]
-points = { P = [0, 0] }
-[[joints]]
-type = "revolute"
-bodies = ["ground", "arm"]
-point = "O"
-[[joints]]
-name = "slide"
-type = "prismatic"
-bodies = ["arm", "block"]
-line = "O"
-direction = 0
-point = "P"
-angle = 120
-[[drivers]]
-name = "theta"
-joint = "O"
-start = 150
-rate = 1.0
-[[drivers]]
-name = "s"
-joint = "slide"
-start = 0.2
-rate = 0.1
-"""
-
-
 @pytest.mark.parametrize("theta_deg", [150.0, 250.0, 150.0 + 360.0])
 def test_a_prismatic_angle_offset_beyond_180_deg(theta_deg):
-    kin = Kinematics(parse_mechanism(ARM_AND_BLOCK))
+    kin = Kinematics(load_mechanism(DATA / "arm-block.toml"))
     theta, s = math.radians(theta_deg), 0.3
     solution = kin.solve(np.array([[theta, s]]), np.array([[1.0, 0.1]]), np.zeros((1, 2)))
     assert solution.success
