@@ -350,3 +350,17 @@ def test_an_unbounded_slide_is_not_a_full_turn():
     rng = _json("list", DATA / "wedge.toml")[0]["ranges"][0]
     assert rng["low"] is None and rng["high"] is None and rng["full_turn"] is False
     assert "no limit within" in rng["text"] and "mm" in rng["text"]
+
+
+@pytest.mark.parametrize("args,field,found", [
+    (("--at", "30", "--rate", "abc"), "--rate crank", "'abc'"),
+    (("--at", "30", "--rate", "1:2"), "--rate", "'1:2'"),
+    (("--at", "30,40", "--rate", "1,2"), "--rate", "found 2"),
+    (("--at", "30", "--rate", "1e400"), "--rate crank", "not finite"),
+    (("--at", "30", "--rate", "1", "--accel", "1:2"), "--accel", "'1:2'"),
+])
+def test_bad_rates_are_one_line(args, field, found):
+    result = _cli("solve", FOURBAR_200, *args)
+    line = result.stderr.strip()
+    assert result.exit_code == 2 and len(line.splitlines()) == 1
+    assert line.startswith(f"xcheck: error: {FOURBAR_200}: {field}: expected ") and found in line
