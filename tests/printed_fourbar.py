@@ -12,8 +12,10 @@ from __future__ import annotations
 from decimal import Decimal
 
 from conftest import MODELS, ROOT
+
 from xcheck import Kinematics, load_mechanism
-from xcheck.textbook import DISAGREES, ROUNDING as _ROUNDING, check_printed, load_comparisons
+from xcheck.textbook import DISAGREES, check_printed, load_comparisons
+from xcheck.textbook import ROUNDING as _ROUNDING
 
 #: the old keys and the vocabulary's quantities (formulations I, II, III)
 _KEYS = {

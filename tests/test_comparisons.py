@@ -21,11 +21,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import MODELS, ROOT
+
 from xcheck import Kinematics, ModelError, load_mechanism
-from xcheck.textbook import (AGREES, DISAGREES, ROUNDING, check_printed, load_comparisons, parse_comparisons,
-                             quantity_values, verdict)
+from xcheck.textbook import (
+    AGREES,
+    DISAGREES,
+    ROUNDING,
+    check_printed,
+    load_comparisons,
+    parse_comparisons,
+    quantity_values,
+    verdict,
+)
 
 COMPARISONS = ROOT / "comparisons"
 NAMES = sorted(p.stem for p in COMPARISONS.glob("*.toml"))

@@ -7,8 +7,8 @@ import dataclasses
 import math
 
 import pytest
-
 from conftest import ROOT
+
 from xcheck import Kinematics, load_mechanism
 from xcheck.compare import ModeResult, observed_order
 from xcheck.runner import ORDER_MARGIN, TOLERANCES, _categorise, _convergence_verdict, convergence_limit, run_mechanism

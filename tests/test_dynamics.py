@@ -14,16 +14,26 @@ import math
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from conftest import MODEL_NAMES, MODELS
 from test_kinematics import INVERTED, SLIDER_DRIVEN
 from test_mujoco import REVERSED
 from test_pymunk import BLOCK_DRIVEN
+from typer.testing import CliRunner
+
 from xcheck import Kinematics, ModelError, load_mechanism
 from xcheck.cli import app
-from xcheck.dynamics import (Forces, compare_forces, energy_balance, energy_summary, engine_forces,
-                             force_differences, force_summary, inverse_dynamics, newton_euler, window_states)
+from xcheck.dynamics import (
+    Forces,
+    compare_forces,
+    energy_balance,
+    energy_summary,
+    engine_forces,
+    force_differences,
+    force_summary,
+    inverse_dynamics,
+    newton_euler,
+    window_states,
+)
 from xcheck.model import parse_mechanism
 
 

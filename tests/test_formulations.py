@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import MODEL_NAMES
-from test_kinematics import INVERTED, SLIDER_DRIVEN
 from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
+from test_kinematics import INVERTED, SLIDER_DRIVEN
+
 from xcheck import Kinematics, Status
 from xcheck.compare import differences
 from xcheck.formulations import (
@@ -526,6 +526,7 @@ def test_registry_and_mode_result(kinematics):
 if __name__ == "__main__":
     # The measured agreement: largest relative difference per mechanism, branch and formulation.
     from conftest import MODELS
+
     from xcheck import load_mechanism
 
     print(f"{'mechanism':22s} {'branch':9s} {'formulation':15s} {'relative':>9s}  worst quantity")

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import MODEL_NAMES, MODELS
+
 from xcheck import Kinematics, Status
 from xcheck.model import parse_mechanism
 from xcheck.output import solution_json

@@ -12,13 +12,13 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 import pytest
-
 from conftest import MODEL_NAMES, MODELS, ROOT
 from test_kinematics import INVERTED, SLIDER_DRIVEN
+
 from xcheck import Kinematics, ModelError
-from xcheck.errors import XcheckError
 from xcheck.compare import differences
 from xcheck.engines.mujoco import export_files, inverse_dynamics, relative_error, run_dynamic, run_kinematic
+from xcheck.errors import XcheckError
 from xcheck.model import parse_mechanism
 from xcheck.topology import spanning_tree
 

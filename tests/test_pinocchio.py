@@ -30,9 +30,9 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from conftest import MODEL_NAMES, MODELS
 from test_kinematics import INVERTED, SLIDER_DRIVEN
+
 from xcheck import Kinematics, load_mechanism
 from xcheck.compare import differences
 from xcheck.engines import exporter, mode_function

@@ -10,9 +10,9 @@ import shutil
 from pathlib import Path
 
 import pytest
+from conftest import MODELS
 from typer.testing import CliRunner
 
-from conftest import MODELS
 from xcheck import Kinematics, Status, load_mechanism
 from xcheck.cli import app
 

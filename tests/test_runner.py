@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
-
 from pathlib import Path
 
 import pytest
+from conftest import MODEL_NAMES, MODELS
 from typer.testing import CliRunner
 
-from conftest import MODEL_NAMES, MODELS
 from xcheck import engines
 from xcheck.cli import app
 from xcheck.engines import mujoco as mujoco_engine

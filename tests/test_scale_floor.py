@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
+
 from xcheck import Kinematics, load_mechanism
 from xcheck.compare import STANDARD_GRAVITY, scale_floors
 from xcheck.dynamics import force_floors

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MODELS
 from typer.testing import CliRunner
 
-from conftest import MODELS
 from xcheck import Kinematics, load_mechanism
 from xcheck.cli import app
 from xcheck.model import parse_mechanism

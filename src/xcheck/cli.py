@@ -23,10 +23,19 @@ from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
 from .kinematics import Kinematics, Status
 from .model import Mechanism, load_mechanism
-from .output import print_run, run_json, print_solution, print_textbook, range_text, solution_json, textbook_json, wide_console
-from .textbook import check_printed, load_comparisons
+from .output import (
+    print_run,
+    print_solution,
+    print_textbook,
+    range_text,
+    run_json,
+    solution_json,
+    textbook_json,
+    wide_console,
+)
 from .report import index_entry, write_index, write_report
 from .runner import ALL_MODES, run_mechanism
+from .textbook import check_printed, load_comparisons
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -182,7 +191,8 @@ def solve_command(
         fields = [f"instants[{i}]" for i in range(len(states))]
     else:
         states = _parse_at(at, mech, rate, accel)
-        labels = ["at " + ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, value[0])}" for d, value in zip(mech.drivers, s))
+        labels = ["at " + ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, value[0])}"
+                                    for d, value in zip(mech.drivers, s))
                   for s in states]
         fields = None
     _check_ranges(kin, states, branch, fields)
@@ -273,7 +283,8 @@ def run_command(
              "formulations, mujoco, pinocchio, pymunk, kinematic, dynamic.")] = None,
     samples: Annotated[int, typer.Option("--samples", min=3, help="Samples of the sweeps over the feasible "
                                          "input range.")] = 181,
-    branch: Annotated[Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")] = None,
+    branch: Annotated[Optional[str], typer.Option(
+        "--branch", help="Assembly branch (default: the file's first).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
     out: Annotated[Optional[Path], typer.Option("--out", help="Directory of the Markdown reports (default: "
                                                 "reports/ beside the models directory).")] = None,

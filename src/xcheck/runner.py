@@ -21,10 +21,18 @@ import pandas as pd
 
 from . import __version__
 from .compare import ModeResult, Trajectory, differences, native_at, observed_order, sample_errors, scale_floors
-from .dynamics import (Forces, ForceResult, compare_forces, energy_summary, force_summary, inverse_dynamics,
-                       require_mass_data, window_states)
-from .errors import InputError, XcheckError
+from .dynamics import (
+    ForceResult,
+    Forces,
+    compare_forces,
+    energy_summary,
+    force_summary,
+    inverse_dynamics,
+    require_mass_data,
+    window_states,
+)
 from .engines import mode_function
+from .errors import InputError, XcheckError
 from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
 from .motion import law_states, sweep_span

@@ -8,8 +8,19 @@ dynamics and tabulate :func:`force_differences`. The sign conventions are in
 :mod:`xcheck.dynamics._forces`.
 """
 
-from ._compare import (ENGINES, WINDOW_SAMPLES, ForceResult, compare_forces, determined_states, energy_summary,
-                       engine_forces, force_differences, force_floors, force_summary, window_states)
+from ._compare import (
+                       ENGINES,
+                       WINDOW_SAMPLES,
+                       ForceResult,
+                       compare_forces,
+                       determined_states,
+                       energy_summary,
+                       engine_forces,
+                       force_differences,
+                       force_floors,
+                       force_summary,
+                       window_states,
+)
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data
 from ._inverse import body_dynamics, inverse_dynamics, newton_euler

@@ -30,8 +30,15 @@ import numpy as np
 from ..compare import Trajectory
 from ..kinematics import Kinematics
 from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from ._common import Frame, NotApplicable, as_inputs, body_frames_from_q, build_trajectory, \
-    status_from_singularity, wrap
+from ._common import (
+    Frame,
+    NotApplicable,
+    as_inputs,
+    body_frames_from_q,
+    build_trajectory,
+    status_from_singularity,
+    wrap,
+)
 
 __all__ = ["SOURCE", "recognise", "solve_closed_form"]
 
@@ -397,7 +404,8 @@ def _recognise_slider_crank(mech: Mechanism, joint: Revolute, crank: str, sign: 
             # slider point P on the ground line through Q: B = Q + s d + e^{i angle}(B - P)
             slider_angle = guide.angle
             turn = cmath.exp(1j * slider_angle)
-            l0 = _local(mech, GROUND, guide.line_point) + turn * (local[slider, "B"] - _local(mech, slider, guide.point))
+            l0 = (_local(mech, GROUND, guide.line_point)
+                  + turn * (local[slider, "B"] - _local(mech, slider, guide.point)))
             u = d
         else:
             # the line is on the slider, the ground point P on it: B = P + e^{i a}(B - Q) - s e^{i a} d

@@ -436,7 +436,9 @@ class _Reader:
             for key in ("start", "rate", "acceleration", "centre", "amplitude", "frequency", "phase"):
                 if key in spec and key not in allowed:
                     self.fail(f"{field}.{key}", f"only {', '.join(allowed)} for motion {kind!r}", repr(key))
-            get = lambda key, scale, default=0.0: self.number(spec.get(key, default), f"{field}.{key}", scale)
+            def get(key, scale, default=0.0, spec=spec, field=field):
+                return self.number(spec.get(key, default), f"{field}.{key}", scale)
+
             if kind == "harmonic":
                 law = MotionLaw(kind, centre=get("centre", q_scale), amplitude=get("amplitude", q_scale),
                                 frequency=self.number(spec.get("frequency"), f"{field}.frequency", positive=True),

@@ -103,7 +103,8 @@ def _textbook_section(run: RunResult) -> str:
     counts = verdict_counts(run.textbook)
     rows = []
     for r in run.textbook:
-        rows.append([r.get("symbol", ""), r.get("quantity", ""), r.get("instant", ""), r.get("printed_text", _g(r["printed"], 6)),
+        rows.append([r.get("symbol", ""), r.get("quantity", ""), r.get("instant", ""),
+                     r.get("printed_text", _g(r["printed"], 6)),
                      _g(r["computed"], 6), r.get("unit", ""), _g(r.get("deviation_percent"), 2),
                      _g(r.get("deviation_digits"), 2), f"**{r['verdict']}**" if r["verdict"] == "disagrees"
                      else r["verdict"], r.get("note", "")])
