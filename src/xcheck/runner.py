@@ -108,6 +108,8 @@ _EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-
                    "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)" + _CONDITIONED,
                    conditioned=True)
 _CONVERGES = math.nan  # a dynamic mode's category judged by its convergence (see CONVERGENCE), not a fixed bound
+_NOISE = ("; each error at most the coarser step's times (h_f / h_c)^(order - 0.5) plus the engine's noise "
+          "floor (its kinematic round-off bound)")
 #: Dynamic modes: the verdict of each category follows from the mode's own
 #: convergence study on the mechanism at hand (see CONVERGENCE and
 #: _convergence_verdict); a fixed bound only where the quantity does not converge.
@@ -122,13 +124,14 @@ TOLERANCES = {
                                 "RK4, stiff solref = 2 dt, order 2 in positions and angles, 1 in rates; "
                                 "accelerations (qacc) carry MuJoCo's constraint stabilisation, which does not "
                                 "vanish as dt -> 0 (observed orders -0.9 to 0.1 over models/ and the test "
-                                "mechanisms): bound about 4 x the worst measured there (3.5e-3)"),
+                                "mechanisms): bound about 4 x the worst measured there (3.5e-3)" + _NOISE),
     "pinocchio-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
-                                   "answer: RK4 over 200, 400, 800 steps per window, order 4 in every quantity"),
+                                   "answer: RK4 over 200, 400, 800 steps per window, order 4 in every "
+                                   "quantity" + _NOISE),
     "pymunk-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
                                 "answer: semi-implicit Euler, error_bias 0, 500 iterations, window/2000, /4000, "
                                 "/8000 steps: order 2 in positions and angles, 1 in rates and accelerations "
-                                "(central differences of velocities)"),
+                                "(central differences of velocities)" + _NOISE),
 }
 #: Expected order of convergence in the time step of each category of a
 #: dynamic mode's error (None: judged by the fixed bound of TOLERANCES).
