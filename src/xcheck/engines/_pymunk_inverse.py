@@ -109,8 +109,9 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(impulses))):
             raise ValueError(f"the pymunk scene went non-finite at t = {n * dt:.6g} s")
         if gap > gap_bound:
+            skew = scene.skewed_grooves()
             raise ValueError(f"the pymunk scene came apart at t = {n * dt:.6g} s: joints {gap:.3g} m apart "
-                             f"(bound {gap_bound:.3g} m)")
+                             f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else ""))
         recorded[n] = (q, qd, impulses, gap)
     inputs = np.array([recorded[int(n)][0] for n in sample_steps]).reshape(samples, k)
     rates = np.array([recorded[int(n)][1] for n in sample_steps]).reshape(samples, k)

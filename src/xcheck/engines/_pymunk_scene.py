@@ -202,6 +202,31 @@ class Scene:
     drives: list
     defaults: dict
 
+    def skewed_grooves(self) -> str:
+        """Where a groove joint is not exact in pymunk (see :func:`_groove_free_com`):
+        a moving line body's centre of mass off its line, or a moving pin
+        body's away from its pin; "" if nowhere. One line, for failure reasons."""
+        mech, tol = self.mechanism, 1e-9 * self.mechanism.size
+        found = []
+        for joint in mech.joints:
+            if not isinstance(joint, (Prismatic, PinInSlot)):
+                continue
+            line_body, pin_body = self.bodies[joint.body_a], self.bodies[joint.body_b]
+            if line_body.body_type == pm.Body.DYNAMIC:
+                r = np.array(line_body.center_of_gravity) - mech.body(joint.body_a).points[joint.line_point]
+                off = abs(joint.direction[0] * r[1] - joint.direction[1] * r[0])
+                if off > tol:
+                    found.append(f"{joint.body_a}'s centre of mass {off:.3g} m off the line of {joint.name!r}")
+            if pin_body.body_type == pm.Body.DYNAMIC:
+                off = float(np.linalg.norm(np.array(pin_body.center_of_gravity)
+                                           - mech.body(joint.body_b).points[joint.point]))
+                if off > tol:
+                    found.append(f"{joint.body_b}'s centre of mass {off:.3g} m from its pin {joint.point!r}")
+        if not found:
+            return ""
+        return ("pymunk's GrooveJoint holds a groove exactly only with the line body's centre of mass on the "
+                "line and the pin body's at the pin; here " + "; ".join(found))
+
     def step(self, t: float, dt: float) -> None:
         """Advance the space from t to t + dt (s)."""
         for drive in self.drives:

@@ -138,8 +138,9 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
             if not (finite and math.isfinite(gaps[i])):
                 run.failure = f"went non-finite (NaN or infinite state) at t = {n * dt:.6g} s"
             elif gaps[i] > gap_bound:
+                skew = scene.skewed_grooves()
                 run.failure = (f"came apart at t = {n * dt:.6g} s: joints {gaps[i]:.3g} m apart "
-                               f"(bound {gap_bound:.3g} m)")
+                               f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else ""))
             elif speed > speed_bound:
                 run.failure = (f"blew up at t = {n * dt:.6g} s: a point moves at {speed:.3g} m/s "
                                f"(bound {speed_bound:.3g} m/s, 10 times the native top speed)")
