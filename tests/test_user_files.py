@@ -364,3 +364,49 @@ def test_bad_rates_are_one_line(args, field, found):
     line = result.stderr.strip()
     assert result.exit_code == 2 and len(line.splitlines()) == 1
     assert line.startswith(f"xcheck: error: {FOURBAR_200}: {field}: expected ") and found in line
+
+
+@pytest.mark.parametrize("name", ["./../../victim", "../../x", "a/b", ".hidden", "bell\x07", "x" * 101, " lead"])
+def test_a_mechanism_name_must_be_a_plain_file_name(tmp_path, name):
+    """The name names reports/NAME.md and models/mjcf/NAME.xml: it may not climb out of them."""
+    path = tmp_path / "models" / "evil.toml"
+    path.parent.mkdir()
+    path.write_text(FOURBAR_200.read_text().replace('name = "fourbar-200"', f"name = {json.dumps(name)}", 1))
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "keep.txt").write_text("mine")
+    result = _cli("run", path, "--engines", "formulations", "--samples", "11")
+    assert result.exit_code == 2 and "mechanism.name: expected a name of letters" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "\x07" not in result.stderr
+    assert (victim / "keep.txt").read_text() == "mine"
+    assert _cli("export", "--models", path.parent).exit_code == 2
+    assert not (tmp_path / "mjcf").exists() and not (path.parent / "mjcf").exists()
+
+
+def test_a_folder_xcheck_did_not_write_is_never_replaced(tmp_path):
+    (tmp_path / "fourbar-200.toml").write_text(FOURBAR_200.read_text())
+    mine = tmp_path / "reports" / "fourbar-200"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("mine")
+    result = _cli("run", tmp_path / "fourbar-200.toml", "--engines", "formulations", "--samples", "11", "-q")
+    assert result.exit_code == 2 and "is not a report's image folder" in result.stderr
+    assert (mine / "notes.txt").read_text() == "mine"
+
+
+def test_a_byte_order_mark_is_not_content(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + FOURBAR_200.read_bytes())
+    assert _cli("solve", path, "--at", "200").exit_code == 0
+
+
+def test_toml_nested_too_deeply_is_one_line(tmp_path):
+    path = tmp_path / "deep.toml"
+    path.write_text("x = " + "[" * 100000 + "]" * 100000 + "\n")
+    result = _cli("solve", path)
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert "nested too deeply" in result.stderr
+
+
+def test_no_engines_is_refused():
+    result = _cli("run", FOURBAR_200, "--engines", "", "--no-report")
+    assert result.exit_code == 2 and "--engines: expected at least one mode" in result.stderr

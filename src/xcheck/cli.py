@@ -253,6 +253,9 @@ def _parse_engines(text: str | None) -> tuple[str, ...]:
         else:
             raise InputError(f"--engines: expected modes or groups among {', '.join(ALL_MODES)}, "
                              f"{', '.join(_ENGINE_GROUPS)}, found {item!r}")
+    if not chosen:
+        raise InputError(f"--engines: expected at least one mode or group among {', '.join(ALL_MODES)}, "
+                         f"{', '.join(_ENGINE_GROUPS)}, found {text!r}")
     return tuple(dict.fromkeys(["native", *chosen]))
 
 

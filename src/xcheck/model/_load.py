@@ -58,7 +58,7 @@ def load_mechanism(path: str | Path) -> Mechanism:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a BOM, as Windows editors write one, is not content
     except OSError as err:
         raise ModelError(str(path), "", "a readable mechanism file", err.strerror or str(err)) from err
     except UnicodeDecodeError as err:
@@ -71,6 +71,8 @@ def parse_mechanism(text: str, path: str = "<string>") -> Mechanism:
     """Parse and check the TOML text of a mechanism file (see :func:`load_mechanism`)."""
     try:
         data = tomllib.loads(text)
+    except RecursionError:
+        raise ModelError(path, "", "valid TOML", "tables or arrays nested too deeply to read") from None
     except tomllib.TOMLDecodeError as err:
         # tomllib ends its message with "(at line L, column C)" or "(at end of
         # document)": that location is the field of a syntax error.
@@ -86,6 +88,10 @@ def _describe(value: Any) -> str:
         return "none"
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+#: What a mechanism's name may be: it becomes a file name (reports/NAME.md, models/mjcf/NAME.xml).
+_SAFE_NAME = re.compile(r"[A-Za-z0-9_-](?:[A-Za-z0-9 ._-]{0,98}[A-Za-z0-9._-])?")
 
 
 class _Unreached(Exception):
@@ -165,6 +171,12 @@ class _Reader:
                 self.fail(key, f"a {form} section", "none")
         meta = self.table(data["mechanism"], "mechanism", ("name", "title", "source", "notes"))
         name = self.text(meta.get("name"), "mechanism.name")
+        if not _SAFE_NAME.fullmatch(name):
+            # the name names the report and the exported files: it must stay a plain file name
+            self.fail("mechanism.name", "a name of letters, digits, spaces, '-', '_' and '.', neither starting "
+                      "with '.' or a space nor ending with a space, at most 100 characters (it names the report "
+                      "and the exported files)",
+                      ascii(name) if len(name) <= 60 else ascii(name[:57]) + "...")
         title = self.text(meta.get("title", name), "mechanism.title")
         source = self.string(meta.get("source", ""), "mechanism.source")
         notes = self.string(meta.get("notes", ""), "mechanism.notes")

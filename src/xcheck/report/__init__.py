@@ -26,6 +26,12 @@ def write_report(run: RunResult, directory: str | Path, command: str, gif: bool 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     name = run.mechanism.name
+    if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
+        raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
+    existing = directory / name
+    if existing.exists() and not (existing.is_dir() and (existing / "drawing.png").is_file()):
+        raise FileExistsError(f"{existing} exists and is not a report's image folder: xcheck replaces only "
+                              "folders it wrote")
     staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
     umask = os.umask(0)
     os.umask(umask)
