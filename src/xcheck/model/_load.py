@@ -90,6 +90,11 @@ def _describe(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+#: Largest coordinate (m) and largest driver speed or acceleration at the
+#: mechanism's size (SI) that a file may give: squares and products of such
+#: values stay far inside float64 (1e308).
+MAGNITUDE_LIMIT = 1e100
+
 #: What a mechanism's name may be: it becomes a file name (reports/NAME.md, models/mjcf/NAME.xml).
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_-](?:[A-Za-z0-9 ._-]{0,98}[A-Za-z0-9._-])?")
 
@@ -199,6 +204,7 @@ class _Reader:
         self.check_shared_labels(bodies, joints)
         self.check_joint_points(bodies, joints)
         drivers = self.drivers(data["drivers"], joints, units)
+        self.check_magnitudes(bodies, drivers)
         assembly = self.assembly(data.get("assembly", {}), drivers, by_name, units, sketches)
         instants = self.instants(data.get("instants", []), drivers, units)
         gravity = self.dynamics(data.get("dynamics", {}))
@@ -463,6 +469,37 @@ class _Reader:
                 self.fail(f"{field}.name", "a name no other driver has", repr(name))
             drivers.append(Driver(name, joint_name, quantity, law))
         return drivers
+
+    def check_magnitudes(self, bodies: list[Body], drivers: list[Driver]) -> None:
+        """Refuse sizes and motions whose products overflow float64.
+
+        The kinematics squares velocities (omega^2 r) and the dynamics
+        multiplies masses by accelerations; every coordinate and every driver's
+        speed and acceleration at the mechanism's size must stay within
+        :data:`MAGNITUDE_LIMIT` so that no product overflows into an
+        infinity that would pass as "not determined".
+        """
+        for body in bodies:
+            for label, xy in body.points.items():
+                if not np.all(np.abs(xy) <= MAGNITUDE_LIMIT):
+                    self.fail(self.point_fields.get((body.name, label), f"bodies.{body.name}.points.{label}"),
+                              f"coordinates within {MAGNITUDE_LIMIT:g} m", f"{xy.tolist()} m")
+        size = max((float(np.max(np.abs(xy))) for body in bodies for xy in body.points.values()), default=1.0)
+        size = max(size, 1e-300)
+        for i, driver in enumerate(drivers):
+            law = driver.law
+            per = size if driver.quantity == "angle" else 1.0  # an angle's rates move points by size x rate
+            if law.kind == "harmonic":
+                w = 2.0 * math.pi * law.frequency
+                keys = {"amplitude": abs(law.amplitude) * max(w, w * w, 1.0), "centre": abs(law.centre)}
+            else:
+                keys = {"start": abs(law.start), "rate": abs(law.rate), "acceleration": abs(law.acceleration)}
+            for key, value in keys.items():
+                scaled = value * (per if key != "start" and key != "centre" else 1.0)
+                if not (math.isfinite(scaled) and scaled <= MAGNITUDE_LIMIT):
+                    self.fail(f"drivers[{i}].{key}", f"a motion whose speeds and accelerations at the "
+                              f"mechanism's size stay within {MAGNITUDE_LIMIT:g} (SI), so that their products "
+                              "cannot overflow", f"{value:g} (SI)")
 
     @staticmethod
     def input_scales(quantity: str, units: Units) -> tuple[float, float]:
