@@ -11,7 +11,7 @@ from conftest import ROOT
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.compare import ModeResult, observed_order
-from xcheck.runner import ORDER_MARGIN, TOLERANCES, _categorise, _convergence_verdict, convergence_limit, run_mechanism
+from xcheck.runner import ORDER_MARGIN, _categorise, _convergence_verdict, convergence_limit, run_mechanism, tolerance
 
 DYNAMIC = ("mujoco-dynamic", "pinocchio-dynamic", "pymunk-dynamic")
 
@@ -70,7 +70,7 @@ def test_a_stalled_convergence_fails(two_second_trammel):
     compared = outcome.trajectory
     stalled = dataclasses.replace(compared, settings={**compared.settings, "dt": 2.0 * compared.settings["dt"]})
     result = ModeResult(mode, kin.mechanism.name, True, trajectories=[compared, stalled])
-    categories = _categorise(kin, outcome.details, TOLERANCES[mode])
-    verdict = _convergence_verdict(kin, mode, result, categories, TOLERANCES[mode], run.floors, None)
+    categories = _categorise(kin, outcome.details, tolerance(mode))
+    verdict = _convergence_verdict(kin, mode, result, categories, tolerance(mode), run.floors, None)
     assert not verdict.passed.any()
     assert (verdict.observed_order.abs() < 1e-9).all()

@@ -17,7 +17,7 @@ from test_kinematics import INVERTED, SLIDER_DRIVEN
 
 from xcheck import Kinematics, ModelError
 from xcheck.compare import differences
-from xcheck.engines.mujoco import export_files, inverse_dynamics, relative_error, run_dynamic, run_kinematic
+from xcheck.engines.mujoco.modes import export_files, inverse_dynamics, relative_error, run_dynamic, run_kinematic
 from xcheck.errors import XcheckError
 from xcheck.model import parse_mechanism
 from xcheck.topology import spanning_tree

@@ -33,12 +33,11 @@ import pytest
 from conftest import MODEL_NAMES, MODELS
 from test_kinematics import INVERTED, SLIDER_DRIVEN
 
-from xcheck import Kinematics, load_mechanism
+from xcheck import Kinematics, engines, load_mechanism
 from xcheck.compare import differences
-from xcheck.engines import exporter, mode_function
-from xcheck.engines._pinocchio_model import joint_coordinates
-from xcheck.engines._pinocchio_oracle import Oracle
-from xcheck.engines.pinocchio import build, export_files, inverse_dynamics, run_dynamic, run_kinematic
+from xcheck.engines.pinocchio.model import joint_coordinates
+from xcheck.engines.pinocchio.modes import build, export_files, inverse_dynamics, run_dynamic, run_kinematic
+from xcheck.engines.pinocchio.oracle import Oracle
 from xcheck.model import parse_mechanism
 
 URDF_DIR = MODELS / "urdf"
@@ -430,10 +429,11 @@ def test_bad_options_fail_in_one_line():
 
 
 def test_modes_and_exporter_are_registered():
-    assert mode_function("pinocchio-kinematic") is run_kinematic
-    assert mode_function("pinocchio-dynamic") is run_dynamic
-    function, directory = exporter("urdf")
-    assert function is export_files and directory == "urdf"
+    pinocchio = engines.engine("pinocchio")
+    assert [m.name for m in pinocchio.modes] == ["pinocchio-kinematic", "pinocchio-dynamic"]
+    assert engines.engine_of("pinocchio-dynamic") is pinocchio
+    assert engines.exporters()["urdf"] is pinocchio and pinocchio.export_directory == "urdf"
+    assert pinocchio.export_files(_kin("fourbar")) == export_files(_kin("fourbar"))
 
 
 # -- URDF export ---------------------------------------------------------------

@@ -15,11 +15,17 @@ import pytest
 from conftest import MODEL_NAMES, ROOT
 from test_kinematics import INVERTED, SLIDER_DRIVEN
 
-from xcheck import Kinematics, load_mechanism
+from xcheck import Kinematics, engines, load_mechanism
 from xcheck.compare import differences
-from xcheck.engines import mode_function
-from xcheck.engines._pymunk_scene import native_window
-from xcheck.engines.pymunk import DEFAULT_SETTINGS, Setting, build_scene, run_dynamic, scene_figure, trajectory_errors
+from xcheck.engines.pymunk.modes import (
+    DEFAULT_SETTINGS,
+    Setting,
+    build_scene,
+    run_dynamic,
+    scene_figure,
+    trajectory_errors,
+)
+from xcheck.engines.pymunk.scene import native_window
 from xcheck.model import parse_mechanism
 
 # The inverted slider-crank driven by the slide of its block along the rocker
@@ -190,7 +196,8 @@ def test_scene_maps_body_frames(kinematics, name):
 
 
 def test_registry_names_the_mode(kinematics):
-    assert mode_function("pymunk-dynamic") is run_dynamic
+    assert engines.engine_of("pymunk-dynamic").name == "pymunk"
+    assert engines.mode("pymunk-dynamic").kind == "dynamic"
 
 
 def test_inputs_are_as_pymunk_realised_them(simulated):

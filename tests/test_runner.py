@@ -13,24 +13,28 @@ from typer.testing import CliRunner
 
 from xcheck import engines
 from xcheck.cli import app
-from xcheck.engines import mujoco as mujoco_engine
-from xcheck.runner import ALL_MODES, CATEGORIES, TOLERANCES, run_mechanism
+from xcheck.engines.mujoco import modes as mujoco_engine
+from xcheck.runner import CATEGORIES, all_modes, run_mechanism, tolerance
+
+ALL_MODES = all_modes()
 
 
 def _cli(*args, **env):
     return CliRunner().invoke(app, [*args, "--models", str(MODELS)], env=env or None)
 
 
-def test_every_mode_has_a_tolerance():
-    assert set(TOLERANCES) == set(ALL_MODES)
-    assert set(engines.MODES) <= set(ALL_MODES)
+def test_every_mode_has_a_tolerance_and_one_engine():
+    assert all(tolerance(m).basis for m in ALL_MODES)
+    names = [m.name for e in engines.engines() for m in e.modes]
+    assert len(names) == len(set(names)) and set(names) == set(ALL_MODES) - {"native"}
+    assert {"formulations", "mujoco", "pinocchio", "pymunk"} <= {e.name for e in engines.engines()}
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES)
 def test_every_mode_within_tolerance(kinematics, name):
     """The whole comparison on every mechanism: every mode that applies runs,
     and all are within their tolerances (the figures behind the dynamic
-    tolerances are in xcheck.runner.TOLERANCES)."""
+    tolerances are in each engine's modes, xcheck.engines)."""
     run = run_mechanism(kinematics(name), samples=61)
     failed = {m: (o.reason, o.categories.to_dict("records")) for m, o in run.outcomes.items() if not o.passed}
     assert not failed
@@ -106,12 +110,10 @@ def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
 
 
 def test_a_failing_mode_is_reported_and_others_run(monkeypatch):
-    def broken(kinematics, **options):
+    def broken(self, mode, kinematics, **options):
         raise RuntimeError("engine crashed")
 
-    real = engines.mode_function
-    monkeypatch.setattr("xcheck.runner.mode_function",
-                        lambda mode: broken if mode == "pymunk-dynamic" else real(mode))
+    monkeypatch.setattr(type(engines.engine("pymunk")), "run", broken)
     result = _cli("run", "slider-crank", "--engines", "pymunk,formulations", "--no-report", "--samples", "21")
     assert result.exit_code == 1
     assert "pymunk-dynamic: RuntimeError: engine crashed" in result.stdout

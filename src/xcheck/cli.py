@@ -12,13 +12,14 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from . import __version__
+from . import engines as registry
 from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
-from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
 from .kinematics import Kinematics, Status
@@ -34,7 +35,7 @@ from .output import (
     wide_console,
 )
 from .report import index_entry, write_index, write_report
-from .runner import ALL_MODES, run_mechanism
+from .runner import all_modes, run_mechanism
 from .textbook import check_printed, load_comparisons
 from .units import evaluate_expression
 
@@ -129,7 +130,11 @@ def list_command(
         for row in rows:
             table.add_row(row["name"], row["title"], row["source"], str(row["dof"]),
                           "\n".join(r["text"] for r in row["ranges"]))
-        wide_console().print(table)
+        console = wide_console()
+        console.print(table)
+        console.print("Engines: " + ", ".join(
+            escape(f"{e.name} ({', '.join(m.name for m in e.modes)})" + (f": {e.available()}" if e.available() else ""))
+            for e in registry.engines()) + ". `xcheck engines` says more.", highlight=False)
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
@@ -144,6 +149,38 @@ def _range_json(kin: Kinematics, rng) -> dict:
     return {"driver": rng.driver, "quantity": driver.quantity, "unit": "rad" if driver.quantity == "angle" else "m",
             "low": rng.low, "high": rng.high, "full_turn": rng.full_turn and driver.quantity == "angle",
             "text": range_text(kin, rng)}
+
+
+@app.command("engines")
+@_reports_errors
+def engines_command(
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+):
+    """List the engines xcheck judges: their modes, whether they can run here (or why not), what they write.
+
+    Engines come from xcheck and from installed packages (entry-point group
+    "xcheck.engines"); a plug-in that cannot be loaded is listed with its reason.
+
+    Examples: xcheck engines;  xcheck engines --json
+    """
+    rows = [{"name": e.name, "title": e.title, "available": not e.available(), "reason": e.available() or None,
+             "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
+             "forces": e.force_tolerance is not None, "export_format": e.export_format, "notes": e.notes}
+            for e in registry.engines()]
+    problems = registry.load_problems()
+    if as_json:
+        typer.echo(json.dumps({"engines": rows, "plugin_errors": problems}, indent=2, ensure_ascii=False))
+        return
+    table = Table(header_style="bold")
+    for header in ("engine", "modes", "status", "forces", "writes", "notes"):
+        table.add_column(header, overflow="fold")
+    for row in rows:
+        table.add_row(escape(row["name"]), escape("\n".join(f"{m['name']} ({m['kind']})" for m in row["modes"])),
+                      "ready" if row["available"] else escape(row["reason"]), "yes" if row["forces"] else "no",
+                      escape(row["export_format"] or "-"), escape(row["notes"]))
+    wide_console().print(table)
+    for name, reason in problems.items():
+        typer.echo(f"xcheck: error: entry point {name!r} of group {registry.ENTRY_POINT_GROUP!r}: {reason}", err=True)
 
 
 @app.command("solve")
@@ -230,32 +267,23 @@ def solve_command(
         raise textbook_error
 
 
-#: --engines shortcuts
-_ENGINE_GROUPS = {
-    "formulations": ("formulation-I", "formulation-II"),
-    "mujoco": ("mujoco-kinematic", "mujoco-dynamic"),
-    "pinocchio": ("pinocchio-kinematic", "pinocchio-dynamic"),
-    "pymunk": ("pymunk-dynamic",),
-    "kinematic": ("formulation-I", "formulation-II", "mujoco-kinematic", "pinocchio-kinematic"),
-    "dynamic": ("mujoco-dynamic", "pinocchio-dynamic", "pymunk-dynamic"),
-}
-
-
 def _parse_engines(text: str | None) -> tuple[str, ...]:
+    """The modes ``--engines`` names: modes, or groups (an engine's name, a kind) from the registry."""
+    every, groups = all_modes(), registry.groups()
     if text is None:
-        return ALL_MODES
+        return every
     chosen = []
     for item in (part.strip() for part in text.split(",") if part.strip()):
-        if item in ALL_MODES:
+        if item in every:
             chosen.append(item)
-        elif item in _ENGINE_GROUPS:
-            chosen.extend(_ENGINE_GROUPS[item])
+        elif item in groups:
+            chosen.extend(groups[item])
         else:
-            raise InputError(f"--engines: expected modes or groups among {', '.join(ALL_MODES)}, "
-                             f"{', '.join(_ENGINE_GROUPS)}, found {item!r}")
+            raise InputError(f"--engines: expected modes or groups among {', '.join(every)}, "
+                             f"{', '.join(groups)}, found {item!r}")
     if not chosen:
-        raise InputError(f"--engines: expected at least one mode or group among {', '.join(ALL_MODES)}, "
-                         f"{', '.join(_ENGINE_GROUPS)}, found {text!r}")
+        raise InputError(f"--engines: expected at least one mode or group among {', '.join(every)}, "
+                         f"{', '.join(groups)}, found {text!r}")
     return tuple(dict.fromkeys(["native", *chosen]))
 
 
@@ -281,9 +309,9 @@ def run_command(
     name: Annotated[str, typer.Argument(help="Mechanism name, path to a .toml file, or 'all'.")],
     engines: Annotated[Optional[str], typer.Option(
         "--engines", metavar="MODE[,MODE…]",
-        help="Modes to run (default: all): native, formulation-I, formulation-II, mujoco-kinematic, "
-             "mujoco-dynamic, pinocchio-kinematic, pinocchio-dynamic, pymunk-dynamic, or the groups "
-             "formulations, mujoco, pinocchio, pymunk, kinematic, dynamic.")] = None,
+        help="Modes to run (default: all; `xcheck engines` lists them): native, the engines' modes (e.g. "
+             "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
+             "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).")] = None,
     samples: Annotated[int, typer.Option("--samples", min=3, help="Samples of the sweeps over the feasible "
                                          "input range.")] = 181,
     branch: Annotated[Optional[str], typer.Option(
@@ -437,10 +465,11 @@ def export_command(
     Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
     """
     directory = models_dir(models)
-    formats = list(EXPORTERS) if fmt == "all" else [fmt]
+    writers = registry.exporters()
+    formats = list(writers) if fmt == "all" else [fmt]
     for f in formats:
-        if f not in EXPORTERS:
-            raise InputError(f"--format: expected one of {', '.join(EXPORTERS)} or all, found {f!r}")
+        if f not in writers:
+            raise InputError(f"--format: expected one of {', '.join(writers)} or all, found {f!r}")
     outdated, failed = [], 0
     for name in names or model_names(directory):
         try:
@@ -451,9 +480,10 @@ def export_command(
             failed += 1
             continue
         for f in formats:
-            function, subdirectory = exporter(f)
+            writer = writers[f]
+            subdirectory = writer.export_directory or f
             try:
-                texts = function(kin)
+                texts = writer.export_files(kin)
             except XcheckError as err:
                 typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)
                 failed += 1

@@ -18,7 +18,8 @@ import pandas as pd
 from .kinematics import Kinematics, Solution
 
 __all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
-           "observed_order", "relative_to_floored_scale", "sample_errors", "scale_floors",
+           "observed_order", "convergence_study", "empty_study", "STUDY_COLUMNS", "relative_to_floored_scale",
+           "sample_errors", "scale_floors",
            "trajectory_from_solution", "STANDARD_GRAVITY"]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
@@ -118,7 +119,9 @@ class Trajectory:
     times : ndarray, shape (N,), optional
         Simulation time of each sample (dynamic modes).
     settings : dict
-        What produced it: integrator, time step, constraint settings, ...
+        What produced it: integrator, time step, constraint settings, ...; a
+        dynamic mode's has ``"timestep"`` (s) and ``"series"`` (str, the same
+        for the runs of one convergence ladder).
     diagnostics : dict of str to ndarray
         Per-sample extras, e.g. ``"constraint_violation"`` (N,) in m.
     notes : str
@@ -144,7 +147,9 @@ class ModeResult:
     ``ok`` is False when the mode could not run or failed (``reason`` says why,
     in one line); ``trajectories`` holds one entry per setting (time step,
     integrator, ...), the first being the one the comparison uses.
-    ``summary`` is an optional table (e.g. the error against time step).
+    ``summary`` is an optional table of the engine's own (e.g. every run's
+    errors and diagnostics); a dynamic mode's ``study`` is its error against
+    time step (:func:`convergence_study`), the same for every engine.
     """
 
     mode: str
@@ -153,6 +158,53 @@ class ModeResult:
     reason: str = ""
     trajectories: list = field(default_factory=list)
     summary: pd.DataFrame | None = None
+    study: pd.DataFrame | None = None
+
+
+#: the columns of a convergence study
+STUDY_COLUMNS = ("series", "timestep", "position_error", "status", "order")
+
+
+def empty_study() -> pd.DataFrame:
+    """A convergence study without runs."""
+    return pd.DataFrame(columns=list(STUDY_COLUMNS))
+
+
+def convergence_study(series, timestep, position_error, status, floor: float = 0.0) -> pd.DataFrame:
+    """A dynamic mode's error against time step, in one shape for every engine.
+
+    Parameters
+    ----------
+    series : sequence of str
+        What makes runs of one ladder (integrator and settings), per run.
+    timestep : sequence of float
+        Time step of each run, s.
+    position_error : sequence of float
+        Largest position error of each run, m (NaN where it failed).
+    status : sequence of str
+        "ok" or the run's failure, one line.
+    floor : float
+        Errors at or below this (m) are round-off: no order.
+
+    Returns
+    -------
+    DataFrame
+        The columns of :data:`STUDY_COLUMNS`, sorted by series then falling
+        time step; ``order`` is :func:`observed_order` between a run and the
+        previous (coarser) one of its series, NaN for the first.
+    """
+    table = pd.DataFrame({"series": [str(v) for v in series], "timestep": np.asarray(timestep, dtype=float),
+                          "position_error": np.asarray(position_error, dtype=float),
+                          "status": [str(v) for v in status]})
+    table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
+    orders = [math.nan] * len(table)
+    for i in range(1, len(table)):
+        coarse, fine = table.iloc[i - 1], table.iloc[i]
+        if coarse.series == fine.series:
+            orders[i] = observed_order(coarse.position_error, fine.position_error, coarse.timestep,
+                                       fine.timestep, floor)
+    table["order"] = orders
+    return table
 
 
 def trajectory_from_solution(solution: Solution, source: str = "native") -> Trajectory:

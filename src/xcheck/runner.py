@@ -19,8 +19,17 @@ from importlib import metadata
 import numpy as np
 import pandas as pd
 
-from . import __version__
-from .compare import ModeResult, Trajectory, differences, native_at, observed_order, sample_errors, scale_floors
+from . import __version__, engines
+from .compare import (
+    ModeResult,
+    Trajectory,
+    differences,
+    empty_study,
+    native_at,
+    observed_order,
+    sample_errors,
+    scale_floors,
+)
 from .dynamics import (
     ForceResult,
     Forces,
@@ -31,147 +40,48 @@ from .dynamics import (
     require_mass_data,
     window_states,
 )
-from .engines import mode_function
+from .engines import NotApplicable
 from .errors import InputError, XcheckError
-from .formulations import FORMULATIONS, NotApplicable, formulation
 from .kinematics import Kinematics, Solution
 from .motion import law_states, sweep_span
+from .tolerances import Tolerance, convergence_round_off
 
-__all__ = ["is_static", "ALL_MODES", "CATEGORIES", "TOLERANCES", "FORCE_TOLERANCES", "Tolerance", "ModeOutcome",
-           "RunResult", "run_mechanism", "sweep_inputs", "versions", "convergence_table", "CONVERGENCE",
-           "ORDER_MARGIN", "convergence_limit", "convergence_round_off"]
+__all__ = ["is_static", "all_modes", "tolerance", "CATEGORIES", "NATIVE_TOLERANCE", "ModeOutcome", "RunResult",
+           "run_mechanism", "sweep_inputs", "versions", "convergence_table", "force_tolerance", "ORDER_MARGIN",
+           "convergence_limit",
+           "NEWTON_EULER_TOLERANCE", "ENERGY_TOLERANCE"]
 
-#: every mode, in the order tables show them
-ALL_MODES = ("native", *FORMULATIONS, "mujoco-kinematic", "pinocchio-kinematic", "mujoco-dynamic",
-             "pinocchio-dynamic", "pymunk-dynamic")
+
+def all_modes() -> tuple[str, ...]:
+    """Every mode, in the order tables show them: native, then the registry's
+    (:func:`xcheck.engines.modes`: kinematic modes, then dynamic ones)."""
+    return ("native", *(m.name for m in engines.modes()))
+
+
 #: quantity categories of the tables; body positions count with point positions
 CATEGORIES = ("position", "velocity", "acceleration", "angle", "omega", "alpha")
 
 
-@dataclass(frozen=True)
-class Tolerance:
-    """What a mode must meet.
-
-    ``position`` is a fraction of the mechanism's size, ``angle`` in rad,
-    ``velocity`` (velocities and angular velocities) and ``acceleration``
-    (accelerations and angular accelerations) fractions of the largest
-    magnitude of that quantity in the mechanism, but at least of its physical
-    floor (:func:`xcheck.compare.scale_floors`); ``basis`` says where the
-    numbers come from.
-    """
-
-    position: float
-    angle: float
-    velocity: float
-    acceleration: float
-    basis: str
-    conditioned: bool = False
-
-    def limit(self, category: str, condition: float = 1.0) -> float:
-        """The bound of a category; with ``conditioned``, at least the round-off
-        that the sweep's conditioning allows (:func:`conditioned_round_off`)."""
-        base = {"position": self.position, "angle": self.angle, "velocity": self.velocity,
-                "omega": self.velocity, "acceleration": self.acceleration,
-                "alpha": self.acceleration}[category]
-        return max(base, conditioned_round_off(category, condition)) if self.conditioned else base
+#: the general solver against its own equations
+NATIVE_TOLERANCE = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "the solver's own equations: loop closure and the "
+                             "velocity and acceleration equations satisfied to round-off")
 
 
-#: Unit round-off of float64, and the factor on it in conditioned_round_off.
-EPSILON = float(np.finfo(float).eps)
-CONDITIONING_FACTOR = 10.0
+def tolerance(mode: str) -> Tolerance:
+    """What a mode must meet (:data:`NATIVE_TOLERANCE` or its engine's)."""
+    return NATIVE_TOLERANCE if mode == "native" else engines.mode(mode).tolerance
 
 
-def conditioned_round_off(category: str, condition: float) -> float:
-    """The round-off an exact method may show at a configuration whose scaled
-    constraint Jacobian has condition number ``condition`` (kappa).
-
-    Forward error <= kappa x backward error (about EPSILON): positions and
-    angles come from a solve with the Jacobian (10 EPSILON kappa); rates from
-    the velocity solve and accelerations from a second solve whose right-hand
-    side carries the velocities' error, so both are allowed 10 EPSILON kappa^2.
-    Measured on a parallelogram 1 % from its change points (kappa = 323, the
-    worst of tests/data/para.toml): angular accelerations 3.4e-11 (1.5
-    EPSILON kappa^2), angular rates 5.4e-13 (7.7 EPSILON kappa); the models'
-    worst conditioning is kappa = 156 (task-2-1), where the exact methods'
-    rates stay below 5e-14 and the bound is 5.4e-11.
-    """
-    power = 1 if category in ("position", "angle") else 2
-    return CONDITIONING_FACTOR * EPSILON * condition ** power
-
-
-_CONDITIONED = ("; at least 10 eps kappa (positions, angles) and 10 eps kappa^2 (rates), kappa the largest "
-                "condition number of the scaled constraint Jacobian over the compared states")
-_ROUND_OFF = Tolerance(1e-10, 1e-10, 1e-9, 1e-9, "round-off: the engine's own kinematics must reproduce the "
-                       "exact solution (measured at most 3.4e-14 of the size, 1.2e-12 relative, over all models)"
-                       + _CONDITIONED, conditioned=True)
-_EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-off (measured at most "
-                   "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)" + _CONDITIONED,
-                   conditioned=True)
-_CONVERGES = math.nan  # a dynamic mode's category judged by its convergence (see CONVERGENCE), not a fixed bound
-_NOISE = ("; each error at most the coarser step's times (h_f / h_c)^(order - 0.5) plus the engine's noise "
-          "floor (its kinematic round-off bound)")
-#: Dynamic modes: the verdict of each category follows from the mode's own
-#: convergence study on the mechanism at hand (see CONVERGENCE and
-#: _convergence_verdict); a fixed bound only where the quantity does not converge.
-TOLERANCES = {
-    "native": Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "the solver's own equations: loop closure and the velocity "
-                        "and acceleration equations satisfied to round-off"),
-    "formulation-I": _EXACT,
-    "formulation-II": _EXACT,
-    "mujoco-kinematic": _ROUND_OFF,
-    "pinocchio-kinematic": _ROUND_OFF,
-    "mujoco-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, 1.5e-2, "converges to the exact answer: "
-                                "RK4, stiff solref = 2 dt, order 2 in positions and angles, 1 in rates; "
-                                "accelerations (qacc) carry MuJoCo's constraint stabilisation, which does not "
-                                "vanish as dt -> 0 (observed orders -0.9 to 0.1 over models/ and the test "
-                                "mechanisms): bound about 4 x the worst measured there (3.5e-3)" + _NOISE),
-    "pinocchio-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
-                                   "answer: RK4 over 200, 400, 800 steps per window, order 4 in every "
-                                   "quantity" + _NOISE),
-    "pymunk-dynamic": Tolerance(_CONVERGES, _CONVERGES, _CONVERGES, _CONVERGES, "converges to the exact "
-                                "answer: semi-implicit Euler, error_bias 0, 500 iterations, window/2000, /4000, "
-                                "/8000 steps: order 2 in positions and angles, 1 in rates and accelerations "
-                                "(central differences of velocities)" + _NOISE),
-}
-#: Expected order of convergence in the time step of each category of a
-#: dynamic mode's error (None: judged by the fixed bound of TOLERANCES).
-#: Measured over the models and the test mechanisms, observed orders between
-#: the two finest steps: pinocchio RK4 3.9 to 4.1 in every category; MuJoCo
-#: tight RK4 2.0 (positions, angles), 1.0 (rates); pymunk 2.0, 1.0.
-CONVERGENCE = {
-    "pinocchio-dynamic": dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
-    "mujoco-dynamic": {"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None,
-                       "alpha": None},
-    "pymunk-dynamic": {"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0,
-                       "alpha": 1.0},
-}
 #: Accepted observed orders: at least the expected one less ORDER_MARGIN. An
 #: error C h^p (1 + e h) shows the order p - log2(1 + e h) + ... between h and
 #: h / 2; a margin of 0.5 is halfway to the next lower integer order, so a
 #: lower-order defect (p - 1) fails and the next term may still be a good part
 #: of the leading one. A higher order means the error falls at least as fast.
 ORDER_MARGIN = 0.5
-#: Errors at or below an engine's round-off bound per category (the bound its
-#: own kinematics must meet, ``_ROUND_OFF``: 1e-10 of the size or rad, 1e-9
-#: relative for rates) show no order: there the error is the engine's solver
-#: noise, not truncation; differenced over +-h it even grows as h falls
-#: (pymunk's accelerations on an all-sliding wedge: 4.4e-11 at h = 2.5 ms,
-#: 5.3e-10 at 1.25 ms).
-def convergence_round_off(category: str) -> float:
-    return _ROUND_OFF.limit(category)
-
-
-#: Reactions and efforts: the largest difference relative to the largest native
-#: magnitude of that force or moment. MuJoCo's and Pinocchio's inverse dynamics
-#: and the seed's Newton-Euler form agree to round-off (measured at most 1.7e-13);
-#: pymunk's are impulses over a step of the driven simulation, first order in the
-#: time step (measured at most 3.2e-2, about half the bound).
-FORCE_TOLERANCES = {"newton-euler": 1e-12, "mujoco": 1e-12, "pinocchio": 1e-12, "pymunk": 7e-2}
 #: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
 ENERGY_TOLERANCE = 1e-12
-#: which force sources a run includes, by the modes it runs
-_FORCE_SOURCES = {"mujoco": ("mujoco-kinematic", "mujoco-dynamic"),
-                  "pinocchio": ("pinocchio-kinematic", "pinocchio-dynamic"), "pymunk": ("pymunk-dynamic",)}
+#: the seed's per-body Newton-Euler form against the native multipliers: round-off (measured at most 1.7e-13)
+NEWTON_EULER_TOLERANCE = 1e-12
 
 
 @dataclass
@@ -344,15 +254,11 @@ def convergence_limit(coarse_error: float, coarse_step: float, fine_step: float,
     return round_off + coarse_error * (fine_step / coarse_step) ** (order - ORDER_MARGIN)
 
 
-#: settings keys of a dynamic mode's trajectory: the time step, and what makes a series
-_STEP_KEYS = ("dt", "timestep", "time_step")
-_SERIES_KEYS = ("integrator", "setting", "accelerations", "iterations", "error_bias")
-
-
-def _step_and_series(trajectory: Trajectory) -> tuple[float, tuple]:
+def _step_and_series(trajectory: Trajectory) -> tuple[float, str]:
+    """The time step (s) and the series (what makes runs of one ladder) of a
+    dynamic mode's trajectory, from its settings (the engine contract)."""
     settings = trajectory.settings
-    step = next((float(settings[k]) for k in _STEP_KEYS if k in settings), math.nan)
-    return step, tuple((k, str(settings[k])) for k in _SERIES_KEYS if k in settings)
+    return float(settings.get("timestep", math.nan)), str(settings.get("series", ""))
 
 
 def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, categories: pd.DataFrame,
@@ -363,14 +269,14 @@ def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, 
     series (h_c, same integrator and settings) give per category the errors
     e_f and e_c (relative as in :func:`_categorise`) and the observed order
     :func:`~xcheck.compare.observed_order`. A category with an expected order
-    p (:data:`CONVERGENCE`) passes when e_f <= :func:`convergence_limit`
+    p (the mode's ``orders``, :class:`xcheck.engines.Mode`) passes when e_f <= :func:`convergence_limit`
     (e_c, h_c, h_f, p), i.e. the observed order is at least p -
     :data:`ORDER_MARGIN`, or e_f is at round-off; ``tolerance`` becomes that
     limit. Added columns: expected_order, observed_order, coarse_error,
     coarse_step, step (s), estimate (e_c (h_f / h_c)^p, the error the expected
     order predicts for the compared run), basis (one line).
     """
-    expected = CONVERGENCE[mode]
+    expected = engines.mode(mode).orders
     compared = result.trajectories[0]
     step, series = _step_and_series(compared)
     coarser = [t for t in result.trajectories[1:] if _step_and_series(t)[1] == series
@@ -461,16 +367,10 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
     """Run one non-native mode; never raises (a failure is an outcome). ``floors``:
     the physical floors of the scales (:func:`scale_floors` of the native sweep)."""
     start = time.perf_counter()
-    tolerance = TOLERANCES[mode]
+    spec = engines.mode(mode)
+    tolerance = spec.tolerance
     try:
-        if mode in FORMULATIONS:
-            trajectory = formulation(mode)(kinematics, native.inputs, native.input_rates,
-                                           native.input_accelerations, branch=branch)
-            result = ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
-        else:
-            function = mode_function(mode)
-            options = {"samples": samples} if mode.endswith("-kinematic") else {}
-            result = function(kinematics, branch=branch, **options)
+        result = engines.engine_of(mode).run(mode, kinematics, native=native, samples=samples, branch=branch)
     except NotApplicable:
         raise
     except Exception as err:  # an engine's failure is this mode's outcome, not the run's
@@ -483,21 +383,21 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
     reference = native_at(kinematics, trajectory, branch)
     details = differences(kinematics, trajectory, branch=branch, native=reference, floors=floors)
     categories = _categorise(kinematics, details, tolerance, _condition(reference))
-    if mode in CONVERGENCE and not categories.empty:
+    if spec.kind == "dynamic" and not categories.empty:
         categories = _convergence_verdict(kinematics, mode, result, categories, tolerance, floors, branch)
     passed = bool(not categories.empty and categories.passed.all())
     return ModeOutcome(mode, True, "", passed, categories, details, result, trajectory,
                        sample_errors(trajectory, reference), time.perf_counter() - start)
 
 
-def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, branch: str | None = None,
+def run_mechanism(kinematics: Kinematics, modes=None, samples: int = 181, branch: str | None = None,
                   textbook: list[dict] | None = None, progress=None) -> RunResult:
     """Run the native solver and the requested modes on one mechanism.
 
     Parameters
     ----------
     modes : sequence of str
-        Names from :data:`ALL_MODES`; "native" always runs.
+        Names from :func:`all_modes` (default: all); "native" always runs.
     samples : int
         Samples of the native sweep and of the kinematic modes' sweeps.
     textbook : list of dict, optional
@@ -511,16 +411,21 @@ def run_mechanism(kinematics: Kinematics, modes=ALL_MODES, samples: int = 181, b
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
     floors = scale_floors(kinematics.mechanism, rates, accelerations)
-    outcomes = {"native": _native_self_check(kinematics, native, TOLERANCES["native"], floors)}
+    outcomes = {"native": _native_self_check(kinematics, native, NATIVE_TOLERANCE, floors)}
     not_applicable = {}
+    modes = all_modes() if modes is None else tuple(modes)
     for mode in modes:
         if mode == "native":
             continue
-        if mode not in TOLERANCES:
-            raise ValueError(f"expected modes among {', '.join(ALL_MODES)}, found {mode!r}")
+        if mode not in all_modes():
+            raise ValueError(f"expected modes among {', '.join(all_modes())}, found {mode!r}")
         if progress is not None:
             progress(mode)
-        if static and mode.endswith("-dynamic"):
+        missing = engines.engine_of(mode).available()
+        if missing:
+            not_applicable[mode] = missing
+            continue
+        if static and engines.mode(mode).kind == "dynamic":
             not_applicable[mode] = ("the drivers stand still (every state is a static position): there is no "
                                     "motion to integrate")
             continue
@@ -543,13 +448,14 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     except XcheckError as err:
         run.no_forces = str(err)
         return
-    sources = ["newton-euler"] + [s for s, needs in _FORCE_SOURCES.items() if any(m in modes for m in needs)]
+    sources = ["newton-euler"] + [e.name for e in engines.engines() if e.force_tolerance is not None
+                                  and not e.available() and any(m.name in modes for m in e.modes)]
     if progress is not None:
         progress("forces")
     run.native_forces = inverse_dynamics(window_states(kinematics, branch))
     run.forces = compare_forces(kinematics, sources, branch)
     table = force_summary(run.forces)
-    table["tolerance"] = table.engine.map(FORCE_TOLERANCES)
+    table["tolerance"] = table.engine.map(force_tolerance)
     table["passed"] = table.ok & (table.max_rel <= table.tolerance)
     run.force_table = table
     energy = energy_summary(kinematics, branch)
@@ -559,46 +465,26 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
 
 
 def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
-    """A dynamic mode's error against time step in one shape for every engine.
+    """A dynamic mode's error against time step, the same for every engine: its
+    result's ``study`` (:func:`xcheck.compare.convergence_study`; columns
+    series, timestep (s), position_error (m), status, order), empty if none."""
+    study = None if outcome.result is None else outcome.result.study
+    return empty_study() if study is None else study
 
-    Returns
-    -------
-    DataFrame
-        Columns series (integrator and settings), timestep (s), position_error
-        (m), order (observed, between consecutive steps of a series), status.
-    """
-    summary = None if outcome.result is None else outcome.result.summary
-    if summary is None or summary.empty:
-        return pd.DataFrame(columns=["series", "timestep", "position_error", "order", "status"])
-    s = summary
 
-    def column(name: str) -> pd.Series:  # a column no run filled (every run failed) is NaN
-        return s[name] if name in s else pd.Series(math.nan, index=s.index)
-
-    if "dt" in s:  # pinocchio
-        table = pd.DataFrame({"series": s.integrator, "timestep": s.dt, "position_error": column("position_error_m")})
-    elif "timestep" in s:  # mujoco
-        table = pd.DataFrame({"series": s.setting + " " + s.integrator, "timestep": s.timestep,
-                              "position_error": column("position_error")})
-    else:  # pymunk
-        table = pd.DataFrame({"series": s.error_bias.astype(str) + ", " + s.iterations.astype(str) + " iterations",
-                              "timestep": s.time_step, "position_error": column("position_error")})
-    table["status"] = column("status").astype(str)
-    table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
-    orders = []
-    for i, row in table.iterrows():
-        previous = table.iloc[i - 1] if i > 0 else None
-        same = previous is not None and previous.series == row.series
-        orders.append(observed_order(previous.position_error, row.position_error, previous.timestep, row.timestep)
-                      if same else math.nan)
-    table["order"] = orders
-    return table
+def force_tolerance(source: str) -> float:
+    """The bound on a force source's reactions and efforts relative to the native ones."""
+    if source == "newton-euler":
+        return NEWTON_EULER_TOLERANCE
+    bound = engines.engine(source).force_tolerance
+    return math.nan if bound is None else bound
 
 
 def versions() -> dict[str, str]:
     """Versions of xcheck, Python and every engine and library that shapes results."""
     found = {"xcheck": __version__, "python": platform.python_version()}
-    for package in ("mujoco", "pin", "pymunk", "numpy", "scipy", "pandas", "matplotlib"):
+    packages = [package for e in engines.engines() for package in e.distributions]
+    for package in (*packages, "numpy", "scipy", "pandas", "matplotlib"):
         try:
             found[package] = metadata.version(package)
         except metadata.PackageNotFoundError:

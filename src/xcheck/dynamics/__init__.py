@@ -9,7 +9,6 @@ dynamics and tabulate :func:`force_differences`. The sign conventions are in
 """
 
 from ._compare import (
-                       ENGINES,
                        WINDOW_SAMPLES,
                        ForceResult,
                        compare_forces,
@@ -17,6 +16,7 @@ from ._compare import (
                        energy_summary,
                        engine_forces,
                        force_differences,
+                       force_engines,
                        force_floors,
                        force_summary,
                        window_states,
@@ -27,7 +27,7 @@ from ._inverse import body_dynamics, inverse_dynamics, newton_euler
 
 __all__ = [
     "DRIVER_QUANTITIES",
-    "ENGINES",
+    "force_engines",
     "JOINT_QUANTITIES",
     "WINDOW_SAMPLES",
     "ForceResult",

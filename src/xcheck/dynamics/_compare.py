@@ -1,14 +1,14 @@
 """Reactions and efforts from the engines, and their differences from the native ones.
 
-Each engine module provides ``inverse_dynamics(kinematics, branch=None,
-**options) -> Forces`` (registered in :data:`ENGINES`); :func:`engine_forces`
+Each engine of the registry with a ``force_tolerance`` provides
+:meth:`~xcheck.engines.Engine.inverse_dynamics` (kinematics, branch=None,
+**options) -> Forces; :func:`engine_forces`
 runs one and tabulates :func:`force_differences`, never raising: a failure is a
 :class:`ForceResult` with ``ok`` False and a one-line ``reason``.
 """
 
 from __future__ import annotations
 
-import importlib
 import time
 from dataclasses import dataclass
 
@@ -23,16 +23,17 @@ from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
 
-__all__ = ["ENGINES", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "force_floors",
+__all__ = ["force_engines", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "force_floors",
            "engine_forces", "compare_forces", "force_summary", "energy_summary"]
 
-#: engine -> (module, function); the function takes (kinematics, branch=None,
-#: **options) and returns Forces, raising on failure.
-ENGINES = {
-    "mujoco": ("xcheck.engines.mujoco", "inverse_dynamics"),
-    "pinocchio": ("xcheck.engines.pinocchio", "inverse_dynamics"),
-    "pymunk": ("xcheck.engines.pymunk", "inverse_dynamics"),
-}
+
+
+def force_engines() -> tuple[str, ...]:
+    """The registered engines that give reactions and efforts."""
+    from xcheck import engines  # the registry imports the engines' descriptions, which import this package
+
+    return tuple(e.name for e in engines.engines() if e.force_tolerance is not None)
+
 #: States sampled over the simulation window by default (every 5 degrees of a turning crank).
 WINDOW_SAMPLES = 73
 
@@ -168,7 +169,7 @@ class ForceResult:
     Attributes
     ----------
     engine : str
-        A key of :data:`ENGINES`, or ``"newton-euler"`` (the native per-body form).
+        One of :func:`force_engines`, or ``"newton-euler"`` (the native per-body form).
     mechanism : str
     ok : bool
     reason : str
@@ -203,7 +204,7 @@ def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None
     ----------
     kinematics : Kinematics
     engine : str
-        A key of :data:`ENGINES`, or ``"newton-euler"``.
+        One of :func:`force_engines`, or ``"newton-euler"``.
     branch : str, optional
     **options
         Passed to the engine's function.
@@ -220,20 +221,24 @@ def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None
         require_mass_data(mech)
         if engine == "newton-euler":
             forces = newton_euler(window_states(kinematics, branch, **options))
-        elif engine in ENGINES:
-            module, function = ENGINES[engine]
-            forces = getattr(importlib.import_module(module), function)(kinematics, branch=branch, **options)
+        elif engine in force_engines():
+            from xcheck import engines
+
+            forces = engines.engine(engine).inverse_dynamics(kinematics, branch=branch, **options)
         else:
-            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *ENGINES])}), found {engine!r}")
+            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *force_engines()])}), "
+                             f"found {engine!r}")
         table = force_differences(kinematics, forces, branch)
     except Exception as error:  # noqa: BLE001 - a failed engine is data: reported, the others still run
         return ForceResult(engine, mech.name, False, _one_line(error), seconds=time.perf_counter() - start)
     return ForceResult(engine, mech.name, True, "", forces, table, time.perf_counter() - start)
 
 
-def compare_forces(kinematics: Kinematics, engines=("newton-euler", *ENGINES), branch: str | None = None,
+def compare_forces(kinematics: Kinematics, engines=None, branch: str | None = None,
                    options: dict | None = None) -> list[ForceResult]:
-    """:func:`engine_forces` for each engine (``options``: engine -> keyword arguments)."""
+    """:func:`engine_forces` for each engine (default: newton-euler and every
+    :func:`force_engines`; ``options``: engine -> keyword arguments)."""
+    engines = ("newton-euler", *force_engines()) if engines is None else engines
     options = options or {}
     return [engine_forces(kinematics, engine, branch, **options.get(engine, {})) for engine in engines]
 

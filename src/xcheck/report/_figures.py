@@ -17,23 +17,28 @@ import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
 from scipy.spatial import ConvexHull, QhullError  # noqa: E402
 
+from .. import engines  # noqa: E402
 from ..model import PinInSlot, Prismatic  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
 
-_STYLE = {  # mode -> matplotlib style
-    "native": dict(color="black", lw=1.6, ls="-"),
-    "formulation-I": dict(color="tab:gray", lw=0, marker="o", ms=3, mfc="none"),
-    "formulation-II": dict(color="tab:brown", lw=0, marker="x", ms=3),
-    "mujoco-kinematic": dict(color="tab:blue", lw=0, marker="+", ms=5),
-    "pinocchio-kinematic": dict(color="tab:orange", lw=0, marker="1", ms=6),
-    "mujoco-dynamic": dict(color="tab:blue", lw=1, ls="--"),
-    "pinocchio-dynamic": dict(color="tab:orange", lw=1, ls=":"),
-    "pymunk-dynamic": dict(color="tab:green", lw=1, ls="-."),
-}
-#: for the log-scale error plots: kinematic modes solid, dynamic ones dashed
-_LINE_STYLE = {m: {"color": s["color"], "ls": "--" if m.endswith("-dynamic") else "-"} for m, s in _STYLE.items()}
+_NATIVE_STYLE = dict(color="black", lw=1.6, ls="-")
+
+
+def _style(mode: str) -> dict:
+    """A mode's matplotlib style (its engine's, :class:`xcheck.engines.Mode`)."""
+    return dict(_NATIVE_STYLE) if mode == "native" else dict(engines.mode(mode).style)
+
+
+def _line_style(mode: str) -> dict:
+    """For the log-scale error plots: kinematic modes solid, dynamic ones dashed."""
+    color = _style(mode).get("color", "tab:gray")
+    return {"color": color, "ls": "--" if mode != "native" and engines.mode(mode).kind == "dynamic" else "-"}
+
+
+def _is_dynamic(mode: str) -> bool:
+    return mode != "native" and engines.mode(mode).kind == "dynamic"
 
 
 def _png(figure) -> bytes:
@@ -204,7 +209,7 @@ def quantities(run: RunResult) -> bytes:
                 native_there = np.interp(data[0][0], reference[0], reference[1])
                 values = values - 2 * np.pi * np.round((values[0] - native_there) / (2 * np.pi))
             order = np.argsort(x, kind="stable") if mode != "native" else slice(None)
-            ax.plot(x[order], values[order] / factor, label=mode, **_STYLE.get(mode, {}))
+            ax.plot(x[order], values[order] / factor, label=mode, **_style(mode))
         ax.set_ylabel(ylabel)
         ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
         ax.grid(alpha=0.3)
@@ -228,7 +233,7 @@ def error_plots(run: RunResult) -> bytes:
             x, _ = _input_axis(run, outcome.trajectory.inputs[:, 0])
             order = np.argsort(x, kind="stable")
             floor = np.where(errors[order] > 0, errors[order], 1e-18)  # exact zeros drawn at the floor
-            ax.semilogy(x[order], floor, label=mode, lw=1, **_LINE_STYLE.get(mode, {}))
+            ax.semilogy(x[order], floor, label=mode, lw=1, **_line_style(mode))
         ax.set_ylabel(f"largest {category} error [{units[category]}]")
         ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
         ax.grid(alpha=0.3, which="both")
@@ -241,7 +246,7 @@ def error_plots(run: RunResult) -> bytes:
 
 def convergence_plot(run: RunResult) -> bytes | None:
     """Each dynamic mode's position error against time step, log-log (PNG); None if none ran."""
-    dynamic = [(m, o) for m, o in run.outcomes.items() if m.endswith("-dynamic") and o.result is not None]
+    dynamic = [(m, o) for m, o in run.outcomes.items() if _is_dynamic(m) and o.result is not None]
     tables = [(m, convergence_table(o)) for m, o in dynamic]
     tables = [(m, t) for m, t in tables if not t.empty]
     if not tables:
@@ -280,7 +285,6 @@ def forces_plot(run: RunResult) -> bytes | None:
     columns = min(3, len(panels))
     rows = math.ceil(len(panels) / columns)
     figure, axes = plt.subplots(rows, columns, figsize=(4.4 * columns, 3.2 * rows), squeeze=False)
-    colors = {"mujoco": "tab:blue", "pinocchio": "tab:orange", "pymunk": "tab:green"}
     for ax, (kind, name) in zip(axes.flat, panels):
         key = "effort" if kind == "driver" else "reaction"
         table = native.drivers if kind == "driver" else native.joints
@@ -303,8 +307,8 @@ def forces_plot(run: RunResult) -> bytes | None:
             if kind == "joint" or f"|{key}|" in data:
                 series = np.abs(series)
             ex, _ = _input_axis(run, forces.inputs[:, 0])
-            marker = dict(lw=0, marker=".", ms=4) if engine == "pymunk" else dict(lw=1, ls="--")
-            ax.plot(ex, series, color=colors.get(engine, "tab:gray"), label=engine, **marker)
+            described = engines.engine(engine)
+            ax.plot(ex, series, color=described.color, label=engine, **dict(described.force_style))
         driver = next((d for d in run.mechanism.drivers if d.name == name), None)
         unit = "N m" if driver is not None and driver.quantity == "angle" else "N"
         label = f"effort of {name} [{unit}]" if kind == "driver" else f"|reaction| at {name} [N]"

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import engines
 from ..kinematics import Status
 from ..output import range_text
-from ..runner import CATEGORIES, TOLERANCES, RunResult, convergence_table, versions
+from ..runner import CATEGORIES, RunResult, convergence_table, tolerance, versions
 
 __all__ = ["report_markdown", "index_markdown", "verdict_counts", "worst_text", "textbook_text"]
 
@@ -75,7 +76,7 @@ def _comparison_section(run: RunResult) -> str:
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
         [[f"`{m}`", _g(t.position, 2), _g(t.angle, 2), _g(t.velocity, 2), _g(t.acceleration, 2), t.basis]
-         for m, t in TOLERANCES.items() if m in run.outcomes])
+         for m, t in ((m, tolerance(m)) for m in run.outcomes)])
     f = run.floors
     if f:
         text += (f"\n\nScale floors (rates relative to at least these, from the mechanism's size L = "
@@ -117,7 +118,7 @@ def _textbook_section(run: RunResult) -> str:
 def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
     parts = []
     for mode, outcome in run.outcomes.items():
-        if not mode.endswith("-dynamic") or outcome.result is None:
+        if mode == "native" or engines.mode(mode).kind != "dynamic" or outcome.result is None:
             continue
         table = convergence_table(outcome)
         trajectory = outcome.trajectory

@@ -19,8 +19,9 @@ from __future__ import annotations
 import json
 from xml.sax.saxutils import escape
 
-from ..model import GROUND, Prismatic, Revolute
-from ._pinocchio_model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
+from xcheck.model import GROUND, Prismatic, Revolute
+
+from .model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
 
 __all__ = ["export_texts", "LOOPS_SUFFIX"]
 

@@ -23,11 +23,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..dynamics import Forces, determined_states, joint_quantities
-from ..kinematics import Kinematics
-from ..model import GROUND, Prismatic, Revolute
-from ._pinocchio_model import build_model, joint_coordinates, point_frame, tree_spec
-from ._pinocchio_oracle import Oracle
+from xcheck.dynamics import Forces, determined_states, joint_quantities
+from xcheck.kinematics import Kinematics
+from xcheck.model import GROUND, Prismatic, Revolute
+
+from .model import build_model, joint_coordinates, point_frame, tree_spec
+from .oracle import Oracle
 
 __all__ = ["inverse_forces"]
 

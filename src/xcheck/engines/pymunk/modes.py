@@ -1,7 +1,7 @@
 """pymunk: the mechanism as a 2-D constraint scene, simulated and compared.
 
 The mode ``pymunk-dynamic`` (:func:`run_dynamic`) builds the scene
-(:mod:`._pymunk_scene`: one pymunk body per moving link, a constraint per
+(:mod:`.scene`: one pymunk body per moving link, a constraint per
 joint, the inputs driven by their motion laws), steps it over
 :func:`xcheck.motion.simulation_window` from the native state at t = 0,
 samples the bodies, and compares them with the native solution for several
@@ -22,16 +22,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk)
+import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk.modes)
 
-from xcheck.compare import ModeResult, Trajectory, differences, observed_order
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
 
-from ._pymunk_figure import render_png, snapshot
-from ._pymunk_inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
-from ._pymunk_scene import DEFAULT_MASS, Scene, build_scene, native_window
+from .figure import render_png, snapshot
+from .inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
+from .scene import DEFAULT_MASS, Scene, build_scene, native_window
 
 __all__ = ["MODE", "DEFAULT_MASS", "DEFAULT_SETTINGS", "Scene", "Setting", "build_scene", "run_dynamic",
            "scene_figure", "trajectory_errors", "inverse_dynamics"]
@@ -165,7 +165,8 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
         source=MODE, inputs=q_in, input_rates=qd_in[1], input_accelerations=(qd_in[2] - qd_in[0]) / (2.0 * h),
         bodies=bodies, points=points, times=times,
         settings={"engine": f"pymunk {pm.version} (Chipmunk {pm.chipmunk_version})",
-                  "integrator": "semi-implicit Euler, iterative impulse solver", "time_step": dt,
+                  "integrator": "semi-implicit Euler, iterative impulse solver", "time_step": dt, "timestep": dt,
+                  "series": _series(setting.correction, setting.iterations),
                   "iterations": setting.iterations, "steps_per_sample": per,
                   "error_bias": setting.correction, "drives": drives, "difference_step": h},
         diagnostics={"joint_gap": gaps, "lock_error": locks,
@@ -304,11 +305,20 @@ def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: i
         if not isinstance(err, ValueError) or not reason:
             reason = f"{type(err).__name__}: {reason}"
         return ModeResult(MODE, mech.name, False, f"{MODE}: {reason}")
+    errors = summary["position_error"] if "position_error" in summary else [math.nan] * len(summary)
+    study = convergence_study([_series(r.setting.correction, r.setting.iterations) for r in runs],
+                              summary.time_step, errors, summary.status)
     first = runs[0]
     if first.trajectory is None:
         return ModeResult(MODE, mech.name, False, f"{MODE}: the scene {first.failure} "
-                          f"(time step {first.dt:.3g} s, {first.setting.iterations} iterations)", [], summary)
-    return ModeResult(MODE, mech.name, True, "", [r.trajectory for r in runs if r.trajectory is not None], summary)
+                          f"(time step {first.dt:.3g} s, {first.setting.iterations} iterations)", [], summary, study)
+    return ModeResult(MODE, mech.name, True, "", [r.trajectory for r in runs if r.trajectory is not None], summary,
+                      study)
+
+
+def _series(correction: str, iterations: int) -> str:
+    """The convergence series of a setting: its error correction and iterations."""
+    return f"{correction}, {iterations} iterations"
 
 
 def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int = SAMPLES,
@@ -316,7 +326,7 @@ def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples:
                      error_bias: float | None = 0.0):
     """Magnitudes of the joint reactions and input efforts in a driven pymunk
     simulation: constraint impulses over the time step (see
-    :mod:`._pymunk_inverse`).
+    :mod:`.inverse`).
 
     Parameters
     ----------

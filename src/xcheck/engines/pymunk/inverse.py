@@ -28,10 +28,11 @@ from __future__ import annotations
 import numpy as np
 import pymunk as pm
 
-from ..dynamics import Forces
-from ..kinematics import Kinematics
-from ..model import Prismatic, Revolute
-from ._pymunk_scene import build_scene, native_window
+from xcheck.dynamics import Forces
+from xcheck.kinematics import Kinematics
+from xcheck.model import Prismatic, Revolute
+
+from .scene import build_scene, native_window
 
 __all__ = ["inverse_forces", "SAMPLES", "STEPS_PER_SAMPLE", "ITERATIONS"]
 

@@ -2,7 +2,7 @@
 
 One description, :class:`TreeSpec`, is read from the canonical mechanism model
 and turned either into a ``pin.Model`` built programmatically
-(:func:`build_model`) or into URDF text (``_pinocchio_urdf``). Both have the
+(:func:`build_model`) or into URDF text (:mod:`.urdf`). Both have the
 same joints, placements, inertias and frame names, so a test can check one
 against the other.
 
@@ -44,10 +44,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ModelError
-from ..kinematics import rotate
-from ..model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
-from ..topology import carrier_share, spanning_tree
+from xcheck.errors import ModelError
+from xcheck.kinematics import rotate
+from xcheck.model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
+from xcheck.topology import carrier_share, spanning_tree
 
 __all__ = ["JointSpec", "BodySpec", "DriverCoordinate", "TreeSpec", "PinocchioMechanism",
            "tree_spec", "build_model", "mass_properties", "joint_coordinates", "carrier_joint", "block_frame"]

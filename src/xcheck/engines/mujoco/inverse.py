@@ -31,11 +31,12 @@ import copy
 import mujoco
 import numpy as np
 
-from ..dynamics import Forces, determined_states, joint_quantities
-from ..kinematics import Kinematics, rotate
-from ..model import GROUND, PinInSlot, Prismatic, Revolute
-from ._mujoco_mjcf import Layout, carrier_name, joint_coordinates, mass_properties, weld_site
-from ._mujoco_oracle import Oracle
+from xcheck.dynamics import Forces, determined_states, joint_quantities
+from xcheck.kinematics import Kinematics, rotate
+from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
+
+from .mjcf import Layout, carrier_name, joint_coordinates, mass_properties, weld_site
+from .oracle import Oracle
 
 __all__ = ["inverse_forces"]
 

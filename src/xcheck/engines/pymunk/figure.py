@@ -12,7 +12,7 @@ import numpy as np
 
 from xcheck.model import GROUND, Mechanism, Prismatic, Revolute
 
-from ._pymunk_scene import Scene
+from .scene import Scene
 
 __all__ = ["snapshot", "render_png"]
 

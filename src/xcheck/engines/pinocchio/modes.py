@@ -17,7 +17,7 @@ Model files
 :func:`export_files` writes the tree as URDF and the loop closures as JSON
 (``models/urdf/NAME.urdf`` and ``NAME.loops.json``).
 
-The model is built from the canonical mechanism in ``_pinocchio_model``; see
+The model is built from the canonical mechanism in :mod:`.model`; see
 there for the frame conventions.
 """
 
@@ -27,14 +27,15 @@ import math
 
 import numpy as np
 
-from ..compare import ModeResult, Trajectory, differences
-from ..kinematics import Kinematics
-from ..motion import law_states, sweep_span
-from ._pinocchio_dynamics import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
-from ._pinocchio_inverse import inverse_forces
-from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
-from ._pinocchio_oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
-from ._pinocchio_urdf import export_texts
+from xcheck.compare import ModeResult, Trajectory, differences
+from xcheck.kinematics import Kinematics
+from xcheck.motion import law_states, sweep_span
+
+from .dynamic import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
+from .inverse import inverse_forces
+from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
+from .oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
+from .urdf import export_texts
 
 __all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs", "inverse_dynamics"]
 
@@ -215,14 +216,14 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
 
 def export_files(kinematics: Kinematics) -> dict[str, str]:
     """The tree as URDF and the loop closures as JSON: {``NAME.urdf``: text,
-    ``NAME.loops.json``: text} (see ``_pinocchio_urdf`` for the layout)."""
+    ``NAME.loops.json``: text} (see :mod:`.urdf` for the layout)."""
     return export_texts(tree_spec(kinematics.mechanism))
 
 
 def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
                      solution=None):
     """Joint reactions and input efforts from Pinocchio (RNEA with the loop-cut
-    forces, see :mod:`._pinocchio_inverse`) at the native states of the
+    forces, see :mod:`.inverse`) at the native states of the
     simulation window.
 
     Parameters

@@ -1,7 +1,7 @@
 """MuJoCo adapter: the mechanism as an MJCF file, MuJoCo as a kinematic oracle
 (mode ``mujoco-kinematic``) and as a simulator (mode ``mujoco-dynamic``).
 
-``export_files`` writes the MJCF file (see :mod:`._mujoco_mjcf` for its
+``export_files`` writes the MJCF file (see :mod:`.mjcf` for its
 conventions); both modes compile that text, so they test the file a user gets.
 Run ``xcheck export --format mjcf`` to regenerate models/mjcf/.
 """
@@ -14,15 +14,16 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from ..compare import ModeResult, Trajectory, differences, observed_order
-from ..errors import InputError, XcheckError
-from ..kinematics import Kinematics, Status
-from ..model import Mechanism
-from ..motion import law_states, simulation_window, sweep_span
-from ._mujoco_dynamic import DEFAULT, TIGHT, Run, simulate
-from ._mujoco_inverse import inverse_forces
-from ._mujoco_mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
-from ._mujoco_oracle import Oracle
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.errors import InputError, XcheckError
+from xcheck.kinematics import Kinematics, Status
+from xcheck.model import Mechanism
+from xcheck.motion import law_states, simulation_window, sweep_span
+
+from .dynamic import DEFAULT, TIGHT, Run, simulate
+from .inverse import inverse_forces
+from .mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
+from .oracle import Oracle
 
 __all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error", "inverse_dynamics"]
 
@@ -333,9 +334,11 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         errors, steps = group.position_error.to_numpy(), group.timestep.to_numpy()
         summary.loc[group.index[1:], "observed_order"] = [
             observed_order(errors[i - 1], errors[i], steps[i - 1], steps[i]) for i in range(1, len(errors))]
+    study = convergence_study(summary.setting + " " + summary.integrator, summary.timestep, summary.position_error,
+                              summary.status)
     if primary_failure:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary)
-    return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary)
+        return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary, study)
+    return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary, study)
 
 
 def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray,
@@ -344,7 +347,9 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
     states with the kinematic oracle's accelerations (else None)."""
     dofs = oracle.input_dofs
     inputs, rates, accelerations = run.qpos[:, dofs], run.qvel[:, dofs], run.qacc[:, dofs]
-    settings = {**run.settings, "accelerations": "qacc", "duration": duration, "samples": len(run.times),
+    series = f"{run.settings['setting']} {run.settings['integrator']}"
+    settings = {**run.settings, "series": series, "accelerations": "qacc", "duration": duration,
+                "samples": len(run.times),
                 "drive": "position servo (ctrl = law value) + velocity servo (ctrl = law rate), zero-order hold"}
     diagnostics = {"constraint_violation": violation, "input_tracking": tracking}
     drive = (f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
@@ -367,7 +372,8 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
     bodies, points = oracle.states(run.qpos, run.qvel, qacc)
     return trajectory, Trajectory(
         DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times,
-        {**settings, "accelerations": "oracle at simulated state"}, diagnostics,
+        {**settings, "series": f"{series}, oracle accelerations", "accelerations": "oracle at simulated state"},
+        diagnostics,
         drive + "Accelerations: the kinematic oracle at the simulated states (J qdd = -Jdot qd with the input "
         "joints' qacc imposed), not qacc; shown beside the comparison, which uses qacc.")
 
@@ -375,7 +381,7 @@ def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violat
 def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
                      solution=None, xml: str | None = None):
     """Joint reactions and input efforts from MuJoCo at the native states of the
-    simulation window (see :mod:`._mujoco_inverse` for how).
+    simulation window (see :mod:`.inverse` for how).
 
     Parameters
     ----------

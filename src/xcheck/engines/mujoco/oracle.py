@@ -13,8 +13,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..model import Mechanism
-from ._mujoco_mjcf import Layout
+from xcheck.model import Mechanism
+
+from .mjcf import Layout
 
 __all__ = ["STOP_TOLERANCE", "CONVERGED_TOLERANCE", "Oracle", "Projection"]
 

@@ -25,11 +25,12 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from ..compare import ModeResult, Trajectory, differences, observed_order
-from ..kinematics import Kinematics
-from ..motion import simulation_window
-from ._pinocchio_model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
-from ._pinocchio_oracle import Oracle, frame_states, one_line
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.kinematics import Kinematics
+from xcheck.motion import simulation_window
+
+from .model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
+from .oracle import Oracle, frame_states, one_line
 
 __all__ = ["run_dynamic", "INTEGRATORS"]
 
@@ -211,7 +212,8 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
     if failure is not None:
         return run, None
     kp, kd = tracking_gains(window.duration)
-    settings = {"integrator": integrator, "dt": dt, "steps": steps, "duration": window.duration,
+    settings = {"integrator": integrator, "series": integrator, "dt": dt, "timestep": dt, "steps": steps,
+                "duration": window.duration,
                 "window": window.reason, "baumgarte_kp": gains[0] if gains else 0.0,
                 "baumgarte_kd": gains[1] if gains else 0.0, "proximal_mu": PROXIMAL_MU,
                 "proximal_accuracy": PROXIMAL_ACCURACY, "tracking_kp": kp, "tracking_kd": kd,
@@ -321,7 +323,8 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
         ordered[0][1].notes += " This run is the one the comparison uses (the most accurate setting)."
     trajectories = [t for _, t in ordered if t is not None]
     comparison, _ = runs[first]
+    study = convergence_study(summary.integrator, summary.dt, summary.position_error_m, summary.status)
     if comparison["status"] != "ok" or not trajectories:
         return ModeResult(MODE, mech.name, False, f"{comparison['integrator']} at {comparison['steps']} steps: "
-                          f"{comparison['status']}", trajectories, summary)
-    return ModeResult(MODE, mech.name, True, "", trajectories, summary)
+                          f"{comparison['status']}", trajectories, summary, study)
+    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)

@@ -41,11 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import XcheckError
-from ..kinematics import Kinematics, rotate
-from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from ..motion import simulation_window
-from ..topology import Topology, TreeJoint, carrier_share, spanning_tree
+from xcheck.errors import XcheckError
+from xcheck.kinematics import Kinematics, rotate
+from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.motion import simulation_window
+from xcheck.topology import Topology, TreeJoint, carrier_share, spanning_tree
 
 __all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "CARRIER_INERTIA", "CARRIER_INERTIA_FLOOR", "MassProperties", "MjJoint",
            "Layout", "layout", "mass_properties", "carrier_name", "carrier_note", "weld_site", "carrier_split",

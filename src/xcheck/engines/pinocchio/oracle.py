@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ._pinocchio_model import PinocchioMechanism
+from .model import PinocchioMechanism
 
 __all__ = ["Oracle", "NEWTON_TOLERANCE", "frame_states", "one_line"]
 

@@ -1,0 +1,167 @@
+"""The engine contract: what every engine gives xcheck, and in which shape.
+
+An engine (a :class:`Engine` subclass, one per subpackage of
+:mod:`xcheck.engines`, or one a third party registers) says what it is --
+its name, its :class:`Mode` s with their tolerances and expected orders of
+convergence, the packages it needs -- and provides its modes through
+:meth:`Engine.run`, which returns a :class:`~xcheck.compare.ModeResult` for
+every engine alike. Importing an engine's description never imports the
+package it wraps: :meth:`Engine.available` says whether it can run, and why
+not, so a missing package is a reason shown in the report, never an
+ImportError that stops the run.
+
+Modes
+-----
+``kinematic``
+    A driven kinematic oracle: the engine's own positions, velocities and
+    accelerations at the inputs of a sweep (an exact method must meet
+    round-off).
+``dynamic``
+    Driven dynamics: the engine integrates the mechanism with its inputs
+    driven by the motion laws; judged by its convergence to the exact answer
+    as the time step falls. Its result carries ``study``
+    (:func:`~xcheck.compare.convergence_study`) and the compared trajectory
+    ``settings["timestep"]`` (s) and ``settings["series"]`` (what makes runs
+    of one ladder).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
+
+from xcheck.tolerances import Tolerance
+
+if TYPE_CHECKING:
+    from xcheck.compare import ModeResult
+    from xcheck.dynamics import Forces
+    from xcheck.kinematics import Kinematics, Solution
+
+__all__ = ["KINDS", "Mode", "Engine", "NotApplicable"]
+
+#: what a mode does, in the order tables show them
+KINDS = ("kinematic", "dynamic")
+
+
+class NotApplicable(Exception):
+    """A mode that does not apply to a mechanism (not a failure): ``reason`` says why."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One way an engine is judged.
+
+    Attributes
+    ----------
+    name : str
+        Unique over all engines, e.g. ``"mujoco-kinematic"``.
+    kind : str
+        One of :data:`KINDS`.
+    tolerance : Tolerance
+        What the mode must meet per quantity category (NaN: judged by the
+        convergence orders below).
+    orders : mapping of str to float or None
+        ``dynamic`` modes: the expected order of convergence in the time step
+        per category (None: judged by the fixed bound of ``tolerance``).
+    style : mapping
+        Matplotlib line style of the mode in plots.
+    """
+
+    name: str
+    kind: str
+    tolerance: Tolerance
+    orders: Mapping[str, float | None] = field(default_factory=dict)
+    style: Mapping[str, object] = field(default_factory=dict)
+
+
+class Engine:
+    """An engine xcheck judges. Subclasses set the class attributes and
+    implement :meth:`run` (and, where the engine has them, :meth:`inverse_dynamics`
+    and :meth:`export_files`).
+
+    Attributes
+    ----------
+    name : str
+        Short, lower case: the ``--engines`` group of its modes.
+    title : str
+        As people write it ("MuJoCo").
+    requires : tuple of str
+        Import names the engine needs; :meth:`available` checks them.
+    distributions : tuple of str
+        Its packages' distribution names, whose versions every report states.
+    install : str
+        What to run when one is missing.
+    modes : tuple of Mode
+    force_tolerance : float or None
+        Bound on its reactions and efforts relative to the native ones (None:
+        no inverse dynamics).
+    force_basis : str
+        Where that bound comes from.
+    export_format, export_directory : str or None
+        The file format :meth:`export_files` writes and its folder under ``models/``.
+    color : str
+        Its colour in plots of forces.
+    force_style : mapping
+        Matplotlib style of its forces (lines, or markers where they scatter).
+    notes : str
+        What of the canonical model it can represent and what not, for the reader.
+    """
+
+    name: ClassVar[str] = ""
+    title: ClassVar[str] = ""
+    requires: ClassVar[tuple[str, ...]] = ()
+    distributions: ClassVar[tuple[str, ...]] = ()
+    install: ClassVar[str] = ""
+    modes: ClassVar[tuple[Mode, ...]] = ()
+    force_tolerance: ClassVar[float | None] = None
+    force_basis: ClassVar[str] = ""
+    export_format: ClassVar[str | None] = None
+    export_directory: ClassVar[str | None] = None
+    color: ClassVar[str] = "tab:gray"
+    force_style: ClassVar[Mapping[str, object]] = {"lw": 1, "ls": "--"}
+    notes: ClassVar[str] = ""
+
+    def available(self) -> str:
+        """Empty if the engine can run here, else the reason (one line)."""
+        missing = [package for package in self.requires if importlib.util.find_spec(package) is None]
+        if missing:
+            return f"not installed: {', '.join(missing)}" + (f" ({self.install})" if self.install else "")
+        return ""
+
+    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
+            branch: str | None = None) -> ModeResult:
+        """Run one of the engine's modes on a mechanism.
+
+        Parameters
+        ----------
+        mode : str
+            The name of one of :attr:`modes`.
+        native : Solution
+            The native sweep (inputs, rates, accelerations of ``samples``
+            states); a mode may take its inputs or make its own sweep.
+        samples : int
+            Samples of a kinematic mode's sweep.
+
+        Returns
+        -------
+        ModeResult
+            A failure is ``ok`` False with its reason; raising is allowed too
+            (the runner turns it into the mode's failed outcome), and
+            :class:`NotApplicable` says the mode does not apply.
+        """
+        raise NotImplementedError(f"{type(self).__name__} runs no mode")
+
+    def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
+        """Reactions and driving efforts at the native states of the simulation
+        window (:func:`xcheck.dynamics.window_states`); raises on failure."""
+        raise NotImplementedError(f"{self.title or self.name} has no inverse dynamics")
+
+    def export_files(self, kinematics: Kinematics) -> dict[str, str]:
+        """The engine's model files of a mechanism: ``{file name: text}``."""
+        raise NotImplementedError(f"{self.title or self.name} writes no model file")

@@ -1,0 +1,141 @@
+"""The registry of engines: the built-in ones, those other packages declare
+under the entry-point group ``xcheck.engines``, and those registered at run
+time (:func:`register`).
+
+Everything that lists modes -- the runner, ``--engines``, the JSON and the
+report -- asks here, so an engine added in one place appears everywhere.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib import metadata
+
+from ._contract import KINDS, Engine, Mode
+
+__all__ = ["ENTRY_POINT_GROUP", "register", "unregister", "engines", "engine", "modes", "mode", "engine_of",
+           "groups", "exporters", "load_problems"]
+
+#: the entry-point group through which an installed package adds engines:
+#: ``[project.entry-points."xcheck.engines"] myengine = "mypackage.xcheck_engine:MyEngine"``
+ENTRY_POINT_GROUP = "xcheck.engines"
+#: the engines xcheck ships, in the order tables show them ("module:class")
+_BUILT_IN = ("xcheck.formulations.engine:Formulations", "xcheck.engines.mujoco:MuJoCo",
+             "xcheck.engines.pinocchio:Pinocchio", "xcheck.engines.pymunk:Pymunk")
+
+_registered: dict[str, Engine] = {}
+_loaded = False
+#: entry points that could not be loaded: name -> reason (shown by ``xcheck list``)
+_problems: dict[str, str] = {}
+
+
+def _instance(target: object) -> Engine:
+    engine = target() if isinstance(target, type) else target
+    if not isinstance(engine, Engine):
+        raise TypeError(f"expected an xcheck.engines.Engine, found {type(engine).__name__}")
+    return engine
+
+
+def _load() -> None:
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for spec in _BUILT_IN:
+        module, _, name = spec.partition(":")
+        _add(_instance(getattr(importlib.import_module(module), name)))
+    for point in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            _add(_instance(point.load()))
+        except Exception as error:  # noqa: BLE001 - a broken plug-in is reported, xcheck still runs
+            _problems[point.name] = f"{type(error).__name__}: {error}".splitlines()[0]
+
+
+def _add(engine: Engine, replace: bool = False) -> None:
+    if not engine.name:
+        raise ValueError(f"{type(engine).__name__}: an engine needs a name")
+    if engine.name in _registered and not replace:
+        raise ValueError(f"an engine named {engine.name!r} is already registered")
+    taken = {m.name: e.name for e in _registered.values() if e.name != engine.name for m in e.modes}
+    for m in engine.modes:
+        if m.kind not in KINDS:
+            raise ValueError(f"{engine.name}: mode {m.name!r}: expected a kind among {', '.join(KINDS)}, "
+                             f"found {m.kind!r}")
+        if m.name in taken or m.name == "native":
+            raise ValueError(f"{engine.name}: mode {m.name!r} is already provided by {taken.get(m.name, 'xcheck')}")
+    _registered[engine.name] = engine
+
+
+def register(engine: Engine | type[Engine], replace: bool = False) -> Engine:
+    """Add an engine (an instance or a class) to the registry; returns the instance.
+
+    Raises
+    ------
+    ValueError
+        If its name or one of its modes' names is taken (unless ``replace``).
+    """
+    _load()
+    instance = _instance(engine)
+    _add(instance, replace)
+    return instance
+
+
+def unregister(name: str) -> None:
+    """Remove an engine (no error if absent)."""
+    _load()
+    _registered.pop(name, None)
+
+
+def engines() -> tuple[Engine, ...]:
+    """Every registered engine, built-in first."""
+    _load()
+    return tuple(_registered.values())
+
+
+def engine(name: str) -> Engine:
+    """An engine by name; ValueError listing the names if unknown."""
+    _load()
+    if name not in _registered:
+        raise ValueError(f"expected an engine among {', '.join(_registered)}, found {name!r}")
+    return _registered[name]
+
+
+def modes() -> tuple[Mode, ...]:
+    """Every mode of every engine: kinematic modes first, then dynamic, each in engine order."""
+    every = [m for e in engines() for m in e.modes]
+    return tuple(sorted(every, key=lambda m: KINDS.index(m.kind)))
+
+
+def mode(name: str) -> Mode:
+    """A mode by name; ValueError listing the names if unknown."""
+    found = {m.name: m for m in modes()}
+    if name not in found:
+        raise ValueError(f"expected an engine mode among {', '.join(found)}, found {name!r}")
+    return found[name]
+
+
+def engine_of(mode_name: str) -> Engine:
+    """The engine that provides a mode."""
+    for e in engines():
+        if any(m.name == mode_name for m in e.modes):
+            return e
+    raise ValueError(f"expected an engine mode among {', '.join(m.name for m in modes())}, found {mode_name!r}")
+
+
+def groups() -> dict[str, tuple[str, ...]]:
+    """``--engines`` shortcuts: each engine's name, and each kind, to its modes."""
+    found = {e.name: tuple(m.name for m in e.modes) for e in engines() if e.modes}
+    for kind in KINDS:
+        found.setdefault(kind, tuple(m.name for m in modes() if m.kind == kind))
+    return found
+
+
+def exporters() -> dict[str, Engine]:
+    """File format -> the engine that writes it."""
+    return {e.export_format: e for e in engines() if e.export_format}
+
+
+def load_problems() -> dict[str, str]:
+    """Entry points that could not be loaded: name -> reason."""
+    _load()
+    return dict(_problems)

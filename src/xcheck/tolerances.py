@@ -1,0 +1,94 @@
+"""Tolerances: what a mode must meet, and the bounds every engine shares.
+
+A :class:`Tolerance` bounds each quantity category of a mode's difference from
+the native solution; :data:`ROUND_OFF` is the bound of a kinematic oracle
+(an engine's own kinematics must reproduce the exact solution), :data:`EXACT`
+that of an independent exact method, :data:`CONVERGES` marks a category a
+dynamic mode's own convergence study judges (see :mod:`xcheck.runner`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Tolerance", "EPSILON", "CONDITIONING_FACTOR", "conditioned_round_off", "ROUND_OFF", "EXACT",
+           "CONVERGES", "CONVERGENCE_NOTE", "convergence_round_off"]
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """What a mode must meet.
+
+    ``position`` is a fraction of the mechanism's size, ``angle`` in rad,
+    ``velocity`` (velocities and angular velocities) and ``acceleration``
+    (accelerations and angular accelerations) fractions of the largest
+    magnitude of that quantity in the mechanism, but at least of its physical
+    floor (:func:`xcheck.compare.scale_floors`); ``basis`` says where the
+    numbers come from.
+    """
+
+    position: float
+    angle: float
+    velocity: float
+    acceleration: float
+    basis: str
+    conditioned: bool = False
+
+    def limit(self, category: str, condition: float = 1.0) -> float:
+        """The bound of a category; with ``conditioned``, at least the round-off
+        that the sweep's conditioning allows (:func:`conditioned_round_off`)."""
+        base = {"position": self.position, "angle": self.angle, "velocity": self.velocity,
+                "omega": self.velocity, "acceleration": self.acceleration,
+                "alpha": self.acceleration}[category]
+        return max(base, conditioned_round_off(category, condition)) if self.conditioned else base
+
+
+#: Unit round-off of float64, and the factor on it in conditioned_round_off.
+EPSILON = float(np.finfo(float).eps)
+CONDITIONING_FACTOR = 10.0
+
+
+def conditioned_round_off(category: str, condition: float) -> float:
+    """The round-off an exact method may show at a configuration whose scaled
+    constraint Jacobian has condition number ``condition`` (kappa).
+
+    Forward error <= kappa x backward error (about EPSILON): positions and
+    angles come from a solve with the Jacobian (10 EPSILON kappa); rates from
+    the velocity solve and accelerations from a second solve whose right-hand
+    side carries the velocities' error, so both are allowed 10 EPSILON kappa^2.
+    Measured on a parallelogram 1 % from its change points (kappa = 323, the
+    worst of tests/data/para.toml): angular accelerations 3.4e-11 (1.5
+    EPSILON kappa^2), angular rates 5.4e-13 (7.7 EPSILON kappa); the models'
+    worst conditioning is kappa = 156 (task-2-1), where the exact methods'
+    rates stay below 5e-14 and the bound is 5.4e-11.
+    """
+    power = 1 if category in ("position", "angle") else 2
+    return CONDITIONING_FACTOR * EPSILON * condition ** power
+
+
+CONDITIONED = ("; at least 10 eps kappa (positions, angles) and 10 eps kappa^2 (rates), kappa the largest "
+                "condition number of the scaled constraint Jacobian over the compared states")
+ROUND_OFF = Tolerance(1e-10, 1e-10, 1e-9, 1e-9, "round-off: the engine's own kinematics must reproduce the "
+                       "exact solution (measured at most 3.4e-14 of the size, 1.2e-12 relative, over all models)"
+                       + CONDITIONED, conditioned=True)
+EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-off (measured at most "
+                   "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)" + CONDITIONED,
+                   conditioned=True)
+#: a dynamic mode's category judged by its convergence (the mode's expected orders), not a fixed bound
+CONVERGES = math.nan
+#: the end of the basis of a tolerance judged by convergence
+CONVERGENCE_NOTE = ("; each error at most the coarser step's times (h_f / h_c)^(order - 0.5) plus the engine's "
+                    "noise floor (its kinematic round-off bound)")
+
+
+def convergence_round_off(category: str) -> float:
+    """Errors at or below an engine's round-off bound per category (the bound
+    its own kinematics must meet, :data:`ROUND_OFF`: 1e-10 of the size or rad,
+    1e-9 relative for rates) show no order: there the error is the engine's
+    solver noise, not truncation; differenced over +-h it even grows as h
+    falls (pymunk's accelerations on an all-sliding wedge: 4.4e-11 at h = 2.5
+    ms, 5.3e-10 at 1.25 ms)."""
+    return ROUND_OFF.limit(category)

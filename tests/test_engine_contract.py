@@ -1,0 +1,111 @@
+"""The engine contract: an engine registered from this module alone appears in
+``xcheck run``, ``--engines``, ``engines``, ``list``, the JSON and the report,
+judged like the built-in ones; an engine that raises fails with its reason
+while the others run; one whose package is missing says so.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import MODELS
+from typer.testing import CliRunner
+
+from xcheck import engines
+from xcheck.cli import app
+from xcheck.compare import ModeResult, trajectory_from_solution
+from xcheck.tolerances import Tolerance
+
+#: the toy's known error: every position moved by this fraction of the mechanism's size along x
+SHIFT = 3e-7
+
+
+class Shifted(engines.Engine):
+    """The native sweep with every body and point position moved by SHIFT x size along x."""
+
+    name = "toy"
+    title = "a toy engine"
+    modes = (engines.Mode("toy-kinematic", "kinematic",
+                          Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "the toy: positions within 1e-6 of the size")),)
+
+    def run(self, mode, kinematics, *, native, samples, branch=None):
+        trajectory = trajectory_from_solution(native, source=mode)
+        shift = np.array([SHIFT * kinematics.system.size, 0.0])
+        for states in (*trajectory.bodies.values(), *trajectory.points.values()):
+            states["position"] = states["position"] + shift
+        return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+
+
+class Exploding(engines.Engine):
+    name = "boom"
+    modes = (engines.Mode("boom-kinematic", "kinematic", Tolerance(1, 1, 1, 1, "anything")),)
+
+    def run(self, mode, kinematics, *, native, samples, branch=None):
+        raise RuntimeError("the toy engine exploded")
+
+
+class Missing(engines.Engine):
+    name = "absent"
+    requires = ("no_such_package_xcheck_test",)
+    install = "pip install absent"
+    modes = (engines.Mode("absent-dynamic", "dynamic", Tolerance(1, 1, 1, 1, "anything")),)
+
+
+@pytest.fixture
+def toys():
+    registered = [engines.register(engine) for engine in (Shifted, Exploding, Missing)]
+    yield registered
+    for engine in registered:
+        engines.unregister(engine.name)
+
+
+def _cli(*args):
+    return CliRunner().invoke(app, [*args, "--models", str(MODELS)])
+
+
+def test_toy_engines_are_judged_and_reported(toys, tmp_path):
+    result = _cli("run", "fourbar", "--engines", "toy,boom,absent,formulation-II", "--json", "--samples", "21",
+                  "--out", str(tmp_path))
+    assert result.exit_code == 1, result.output  # boom failed
+    doc = json.loads(result.stdout)
+    toy = doc["engines"]["toy-kinematic"]
+    assert toy["pass"] is True
+    # the known error: SHIFT of the size, to round-off
+    assert toy["relative"]["position"] == pytest.approx(SHIFT, rel=1e-6)
+    assert toy["relative"]["velocity"] <= 1e-12
+    boom = doc["engines"]["boom-kinematic"]
+    assert boom["pass"] is False and "RuntimeError: the toy engine exploded" in boom["reason"]
+    assert doc["engines"]["formulation-II"]["pass"] is True  # the others still ran
+    assert "not installed: no_such_package_xcheck_test (pip install absent)" in doc["not_applicable"]["absent-dynamic"]
+    report = (tmp_path / "fourbar.md").read_text(encoding="utf-8")
+    assert "`toy-kinematic`" in report and "the toy: positions within 1e-6 of the size" in report
+    assert "the toy engine exploded" in report
+
+
+def test_toy_engines_are_listed_and_selectable(toys):
+    listed = CliRunner().invoke(app, ["engines", "--json"])
+    assert listed.exit_code == 0, listed.output
+    by_name = {e["name"]: e for e in json.loads(listed.stdout)["engines"]}
+    assert by_name["toy"]["modes"] == [{"name": "toy-kinematic", "kind": "kinematic"}]
+    assert by_name["absent"]["available"] is False
+    assert "toy (toy-kinematic)" in _cli("list").stdout
+    kinematic = _cli("run", "fourbar", "--engines", "kinematic", "--json", "--no-report", "--samples", "11")
+    assert "toy-kinematic" in json.loads(kinematic.stdout)["engines"]
+
+
+def test_an_unknown_group_names_the_toys(toys):
+    result = _cli("run", "fourbar", "--engines", "nosuch")
+    assert result.exit_code == 2 and "toy-kinematic" in result.stderr and "boom" in result.stderr
+
+
+def test_a_taken_name_is_refused(toys):
+    class Clash(engines.Engine):
+        name = "clash"
+        modes = (engines.Mode("toy-kinematic", "kinematic", Tolerance(1, 1, 1, 1, "")),)
+
+    with pytest.raises(ValueError, match="already provided by toy"):
+        engines.register(Clash)
+    with pytest.raises(ValueError, match="already registered"):
+        engines.register(Shifted)
