@@ -68,7 +68,8 @@ def test_a_stalled_convergence_fails(two_second_trammel):
     mode = "pinocchio-dynamic"
     outcome = run.outcomes[mode]
     compared = outcome.trajectory
-    stalled = dataclasses.replace(compared, settings={**compared.settings, "dt": 2.0 * compared.settings["dt"]})
+    settings = {**compared.settings, "timestep": 2.0 * compared.settings["timestep"]}
+    stalled = dataclasses.replace(compared, settings=settings)
     result = ModeResult(mode, kin.mechanism.name, True, trajectories=[compared, stalled])
     categories = _categorise(kin, outcome.details, tolerance(mode))
     verdict = _convergence_verdict(kin, mode, result, categories, tolerance(mode), run.floors, None)
