@@ -5,9 +5,8 @@ from __future__ import annotations
 import functools
 import json
 import math
-import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Any, Optional
 
 import numpy as np
 import typer
@@ -109,7 +108,8 @@ def list_command(
     else:
         directory = models_dir(chosen)
         paths = [directory / f"{name}.toml" for name in model_names(directory)]
-    rows, failures = [], []
+    rows: list[dict[str, Any]] = []
+    failures: list[str] = []
     for path in paths:  # one bad file is reported at the end; the others are listed
         try:
             mech = load_mechanism(path)
@@ -163,10 +163,11 @@ def engines_command(
 
     Examples: xcheck engines;  xcheck engines --json
     """
-    rows = [{"name": e.name, "title": e.title, "available": not e.available(), "reason": e.available() or None,
-             "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
-             "forces": e.force_tolerance is not None, "export_format": e.export_format, "notes": e.notes}
-            for e in registry.engines()]
+    rows: list[dict[str, Any]] = [
+        {"name": e.name, "title": e.title, "available": not e.available(), "reason": e.available() or None,
+         "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
+         "forces": e.force_tolerance is not None, "export_format": e.export_format, "notes": e.notes}
+        for e in registry.engines()]
     problems = registry.load_problems()
     if as_json:
         typer.echo(json.dumps({"engines": rows, "plugin_errors": problems}, indent=2, ensure_ascii=False))
@@ -562,7 +563,7 @@ def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
             try:
                 result = driver.law.state_at(value)
             except OverflowError:  # absurd rates or accelerations
-                result = (math.inf,)
+                result = (math.inf, math.inf, math.inf)
             shown = mech.units.show_input(driver.quantity, value, digits=12)
             if result is None:
                 raise InputError(f"{mech.path}: --at {driver.name}: expected a value that the driver's "
@@ -628,4 +629,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    main()

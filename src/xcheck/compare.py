@@ -319,8 +319,8 @@ def relative_to_floored_scale(table: pd.DataFrame, kind_column: str,
         largest = table.groupby(kind_column)["scale"].transform("max")
         floor = table[kind_column].map(lambda kind: (floors or {}).get(kind, 0.0)).astype(float)
         table["scale"] = np.maximum(np.maximum(table["scale"], SCALE_FLOOR * largest), floor)
-        table.insert(table.columns.get_loc("scale") + 1, "floor", floor)
+        table.insert(list(table.columns).index("scale") + 1, "floor", floor)
         with np.errstate(divide="ignore", invalid="ignore"):
-            table.insert(table.columns.get_loc("floor") + 1, "max_rel",
+            table.insert(list(table.columns).index("floor") + 1, "max_rel",
                          np.where(table["scale"] > 0, table["max_abs"] / table["scale"], table["max_abs"]))
     return table

@@ -254,7 +254,7 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
         row = {"engine": r.engine, "ok": r.ok, "reason": r.reason, "max_rel": np.nan, "name": "", "quantity": "",
                "max_abs": np.nan, "unit": "", "floor": np.nan, "states": 0, "seconds": r.seconds}
         if r.ok and r.table is not None and not r.table.empty:
-            worst = r.table.loc[r.table["max_rel"].idxmax()]
+            worst = r.table.iloc[int(np.nanargmax(r.table["max_rel"].to_numpy()))]
             row.update(max_rel=float(worst["max_rel"]), name=worst["name"], quantity=worst["quantity"],
                        max_abs=float(worst["max_abs"]), unit=worst["unit"], floor=float(worst["floor"]),
                        states=int(worst["samples"]))

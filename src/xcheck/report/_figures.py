@@ -65,14 +65,14 @@ def tracked(run: RunResult) -> tuple[str, str]:
     ground = set(mech.ground.points)
     speeds = {label: np.nanmax(np.linalg.norm(native.point(label)["velocity"], axis=1))
               for label in mech.point_owners if label not in ground}
-    point = max(speeds, key=speeds.get)
+    point = max(speeds, key=lambda label: speeds[label])
     driven = set()
     for d in mech.drivers:
         joint = mech.joint(d.joint)
         driven.add(joint.body_b)
     spans = {b.name: np.ptp(native.body(b.name)["omega"]) for b in mech.moving_bodies}
     candidates = {k: v for k, v in spans.items() if k not in driven} or spans
-    return point, max(candidates, key=candidates.get)
+    return point, max(candidates, key=lambda name: candidates[name])
 
 
 def _body_outline(points: np.ndarray):
@@ -171,6 +171,7 @@ def _series(run: RunResult, mode: str, point: str, body: str):
         p, b, inputs = sol.point(point), sol.body(body), sol.inputs[:, 0]
     else:
         t = run.outcomes[mode].trajectory
+        assert t is not None  # only modes that produced a trajectory are plotted
         p, b, inputs = t.points.get(point, {}), t.bodies.get(body, {}), t.inputs[:, 0]
     return {
         "position": (inputs, p["position"][:, 0]) if "position" in p else None,

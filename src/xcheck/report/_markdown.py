@@ -57,9 +57,9 @@ def _comparison_section(run: RunResult) -> str:
         worst = ""
         if table is not None:
             ratios = table.relative / table.tolerance
-            c = ratios.idxmax()
-            x = table.loc[c, "worst_input"]
-            worst = f"{c}: {table.loc[c, 'worst']} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
+            c = str(ratios.idxmax())
+            x = float(table.at[c, "worst_input"])  # type: ignore[arg-type]  # pandas-stubs: a cell is any scalar
+            worst = f"{c}: {table.at[c, 'worst']!s} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
         result = "pass" if outcome.passed else "**FAIL**"
         if outcome.reason:
             result += f" ({outcome.reason})"
@@ -125,12 +125,14 @@ def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
         parts.append(f"**`{mode}`** — compared: {trajectory.notes if trajectory is not None else outcome.reason}")
         if not table.empty:
             parts.append(_table(["series", "time step [s]", "position error [m]", "observed order", "status"],
-                                [[r.series, _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3), r.status]
+                                [[str(r.series), _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3),
+                                  str(r.status)]
                                  for r in table.itertuples()], "lrrrl"))
         if "basis" in outcome.categories:
             parts.append("Verdict (the compared run against the next coarser one of the same settings):\n\n" + _table(
                 ["category", "difference", "limit", "result", "basis"],
-                [[r.category, _g(r.relative, 3), _g(r.tolerance, 3), "pass" if r.passed else "**FAIL**", r.basis]
+                [[str(r.category), _g(r.relative, 3), _g(r.tolerance, 3), "pass" if r.passed else "**FAIL**",
+                  str(r.basis)]
                  for r in outcome.categories.itertuples()], "lrrll"))
     if "convergence" in images:
         parts.insert(0, f"![error against time step]({images['convergence']})")
@@ -173,6 +175,7 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
                      f"{_g(r.tolerance, 2)} (scale ≥ {_g(r.floor, 3)} {r.unit})",
                      f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}", str(r.states)])
     e = run.energy
+    assert e is not None  # computed with the forces
     text = ("Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
             "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
             "each source against the native multipliers of M q'' - Phi_q^T lambda = Q at the source's own "
