@@ -10,6 +10,8 @@ from xcheck import Kinematics, load_mechanism
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
+#: mechanism files written for the tests (each with a header saying what it covers)
+DATA = Path(__file__).resolve().parent / "data"
 MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.toml"))
 
 
@@ -24,3 +26,25 @@ def kinematics():
         return cache[name]
 
     return get
+
+
+def invoke(*args: str, cwd: Path = ROOT, unset: tuple[str, ...] = ("XCHECK_MODELS", "XCHECK_COMPARISONS")):
+    """Run the command line in this process (typer's CliRunner), from ``cwd``
+    and without the environment variables ``unset``, as a
+    :class:`subprocess.CompletedProcess` (returncode, stdout, stderr). An
+    exception the CLI did not turn into an exit code shows as its traceback
+    on stderr, as it would from the shell."""
+    import contextlib
+    import subprocess
+    import traceback
+
+    from typer.testing import CliRunner
+
+    from xcheck.cli import app
+
+    with contextlib.chdir(cwd):
+        result = CliRunner().invoke(app, list(args), env=dict.fromkeys(unset))
+    stderr = result.stderr
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        stderr += "".join(traceback.format_exception(result.exception))
+    return subprocess.CompletedProcess(["xcheck", *args], result.exit_code, result.stdout, stderr)

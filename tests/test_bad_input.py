@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import invoke
 
 from xcheck import Kinematics, ModelError, load_mechanism
 
@@ -58,6 +59,12 @@ def library_error(path: Path) -> ModelError:
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """The command line, in this process (see :func:`conftest.invoke`)."""
+    return invoke(*args)
+
+
+def run_shell(*args: str) -> subprocess.CompletedProcess:
+    """The installed ``xcheck`` command in a fresh process: the smoke tests."""
     env = {k: v for k, v in os.environ.items() if k != "XCHECK_MODELS"}
     env["PYTHONIOENCODING"] = "utf-8"
     return subprocess.run([str(XCHECK), *args], capture_output=True, text=True, encoding="utf-8",
@@ -213,7 +220,7 @@ def test_missing_file(tmp_path):
     assert err.field == ""
     assert err.expected == "a readable mechanism file"
     assert "No such file" in err.found
-    error_line(run_cli("solve", str(path)), str(path), "expected a mechanism file", "no such file")
+    error_line(run_shell("solve", str(path)), str(path), "expected a mechanism file", "no such file")
 
 
 def test_file_not_utf8(tmp_path):
@@ -222,7 +229,7 @@ def test_file_not_utf8(tmp_path):
     err = library_error(path)
     assert err.expected == "a UTF-8 text file"
     assert "not UTF-8" in err.found
-    error_line(run_cli("solve", str(path)), str(path), "expected a UTF-8 text file")
+    error_line(run_shell("solve", str(path)), str(path), "expected a UTF-8 text file")
 
 
 # -- inputs outside the feasible range -------------------------------------------

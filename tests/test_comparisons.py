@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import MODELS, ROOT
+from conftest import MODELS, ROOT, invoke
 
 from xcheck import Kinematics, ModelError, load_mechanism
 from xcheck.textbook import (
@@ -367,6 +367,12 @@ def test_bad_entry_is_one_line_naming_file_and_entry(tmp_path, fourbar_mechanism
 # -- the command line ---------------------------------------------------------
 
 def _run(*args: str) -> subprocess.CompletedProcess:
+    """The command line, in this process (see :func:`conftest.invoke`)."""
+    return invoke(*args)
+
+
+def _shell(*args: str) -> subprocess.CompletedProcess:
+    """The installed ``xcheck`` command in a fresh process: a smoke test."""
     env = {k: v for k, v in os.environ.items() if k not in ("XCHECK_MODELS", "XCHECK_COMPARISONS")}
     env["PYTHONIOENCODING"] = "utf-8"
     return subprocess.run([str(XCHECK), *args], capture_output=True, text=True, encoding="utf-8", cwd=ROOT,
@@ -388,7 +394,7 @@ def test_cli_json_has_the_textbook_comparison(checked):
 
 
 def test_cli_table_shows_the_textbook_comparison():
-    done = _run("solve", "fourbar")
+    done = _shell("solve", "fourbar")
     assert done.returncode == 0, done.stderr
     assert "printed" in done.stdout and "disagrees" in done.stdout
     assert "2,30906" in done.stdout and "Mathematica" in done.stdout

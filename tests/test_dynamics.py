@@ -14,10 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MODEL_NAMES, MODELS
-from test_kinematics import INVERTED, SLIDER_DRIVEN
-from test_mujoco import REVERSED
-from test_pymunk import BLOCK_DRIVEN
+from conftest import DATA, MODEL_NAMES, MODELS
 from typer.testing import CliRunner
 
 from xcheck import Kinematics, ModelError, load_mechanism
@@ -35,6 +32,11 @@ from xcheck.dynamics import (
     window_states,
 )
 from xcheck.model import parse_mechanism
+
+INVERTED = (DATA / "inverted.toml").read_text()
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
+REVERSED = (DATA / "reversed.toml").read_text()
+BLOCK_DRIVEN = (DATA / "block-driven.toml").read_text()
 
 
 def with_mass(text: str, props: dict, extra: str = "") -> str:

@@ -11,9 +11,8 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MODEL_NAMES
+from conftest import DATA, MODEL_NAMES
 from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
-from test_kinematics import INVERTED, SLIDER_DRIVEN
 
 from xcheck import Kinematics, Status
 from xcheck.compare import differences
@@ -26,6 +25,9 @@ from xcheck.formulations import (
     run_formulation,
 )
 from xcheck.model import parse_mechanism
+
+INVERTED = (DATA / "inverted.toml").read_text()
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
 
 # A Grashof crank-rocker with a tilted ground line, an L-shaped crank (its frame
 # not along A->B), the driven joint written (crank, ground) so the input is

@@ -8,77 +8,14 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MODEL_NAMES, MODELS
+from conftest import DATA, MODEL_NAMES
 
 from xcheck import Kinematics, Status
 from xcheck.model import parse_mechanism
 from xcheck.output import solution_json
 
-SLIDER_DRIVEN = (MODELS / "slider-crank.toml").read_text().replace(
-    'name = "crank"\njoint = "O"\nmotion = "constant-rate"\nstart = 0\nrate = 100                # rad/s',
-    'name = "slide"\njoint = "slide"\nmotion = "harmonic"\ncentre = 340\namplitude = 80\nfrequency = 5',
-).replace("at = { crank = 0 }", "at = { slide = 400 }").split("[[instants]]")[0]
-
-# Inverted slider-crank: the crank pin A slides in a slot of the rocker
-# (pin-in-slot on a moving body), and a block on the rocker slides along it
-# with its rotation locked (prismatic on a moving body), pinned to a second crank.
-INVERTED = """
-[mechanism]
-name = "inverted"
-[units]
-length = "m"
-[ground]
-points = { O = [0, 0], C = [0.3, 0], G = [0.1, 0.2] }
-[bodies.crank]
-points = { O = [0, 0], A = [0.1, 0] }
-[bodies.rocker]
-points = { C = [0, 0], S = [1, 0] }
-[bodies.block]
-points = { P = [0, 0] }
-[bodies.arm]
-points = { G = [0, 0], P = [0.25, 0] }
-[[joints]]
-type = "revolute"
-bodies = ["ground", "crank"]
-point = "O"
-[[joints]]
-type = "revolute"
-bodies = ["ground", "rocker"]
-point = "C"
-[[joints]]
-name = "slot"
-type = "pin-in-slot"
-bodies = ["rocker", "crank"]
-line = ["C", "S"]
-point = "A"
-[[joints]]
-name = "block"
-type = "prismatic"
-bodies = ["rocker", "block"]
-line = "C"
-direction = 0
-point = "P"
-[[joints]]
-type = "revolute"
-bodies = ["ground", "arm"]
-point = "G"
-[[joints]]
-type = "revolute"
-bodies = ["block", "arm"]
-point = "P"
-[[drivers]]
-name = "crank"
-joint = "O"
-motion = "constant-acceleration"
-start = 20
-rate = 3
-acceleration = -4
-[assembly]
-at = { crank = 20 }
-[assembly.branches.main]
-A = [0.094, 0.034]
-P = [-0.11, 0.07]
-"""
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
+INVERTED = (DATA / "inverted.toml").read_text()
 
 
 def _orientation(solution, first, second, third):

@@ -12,8 +12,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 import pytest
-from conftest import MODEL_NAMES, MODELS, ROOT
-from test_kinematics import INVERTED, SLIDER_DRIVEN
+from conftest import DATA, MODEL_NAMES, MODELS
 
 from xcheck import Kinematics, ModelError
 from xcheck.compare import differences
@@ -22,54 +21,14 @@ from xcheck.errors import XcheckError
 from xcheck.model import parse_mechanism
 from xcheck.topology import spanning_tree
 
+INVERTED = (DATA / "inverted.toml").read_text()
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
+
 # The inverted slider-crank and the slide-driven slider-crank cover pin-in-slot and
 # prismatic joints on moving bodies and a slide input; REVERSED covers what no model
 # has: revolutes listed child first (the hinge axis flips), a prismatic joint whose
 # line is on the moving body (the ground point slides) with a locked angle of -20 deg.
-REVERSED = """
-[mechanism]
-name = "reversed"
-[units]
-length = "m"
-[ground]
-points = { O = [0, 0], E = [0, 0.04] }
-[bodies.crank]
-points = { O = [0, 0], A = [0.1, 0] }
-[bodies.rod]
-points = { A = [0, 0], B = [0.35, 0] }
-[bodies.slider]
-points = { B = [0, 0], L = [0.05, 0.02] }
-[[joints]]
-type = "revolute"
-bodies = ["crank", "ground"]
-point = "O"
-[[joints]]
-type = "revolute"
-bodies = ["rod", "crank"]
-point = "A"
-[[joints]]
-type = "revolute"
-bodies = ["slider", "rod"]
-point = "B"
-[[joints]]
-name = "slide"
-type = "prismatic"
-bodies = ["slider", "ground"]
-line = "L"
-direction = 30
-point = "E"
-angle = -20
-[[drivers]]
-name = "crank"
-joint = "O"
-motion = "constant-rate"
-start = 0
-rate = -50
-[assembly]
-at = { crank = 0 }
-[assembly.branches.up]
-B = [0.23, 0.33]
-"""
+REVERSED = (DATA / "reversed.toml").read_text()
 
 # A loop closed by sliding joints only: a table sliding on the ground, a wedge
 # sliding up the table, the wedge's pin in an inclined slot of the ground.
@@ -117,7 +76,6 @@ at = { push = 0.1 }
 W = [0.1, 0.1]
 """
 
-DATA = ROOT / "tests" / "data"
 
 STRINGS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "reversed": REVERSED}
 CASES = [*MODEL_NAMES, *STRINGS]

@@ -30,8 +30,7 @@ from xml.etree import ElementTree
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import MODEL_NAMES, MODELS
-from test_kinematics import INVERTED, SLIDER_DRIVEN
+from conftest import DATA, MODEL_NAMES, MODELS
 
 from xcheck import Kinematics, engines, load_mechanism
 from xcheck.compare import differences
@@ -50,6 +49,9 @@ REVERSED_SLIDER = (MODELS / "slider-crank.toml").read_text().replace(
     'bodies = ["ground", "slider"]\nline = "E"\ndirection = 0\npoint = "B"',
     'bodies = ["slider", "ground"]\nline = "B"\ndirection = 30\npoint = "E"\nangle = 30',
 ).split("[[instants]]")[0]
+
+INVERTED = (DATA / "inverted.toml").read_text()
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
 
 # The slider-crank with its driven pin written crank-first, so the driven
 # revolute is reversed in the tree (input = minus the joint coordinate).

@@ -12,8 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MODEL_NAMES, ROOT
-from test_kinematics import INVERTED, SLIDER_DRIVEN
+from conftest import DATA, MODEL_NAMES, ROOT
 
 from xcheck import Kinematics, engines, load_mechanism
 from xcheck.compare import differences
@@ -28,22 +27,12 @@ from xcheck.engines.pymunk.modes import (
 from xcheck.engines.pymunk.scene import native_window
 from xcheck.model import parse_mechanism
 
+INVERTED = (DATA / "inverted.toml").read_text()
+SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
+
 # The inverted slider-crank driven by the slide of its block along the rocker
 # (a driven prismatic between two moving bodies: the slide servo).
-BLOCK_DRIVEN = INVERTED.split("[[drivers]]")[0] + """
-[[drivers]]
-name = "block"
-joint = "block"
-motion = "harmonic"
-centre = -0.3
-amplitude = 0.12
-frequency = 1
-[assembly]
-at = { block = -0.3 }
-[assembly.branches.main]
-A = [0.094, 0.034]
-P = [-0.11, 0.07]
-"""
+BLOCK_DRIVEN = (DATA / "block-driven.toml").read_text()
 EXTRA = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "block-driven": BLOCK_DRIVEN}
 MECHANISMS = MODEL_NAMES + list(EXTRA)
 
