@@ -30,6 +30,7 @@ def test_every_mode_has_a_tolerance_and_one_engine():
     assert {"formulations", "mujoco", "pinocchio", "pymunk"} <= {e.name for e in engines.engines()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", MODEL_NAMES)
 def test_every_mode_within_tolerance(kinematics, name):
     """The whole comparison on every mechanism: every mode that applies runs,
@@ -120,6 +121,7 @@ def test_a_failing_mode_is_reported_and_others_run(monkeypatch):
     assert next(line for line in result.stdout.splitlines() if line.startswith("formulation-I ")).split()[1] == "pass"
 
 
+@pytest.mark.slow
 def test_reports_are_written_whole(tmp_path):
     result = _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "--quiet")
     assert result.exit_code == 0, result.output

@@ -290,6 +290,7 @@ def test_wedge_closed_form():
     assert plunger["omega"] == 0.0 and state["bodies"]["wedge"]["alpha"] == 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["scotch-yoke", "elliptic-trammel", "fourbar-200", "wedge", "rocker-driven"])
 def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path):
     """The bar of issue 12: the user-written mechanisms through `xcheck run FILE`,

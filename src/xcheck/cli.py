@@ -17,7 +17,8 @@ from rich.table import Table
 
 from . import __version__
 from . import engines as registry
-from .catalog import comparisons_dir, comparisons_path, model_names, model_path, models_dir, reports_dir
+from .api import printed_answers, select_modes
+from .catalog import model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -34,8 +35,7 @@ from .output import (
     wide_console,
 )
 from .report import index_entry, write_index, write_report
-from .runner import all_modes, run_mechanism
-from .textbook import check_printed, load_comparisons
+from .runner import run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -249,7 +249,7 @@ def solve_command(
             forces_error = err
     textbook, textbook_error, document = None, None, ""
     try:
-        textbook, document = _textbook_for(path, kin, comparisons)
+        textbook, document = printed_answers(kin, comparisons)
     except XcheckError as err:
         textbook_error = err
     if as_json:
@@ -266,42 +266,6 @@ def solve_command(
         raise forces_error
     if textbook_error is not None:
         raise textbook_error
-
-
-def _parse_engines(text: str | None) -> tuple[str, ...]:
-    """The modes ``--engines`` names: modes, or groups (an engine's name, a kind) from the registry."""
-    every, groups = all_modes(), registry.groups()
-    if text is None:
-        return every
-    chosen = []
-    for item in (part.strip() for part in text.split(",") if part.strip()):
-        if item in every:
-            chosen.append(item)
-        elif item in groups:
-            chosen.extend(groups[item])
-        else:
-            raise InputError(f"--engines: expected modes or groups among {', '.join(every)}, "
-                             f"{', '.join(groups)}, found {item!r}")
-    if not chosen:
-        raise InputError(f"--engines: expected at least one mode or group among {', '.join(every)}, "
-                         f"{', '.join(groups)}, found {text!r}")
-    return tuple(dict.fromkeys(["native", *chosen]))
-
-
-def _textbook_for(path: Path, kin: Kinematics, comparisons) -> tuple[list[dict] | None, str]:
-    """The printed answers of a mechanism file checked (None if it has no
-    comparisons file), and the document they come from.
-
-    Raises
-    ------
-    XcheckError
-        If the comparisons file is bad.
-    """
-    found = comparisons_path(path, comparisons_dir(path, comparisons))
-    if found is None:
-        return None, ""
-    printed = load_comparisons(found, kin.mechanism)
-    return check_printed(kin, printed), printed.document
 
 
 @app.command("run")
@@ -334,7 +298,7 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
-    modes = _parse_engines(engines)
+    modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
     if out is not None and out.exists() and not out.is_dir():
@@ -358,7 +322,7 @@ def run_command(
                 def step(mode, label=label):
                     progress.update(task, description=f"{label}: {mode}", advance=1)
 
-                textbook, _ = _textbook_for(path, kin, comparisons)
+                textbook, _ = printed_answers(kin, comparisons)
                 run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
             except XcheckError as err:
                 failures.append(str(err))
