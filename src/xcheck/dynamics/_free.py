@@ -1,0 +1,496 @@
+"""Free motion: the native reference for a mechanism moving under gravity and loads.
+
+The constrained equations of motion in body coordinates,
+
+    M(q) q'' + Phi_q^T lambda = Q(q, q'),   Phi(q) = 0,
+
+are integrated by the classical fixed-step RK4 on the index-1 form, the
+accelerations from Gauss's principle (the M-weighted least-squares solution of
+Phi_q q'' = gamma, which stays defined where Phi_q loses rank at a singular
+configuration), and after every step the positions and then the velocities
+are projected back onto the constraints along M^-1 Phi_q^T (the M-weighted
+smallest correction), so the loops stay closed to round-off and the motion
+stays on the branch it came from through singular positions. (An adaptive
+DOP853 on the same index-1 form leaves the physical branch or stalls at the
+singular passes of the IFToMM double four-bar, even at rtol 1e-12.)
+
+:func:`free_reference` runs a ladder of halving steps until two consecutive
+runs agree to the requested accuracy; the difference between them is the
+stated error estimate (for RK4 about 15 times the finer run's true error).
+
+Drivers play no part: their rows are left out (the mechanism moves freely).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..kinematics import Kinematics, Solution, Status
+
+__all__ = ["FreeState", "FreeMotion", "FreeReference", "mass_matrix", "simulate_free", "free_reference",
+           "consistent_state"]
+
+#: smallest singular value of the dimensionless constraint Jacobian below which
+#: a local minimum (over the steps) counts as passing a singular configuration
+SINGULAR_THRESHOLD = 1e-2
+#: relative rank cut-off of the least-squares solves (of J M^-1 J^T, dimensionless)
+RANK_CUTOFF = 1e-12
+#: below this singularity measure the accelerations' multipliers come from
+#: least squares (rank-revealing) rather than a plain solve
+LEAST_SQUARES_BELOW = 1e-3
+#: the smallest error estimate, relative to the size: float64 round-off of the
+#: coordinates over a few thousand steps
+ROUND_OFF = 1e-14
+#: at most this many Newton iterations of the position projection after each step,
+#: stopping once the loops close to PROJECTION_TOLERANCE x size
+PROJECTION_ITERATIONS = 3
+PROJECTION_TOLERANCE = 1e-15
+
+
+@dataclass(frozen=True)
+class FreeState:
+    """A state of the free mechanism: body coordinates and their rates (n,), SI."""
+
+    q: np.ndarray
+    qd: np.ndarray
+
+
+@dataclass
+class FreeMotion:
+    """One integration of the free mechanism.
+
+    Attributes
+    ----------
+    times : ndarray, shape (N,)
+        Output times, s.
+    q, qd, qdd : ndarray, shape (N, n)
+        Body coordinates (x, y, phi per moving body; angles continuous), rates
+        and accelerations at the output times.
+    residual : ndarray, shape (N,)
+        Largest loop-closure violation before the projection of the step that
+        ends there, m (0 at t = 0): what one step drifts.
+    energy : ndarray, shape (N,)
+        Kinetic plus gravitational potential energy, J.
+    work : ndarray, shape (N,)
+        Work done by the applied loads since t = 0, J (integrated with the motion).
+    singular_passes : list of float
+        Times (s) at which the motion passed a singular configuration (a local
+        minimum of the smallest singular value of the dimensionless
+        constraint Jacobian below :data:`SINGULAR_THRESHOLD`).
+    step : float
+        The time step, s.
+    seconds : float
+        CPU time of the integration, s.
+    """
+
+    kinematics: Kinematics
+    times: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    residual: np.ndarray
+    energy: np.ndarray
+    work: np.ndarray
+    singular_passes: list[float]
+    step: float
+    seconds: float
+
+    def solution(self) -> Solution:
+        """The motion as a :class:`~xcheck.kinematics.Solution` (points, bodies,
+        reactions through :func:`xcheck.dynamics.inverse_dynamics`)."""
+        system = self.kinematics.system
+        n = len(self.times)
+        inputs = system.input_values(self.q)
+        k = inputs.shape[1]
+        jac = system.jacobian(self.q)
+        rates = np.einsum("nij,nj->ni", jac, self.qd)[:, system.n_kinematic:]
+        gamma = system.gamma(self.q, self.qd, np.zeros((n, k)))[:, system.n_kinematic:]
+        accelerations = np.einsum("nij,nj->ni", jac, self.qdd)[:, system.n_kinematic:] - gamma
+        return Solution(self.kinematics, self.kinematics._branch_name(None), inputs, rates, accelerations,
+                        self.q, self.qd, self.qdd, np.full(n, int(Status.OK)), self.residual,
+                        np.ones(n), np.zeros(n, dtype=int))
+
+    @property
+    def energy_error(self) -> np.ndarray:
+        """E(t) - E(0) - W(t): the energy balance's residual at each output, J (N,)."""
+        return self.energy - self.energy[0] - self.work
+
+
+@dataclass
+class FreeReference:
+    """The native reference: the finest run of a step ladder and its error estimate.
+
+    Attributes
+    ----------
+    motion : FreeMotion
+        The finest run.
+    estimate : ndarray, shape (N,)
+        At each output, the largest difference so far of a body position (m)
+        or angle (rad, times the mechanism's size) between the two finest
+        runs, at least 1e-14 of the size: the stated error bound (for RK4
+        about 15 times the finer run's own error).
+    relative : float
+        max(estimate) / size.
+    converged : bool
+        relative <= the requested tolerance.
+    ladder : list of dict
+        Per run: step (s), steps, seconds, and the difference from the previous run (m).
+    """
+
+    motion: FreeMotion
+    estimate: np.ndarray
+    relative: float
+    converged: bool
+    ladder: list[dict] = field(default_factory=list)
+
+
+def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
+    """M(q) in body coordinates (frame origin x, y and angle per body), (n, n).
+
+    A body of mass m, inertia I about its centre of mass G at s (body frame)
+    has, with a = A(phi) s, the block [[m, 0, -m a_y], [0, m, m a_x], [-m a_y,
+    m a_x, I + m |s|^2]] (:func:`_mass_blocks`).
+    """
+    blocks = _mass_blocks(_Bodies(kinematics), q)
+    n = blocks.shape[0] * 3
+    out = np.zeros((n, n))
+    for i, block in enumerate(blocks):
+        out[3 * i:3 * i + 3, 3 * i:3 * i + 3] = block
+    return out
+
+
+class _Bodies:
+    """Mass data of the moving bodies as arrays (B bodies)."""
+
+    def __init__(self, kinematics: Kinematics):
+        bodies = kinematics.mechanism.moving_bodies
+        self.mass = np.array([float(b.mass or 0.0) for b in bodies])
+        self.inertia = np.array([float(b.inertia or 0.0) for b in bodies])
+        self.com = np.array([np.zeros(2) if b.com is None else np.asarray(b.com, dtype=float) for b in bodies])
+        self.com = self.com.reshape(len(bodies), 2)
+
+    def arms(self, q: np.ndarray) -> np.ndarray:
+        """A(phi) s of every body's centre of mass, (B, 2)."""
+        c, sn = np.cos(q[2::3]), np.sin(q[2::3])
+        return np.stack([c * self.com[:, 0] - sn * self.com[:, 1], sn * self.com[:, 0] + c * self.com[:, 1]], axis=1)
+
+
+def _mass_blocks(bodies: _Bodies, q: np.ndarray) -> np.ndarray:
+    """Each body's 3 x 3 block of M(q), (B, 3, 3)."""
+    a = bodies.arms(q)
+    m = bodies.mass
+    blocks = np.zeros((len(m), 3, 3))
+    blocks[:, 0, 0] = blocks[:, 1, 1] = m
+    blocks[:, 0, 2] = blocks[:, 2, 0] = -m * a[:, 1]
+    blocks[:, 1, 2] = blocks[:, 2, 1] = m * a[:, 0]
+    blocks[:, 2, 2] = bodies.inertia + m * np.einsum("ij,ij->i", bodies.com, bodies.com)
+    return blocks
+
+
+class _Joints:
+    """The joints' constraints at one state, vectorised over the revolute
+    joints (point coincidences); other terms through their own equations.
+    Rows: the coincidences (2 each), then the other terms."""
+
+    def __init__(self, system):
+        from ..kinematics._system import _Coincidence, _Poses
+
+        self._poses = _Poses
+        terms = system.terms[: len(system.terms) - system.n_drivers]
+        coincidences = [t for t in terms if isinstance(t, _Coincidence)]
+        self.others = [t for t in terms if not isinstance(t, _Coincidence)]
+        self.n, ground = system.n, system.n // 3  # the ground is a padded body of zero coordinates
+        self.a = np.array([ground if t.a < 0 else t.a for t in coincidences], dtype=int)
+        self.b = np.array([ground if t.b < 0 else t.b for t in coincidences], dtype=int)
+        self.s_a = np.array([t.s_a for t in coincidences], dtype=float).reshape(-1, 2)
+        self.s_b = np.array([t.s_b for t in coincidences], dtype=float).reshape(-1, 2)
+        count = len(coincidences)
+        self.x_rows, self.y_rows = 2 * np.arange(count), 2 * np.arange(count) + 1
+        self.rows = 2 * count + sum(t.rows for t in self.others)
+        self.row_is_angle = np.array([False] * (2 * count) + [t.is_angle for t in self.others for _ in range(t.rows)],
+                                     dtype=bool)
+
+    def _turned(self, q: np.ndarray):
+        padded = np.concatenate([q, np.zeros(3)])
+        c, sn = np.cos(padded[2::3]), np.sin(padded[2::3])
+
+        def turn(index, s):
+            return np.stack([c[index] * s[:, 0] - sn[index] * s[:, 1], sn[index] * s[:, 0] + c[index] * s[:, 1]],
+                            axis=1)
+
+        return padded, turn(self.a, self.s_a), turn(self.b, self.s_b)
+
+    def residual(self, q: np.ndarray) -> np.ndarray:
+        padded, ra, rb = self._turned(q)
+        r = padded.reshape(-1, 3)[:, :2]
+        values = [(r[self.a] + ra - r[self.b] - rb).ravel()]
+        if self.others:
+            poses, zero = self._poses(q[None]), np.zeros((1, 0))
+            values += [t.residual(poses, zero)[0] for t in self.others]
+        return np.concatenate(values)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        _, ra, rb = self._turned(q)
+        out = np.zeros((self.rows, self.n + 3))
+        for index, arm, sign in ((self.a, ra, 1.0), (self.b, rb, -1.0)):
+            out[self.x_rows, 3 * index] = sign
+            out[self.y_rows, 3 * index + 1] = sign
+            out[self.x_rows, 3 * index + 2] = -sign * arm[:, 1]
+            out[self.y_rows, 3 * index + 2] = sign * arm[:, 0]
+        out = out[:, : self.n]
+        if self.others:
+            poses, start = self._poses(q[None]), 2 * len(self.a)
+            for t in self.others:
+                block = np.zeros((1, t.rows, self.n))
+                t.jacobian(poses, block)
+                out[start:start + t.rows] = block[0]
+                start += t.rows
+        return out
+
+    def gamma(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        _, ra, rb = self._turned(q)
+        w = np.concatenate([qd, np.zeros(3)])[2::3]
+        values = [(ra * (w[self.a] ** 2)[:, None] - rb * (w[self.b] ** 2)[:, None]).ravel()]
+        if self.others:
+            poses, zero = self._poses(q[None], qd[None]), np.zeros((1, 0))
+            values += [t.gamma(poses, zero)[0] for t in self.others]
+        return np.concatenate(values)
+
+
+class _Dynamics:
+    """The equations of the free mechanism at one state (no sample axis)."""
+
+    def __init__(self, kinematics: Kinematics):
+        from ._forces import require_mass_data
+
+        mech = kinematics.mechanism
+        require_mass_data(mech)
+        self.kinematics, self.system = kinematics, kinematics.system
+        self.joints = _Joints(self.system)
+        self.bodies = _Bodies(kinematics)
+        self.index = {b.name: i for i, b in enumerate(mech.moving_bodies)}
+        self.loads = [(3 * self.index[load.body], np.asarray(load.point, dtype=float),
+                       np.asarray(load.force, dtype=float), float(load.torque))
+                      for load in mech.loads if load.body in self.index]
+        self.gravity = np.asarray(mech.gravity, dtype=float)
+        size = self.system.size
+        self.size = size
+        self.scale_rows = np.where(self.joints.row_is_angle, 1.0, 1.0 / size)
+        self.scale_coordinates = self.system.coordinate_scale()
+        self.mass_scale = max(float(self.bodies.mass.sum()), 1e-300)
+        self.measure = 0.0  # the singularity measure of the last projection (0: not yet known)
+        first = 3 * np.arange(len(self.bodies.mass))[:, None, None]
+        self.block_rows = first + np.arange(3)[None, :, None]
+        self.block_columns = first + np.arange(3)[None, None, :]
+
+    def residual_metres(self, q: np.ndarray) -> float:
+        return float(np.max(np.abs(self.joints.residual(q)) * np.where(self.joints.row_is_angle, self.size, 1.0),
+                            initial=0.0))
+
+    def _mass(self, q: np.ndarray) -> np.ndarray:
+        """M(q), (n, n)."""
+        out = np.zeros((self.system.n, self.system.n))
+        out[self.block_rows, self.block_columns] = _mass_blocks(self.bodies, q)
+        return out
+
+    def forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Q: gravity, the applied loads and the velocity terms of M's offset centres of mass (n,)."""
+        a = self.bodies.arms(q)
+        m, w = self.bodies.mass, qd[2::3]
+        out = np.zeros(self.system.n)
+        weight = m[:, None] * self.gravity[None, :]
+        out[0::3] = weight[:, 0] + m * w * w * a[:, 0]
+        out[1::3] = weight[:, 1] + m * w * w * a[:, 1]
+        out[2::3] = a[:, 0] * weight[:, 1] - a[:, 1] * weight[:, 0]
+        for k, p, f, torque in self.loads:
+            c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
+            arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
+            out[k:k + 2] += f
+            out[k + 2] += arm[0] * f[1] - arm[1] * f[0] + torque
+        return out
+
+    def power(self, q: np.ndarray, qd: np.ndarray) -> float:
+        """Power of the applied loads (gravity is in the potential energy), W."""
+        total = 0.0
+        for k, p, f, torque in self.loads:
+            c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
+            arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
+            velocity = qd[k:k + 2] + w * np.array([-arm[1], arm[0]])
+            total += float(f @ velocity) + torque * w
+        return total
+
+    def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
+        """T + V, J (V of gravity, zero at the origin)."""
+        blocks = _mass_blocks(self.bodies, q)
+        rates = qd.reshape(-1, 3)
+        kinetic = 0.5 * float(np.einsum("bi,bij,bj->", rates, blocks, rates))
+        centres = q.reshape(-1, 3)[:, :2] + self.bodies.arms(q)
+        return kinetic - float(self.bodies.mass @ (centres @ self.gravity))
+
+    def _constrained(self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray,
+                     measure: bool = False) -> tuple[np.ndarray, float]:
+        """The x minimising (1/2) x^T M x - load^T x subject to J x = gap, and
+        the singularity measure of J there.
+
+        In scaled units (coordinates per size, rows per size, masses per the
+        total), M is augmented by J^T J, which leaves the solution unchanged
+        on the constraints and makes it positive definite where M alone is
+        singular off them (a point mass); the multipliers then solve
+        (J Mbar^-1 J^T) nu = gap - J Mbar^-1 load in the least-squares sense,
+        which stays defined where J loses rank at a singular configuration.
+        The measure (computed when ``measure``, else NaN) is sqrt(smallest /
+        largest singular value) of J Mbar^-1 J^T, of the order of J's own;
+        while the last one measured exceeds :data:`LEAST_SQUARES_BELOW` the
+        multipliers come from a plain solve. Shapes (n,), n coordinates.
+        """
+        d, r = self.scale_coordinates, self.scale_rows
+        scaled_jac = r[:, None] * jac / d[None, :]
+        augmented = mass / d[:, None] / d[None, :] / self.mass_scale + scaled_jac.T @ scaled_jac
+        scaled_gap = r * gap
+        scaled_load = load / d / self.mass_scale + scaled_jac.T @ scaled_gap
+        solved = np.linalg.solve(augmented, np.column_stack([scaled_load, scaled_jac.T]))
+        free, mj = solved[:, 0], solved[:, 1:]
+        schur, rhs = scaled_jac @ mj, scaled_gap - scaled_jac @ free
+        if not measure and self.measure > LEAST_SQUARES_BELOW:
+            try:  # away from singular configurations a plain solve does (and is 5 times faster)
+                return (free + mj @ np.linalg.solve(schur, rhs)) / d, math.nan
+            except np.linalg.LinAlgError:
+                pass
+        multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=RANK_CUTOFF)
+        return (free + mj @ multipliers) / d, math.sqrt(float(singular[-1] / singular[0]))
+
+    def acceleration(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """q'' by Gauss's principle: M q'' - Q as small as the constraints
+        J q'' = gamma allow (M-weighted)."""
+        return self._constrained(self._mass(q), self.joints.jacobian(q), self.forces(q, qd),
+                                 self.joints.gamma(q, qd))[0]
+
+    def project(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """(q, qd) moved onto Phi = 0 and Phi_q qd = 0 by the M-weighted
+        smallest corrections; the largest violation before (m) and the
+        singularity measure at the new state."""
+        before = self.residual_metres(q)
+        gap, tolerance = before, PROJECTION_TOLERANCE * self.size
+        zero = np.zeros(self.system.n)
+        for _ in range(PROJECTION_ITERATIONS):
+            if gap <= tolerance:
+                break
+            q = q + self._constrained(self._mass(q), self.joints.jacobian(q), zero, -self.joints.residual(q))[0]
+            gap = self.residual_metres(q)
+        jac = self.joints.jacobian(q)
+        correction, singular = self._constrained(self._mass(q), jac, zero, -(jac @ qd), measure=True)
+        self.measure = singular
+        return q, qd + correction, before, singular
+
+
+def simulate_free(kinematics: Kinematics, start: FreeState, duration: float, output_step: float,
+                  step: float) -> FreeMotion:
+    """Integrate the free mechanism from ``start`` over ``duration`` (s).
+
+    Parameters
+    ----------
+    start : FreeState
+        Consistent initial state (on the constraints; see :func:`consistent_state`).
+    output_step : float
+        Spacing of the outputs, s; a whole number of steps (``step`` is
+        shortened to divide it).
+    step : float
+        The largest time step, s.
+    """
+    begin = time.process_time()
+    dyn = _Dynamics(kinematics)
+    per_output = max(1, math.ceil(output_step / step - 1e-9))
+    h = output_step / per_output
+    outputs = int(round(duration / output_step))
+    n = kinematics.system.n
+    times = np.arange(outputs + 1) * output_step
+    q_out, qd_out, qdd_out = (np.empty((outputs + 1, n)) for _ in range(3))
+    residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)
+    q, qd = np.asarray(start.q, dtype=float).copy(), np.asarray(start.qd, dtype=float).copy()
+    w = 0.0
+    passes: list[float] = []
+    sigma = [dyn.project(q, qd)[3]] * 2
+
+    def derivative(q, qd):
+        return qd, dyn.acceleration(q, qd), dyn.power(q, qd)
+
+    q_out[0], qd_out[0], qdd_out[0], energy[0] = q, qd, dyn.acceleration(q, qd), dyn.energy(q, qd)
+    for i in range(1, outputs + 1):
+        drift = 0.0
+        for j in range(per_output):
+            k1 = derivative(q, qd)
+            k2 = derivative(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1])
+            k3 = derivative(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1])
+            k4 = derivative(q + h * k3[0], qd + h * k3[1])
+            q = q + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            qd = qd + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            w += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            q, qd, before, value = dyn.project(q, qd)
+            drift = max(drift, before)
+            if sigma[1] < SINGULAR_THRESHOLD and sigma[1] <= sigma[0] and sigma[1] < value:
+                passes.append(float(times[i - 1] + j * h))  # the previous step was the closest
+            sigma = [sigma[1], value]
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+            raise FloatingPointError(f"the integration went non-finite at t = {times[i]:.6g} s")
+        q_out[i], qd_out[i], qdd_out[i] = q, qd, dyn.acceleration(q, qd)
+        residual[i], energy[i], work[i] = drift, dyn.energy(q, qd), w
+    return FreeMotion(kinematics, times, q_out, qd_out, qdd_out, residual, energy, work, passes, h,
+                      time.process_time() - begin)
+
+
+def consistent_state(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> FreeState:
+    """(q, qd) projected onto the constraints (the M-weighted smallest change)."""
+    dyn = _Dynamics(kinematics)
+    q, qd, _, _ = dyn.project(np.asarray(q, dtype=float), np.asarray(qd, dtype=float))
+    return FreeState(q, qd)
+
+
+def _difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) -> np.ndarray:
+    """Per output, the largest |fine - coarse| so far over body positions (m)
+    and angles (rad x size), at least the round-off floor: the running maximum,
+    because the two runs' difference may pass through zero where the error does not."""
+    size = kinematics.system.size
+    delta = np.abs(fine.q - coarse.q)
+    delta[:, 2::3] *= size
+    return np.maximum(np.maximum.accumulate(delta.max(axis=1)), ROUND_OFF * size)
+
+
+def free_reference(kinematics: Kinematics, start: FreeState, duration: float, output_step: float,
+                   tolerance: float = 1e-9, first_step: float | None = None, max_halvings: int = 6,
+                   progress=None) -> FreeReference:
+    """The native reference of a free motion: RK4 runs at halving steps until
+    two consecutive ones differ by at most ``tolerance`` x the mechanism's
+    size at every output (see :class:`FreeReference`).
+
+    Parameters
+    ----------
+    first_step : float, optional
+        The coarsest step, s (default: output_step / 4, at most duration / 1000).
+    progress : callable, optional
+        Called with each run's step before it starts.
+    """
+    size = kinematics.system.size
+    step = first_step or min(output_step / 4.0, duration / 1000.0)
+    ladder: list[dict] = []
+    coarse = None
+    for _ in range(max_halvings + 1):
+        if progress is not None:
+            progress(step)
+        motion = simulate_free(kinematics, start, duration, output_step, step)
+        entry = {"step": motion.step, "steps": int(round(duration / motion.step)), "seconds": motion.seconds,
+                 "difference": math.nan}
+        if coarse is not None:
+            estimate = _difference(kinematics, motion, coarse)
+            entry["difference"] = float(estimate.max())
+            ladder.append(entry)
+            relative = float(estimate.max()) / size
+            if relative <= tolerance:
+                return FreeReference(motion, estimate, relative, True, ladder)
+        else:
+            ladder.append(entry)
+        coarse, step = motion, motion.step / 2.0
+    return FreeReference(motion, estimate, relative, False, ladder)

@@ -1,0 +1,92 @@
+"""The native free-motion reference against answers derived independently:
+the simple pendulum's closed form in Jacobi's elliptic functions (IFToMM A01)
+and the double four-bar reduced to its one degree of freedom on the
+parallelogram branch (IFToMM A02), through its singular positions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import DATA
+from scipy.integrate import solve_ivp
+from scipy.special import ellipj, ellipk
+
+from xcheck import Kinematics, load_mechanism
+from xcheck.dynamics._free import FreeState, free_reference, simulate_free
+
+G = 9.81
+
+
+def _start(name: str, angle: float, rate: float) -> tuple[Kinematics, FreeState]:
+    """The mechanism of tests/data/NAME.toml at its driver's ``angle`` (rad)
+    turning at ``rate`` (rad/s); the rest of the velocity follows from the constraints."""
+    kin = Kinematics(load_mechanism(DATA / f"{name}.toml"))
+    kin.assemble()
+    sol = kin.solve(np.array([[angle]]), np.array([[rate]]), np.array([[0.0]]))
+    return kin, FreeState(sol.q[0], sol.qd[0])
+
+
+def pendulum_exact(times: np.ndarray) -> np.ndarray:
+    """P1 of the pendulum released at rest from (-1, 0): theta from the downward
+    vertical, sin(theta / 2) = k sn(K - w0 t | k^2), k = sin(45 deg); (N, 2) m."""
+    k = math.sin(math.pi / 4)
+    sn, _, _, _ = ellipj(ellipk(k * k) - math.sqrt(G) * times, k * k)
+    theta = 2.0 * np.arcsin(k * sn)
+    return np.stack([-np.sin(theta), -np.cos(theta)], axis=1)
+
+
+def double_fourbar_exact(times: np.ndarray) -> np.ndarray:
+    """B0 of the double four-bar on its parallelogram branch: every crank at
+    theta, the couplers translating; T = 3/2 theta'^2 (three cranks m L^2 / 3
+    about their pivots, two couplers at the tips' speed), V = 3.5 g sin(theta),
+    so theta'' = -(3.5 / 3) g cos(theta); theta(0) = 90 deg, theta'(0) = -1
+    rad/s (B0 moves at +1 m/s along x). (N, 2) m, from DOP853 at rtol 1e-13."""
+    ode = solve_ivp(lambda t, y: [y[1], -3.5 / 3.0 * G * math.cos(y[0])], (0.0, float(times[-1])),
+                    [math.pi / 2, -1.0], method="DOP853", rtol=1e-13, atol=1e-14, t_eval=times)
+    return np.stack([np.cos(ode.y[0]), np.sin(ode.y[0])], axis=1)
+
+
+def test_pendulum_converges_at_order_four_to_the_closed_form():
+    kin, start = _start("pendulum", math.pi, 0.0)
+    errors = []
+    for step in (0.005, 0.0025):
+        motion = simulate_free(kin, start, 1.0, 0.01, step)
+        found = motion.solution().point("P1")["position"]
+        errors.append(float(np.abs(found - pendulum_exact(motion.times)).max()))
+        assert motion.residual.max() <= 1e-9  # the loop drifts O(h^5) a step before each projection
+    order = math.log2(errors[0] / errors[1])
+    assert 3.5 <= order <= 4.5, errors
+
+
+@pytest.mark.slow
+def test_pendulum_reference_states_an_honest_error():
+    kin, start = _start("pendulum", math.pi, 0.0)
+    reference = free_reference(kin, start, 3.0, 0.01, tolerance=1e-9)
+    assert reference.converged
+    found = reference.motion.solution().point("P1")["position"]
+    true_error = np.abs(found - pendulum_exact(reference.motion.times)).max(axis=1)
+    assert true_error.max() <= 1e-9 * kin.system.size
+    assert np.all(true_error <= reference.estimate + 1e-15)  # the estimate bounds the true error
+    # no loads: the energy is kept to the integrator's accuracy (measured 6.4e-11 J at the finest
+    # step, 1.25 ms, of a swing of m g L = 9.81 J: 6.6e-12; the bound leaves the estimate's factor 15)
+    assert np.abs(reference.motion.energy_error).max() <= 1e-10 * G
+
+
+@pytest.mark.slow
+def test_double_fourbar_passes_its_singular_positions_on_the_branch():
+    """Through two all-horizontal passes in 1.5 s, to 1e-9 of the size, the
+    passes found where the reduced solution has its cranks horizontal."""
+    kin, start = _start("double-fourbar", math.pi / 2, -1.0)
+    reference = free_reference(kin, start, 1.5, 0.01, tolerance=1e-9)
+    assert reference.converged
+    motion = reference.motion
+    exact = double_fourbar_exact(motion.times)
+    true_error = np.abs(motion.solution().point("B0")["position"] - exact).max(axis=1)
+    assert true_error.max() <= 1e-9 * kin.system.size
+    assert np.all(true_error <= reference.estimate + 1e-15)
+    # the horizontal positions of the reduced solution: sin(theta) changes sign
+    crossings = motion.times[1:][np.sign(exact[1:, 1]) != np.sign(exact[:-1, 1])]
+    assert len(crossings) == len(motion.singular_passes) == 2
+    assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
