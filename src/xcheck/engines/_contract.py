@@ -27,6 +27,7 @@ Modes
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -111,6 +112,11 @@ class Engine:
         Matplotlib style of its forces (lines, or markers where they scatter).
     notes : str
         What of the canonical model it can represent and what not, for the reader.
+    implementation : str
+        The module (imported when a mode runs) whose functions the default
+        methods call: ``run_kinematic(kinematics, samples=, branch=)``,
+        ``run_dynamic(kinematics, branch=)``, ``inverse_dynamics`` and
+        ``export_files``; an engine may override the methods instead.
     """
 
     name: ClassVar[str] = ""
@@ -126,6 +132,7 @@ class Engine:
     color: ClassVar[str] = "tab:gray"
     force_style: ClassVar[Mapping[str, object]] = {"lw": 1, "ls": "--"}
     notes: ClassVar[str] = ""
+    implementation: ClassVar[str] = ""
 
     def available(self) -> str:
         """Empty if the engine can run here, else the reason (one line)."""
@@ -155,13 +162,26 @@ class Engine:
             (the runner turns it into the mode's failed outcome), and
             :class:`NotApplicable` says the mode does not apply.
         """
-        raise NotImplementedError(f"{type(self).__name__} runs no mode")
+        kind = next((m.kind for m in self.modes if m.name == mode), None)
+        if kind is None:
+            raise ValueError(f"expected a mode of {self.name} ({', '.join(m.name for m in self.modes)}), "
+                             f"found {mode!r}")
+        function = self._function(f"run_{kind}")
+        if kind == "kinematic":
+            return function(kinematics, samples=samples, branch=branch)
+        return function(kinematics, branch=branch)
 
     def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
         """Reactions and driving efforts at the native states of the simulation
         window (:func:`xcheck.dynamics.window_states`); raises on failure."""
-        raise NotImplementedError(f"{self.title or self.name} has no inverse dynamics")
+        return self._function("inverse_dynamics")(kinematics, branch=branch, **options)
 
     def export_files(self, kinematics: Kinematics) -> dict[str, str]:
         """The engine's model files of a mechanism: ``{file name: text}``."""
-        raise NotImplementedError(f"{self.title or self.name} writes no model file")
+        return self._function("export_files")(kinematics)
+
+    def _function(self, name: str):
+        """A function of :attr:`implementation` (imported now)."""
+        if not self.implementation:
+            raise NotImplementedError(f"{self.title or self.name} has no {name.replace('_', ' ')}")
+        return getattr(importlib.import_module(self.implementation), name)

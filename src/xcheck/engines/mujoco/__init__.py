@@ -4,15 +4,8 @@ dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
-
-if TYPE_CHECKING:
-    from xcheck.compare import ModeResult
-    from xcheck.dynamics import Forces
-    from xcheck.kinematics import Kinematics, Solution
 
 __all__ = ["MuJoCo"]
 
@@ -29,6 +22,7 @@ class MuJoCo(Engine):
     name = "mujoco"
     title = "MuJoCo"
     requires = ("mujoco",)
+    implementation = "xcheck.engines.mujoco.modes"
     distributions = ("mujoco",)
     install = "pip install mujoco"
     modes = (
@@ -46,21 +40,3 @@ class MuJoCo(Engine):
     color = "tab:blue"
     notes = ("Revolute, prismatic and pin-in-slot joints; a loop is closed by an equality (connect or weld) on "
              "a carrier body where it is cut at a slider; inputs driven by position and velocity servos.")
-
-    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
-            branch: str | None = None) -> ModeResult:
-        from . import modes
-
-        if mode == "mujoco-kinematic":
-            return modes.run_kinematic(kinematics, samples=samples, branch=branch)
-        return modes.run_dynamic(kinematics, branch=branch)
-
-    def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
-        from .modes import inverse_dynamics
-
-        return inverse_dynamics(kinematics, branch=branch, **options)
-
-    def export_files(self, kinematics: Kinematics) -> dict[str, str]:
-        from .modes import export_files
-
-        return export_files(kinematics)

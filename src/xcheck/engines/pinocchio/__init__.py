@@ -5,15 +5,8 @@ dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
-
-if TYPE_CHECKING:
-    from xcheck.compare import ModeResult
-    from xcheck.dynamics import Forces
-    from xcheck.kinematics import Kinematics, Solution
 
 __all__ = ["Pinocchio"]
 
@@ -27,6 +20,7 @@ class Pinocchio(Engine):
     name = "pinocchio"
     title = "Pinocchio"
     requires = ("pinocchio",)
+    implementation = "xcheck.engines.pinocchio.modes"
     distributions = ("pin",)
     install = "pip install pin"
     modes = (
@@ -43,21 +37,3 @@ class Pinocchio(Engine):
     color = "tab:orange"
     notes = ("A spanning tree of revolute and prismatic joints (URDF) with the loops closed by CONTACT_3D/6D "
              "constraints, cut at a slider on a carrier body; pin-in-slot through its carrier.")
-
-    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
-            branch: str | None = None) -> ModeResult:
-        from . import modes
-
-        if mode == "pinocchio-kinematic":
-            return modes.run_kinematic(kinematics, samples=samples, branch=branch)
-        return modes.run_dynamic(kinematics, branch=branch)
-
-    def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
-        from .modes import inverse_dynamics
-
-        return inverse_dynamics(kinematics, branch=branch, **options)
-
-    def export_files(self, kinematics: Kinematics) -> dict[str, str]:
-        from .modes import export_files
-
-        return export_files(kinematics)

@@ -4,15 +4,8 @@ with its inputs driven (:mod:`.modes`), its impulses as reactions
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, Tolerance
-
-if TYPE_CHECKING:
-    from xcheck.compare import ModeResult
-    from xcheck.dynamics import Forces
-    from xcheck.kinematics import Kinematics, Solution
 
 __all__ = ["Pymunk"]
 
@@ -28,6 +21,7 @@ class Pymunk(Engine):
     name = "pymunk"
     title = "pymunk"
     requires = ("pymunk",)
+    implementation = "xcheck.engines.pymunk.modes"
     distributions = ("pymunk",)
     install = "pip install pymunk"
     modes = (
@@ -43,14 +37,3 @@ class Pymunk(Engine):
     force_style = {"lw": 0, "marker": ".", "ms": 4}  # impulses scatter step to step
     notes = ("Pivot, groove and slide joints between 2-D bodies; a prismatic joint as a groove plus a rotary "
              "lock; pymunk's constraints are soft and iterative.")
-
-    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
-            branch: str | None = None) -> ModeResult:
-        from .modes import run_dynamic
-
-        return run_dynamic(kinematics, branch=branch)
-
-    def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
-        from .modes import inverse_dynamics
-
-        return inverse_dynamics(kinematics, branch=branch, **options)
