@@ -5,11 +5,12 @@ parallelogram branch (IFToMM A02), through its singular positions."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import DATA, MODELS, invoke
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk
 
@@ -90,3 +91,58 @@ def test_double_fourbar_passes_its_singular_positions_on_the_branch():
     crossings = motion.times[1:][np.sign(exact[1:, 1]) != np.sign(exact[:-1, 1])]
     assert len(crossings) == len(motion.singular_passes) == 2
     assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
+
+
+# -- the file format and `xcheck simulate` ----------------------------------------
+
+def test_spring_and_damper_follow_the_damped_oscillator():
+    """tests/data/spring-block.toml: m u'' + c u' + k u = 0 from u0 = 0.05 m at rest
+    (closed form in its header); the damper's work keeps the energy balance."""
+    done = invoke("simulate", str(DATA / "spring-block.toml"), "--json")
+    assert done.returncode == 0, done.stderr
+    native = json.loads(done.stdout)["native"]
+    t, w0, zeta = 2.0, 10.0, 0.1
+    wd = w0 * math.sqrt(1.0 - zeta**2)
+    exact = 0.1 + 0.05 * math.exp(-zeta * w0 * t) * (math.cos(wd * t) + zeta * w0 / wd * math.sin(wd * t))
+    found = native["final"]["points"]["B"]["position"][0]
+    estimate = native["error_estimate"]
+    assert estimate["converged"] and estimate["relative"] <= 1e-10
+    assert abs(found - exact) <= estimate["final"]
+    # E - E0 - W: measured 3.3e-12 J of 0.25 J stored in the spring at release
+    assert native["energy_balance"]["largest"] <= 1e-10
+
+
+def test_simulate_json_states_the_pendulum_and_its_error():
+    done = invoke("simulate", "iftomm-a01", "--duration", "1", "--json", "--models", str(MODELS))
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    final = doc["native"]["final"]
+    assert final["t"] == pytest.approx(1.0, abs=1e-12)
+    exact = pendulum_exact(np.array([1.0]))[0]
+    error = float(np.abs(np.array(final["points"]["P1"]["position"]) - exact).max())
+    assert error <= doc["native"]["error_estimate"]["final"] <= 1e-9
+    assert doc["native"]["singular_passes"] == []
+
+
+@pytest.mark.parametrize("change,field,found", [
+    (("duration = 2", "duration = 0"), "free_motion.duration", "0"),
+    (("stiffness = 200", "stiffness = -1"), "springs[0].stiffness", "-1"),
+    (('points = ["O", "B"]', 'points = ["O", "Q"]'), "springs[0].points", "'Q'"),
+    (("output_step = 0.01", "output_step = 0.3"), "free_motion.output_step", "0.3"),
+    (("tolerance = 1e-10", 'point_velocity = { point = "B", value = [0, 1] }'), "free_motion.point_velocity",
+     "violate by 1 m/s"),
+])
+def test_bad_free_motion_input_is_one_line(tmp_path, change, field, found):
+    path = tmp_path / "bad.toml"
+    text = (DATA / "spring-block.toml").read_text(encoding="utf-8")
+    assert change[0] in text
+    path.write_text(text.replace(change[0], change[1]), encoding="utf-8")
+    done = invoke("simulate", str(path))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{path}: {field}: expected " in lines[0] and found in lines[0], lines
+
+
+def test_simulate_needs_a_free_motion_section():
+    done = invoke("simulate", "fourbar", "--models", str(MODELS))
+    assert done.returncode == 2 and "free_motion: expected a [free_motion] section" in done.stderr

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from .kinematics import InputRange, Kinematics, Solution, Status
@@ -362,3 +363,71 @@ def print_run(console: Console, run) -> None:
         console.print(f"  printed answers: {len(run.textbook)} values — {counts['agrees']} agree, "
                       f"{counts['rounding']} rounding, {counts['disagrees']} disagree (table: xcheck solve "
                       f"{mech.name}, or the report)")
+
+
+def simulation_json(reference) -> dict:
+    """The JSON document of ``xcheck simulate --json`` (SI units): the native
+    reference's final state, its stated error, the singular positions passed,
+    the loop closure and energy balance, and the step ladder."""
+    motion = reference.motion
+    mech = motion.kinematics.mechanism
+    solution = motion.solution()
+    last = len(motion.times) - 1
+    final = {
+        "t": _number(motion.times[last]),
+        "points": {label: {"position": _pair(solution.point(label)["position"][last]),
+                           "velocity": _pair(solution.point(label)["velocity"][last])}
+                   for label in mech.point_owners},
+        "bodies": {b.name: {"position": _pair(solution.body(b.name)["position"][last]),
+                            "angle": _number(solution.body(b.name)["angle"][last]),
+                            "omega": _number(solution.body(b.name)["omega"][last])}
+                   for b in mech.moving_bodies},
+    }
+    return {
+        "mechanism": mech.name,
+        "duration": _number(motion.times[-1]),
+        "output_step": _number(motion.times[1] - motion.times[0]) if len(motion.times) > 1 else None,
+        "native": {
+            "final": final,
+            "error_estimate": {"largest": _number(reference.estimate.max()), "relative": _number(reference.relative),
+                               "final": _number(reference.estimate[-1]), "converged": reference.converged,
+                               "basis": "the largest difference so far between the two finest RK4 runs of a "
+                                        "halving ladder (about 15 times the finer run's error)"},
+            "step": _number(motion.step),
+            "singular_passes": [_number(t) for t in motion.singular_passes],
+            "loop_closure": _number(motion.residual.max()),
+            "energy_balance": {"largest": _number(abs(motion.energy_error).max()),
+                               "energy_start": _number(motion.energy[0]),
+                               "note": "E(t) - E(0) - W(t): kinetic + potential energy against the work of "
+                                       "loads and dampers"},
+            "ladder": [{k: _number(v) for k, v in entry.items()} for entry in reference.ladder],
+            "cpu_seconds": _number(sum(entry["seconds"] for entry in reference.ladder)),
+        },
+    }
+
+
+def print_simulation(console, reference) -> None:
+    """The tables of ``xcheck simulate``: the final state and what backs it."""
+    doc = simulation_json(reference)
+    native = doc["native"]
+    table = Table(title=f"{doc['mechanism']}: free motion, native reference at t = {doc['duration']:g} s",
+                  header_style="bold")
+    for header in ("point / body", "x [m]", "y [m]", "vx [m/s]", "vy [m/s]", "angle [rad]", "omega [rad/s]"):
+        table.add_column(escape(header), justify="left" if header == "point / body" else "right")
+    for label, p in native["final"]["points"].items():
+        table.add_row(escape(label), *(_g(v) for v in (*p["position"], *p["velocity"])), "", "")
+    for name, b in native["final"]["bodies"].items():
+        table.add_row(escape(name), *(_g(v) for v in b["position"]), "", "", _g(b["angle"]), _g(b["omega"]))
+    console.print(table)
+    estimate = native["error_estimate"]
+    console.print(
+        f"error estimate {_g(estimate['largest'])} m ({_g(estimate['relative'])} of the size; "
+        f"{'converged' if estimate['converged'] else '[red]NOT converged[/red]'}) at step {_g(native['step'])} s; "
+        f"loop closure before each projection <= {_g(native['loop_closure'])} m; energy balance "
+        f"{_g(native['energy_balance']['largest'])} J; singular positions passed at "
+        f"{', '.join(f'{t:.4g}' for t in native['singular_passes']) or 'none'} s; "
+        f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.", highlight=False)
+
+
+def _g(value) -> str:
+    return "—" if value is None else f"{value:.10g}"

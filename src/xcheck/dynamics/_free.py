@@ -28,11 +28,12 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import null_space
 
 from ..kinematics import Kinematics, Solution, Status
 
 __all__ = ["FreeState", "FreeMotion", "FreeReference", "mass_matrix", "simulate_free", "free_reference",
-           "consistent_state"]
+           "consistent_state", "release_state", "simulate"]
 
 #: smallest singular value of the dimensionless constraint Jacobian below which
 #: a local minimum (over the steps) counts as passing a singular configuration
@@ -136,7 +137,7 @@ class FreeReference:
     relative : float
         max(estimate) / size.
     converged : bool
-        relative <= the requested tolerance.
+        relative <= ``tolerance``, the requested accuracy (relative to the size).
     ladder : list of dict
         Per run: step (s), steps, seconds, and the difference from the previous run (m).
     """
@@ -146,6 +147,7 @@ class FreeReference:
     relative: float
     converged: bool
     ladder: list[dict] = field(default_factory=list)
+    tolerance: float = math.nan
 
 
 def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -277,6 +279,9 @@ class _Dynamics:
                        np.asarray(load.force, dtype=float), float(load.torque))
                       for load in mech.loads if load.body in self.index]
         self.gravity = np.asarray(mech.gravity, dtype=float)
+        owners = mech.point_owners
+        self.springs = [(self._anchor(owners[s.points[0]], s.points[0]), self._anchor(owners[s.points[1]], s.points[1]),
+                         s.stiffness, s.rest_length, s.damping) for s in mech.springs]
         size = self.system.size
         self.size = size
         self.scale_rows = np.where(self.joints.row_is_angle, 1.0, 1.0 / size)
@@ -286,6 +291,32 @@ class _Dynamics:
         first = 3 * np.arange(len(self.bodies.mass))[:, None, None]
         self.block_rows = first + np.arange(3)[None, :, None]
         self.block_columns = first + np.arange(3)[None, None, :]
+
+    def _anchor(self, body: str, label: str) -> tuple[int | None, np.ndarray]:
+        """(coordinate offset of the body or None for the ground, the point in its frame or global)."""
+        point = np.asarray(self.kinematics.mechanism.body(body).points[label], dtype=float)
+        return (3 * self.index[body] if body in self.index else None), point
+
+    @staticmethod
+    def _point(anchor, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, velocity, arm A(phi) s) of an anchored point, m and m/s."""
+        k, s = anchor
+        if k is None:
+            return s, np.zeros(2), np.zeros(2)
+        c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
+        arm = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+        return q[k:k + 2] + arm, qd[k:k + 2] + w * np.array([-arm[1], arm[0]]), arm
+
+    def _spring_states(self, q: np.ndarray, qd: np.ndarray):
+        """Per spring: (length l, rate dl/dt, unit vector from the first end to the second, the
+        ends' anchors and arms), m, m/s."""
+        for first, second, stiffness, rest, damping in self.springs:
+            p, vp, arm_p = self._point(first, q, qd)
+            r, vr, arm_r = self._point(second, q, qd)
+            d = r - p
+            length = float(np.hypot(d[0], d[1]))
+            unit = d / length if length > 0.0 else np.zeros(2)
+            yield length, float(unit @ (vr - vp)), unit, (first, arm_p), (second, arm_r), stiffness, rest, damping
 
     def residual_metres(self, q: np.ndarray) -> float:
         return float(np.max(np.abs(self.joints.residual(q)) * np.where(self.joints.row_is_angle, self.size, 1.0),
@@ -311,25 +342,36 @@ class _Dynamics:
             arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
             out[k:k + 2] += f
             out[k + 2] += arm[0] * f[1] - arm[1] * f[0] + torque
+        for length, rate, unit, (first, arm_p), (second, arm_r), stiffness, rest, damping in self._spring_states(q, qd):
+            tension = stiffness * (length - rest) + damping * rate
+            for (k, _), arm, force in ((first, arm_p, tension * unit), (second, arm_r, -tension * unit)):
+                if k is not None:
+                    out[k:k + 2] += force
+                    out[k + 2] += arm[0] * force[1] - arm[1] * force[0]
         return out
 
     def power(self, q: np.ndarray, qd: np.ndarray) -> float:
-        """Power of the applied loads (gravity is in the potential energy), W."""
+        """Power of the applied loads and the dampers (gravity and springs are
+        in the potential energy), W."""
         total = 0.0
         for k, p, f, torque in self.loads:
             c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
             arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
             velocity = qd[k:k + 2] + w * np.array([-arm[1], arm[0]])
             total += float(f @ velocity) + torque * w
+        for _, rate, *_, damping in self._spring_states(q, qd):
+            total -= damping * rate * rate
         return total
 
     def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
-        """T + V, J (V of gravity, zero at the origin)."""
+        """T + V, J (V of gravity, zero at the origin, and of the springs)."""
         blocks = _mass_blocks(self.bodies, q)
         rates = qd.reshape(-1, 3)
         kinetic = 0.5 * float(np.einsum("bi,bij,bj->", rates, blocks, rates))
         centres = q.reshape(-1, 3)[:, :2] + self.bodies.arms(q)
-        return kinetic - float(self.bodies.mass @ (centres @ self.gravity))
+        springs = sum(0.5 * stiffness * (length - rest) ** 2
+                      for length, _, _, _, _, stiffness, rest, _ in self._spring_states(q, np.zeros_like(q)))
+        return kinetic - float(self.bodies.mass @ (centres @ self.gravity)) + springs
 
     def _constrained(self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray,
                      measure: bool = False) -> tuple[np.ndarray, float]:
@@ -489,8 +531,69 @@ def free_reference(kinematics: Kinematics, start: FreeState, duration: float, ou
             ladder.append(entry)
             relative = float(estimate.max()) / size
             if relative <= tolerance:
-                return FreeReference(motion, estimate, relative, True, ladder)
+                return FreeReference(motion, estimate, relative, True, ladder, tolerance)
         else:
             ladder.append(entry)
         coarse, step = motion, motion.step / 2.0
-    return FreeReference(motion, estimate, relative, False, ladder)
+    return FreeReference(motion, estimate, relative, False, ladder, tolerance)
+
+
+def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeState:
+    """The state at which ``[free_motion]`` releases the mechanism: assembled at
+    its drivers' values ``at``, the velocity from the drivers' rates
+    ``velocity`` (others 0) or from one point's ``point_velocity`` through the
+    velocity constraints.
+
+    Raises
+    ------
+    ModelError
+        If the file has no [free_motion], the mechanism does not assemble
+        there, or the point velocity violates the constraints.
+    """
+    from ..errors import ModelError
+
+    mech, system = kinematics.mechanism, kinematics.system
+    spec = mech.free_motion
+    if spec is None:
+        raise ModelError(mech.path, "free_motion", "a [free_motion] section (duration, velocity, ...)", "none")
+    inputs = np.array([[spec.at[d.name] for d in mech.drivers]])
+    rates = np.array([[spec.rates.get(d.name, 0.0) for d in mech.drivers]])
+    solution = kinematics.solve(inputs, rates, np.zeros_like(rates), branch=branch)
+    if solution.status[0] > Status.NEAR_SINGULAR:
+        raise ModelError(mech.path, "free_motion.at", "a position where the mechanism assembles with a "
+                         "determined velocity", Status(int(solution.status[0])).message)
+    q, qd = solution.q[0], solution.qd[0]
+    if spec.point is not None and spec.point_velocity is not None:
+        body = mech.point_owners[spec.point]
+        if body not in system.body_index or system.body_index[body] < 0:
+            raise ModelError(mech.path, "free_motion.point_velocity.point", "a point on a moving body",
+                             f"{spec.point!r} on the ground")
+        k = 3 * system.body_index[body]
+        s = np.asarray(mech.body(body).points[spec.point], dtype=float)
+        c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
+        arm = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+        rows = np.zeros((2, system.n))
+        rows[0, k], rows[1, k + 1] = 1.0, 1.0
+        rows[:, k + 2] = [-arm[1], arm[0]]
+        # the velocities the joints allow, qd = N a, and the a whose point velocity comes closest
+        scaled = system.scaled_jacobian(system.jacobian(q[None], kinematic_only=True))[0]
+        free = null_space(scaled) * system.coordinate_scale()[:, None] ** -1.0
+        amounts, *_ = np.linalg.lstsq(rows @ free, spec.point_velocity, rcond=None)
+        qd = free @ amounts
+        miss = float(np.hypot(*(rows @ qd - spec.point_velocity)))
+        if miss > 1e-9 * max(float(np.hypot(*spec.point_velocity)), 1e-300):
+            raise ModelError(mech.path, "free_motion.point_velocity", "a velocity the joints allow at the "
+                             "release position", f"one they violate by {miss:.3g} m/s")
+    return consistent_state(kinematics, q, qd)
+
+
+def simulate(kinematics: Kinematics, branch: str | None = None, duration: float | None = None,
+             progress=None) -> FreeReference:
+    """The native reference of the mechanism's ``[free_motion]`` (optionally
+    over another ``duration``, s): :func:`free_reference` from :func:`release_state`."""
+    spec = kinematics.mechanism.free_motion
+    start = release_state(kinematics, branch)
+    assert spec is not None
+    length = spec.duration if duration is None else duration
+    output = min(spec.output_step, length)
+    return free_reference(kinematics, start, length, output, spec.tolerance, progress=progress)

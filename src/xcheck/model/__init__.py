@@ -1,5 +1,6 @@
 """The canonical mechanism model and its file format."""
 
+from ._free_motion import FreeMotionSpec, Spring
 from ._load import load_mechanism, parse_mechanism
 from ._mechanism import (
     GROUND,
@@ -18,6 +19,8 @@ from ._mechanism import (
 
 __all__ = [
     "GROUND",
+    "FreeMotionSpec",
+    "Spring",
     "Assembly",
     "Body",
     "Driver",

@@ -25,6 +25,7 @@ from ..units import (
     Units,
     evaluate_expression,
 )
+from ._free_motion import read_free_motion, read_springs
 from ._mechanism import (
     GROUND,
     Assembly,
@@ -42,7 +43,7 @@ from ._mechanism import (
 __all__ = ["load_mechanism", "parse_mechanism"]
 
 _TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants",
-             "dynamics", "loads")
+             "dynamics", "loads", "springs", "free_motion")
 _JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
 #: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
 _TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
@@ -209,6 +210,9 @@ class _Reader:
         instants = self.instants(data.get("instants", []), drivers, units)
         gravity = self.dynamics(data.get("dynamics", {}))
         loads = self.loads(data.get("loads", []), by_name, units)
+        springs = read_springs(self, data.get("springs", []), bodies, units)
+        free_motion = (read_free_motion(self, data["free_motion"], drivers, bodies, units, dict(assembly.at))
+                       if "free_motion" in data else None)
         return Mechanism(
             name=name,
             title=title,
@@ -223,6 +227,8 @@ class _Reader:
             instants=tuple(instants),
             gravity=gravity,
             loads=tuple(loads),
+            springs=tuple(springs),
+            free_motion=free_motion,
         )
 
     def units(self, value: Any) -> Units:
@@ -298,7 +304,10 @@ class _Reader:
         mass = com = inertia = None
         if any(k in spec for k in ("mass", "com", "inertia")):
             mass = self.number(spec.get("mass"), f"{field}.mass", positive=True)
-            inertia = self.number(spec.get("inertia"), f"{field}.inertia", positive=True)
+            inertia = self.number(spec.get("inertia"), f"{field}.inertia")
+            if inertia < 0.0:  # 0: a point mass (about its centre of mass)
+                self.fail(f"{field}.inertia", "a moment of inertia of at least 0 (0 for a point mass)",
+                          _describe(spec.get("inertia")))
             com_spec = spec.get("com", [0.0, 0.0])
             if isinstance(com_spec, str):
                 if com_spec not in points:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..units import Units
+from ._free_motion import FreeMotionSpec, Spring
 
 __all__ = [
     "GROUND",
@@ -362,6 +363,10 @@ class Mechanism:
         Acceleration of gravity in the global frame; zero when the file gives none.
     loads : tuple of Load
         Constant applied forces and torques (dynamics only).
+    springs : tuple of Spring
+        Linear spring-dampers between two points (free motion only).
+    free_motion : FreeMotionSpec or None
+        How the mechanism is released to move freely (``[free_motion]``), if it is.
     """
 
     name: str
@@ -377,6 +382,8 @@ class Mechanism:
     instants: tuple[Instant, ...] = field(default=())
     gravity: np.ndarray = field(default_factory=lambda: np.zeros(2))
     loads: tuple[Load, ...] = field(default=())
+    springs: tuple[Spring, ...] = field(default=())
+    free_motion: FreeMotionSpec | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "gravity", _frozen_vector(self.gravity))
