@@ -275,6 +275,11 @@ def _textbook_for(path: Path, kin: Kinematics, comparisons) -> tuple[list[dict] 
     return check_printed(kin, printed), printed.document
 
 
+#: Most samples of a sweep: a sweep's cost grows with them (every engine mode
+#: steps through each), and 100000 already resolves a full turn to 0.004 deg.
+MAX_SAMPLES = 100_000
+
+
 @app.command("run")
 @_reports_errors
 def run_command(
@@ -284,8 +289,8 @@ def run_command(
         help="Modes to run (default: all): native, formulation-I, formulation-II, mujoco-kinematic, "
              "mujoco-dynamic, pinocchio-kinematic, pinocchio-dynamic, pymunk-dynamic, or the groups "
              "formulations, mujoco, pinocchio, pymunk, kinematic, dynamic.")] = None,
-    samples: Annotated[int, typer.Option("--samples", min=3, help="Samples of the sweeps over the feasible "
-                                         "input range.")] = 181,
+    samples: Annotated[int, typer.Option("--samples", help="Samples of the sweeps over the feasible "
+                                         f"input range (3 to {MAX_SAMPLES}).")] = 181,
     branch: Annotated[Optional[str], typer.Option(
         "--branch", help="Assembly branch (default: the file's first).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
@@ -305,6 +310,8 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
+    if not 3 <= samples <= MAX_SAMPLES:
+        raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
     modes = _parse_engines(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
@@ -482,6 +489,11 @@ def export_command(
         raise typer.Exit(1)
 
 
+#: Most ``--at`` states of one ``xcheck solve``: each is solved and printed; a
+#: sweep over more belongs to ``xcheck run --samples``.
+MAX_AT_STATES = 10_000
+
+
 def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[list[float]]:
     """Comma-separated states of colon-separated per-driver values (display
     units) to SI; ``scale_of(driver)`` is SI per display unit."""
@@ -510,6 +522,9 @@ def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
     Rates and accelerations come from ``--rate``/``--accel`` (one state each,
     applied to every ``--at`` state) or else from the motion laws.
     """
+    count = text.count(",") + 1
+    if count > MAX_AT_STATES:
+        raise InputError(f"{mech.path}: --at: expected at most {MAX_AT_STATES} states, found {count}")
     u = mech.units
     values = _parse_values(text, mech, "--at",
                            lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)
