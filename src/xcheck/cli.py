@@ -20,7 +20,7 @@ from .catalog import comparisons_dir, comparisons_path, model_names, model_path,
 from .dynamics import inverse_dynamics
 from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
-from .fileio import write_atomic
+from .fileio import directory_lock, write_atomic
 from .kinematics import Kinematics, Status
 from .model import Mechanism, load_mechanism
 from .output import (
@@ -401,12 +401,14 @@ def _shown_option(option: str, value: Path | None) -> str:
 def _update_index(target: Path, entries: list[dict], model_folder: Path, command: str) -> None:
     """Rewrite the reports' README.md with these entries, keeping the lines of
     the other mechanisms of the same folder not run now; ``command`` is the
-    run that wrote it last."""
-    known = {e["name"]: e for e in _read_index(target)}
-    known.update({e["name"]: e for e in entries})
+    run that wrote it last. The read and the write are one step under the
+    directory's lock, so that concurrent runs do not lose each other's lines."""
     existing = set(model_names(model_folder))
-    write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
-                target, command)
+    with directory_lock(target):
+        known = {e["name"]: e for e in _read_index(target)}
+        known.update({e["name"]: e for e in entries})
+        write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
+                    target, command)
 
 
 def _read_index(reports_dir: Path) -> list[dict]:
