@@ -14,8 +14,8 @@ from test_bad_input import FOURBAR, MODELS, error_line, library_error, run_cli, 
 
 from xcheck import ModelError, load_mechanism
 from xcheck.cli import MAX_AT_STATES, MAX_SAMPLES
-from xcheck.model import Body, Revolute
-from xcheck.model._load import MAX_BODIES, MAX_FILE_BYTES, _Reader
+from xcheck.model import MAX_BODIES, MAX_FILE_BYTES, Body, Revolute
+from xcheck.model._load import _Reader
 
 
 def pinned_chain(n: int, missing: int | None = None) -> str:
@@ -195,6 +195,13 @@ def test_too_many_at_states_are_refused():
     at = ",".join(["45"] * (MAX_AT_STATES + 1))
     error_line(run_cli("solve", "fourbar", "--at", at, "--models", str(MODELS)),
                f"fourbar.toml: --at: expected at most {MAX_AT_STATES} states, found {MAX_AT_STATES + 1}")
+
+
+def test_too_many_instants_are_refused(tmp_path):
+    text = FOURBAR.split("[[instants]]")[0] + "[[instants]]\ncrank = 30\n\n" * (MAX_AT_STATES + 1)
+    err = library_error(write(tmp_path, text))
+    assert (err.field, err.expected, err.found) == ("instants", f"at most {MAX_AT_STATES} [[instants]]",
+                                                    str(MAX_AT_STATES + 1))
 
 
 def test_limits_are_documented():

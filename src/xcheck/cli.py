@@ -22,7 +22,7 @@ from .engines import EXPORTERS, exporter
 from .errors import InputError, ModelError, XcheckError
 from .fileio import directory_lock, write_atomic
 from .kinematics import Kinematics, Status
-from .model import Mechanism, load_mechanism
+from .model import MAX_INSTANTS, Mechanism, load_mechanism
 from .output import (
     print_run,
     print_solution,
@@ -491,9 +491,10 @@ def export_command(
         raise typer.Exit(1)
 
 
-#: Most ``--at`` states of one ``xcheck solve``: each is solved and printed; a
-#: sweep over more belongs to ``xcheck run --samples``.
-MAX_AT_STATES = 10_000
+#: Most ``--at`` states of one ``xcheck solve``, as many as a file's
+#: [[instants]]: each is solved and printed; a sweep over more belongs to
+#: ``xcheck run --samples``.
+MAX_AT_STATES = MAX_INSTANTS
 
 
 def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[list[float]]:

@@ -1,6 +1,6 @@
 """The canonical mechanism model and its file format."""
 
-from ._load import load_mechanism, parse_mechanism
+from ._load import MAX_BODIES, MAX_FILE_BYTES, MAX_INSTANTS, load_mechanism, parse_mechanism
 from ._mechanism import (
     GROUND,
     Assembly,
@@ -18,6 +18,9 @@ from ._mechanism import (
 
 __all__ = [
     "GROUND",
+    "MAX_BODIES",
+    "MAX_FILE_BYTES",
+    "MAX_INSTANTS",
     "Assembly",
     "Body",
     "Driver",

@@ -40,7 +40,7 @@ from ._mechanism import (
     Revolute,
 )
 
-__all__ = ["load_mechanism", "parse_mechanism"]
+__all__ = ["load_mechanism", "parse_mechanism", "MAX_BODIES", "MAX_FILE_BYTES", "MAX_INSTANTS"]
 
 _TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants",
              "dynamics", "loads")
@@ -117,6 +117,10 @@ MAX_FILE_BYTES = 1_000_000
 #: bodies pinned at one point: 200 bodies 4 s, 400 bodies 14 s, 1000 bodies
 #: 270 s), so this keeps every mechanism that loads solvable within seconds.
 MAX_BODIES = 200
+
+#: Most [[instants]] of a file: as many as ``xcheck solve --at`` takes states
+#: (each is solved and printed; 10000 take about 6 s).
+MAX_INSTANTS = 10_000
 
 #: What a mechanism's name may be: it becomes a file name (reports/NAME.md, models/mjcf/NAME.xml).
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_-](?:[A-Za-z0-9 ._-]{0,98}[A-Za-z0-9._-])?")
@@ -581,6 +585,8 @@ class _Reader:
     def instants(self, value: Any, drivers: list[Driver], units: Units) -> list[Instant]:
         if not isinstance(value, list):
             self.fail("instants", "a list of [[instants]]", _describe(value))
+        if len(value) > MAX_INSTANTS:
+            self.fail("instants", f"at most {MAX_INSTANTS} [[instants]]", str(len(value)))
         instants = []
         for i, spec in enumerate(value):
             field = f"instants[{i}]"
