@@ -21,9 +21,9 @@ from .api import printed_answers, select_modes
 from .catalog import model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
-from .fileio import write_atomic
+from .fileio import directory_lock, write_atomic
 from .kinematics import Kinematics, Status
-from .model import Mechanism, load_mechanism
+from .model import MAX_INSTANTS, Mechanism, load_mechanism
 from .output import (
     print_run,
     print_simulation,
@@ -270,6 +270,11 @@ def solve_command(
         raise textbook_error
 
 
+#: Most samples of a sweep: a sweep's cost grows with them (every engine mode
+#: steps through each), and 100000 already resolves a full turn to 0.004 deg.
+MAX_SAMPLES = 100_000
+
+
 @app.command("run")
 @_reports_errors
 def run_command(
@@ -279,8 +284,8 @@ def run_command(
         help="Modes to run (default: all; `xcheck engines` lists them): native, the engines' modes (e.g. "
              "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
              "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).")] = None,
-    samples: Annotated[int, typer.Option("--samples", min=3, help="Samples of the sweeps over the feasible "
-                                         "input range.")] = 181,
+    samples: Annotated[int, typer.Option("--samples", help="Samples of the sweeps over the feasible "
+                                         f"input range (3 to {MAX_SAMPLES}).")] = 181,
     branch: Annotated[Optional[str], typer.Option(
         "--branch", help="Assembly branch (default: the file's first).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
@@ -300,6 +305,8 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
+    if not 3 <= samples <= MAX_SAMPLES:
+        raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
     modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
@@ -389,12 +396,14 @@ def _shown_option(option: str, value: Path | None) -> str:
 def _update_index(target: Path, entries: list[dict], model_folder: Path, command: str) -> None:
     """Rewrite the reports' README.md with these entries, keeping the lines of
     the other mechanisms of the same folder not run now; ``command`` is the
-    run that wrote it last."""
-    known = {e["name"]: e for e in _read_index(target)}
-    known.update({e["name"]: e for e in entries})
+    run that wrote it last. The read and the write are one step under the
+    directory's lock, so that concurrent runs do not lose each other's lines."""
     existing = set(model_names(model_folder))
-    write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
-                target, command)
+    with directory_lock(target):
+        known = {e["name"]: e for e in _read_index(target)}
+        known.update({e["name"]: e for e in entries})
+        write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
+                    target, command)
 
 
 def _read_index(reports_dir: Path) -> list[dict]:
@@ -526,6 +535,12 @@ def export_command(
         raise typer.Exit(1)
 
 
+#: Most ``--at`` states of one ``xcheck solve``, as many as a file's
+#: [[instants]]: each is solved and printed; a sweep over more belongs to
+#: ``xcheck run --samples``.
+MAX_AT_STATES = MAX_INSTANTS
+
+
 def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[list[float]]:
     """Comma-separated states of colon-separated per-driver values (display
     units) to SI; ``scale_of(driver)`` is SI per display unit."""
@@ -554,6 +569,9 @@ def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
     Rates and accelerations come from ``--rate``/``--accel`` (one state each,
     applied to every ``--at`` state) or else from the motion laws.
     """
+    count = text.count(",") + 1
+    if count > MAX_AT_STATES:
+        raise InputError(f"{mech.path}: --at: expected at most {MAX_AT_STATES} states, found {count}")
     u = mech.units
     values = _parse_values(text, mech, "--at",
                            lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)

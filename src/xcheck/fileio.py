@@ -1,12 +1,29 @@
-"""Writing generated files whole or not at all."""
+"""Writing generated files whole or not at all, one writer at a time per
+directory, and cleaning what a killed writer left behind."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["write_atomic"]
+try:
+    import fcntl
+except ImportError:  # not on Windows: writers are not serialised there
+    fcntl = None  # type: ignore[assignment]
+
+__all__ = ["write_atomic", "directory_lock", "remove_stale_staging", "REPORT_IMAGES"]
+
+#: The files of a report's image folder (reports/NAME/).
+REPORT_IMAGES = frozenset({"drawing.png", "quantities.png", "differences.png", "convergence.png", "forces.png",
+                           "motion.gif"})
+
+#: A hidden temporary name as ``tempfile`` makes it: "." + name + "." + 8 characters
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[a-z0-9_]{8}")
 
 
 def write_atomic(path: str | Path, data: str | bytes) -> None:
@@ -26,3 +43,55 @@ def write_atomic(path: str | Path, data: str | bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextlib.contextmanager
+def directory_lock(directory: str | Path) -> Iterator[None]:
+    """Hold an exclusive lock (``fcntl.flock``) on ``directory`` itself while
+    writing into it: concurrent runs writing the same reports take turns. The
+    lock leaves no file behind and is released when the process ends, killed
+    or not."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    if fcntl is None:
+        yield
+        return
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def remove_stale_staging(directory: str | Path) -> list[Path]:
+    """Remove what killed writers left in ``directory``: hidden staging folders
+    of reports (``.NAME.XXXXXXXX`` holding report images, ``.NAME.old.XXXXXXXX``
+    holding one such folder) and hidden temporary Markdown files of
+    :func:`write_atomic` (``.FILE.md.XXXXXXXX``). Call it holding
+    :func:`directory_lock`, under which no writer is at work; anything else,
+    hidden or not, is left alone. Returns the paths removed."""
+    removed = []
+    for entry in sorted(Path(directory).iterdir()):
+        match = _TEMPORARY.fullmatch(entry.name)
+        if match is None or entry.is_symlink():
+            continue
+        name = match["name"]
+        if entry.is_file() and name.endswith(".md"):
+            entry.unlink()
+        elif entry.is_dir() and (_holds_images(entry) or (name.endswith(".old") and _holds_report(entry, name[:-4]))):
+            shutil.rmtree(entry)
+        else:
+            continue
+        removed.append(entry)
+    return removed
+
+
+def _holds_images(folder: Path) -> bool:
+    """Whether ``folder`` holds nothing but report images (as a report's staging does)."""
+    return all(c.name in REPORT_IMAGES and c.is_file() and not c.is_symlink() for c in folder.iterdir())
+
+
+def _holds_report(folder: Path, name: str) -> bool:
+    """Whether ``folder`` holds nothing but a report's image folder ``name`` (a retired report)."""
+    return all(c.name == name and c.is_dir() and not c.is_symlink() and _holds_images(c) for c in folder.iterdir())

@@ -264,6 +264,9 @@ def run_json(run) -> dict:
     (expected and observed order, the coarser run's error and time step (s),
     the time step compared, the error the expected order predicts there and
     the measured one; see :func:`xcheck.runner._convergence_verdict`).
+    Every wall-clock time is under the one key ``timings`` (``seconds``: the
+    whole run; ``engines``: per mode), so that two runs' JSON without it are
+    identical.
     """
     from .runner import CATEGORIES
 
@@ -284,7 +287,7 @@ def run_json(run) -> dict:
                     "observed_order": _number(row.observed_order), "coarse_error": _number(row.coarse_error),
                     "coarse_step": _number(row.coarse_step), "step": _number(row.step),
                     "estimate": _number(row.estimate), "measured": _number(row.relative)}
-        entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "seconds": round(outcome.seconds, 3)})
+        entry.update({"pass": outcome.passed, "reason": outcome.reason or None})
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
@@ -299,7 +302,9 @@ def run_json(run) -> dict:
             "pass": run.passed, "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
             "engines": engines, "not_applicable": run.not_applicable,
             "forces": forces, "energy": energy, "forces_not_computed": run.no_forces or None,
-            "textbook": textbook_json(run.textbook)}
+            "textbook": textbook_json(run.textbook),
+            "timings": {"seconds": round(run.seconds, 3),
+                        "engines": {mode: round(outcome.seconds, 3) for mode, outcome in run.outcomes.items()}}}
 
 
 def print_run(console: Console, run) -> None:

@@ -1,7 +1,7 @@
 """The canonical mechanism model and its file format."""
 
 from ._free_motion import FreeMotionSpec, Spring
-from ._load import load_mechanism, parse_mechanism
+from ._load import MAX_BODIES, MAX_FILE_BYTES, MAX_INSTANTS, load_mechanism, parse_mechanism
 from ._mechanism import (
     GROUND,
     Assembly,
@@ -21,6 +21,9 @@ __all__ = [
     "GROUND",
     "FreeMotionSpec",
     "Spring",
+    "MAX_BODIES",
+    "MAX_FILE_BYTES",
+    "MAX_INSTANTS",
     "Assembly",
     "Body",
     "Driver",

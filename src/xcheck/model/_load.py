@@ -8,6 +8,7 @@ naming the file, the field, what was expected and what was found.
 from __future__ import annotations
 
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -40,7 +41,7 @@ from ._mechanism import (
     Revolute,
 )
 
-__all__ = ["load_mechanism", "parse_mechanism"]
+__all__ = ["load_mechanism", "parse_mechanism", "MAX_BODIES", "MAX_FILE_BYTES", "MAX_INSTANTS"]
 
 _TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants",
              "dynamics", "loads", "springs", "free_motion")
@@ -58,14 +59,24 @@ def load_mechanism(path: str | Path) -> Mechanism:
         If the file cannot be read, is not valid TOML, or fails a check.
     """
     path = Path(path)
+    expected = f"a mechanism file of at most {MAX_FILE_BYTES} bytes"
     try:
-        text = path.read_text(encoding="utf-8-sig")  # a BOM, as Windows editors write one, is not content
+        with path.open("rb") as file:
+            size = os.fstat(file.fileno()).st_size
+            if size > MAX_FILE_BYTES:  # refused before reading, let alone parsing
+                raise ModelError(str(path), "", expected, f"{size} bytes")
+            data = file.read(MAX_FILE_BYTES + 1)  # a pipe or device has no size to look at
     except OSError as err:
         raise ModelError(str(path), "", "a readable mechanism file", err.strerror or str(err)) from err
+    if len(data) > MAX_FILE_BYTES:
+        raise ModelError(str(path), "", expected, f"more than {MAX_FILE_BYTES} bytes")
+    try:
+        text = data.decode("utf-8-sig")  # a BOM, as Windows editors write one, is not content
     except UnicodeDecodeError as err:
         raise ModelError(str(path), "", "a UTF-8 text file",
                          f"bytes that are not UTF-8 at byte offset {err.start}") from err
-    return parse_mechanism(text, str(path))
+    # line ends as text mode reads them
+    return parse_mechanism(text.replace("\r\n", "\n").replace("\r", "\n"), str(path))
 
 
 def parse_mechanism(text: str, path: str = "<string>") -> Mechanism:
@@ -95,6 +106,22 @@ def _describe(value: Any) -> str:
 #: mechanism's size (SI) that a file may give: squares and products of such
 #: values stay far inside float64 (1e308).
 MAGNITUDE_LIMIT = 1e100
+
+#: Largest mechanism file (bytes). The largest real mechanism files are a few
+#: kB; this leaves room for long notes and thousands of instants, and keeps a
+#: stray multi-megabyte file from being parsed at all.
+MAX_FILE_BYTES = 1_000_000
+
+#: Most moving bodies a mechanism may have. Real planar mechanisms have tens.
+#: Loading is linear in the count, but assembling works with dense matrices of
+#: three rows per body and grows faster than its square (measured on a chain of
+#: bodies pinned at one point: 200 bodies 4 s, 400 bodies 14 s, 1000 bodies
+#: 270 s), so this keeps every mechanism that loads solvable within seconds.
+MAX_BODIES = 200
+
+#: Most [[instants]] of a file: as many as ``xcheck solve --at`` takes states
+#: (each is solved and printed; 10000 take about 6 s).
+MAX_INSTANTS = 10_000
 
 #: What a mechanism's name may be: it becomes a file name (reports/NAME.md, models/mjcf/NAME.xml).
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_-](?:[A-Za-z0-9 ._-]{0,98}[A-Za-z0-9._-])?")
@@ -193,7 +220,10 @@ class _Reader:
                                             .get("points", {}), "ground.points", length))]
         self.point_fields.update({(GROUND, lbl): f"ground.points.{lbl}" for lbl in bodies[0].points})
         sketches: dict[str, np.ndarray] = {}
-        for body_name, spec in self.table(data["bodies"], "bodies").items():
+        body_specs = self.table(data["bodies"], "bodies")
+        if len(body_specs) > MAX_BODIES:
+            self.fail("bodies", f"at most {MAX_BODIES} moving bodies", str(len(body_specs)))
+        for body_name, spec in body_specs.items():
             body, sketch = self.body(body_name, spec, units)
             bodies.append(body)
             sketches.update(sketch)
@@ -399,40 +429,56 @@ class _Reader:
         return PinInSlot(name, a.name, b.name, p0, direction, point)
 
     def check_shared_labels(self, bodies: list[Body], joints: list) -> None:
-        """A label on two bodies must be a revolute joining them at that label."""
-        pinned = {(j.point_a, frozenset((j.body_a, j.body_b))) for j in joints
-                  if isinstance(j, Revolute) and j.point_a == j.point_b}
+        """A label on two bodies must be a revolute joining them at that label
+        (directly or through other bodies pinned at the same label).
+
+        Linear in the number of bodies and joints: one union-find per label.
+        """
         owners: dict[str, list[str]] = {}
         for b in bodies:
             for label in b.points:
                 owners.setdefault(label, []).append(b.name)
-        for label, names in owners.items():
-            for i, first in enumerate(names):
-                for second in names[i + 1:]:
-                    if (label, frozenset((first, second))) not in pinned:
-                        # allowed when connected through a chain of revolutes at the same label
-                        linked = _connected(label, first, second, pinned)
-                        if not linked:
-                            self.fail("joints", f"a revolute joint at {label!r} between {first} and {second} "
-                                      "(they share the label)", "none: rename one of the points")
+        groups = {label: _UnionFind() for label, names in owners.items() if len(names) > 1}
+        for j in joints:
+            if isinstance(j, Revolute) and j.point_a == j.point_b and j.point_a in groups:
+                groups[j.point_a].union(j.body_a, j.body_b)
+        for label, group in groups.items():
+            first, *others = owners[label]
+            root = group.find(first)
+            # the first body not linked to the first owner: the same pair a pairwise check finds first
+            second = next((name for name in others if group.find(name) != root), None)
+            if second is not None:
+                self.fail("joints", f"a revolute joint at {label!r} between {first} and {second} "
+                          "(they share the label)", "none: rename one of the points")
 
     def check_joint_points(self, bodies: list[Body], joints: list) -> None:
         """Two different joint points of one body must not coincide: that is a
-        link of zero length (one place of a body takes one label)."""
-        used: dict[str, list[str]] = {b.name: [] for b in bodies}
+        link of zero length (one place of a body takes one label).
+
+        Linear in the number of joint points: each point is compared only with
+        the points in its own and the neighbouring cells of a grid about as
+        fine as the tolerance.
+        """
+        used: dict[str, dict[str, None]] = {b.name: {} for b in bodies}  # ordered sets
         for j in joints:
             if isinstance(j, Revolute):
                 ends = ((j.body_a, j.point_a), (j.body_b, j.point_b))
             else:  # the sliding point; the line's points only place the line
                 ends = ((j.body_b, j.point),)
             for body, label in ends:
-                if label not in used[body]:
-                    used[body].append(label)
+                used[body][label] = None
         for b in bodies:
-            labels = used[b.name]
+            labels = list(used[b.name])
+            cells: dict[tuple, list[int]] = {}
+            for k, label in enumerate(labels):
+                cells.setdefault(_cell(b.points[label]), []).append(k)
             for i, first in enumerate(labels):
-                for second in labels[i + 1:]:
-                    if np.allclose(b.points[first], b.points[second], rtol=0.0, atol=1e-12):
+                cx, cy = _cell(b.points[first])
+                near = sorted(k for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+                              for k in cells.get((cx + dx, cy + dy), ()) if k > i)
+                for k in near:
+                    second = labels[k]
+                    if np.all(np.abs(b.points[first] - b.points[second]) <= _COINCIDENT):
                         self.fail(self.point_fields.get((b.name, second), f"bodies.{b.name}"),
                                   f"joint point {second!r} of {b.name} apart from its joint point {first!r} "
                                   "(a link of non-zero length; for one place use one label)",
@@ -442,7 +488,7 @@ class _Reader:
         if not isinstance(value, list) or not value:
             self.fail("drivers", "a list of [[drivers]]", _describe(value))
         by_name = {j.name: j for j in joints}
-        drivers, driven = [], set()
+        drivers, driven, names = [], set(), set()
         for i, spec in enumerate(value):
             field = f"drivers[{i}]"
             spec = self.table(spec, field, ("name", "joint", "motion", "start", "rate", "acceleration",
@@ -474,8 +520,9 @@ class _Reader:
                 law = MotionLaw(kind, start=get("start", q_scale), rate=get("rate", rate_scale),
                                 acceleration=get("acceleration", rate_scale), turns=quantity == "angle")
             name = self.text(spec.get("name", joint_name), f"{field}.name")
-            if any(d.name == name for d in drivers):
+            if name in names:
                 self.fail(f"{field}.name", "a name no other driver has", repr(name))
+            names.add(name)
             drivers.append(Driver(name, joint_name, quantity, law))
         return drivers
 
@@ -547,6 +594,8 @@ class _Reader:
     def instants(self, value: Any, drivers: list[Driver], units: Units) -> list[Instant]:
         if not isinstance(value, list):
             self.fail("instants", "a list of [[instants]]", _describe(value))
+        if len(value) > MAX_INSTANTS:
+            self.fail("instants", f"at most {MAX_INSTANTS} [[instants]]", str(len(value)))
         instants = []
         for i, spec in enumerate(value):
             field = f"instants[{i}]"
@@ -604,12 +653,13 @@ class _Reader:
         if not isinstance(value, list):
             self.fail("loads", "a list of [[loads]]", _describe(value))
         loads: list[Load] = []
+        names: set[str] = set()
         moving = [name for name in bodies if name != GROUND]
         for i, spec in enumerate(value):
             field = f"loads[{i}]"
             spec = self.table(spec, field, ("name", "body", "point", "force", "torque"))
             body_name = spec.get("body")
-            if not isinstance(body_name, str) or body_name not in moving:
+            if not isinstance(body_name, str) or body_name not in bodies or body_name == GROUND:
                 self.fail(f"{field}.body", f"a moving body ({', '.join(moving)})", _describe(body_name))
             body = bodies[body_name]
             if "force" not in spec and "torque" not in spec:
@@ -631,21 +681,41 @@ class _Reader:
                 self.fail(f"{field}.point", "a point only with a 'force' (a torque acts on the whole body)",
                           _describe(spec["point"]))
             name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
-            if any(load.name == name for load in loads):
+            if name in names:
                 self.fail(f"{field}.name", "a name no other load has", repr(name))
+            names.add(name)
             loads.append(Load(name, body_name, point, force, torque, label))
         return loads
 
 
-def _connected(label: str, first: str, second: str, pinned: set) -> bool:
-    """Whether revolutes at ``label`` link ``first`` to ``second`` (through other bodies)."""
-    edges = [tuple(pair) for lbl, pair in pinned if lbl == label]
-    reached, frontier = {first}, [first]
-    while frontier:
-        node = frontier.pop()
-        for u, v in edges:
-            for x, y in ((u, v), (v, u)):
-                if x == node and y not in reached:
-                    reached.add(y)
-                    frontier.append(y)
-    return second in reached
+class _UnionFind:
+    """Disjoint sets of names, with path halving."""
+
+    def __init__(self) -> None:
+        self.parent: dict[str, str] = {}
+
+    def find(self, name: str) -> str:
+        parent = self.parent
+        parent.setdefault(name, name)
+        while parent[name] != name:
+            parent[name] = parent[parent[name]]
+            name = parent[name]
+        return name
+
+    def union(self, a: str, b: str) -> None:
+        self.parent[self.find(a)] = self.find(b)
+
+
+#: Two joint points of one body closer than this in both coordinates (m) coincide.
+_COINCIDENT = 1e-12
+
+
+def _cell(xy: np.ndarray) -> tuple:
+    """The grid cell (of side twice :data:`_COINCIDENT`, so that coincident
+    points lie in the same or neighbouring cells) of a point; far from the
+    origin, where floats are coarser than a cell, the coordinates themselves."""
+    cell = []
+    for v in xy:
+        q = float(v) / (2 * _COINCIDENT)
+        cell.append(math.floor(q) if math.isfinite(q) else float(v))
+    return tuple(cell)

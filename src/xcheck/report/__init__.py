@@ -3,7 +3,9 @@ reports/NAME/, and reports/README.md indexing them.
 
 A report appears whole or not at all: its images are written into a fresh
 directory beside the old one, which replaces the old directory by renames; the
-Markdown file is written through a temporary file and a rename.
+Markdown file is written through a temporary file and a rename. Writers of one
+directory take turns (a file lock), and each first removes what a killed
+writer left there.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ..fileio import write_atomic
+from ..fileio import directory_lock, remove_stale_staging, write_atomic
 from ..runner import RunResult
 from . import _figures
 from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
@@ -22,8 +24,17 @@ __all__ = ["write_report", "write_index", "index_entry"]
 
 
 def write_report(run: RunResult, directory: str | Path, command: str, gif: bool = True) -> Path:
-    """Write reports/NAME.md and reports/NAME/*.png|gif for one run; returns the Markdown path."""
-    directory = Path(directory)
+    """Write reports/NAME.md and reports/NAME/*.png|gif for one run; returns the Markdown path.
+
+    One writer at a time per directory (:func:`xcheck.fileio.directory_lock`),
+    which first removes the staging that killed runs left there.
+    """
+    with directory_lock(directory):
+        remove_stale_staging(directory)
+        return _write_report(run, Path(directory), command, gif)
+
+
+def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     name = run.mechanism.name
     if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only

@@ -1,0 +1,59 @@
+"""Reports written by runs that are killed or run side by side (issue 18): the
+hidden staging a killed run leaves is removed at the next write (and nothing
+else is), and the index's read-modify-write holds the directory's lock."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import threading
+import time
+
+from conftest import MODELS
+from typer.testing import CliRunner
+
+from xcheck.cli import _update_index, app
+
+
+def _touch(path, data: bytes = b"stale") -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+
+
+def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
+    out = tmp_path / "reports"
+    # what a run killed while writing leaves: staging with some images, an empty
+    # staging folder, a retired report folder, temporary Markdown files
+    _touch(out / ".fourbar.k3j4h5g6" / "drawing.png")
+    (out / ".scotch-yoke.abcdefgh").mkdir()
+    _touch(out / ".fourbar.old.a1b2c3d4" / "fourbar" / "motion.gif")
+    _touch(out / ".README.md.zz99yy88")
+    _touch(out / ".fourbar.md.q1w2e3r4")
+    # what xcheck did not write stays, hidden or not
+    keep = [".git/config", ".notes.abcdefgh/mine.txt", ".mine.txt.abcdefgh", ".other.old.a1b2c3d5/other/x.png",
+            "notes.md"]
+    for name in keep:
+        _touch(out / name)
+    result = CliRunner().invoke(app, ["run", "fourbar", "--engines", "formulations", "--samples", "31", "--quiet",
+                                      "--out", str(out), "--models", str(MODELS)])
+    assert result.exit_code == 0, result.output
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert [p for p in left if p.startswith(".")] == sorted(k for k in keep if k.startswith("."))
+    assert {"README.md", "fourbar.md", "fourbar/drawing.png", "notes.md"} <= set(left)
+
+
+def test_index_update_waits_for_the_directory_lock(tmp_path):
+    entry = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
+    worker = threading.Thread(target=_update_index, args=(tmp_path, [entry], MODELS, "xcheck run fourbar"))
+    fd = os.open(tmp_path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # another run writing the reports
+        worker.start()
+        time.sleep(0.5)
+        assert worker.is_alive()
+        assert not (tmp_path / "README.md").exists()
+    finally:
+        os.close(fd)
+    worker.join(30)
+    assert not worker.is_alive()
+    assert "[fourbar](fourbar.md)" in (tmp_path / "README.md").read_text(encoding="utf-8")
