@@ -40,6 +40,8 @@ __all__ = ["FreeState", "FreeMotion", "FreeReference", "mass_matrix", "simulate_
 SINGULAR_THRESHOLD = 1e-2
 #: relative rank cut-off of the least-squares solves (of J M^-1 J^T, dimensionless)
 RANK_CUTOFF = 1e-12
+#: relative rank cut-off of the projections' least-squares solves
+PROJECTION_CUTOFF = 1e-12
 #: below this singularity measure the accelerations' multipliers come from
 #: least squares (rank-revealing) rather than a plain solve
 LEAST_SQUARES_BELOW = 1e-3
@@ -374,7 +376,7 @@ class _Dynamics:
         return kinetic - float(self.bodies.mass @ (centres @ self.gravity)) + springs
 
     def _constrained(self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray,
-                     measure: bool = False) -> tuple[np.ndarray, float]:
+                     measure: bool = False, cutoff: float = RANK_CUTOFF) -> tuple[np.ndarray, float]:
         """The x minimising (1/2) x^T M x - load^T x subject to J x = gap, and
         the singularity measure of J there.
 
@@ -402,7 +404,7 @@ class _Dynamics:
                 return (free + mj @ np.linalg.solve(schur, rhs)) / d, math.nan
             except np.linalg.LinAlgError:
                 pass
-        multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=RANK_CUTOFF)
+        multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
         return (free + mj @ multipliers) / d, math.sqrt(float(singular[-1] / singular[0]))
 
     def acceleration(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
@@ -421,10 +423,12 @@ class _Dynamics:
         for _ in range(PROJECTION_ITERATIONS):
             if gap <= tolerance:
                 break
-            q = q + self._constrained(self._mass(q), self.joints.jacobian(q), zero, -self.joints.residual(q))[0]
+            q = q + self._constrained(self._mass(q), self.joints.jacobian(q), zero, -self.joints.residual(q),
+                                      measure=True, cutoff=PROJECTION_CUTOFF)[0]
             gap = self.residual_metres(q)
         jac = self.joints.jacobian(q)
-        correction, singular = self._constrained(self._mass(q), jac, zero, -(jac @ qd), measure=True)
+        correction, singular = self._constrained(self._mass(q), jac, zero, -(jac @ qd), measure=True,
+                                                 cutoff=PROJECTION_CUTOFF)
         self.measure = singular
         return q, qd + correction, before, singular
 
