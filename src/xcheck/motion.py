@@ -75,10 +75,12 @@ def simulation_window(kinematics: Kinematics, branch: str | None = None, margin:
         if rng.low is not None and rng.high is not None:
             pad = margin * (rng.high - rng.low)
             inside &= (q[:, k] >= rng.low + pad) & (q[:, k] <= rng.high - pad)
-        elif rng.low is not None or rng.high is not None:
-            bound = rng.low if rng.low is not None else rng.high
-            pad = margin * abs(bound) if bound else margin
-            inside &= (q[:, k] >= rng.low + pad) if rng.low is not None else (q[:, k] <= rng.high - pad)
+        elif rng.low is not None:
+            pad = margin * abs(rng.low) if rng.low else margin
+            inside &= q[:, k] >= rng.low + pad
+        elif rng.high is not None:
+            pad = margin * abs(rng.high) if rng.high else margin
+            inside &= q[:, k] <= rng.high - pad
     if not inside[0]:
         raise InputError(f"{mech.path}: drivers: expected a motion that starts inside the feasible range, "
                          "found one that starts at or past a limit position")

@@ -47,9 +47,11 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -95,6 +97,8 @@ _VECTOR = {"length": "length", "angle": "angle", "length-rate": "velocity", "ang
 _GRAMMAR = ("'point P x|y|vx|vy|v|ax|ay|a', 'body NAME x|y|angle|vx|vy|v|omega|ax|ay|a|alpha', "
             "'vector P Q length|angle|length-rate|angle-rate|length-acceleration|angle-acceleration', "
             "'interior P Q R' or 'dof'")
+#: Raises the ModelError for (field, expected, found).
+_Fail = Callable[[str, str, str], NoReturn]
 #: a value as printed: sign, digits, optional decimal comma or point and digits
 _PRINTED = re.compile(r"-?(\d+([.,]\d*)?|[.,]\d+)")
 _TOP_KEYS = ("comparisons", "printed")
@@ -186,7 +190,7 @@ def load_comparisons(path: str | Path, mechanism: Mechanism) -> Comparisons:
 
 def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -> Comparisons:
     """Parse and check the TOML text of a comparisons file (see :func:`load_comparisons`)."""
-    def fail(field: str, expected: str, found: str):
+    def fail(field: str, expected: str, found: str) -> NoReturn:
         raise ModelError(path, field, expected, found)
 
     try:
@@ -252,13 +256,13 @@ def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -
     return Comparisons(path, name, document, notes, tuple(entries))
 
 
-def _check_keys(table: dict, field: str, allowed: tuple[str, ...], fail) -> None:
+def _check_keys(table: dict, field: str, allowed: tuple[str, ...], fail: _Fail) -> None:
     for key in table:
         if key not in allowed:
             fail(f"{field}.{key}" if field else key, f"one of the keys {', '.join(allowed)}", f"unknown key {key!r}")
 
 
-def _string(table: dict, key: str, field: str, fail, required: bool = False) -> str:
+def _string(table: dict, key: str, field: str, fail: _Fail, required: bool = False) -> str:
     if key not in table:
         if required:
             fail(f"{field}.{key}", "a non-empty string", "none")
@@ -269,7 +273,7 @@ def _string(table: dict, key: str, field: str, fail, required: bool = False) -> 
     return value
 
 
-def _parse_quantity(text: str, mech: Mechanism, field: str, fail):
+def _parse_quantity(text: str, mech: Mechanism, field: str, fail: _Fail):
     """(kind, subject, component, dimension) of a vocabulary phrase."""
     words = text.split()
     labels = mech.point_owners
@@ -330,7 +334,10 @@ def verdict(printed: str, computed: float) -> tuple[float | None, float, str]:
     # exact decimal arithmetic, so that a value at exactly half a unit is not
     # pushed over the line by the subtraction's round-off
     gap = text - Decimal(computed)
-    digits = float(gap.scaleb(-text.as_tuple().exponent))
+    exponent = text.as_tuple().exponent
+    if not isinstance(exponent, int):  # "n", "N" or "F": not a finite number
+        raise ValueError(f"printed value {printed!r} is not a finite number")
+    digits = float(gap.scaleb(-exponent))
     percent = 100.0 * float(gap) / abs(computed) if computed != 0.0 else None
     if abs(digits) <= 0.5:
         result = AGREES

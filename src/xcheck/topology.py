@@ -117,7 +117,7 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
     return Topology(tuple(tree), tuple(cuts))
 
 
-def carrier_share(mechanism: Mechanism, cut: Joint, held: tuple[float, np.ndarray, float] | None,
+def carrier_share(mechanism: Mechanism, cut: Prismatic | PinInSlot, held: tuple[float, np.ndarray, float] | None,
                   line_mass: float) -> tuple[tuple[float, np.ndarray, float], tuple[float, np.ndarray, float] | None]:
     """The mass a cut's carrier takes from the body it is held to, keeping the
     mechanism's mass distribution exact.

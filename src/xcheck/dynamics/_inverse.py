@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import Solution, Status
-from ..model import GROUND, Mechanism, Prismatic, Revolute
+from ..model import GROUND, Driver, Joint, Mechanism, Prismatic, Revolute
 from ._forces import Forces, joint_quantities, require_mass_data
 
 __all__ = ["inverse_dynamics", "newton_euler", "body_dynamics"]
@@ -69,10 +69,17 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
         ``velocity``, ``acceleration`` (N, 2) of G; ``angle``, ``omega``,
         ``alpha`` (N,); ``force`` (N, 2), N: gravity plus applied forces;
         ``moment`` (N,), N m: their moment about G plus applied torques.
+
+    Raises
+    ------
+    ModelError
+        If a moving body has no mass or inertia.
     """
     mech = solution.mechanism
+    require_mass_data(mech)
     out = {}
     for body in mech.moving_bodies:
+        assert body.mass is not None and body.inertia is not None  # require_mass_data
         state = solution.body(body.name)
         com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
         phi, omega, alpha = state["angle"], state["omega"], state["alpha"]
@@ -231,7 +238,7 @@ def newton_euler(solution: Solution) -> Forces:
     def point(body: str, label: str) -> np.ndarray:
         return solution.point(label, body)["position"]
 
-    layout = []  # (joint or driver, quantity, column)
+    layout: list[tuple[Joint | Driver, str, int]] = []  # (joint or driver, quantity, column)
     for joint in mech.joints:
         if isinstance(joint, Revolute):
             at = point(joint.body_b, joint.point_b)

@@ -51,7 +51,7 @@ def formulation(name: str):
 def applicability(kinematics: Kinematics) -> dict[str, str | None]:
     """For each formulation, None if it applies to the mechanism, else the
     reason it does not (one line). Structural only: nothing is solved."""
-    result = {}
+    result: dict[str, str | None] = {}
     for name, check in _CHECKS.items():
         try:
             check(kinematics.mechanism)

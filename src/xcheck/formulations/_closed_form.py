@@ -24,12 +24,13 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
 from ..compare import Trajectory
 from ..kinematics import Kinematics
-from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from ..model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from ._common import (
     Frame,
     NotApplicable,
@@ -55,7 +56,9 @@ def _local(mech: Mechanism, body: str, label: str) -> complex:
     return complex(s[0], s[1])
 
 
-def _joint_point(joint: Revolute, body: str) -> str:
+def _joint_point(joint: Joint, body: str) -> str:
+    """The label of a revolute's point on ``body``."""
+    assert isinstance(joint, Revolute)  # the recognisers pass only the revolutes here
     return joint.point_a if body == joint.body_a else joint.point_b
 
 
@@ -69,7 +72,7 @@ def _shown(mech: Mechanism, lengths) -> list[str]:
     return [f"{x / units.length_factor:.6g} {units.length}" for x in lengths]
 
 
-def _fail(mech: Mechanism, reason: str):
+def _fail(mech: Mechanism, reason: str) -> NoReturn:
     raise NotApplicable(SOURCE, mech.name, reason)
 
 
@@ -207,7 +210,7 @@ class _FourBar:
                 trial[index] = sigma
                 values = self.thetas(c_ref[:, 0], zero[:, 0], zero[:, 0], trial)[index][0, 0]
                 gaps[sigma] = abs(float(wrap(values - want[index])))
-            best = min(gaps, key=gaps.get)
+            best = min(gaps, key=gaps.__getitem__)
             if not gaps[best] <= _BRANCH_MATCH:
                 raise RuntimeError(f"{SOURCE}: {self.mechanism.name}: no root of theta{index + 1} reproduces "
                                    f"the general solver's assembly (closest off by {gaps[best]:.3g} rad)")
@@ -226,8 +229,8 @@ class _FourBar:
         a = np.full(n, self.a, dtype=complex)
         d = np.full(n, self.d, dtype=complex)
         # crank: its frame turns with the input
-        crank_phi = self.sign * np.stack([c[:, 0], cd[:, 0], cdd[:, 0]])
-        crank = Frame.through_point(a, zero, zero, *crank_phi, loc[self.crank, "A"])
+        crank = Frame.through_point(a, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0],
+                                    loc[self.crank, "A"])
         # rocker: D -> C at beta + pi - theta1
         psi_r = beta + math.pi - th1[0]
         rocker = Frame.through_point(d, zero, zero, psi_r - cmath.phase(loc[self.rocker, "C"] - loc[self.rocker, "D"]),
@@ -314,7 +317,7 @@ class _SliderCrank:
         c_ref = kinematics.reference_inputs()[None, :1]
         zero = np.zeros_like(c_ref[:, 0])
         gaps = {s: abs(float(self.closed_form(c_ref[:, 0], zero, zero, s)[0][0, 0]) - x_ref) for s in (1.0, -1.0)}
-        best = min(gaps, key=gaps.get)
+        best = min(gaps, key=gaps.__getitem__)
         if not gaps[best] <= _BRANCH_MATCH * self.mechanism.size:
             raise RuntimeError(f"{SOURCE}: {self.mechanism.name}: no root of the slider position reproduces "
                                f"the general solver's assembly (closest off by {gaps[best]:.3g} m)")
@@ -329,8 +332,8 @@ class _SliderCrank:
         loc, n = self.local, c.shape[0]
         zero = np.zeros(n, dtype=complex)
         o = np.full(n, self.o, dtype=complex)
-        crank_phi = self.sign * np.stack([c[:, 0], cd[:, 0], cdd[:, 0]])
-        crank = Frame.through_point(o, zero, zero, *crank_phi, loc[self.crank, "O"])
+        crank = Frame.through_point(o, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0],
+                                    loc[self.crank, "O"])
         delta = cmath.phase(self.u)
         b = self.o + (x[0] + 1j * e) * self.u
         bd, bdd = x[1] * self.u, x[2] * self.u
@@ -384,9 +387,11 @@ def _recognise_slider_crank(mech: Mechanism, joint: Revolute, crank: str, sign: 
     o = _local(mech, GROUND, _joint_point(joint, GROUND))
     if len(mech.moving_bodies) == 2:
         # the rod's pin B in a slot of the ground
-        if len(rest) != 1 or not isinstance(rest[0], PinInSlot) or rest[0].body_a != GROUND or rest[0].body_b != rod:
+        if len(rest) != 1:
             _fail(mech, bad)
         (slot,) = rest
+        if not isinstance(slot, PinInSlot) or slot.body_a != GROUND or slot.body_b != rod:
+            _fail(mech, bad)
         local[rod, "B"] = _local(mech, rod, slot.point)
         l0, u = _local(mech, GROUND, slot.line_point), complex(*slot.direction)
         slider, slider_angle, label_b = None, 0.0, slot.point

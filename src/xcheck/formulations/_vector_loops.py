@@ -199,7 +199,7 @@ def _simple_cycles(mech: Mechanism) -> list[list[tuple[int, str, str]]]:
         adjacent[joint.body_b].append((j, joint.body_a))
     seen, cycles = set(), []
     for start in [b.name for b in mech.bodies]:
-        stack = [(start, [], {start})]
+        stack: list[tuple[str, list[tuple[int, str, str]], set[str]]] = [(start, [], {start})]
         while stack:
             node, path, visited = stack.pop()
             for j, nxt in reversed(adjacent[node]):  # the stack pops them in joint order
@@ -402,6 +402,7 @@ def _pieces(loop: _Loop, state: _State):
         else:
             value = np.exp(1j * state.theta[r][0]) * turned
             if unknown_length:
+                assert t.slide is not None  # it is one of slide_unknowns
                 d_known[t.slide] = d_known[t.slide] + value
             else:
                 k_sum = k_sum + length * value
@@ -513,6 +514,7 @@ def _reference_values(kinematics: Kinematics, plan: LoopPlan, branch: str | None
             values[("angle", body)] = frames[body][1]
     for name in plan.slides:
         joint = mech.joint(name)
+        assert isinstance(joint, (Prismatic, PinInSlot))  # plan.slides names the line joints
         (ra, pa), (rb, pb) = frames[joint.body_a], frames[joint.body_b]
         q_local, p_local = mech.body(joint.body_a).points[joint.line_point], mech.body(joint.body_b).points[joint.point]
         rq = ra + np.exp(1j * pa) * complex(*q_local)

@@ -151,7 +151,7 @@ def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: 
     step = max_step
     start = c.copy()
     total = float(np.max(np.abs((target - start) * scale)))
-    trail = []
+    trail: list[tuple[float, np.ndarray]] = []
     while True:
         remaining = (target - c) * scale
         distance = float(np.max(np.abs(remaining)))

@@ -243,7 +243,7 @@ class ConstraintSystem:
         a, s_q = self._local(joint.body_a, joint.line_point)
         b, s_p = self._local(joint.body_b, joint.point)
         normal = np.array([-joint.direction[1], joint.direction[0]])
-        terms = [_Projection(a, s_q, normal, b, s_p)]
+        terms: list[_Projection | _RelativeAngle] = [_Projection(a, s_q, normal, b, s_p)]
         if isinstance(joint, Prismatic):
             terms.append(_RelativeAngle(a, b, joint.angle))
         return terms

@@ -12,7 +12,7 @@ import os
 import re
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -139,7 +139,7 @@ class _Reader:
         #: (body, label) -> the field that gives the point, for messages
         self.point_fields: dict[tuple[str, str], str] = {}
 
-    def fail(self, field: str, expected: str, found: str):
+    def fail(self, field: str, expected: str, found: str) -> NoReturn:
         raise ModelError(self.path, field, expected, found)
 
     # -- primitives -------------------------------------------------------
@@ -461,6 +461,7 @@ class _Reader:
         """
         used: dict[str, dict[str, None]] = {b.name: {} for b in bodies}  # ordered sets
         for j in joints:
+            ends: tuple[tuple[str, str], ...]
             if isinstance(j, Revolute):
                 ends = ((j.body_a, j.point_a), (j.body_b, j.point_b))
             else:  # the sliding point; the line's points only place the line
@@ -488,7 +489,9 @@ class _Reader:
         if not isinstance(value, list) or not value:
             self.fail("drivers", "a list of [[drivers]]", _describe(value))
         by_name = {j.name: j for j in joints}
-        drivers, driven, names = [], set(), set()
+        drivers: list[Driver] = []
+        driven: set[str] = set()
+        names: set[str] = set()
         for i, spec in enumerate(value):
             field = f"drivers[{i}]"
             spec = self.table(spec, field, ("name", "joint", "motion", "start", "rate", "acceleration",
@@ -632,7 +635,7 @@ class _Reader:
         try:
             state = driver.law.state_at(q)
         except OverflowError:  # absurd rates or accelerations
-            state = (math.inf,)
+            state = (math.inf, math.inf, math.inf)
         if state is None:
             raise _Unreached(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit "
                              "qd/qdd", _describe(value))

@@ -429,7 +429,7 @@ class Mechanism:
         or of the ground points, whichever is larger. Scales tolerances."""
         extent = 0.0
         for b in self.bodies:
-            pts = np.array(list(b.points.values()) or [[0.0, 0.0]])
+            pts = np.array(list(b.points.values())) if b.points else np.zeros((1, 2))
             spread = pts - pts[0]
             extent = max(extent, float(np.max(np.hypot(spread[:, 0], spread[:, 1]), initial=0.0)))
         return extent if extent > 0.0 else 1.0
