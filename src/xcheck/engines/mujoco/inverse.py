@@ -128,7 +128,7 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
         matrix = np.hstack(columns)
         rhs = rne - applied
         x = np.linalg.solve(matrix, rhs)
-        residual[i] = np.linalg.norm(matrix @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
+        residual[i] = np.linalg.norm(matrix @ x - rhs) / max(float(np.linalg.norm(rhs)), 1e-300)
         tau = x[unknowns:]
         for k, d in enumerate(mech.drivers):
             drivers[d.name]["effort"][i] = tau[k]

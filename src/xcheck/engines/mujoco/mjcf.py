@@ -38,12 +38,13 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.motion import simulation_window
 from xcheck.topology import Topology, TreeJoint, carrier_share, spanning_tree
 
@@ -99,6 +100,7 @@ def mass_properties(mechanism: Mechanism) -> dict[str, MassProperties]:
     radius = DEFAULT_DISC_FRACTION * mechanism.size
     for body in mechanism.moving_bodies:
         if body.mass is not None:
+            assert body.inertia is not None  # the loader reads mass and inertia together
             com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
             out[body.name] = MassProperties(body.mass, com, body.inertia, False)
             continue
@@ -134,8 +136,10 @@ def carrier_split(mechanism: Mechanism, cut, held: MassProperties | None,
     mass, com, inertia = carrier
     if isinstance(cut, PinInSlot):
         inertia = _carrier_inertia(mass, mechanism.size**2)
-    return (MassProperties(mass, com, inertia, False),
-            None if rest is None else MassProperties(*rest, held.default))
+    if rest is None:
+        return MassProperties(mass, com, inertia, False), None
+    assert held is not None  # carrier_share leaves a rest only to a moving body
+    return MassProperties(mass, com, inertia, False), MassProperties(*rest, held.default)
 
 
 def _carrier_inertia(mass: float, size2: float) -> float:
@@ -186,7 +190,7 @@ class MjJoint:
 
     name: str
     kind: str
-    joint: object
+    joint: Joint
     body: str
 
 
@@ -290,6 +294,7 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
         if mj.kind == "hinge":
             qpos.append(frames[joint.body_b][1] - frames[joint.body_a][1])
         else:
+            assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
             direction = rotate(frames[joint.body_a][1], joint.direction)
             qpos.append(float(direction @ (world(joint.body_b, joint.point) - world(joint.body_a, joint.line_point))))
     return np.array(qpos)
@@ -338,7 +343,7 @@ def _round(x: float, digits: int = 3) -> float:
     return float(f"{x:.{digits - 1}e}")
 
 
-def _comment(text: str) -> ET.Comment:
+def _comment(text: str) -> ET.Element[Any]:
     return ET.Comment(" " + text.strip().replace("--", "-") + " ")
 
 
@@ -438,6 +443,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
             if kind == "hinge":
                 j_attrs["axis"] = "0 0 -1" if tj.reversed else "0 0 1"
             else:
+                assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
                 # the line's direction in the child frame (reversed: the child carries the line
                 # and moves against it)
                 axis = -joint.direction if tj.reversed else rotate(-angle, joint.direction)

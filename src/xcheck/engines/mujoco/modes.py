@@ -305,7 +305,8 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
     if not plan:
         return ModeResult(DYNAMIC_MODE, mech.name, False, "expected at least one time step to run, found none")
     primary = (TIGHT, min(tight_timesteps)) if tight_timesteps else plan[-1]
-    rows, trajectories, primary_failure = [], [], ""
+    rows, primary_failure = [], ""
+    trajectories: list[Trajectory] = []
     for setting, dt in plan:
         run = simulate(copy.deepcopy(model), mech, lay, setting, dt, duration, qpos0, qvel0, samples)
         violation = np.array([oracle.violation(q) for q in run.qpos])
@@ -317,7 +318,8 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
                       f"t = {run.times[i]:.6g} s")
         status = status or _outside_range(kinematics, branch, run, dofs)
         is_primary = (setting, dt) == primary
-        trajectory = oracle_trajectory = None
+        trajectory: Trajectory | None = None
+        oracle_trajectory: Trajectory | None = None
         if not status:
             trajectory, oracle_trajectory = _run_trajectories(oracle, run, setting, duration, violation, tracking,
                                                               with_oracle=is_primary)
@@ -325,6 +327,7 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         if is_primary and status:
             primary_failure = f"{setting.name} {setting.integrator} dt = {dt:g} s: {status}"
         elif is_primary:
+            assert trajectory is not None and oracle_trajectory is not None  # no failure, with_oracle
             trajectories[:0] = [trajectory, oracle_trajectory]
         elif trajectory is not None:
             trajectories.append(trajectory)
@@ -342,7 +345,7 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
 
 
 def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray,
-                      tracking: np.ndarray, with_oracle: bool):
+                      tracking: np.ndarray, with_oracle: bool) -> tuple[Trajectory, Trajectory | None]:
     """The trajectory of a run (accelerations from qacc) and, if asked, the same
     states with the kinematic oracle's accelerations (else None)."""
     dofs = oracle.input_dofs

@@ -218,11 +218,13 @@ class Oracle:
         """
         m, d = self.model, self.data
         n = qpos.shape[0]
-        bodies = {name: {"position": np.empty((n, 2)), "angle": np.empty(n), "velocity": np.empty((n, 2)),
-                         "omega": np.empty(n), "acceleration": np.empty((n, 2)), "alpha": np.empty(n)}
-                  for name, _ in self.bodies}
-        points = {label: {"position": np.empty((n, 2)), "velocity": np.empty((n, 2)),
-                          "acceleration": np.empty((n, 2))} for label, _ in self.points}
+        bodies: dict[str, dict[str, np.ndarray]] = {
+            name: {"position": np.empty((n, 2)), "angle": np.empty(n), "velocity": np.empty((n, 2)),
+                   "omega": np.empty(n), "acceleration": np.empty((n, 2)), "alpha": np.empty(n)}
+            for name, _ in self.bodies}
+        points: dict[str, dict[str, np.ndarray]] = {
+            label: {"position": np.empty((n, 2)), "velocity": np.empty((n, 2)), "acceleration": np.empty((n, 2))}
+            for label, _ in self.points}
         jacp, jacr, dotp, dotr = (np.zeros((3, self.nv)) for _ in range(4))
         for i in range(n):
             d.qpos[:], d.qvel[:] = qpos[i], qvel[i]

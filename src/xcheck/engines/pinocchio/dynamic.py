@@ -159,8 +159,8 @@ def _trajectory(pm, oracle, rows, source, settings, notes) -> Trajectory:
     times = np.array([r[0] for r in rows])
     q, v, a, force = (np.array([r[i] for r in rows]) for i in (1, 2, 3, 4))
     s = oracle.selector
-    bodies = {b.name: {} for b in mech.moving_bodies}
-    points = {label: {} for label in mech.point_owners}
+    bodies: dict[str, dict[str, np.ndarray]] = {b.name: {} for b in mech.moving_bodies}
+    points: dict[str, dict[str, np.ndarray]] = {label: {} for label in mech.point_owners}
     states = [frame_states(pm, oracle.data, q[i], v[i], a[i]) for i in range(m)]
     for name in bodies:
         for quantity in ("position", "angle", "velocity", "omega", "acceleration", "alpha"):
@@ -232,6 +232,7 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
              + (f" Default mass properties (none in the model) for {', '.join(defaults)}: 1 kg at the "
                 "centroid of the body's points, a slender bar's inertia." if defaults else ""))
     trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
+    assert trajectory.times is not None and driven is not None  # a run that did not fail
     table = differences(kinematics, trajectory, branch)
     law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
     run.update({

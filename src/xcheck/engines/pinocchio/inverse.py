@@ -140,7 +140,7 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
                 if isinstance(cut, Prismatic):
                     out["moment"][i] = -couple  # about the sliding point
         remaining = pin.rnea(model, data, q, v, a, external(applied + cut_forces))
-        residual[i] = np.linalg.norm(remaining - selector.T @ efforts) / max(np.linalg.norm(tau), 1e-300)
+        residual[i] = np.linalg.norm(remaining - selector.T @ efforts) / max(float(np.linalg.norm(tau)), 1e-300)
 
         for joint in mech.joints:
             if joint.name not in tree:

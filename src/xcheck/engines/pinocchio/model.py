@@ -184,6 +184,7 @@ def mass_properties(body: Body, size: float) -> tuple[float, np.ndarray, float, 
     """
     if body.mass is not None:
         com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        assert body.inertia is not None  # the loader reads mass and inertia together
         return float(body.mass), com, float(body.inertia), False
     pts = np.array(list(body.points.values()))
     span = max((float(np.linalg.norm(p - r)) for p in pts for r in pts), default=0.0)
@@ -224,9 +225,9 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     for tj in topology.tree:
         j, parent, child = tj.joint, tj.parent, tj.child
         if isinstance(j, Revolute):
-            s_parent, s_child = ((j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b))
-            s_parent = mechanism.body(parent).points[s_parent]
-            s_child = mechanism.body(child).points[s_child]
+            l_parent, l_child = ((j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b))
+            s_parent = mechanism.body(parent).points[l_parent]
+            s_child = mechanism.body(child).points[l_child]
             steps = [("revolute", j.name, s_parent, 0.0, _Z)]
             if tj.driver:
                 drivers[tj.driver] = (j.name, -1.0 if tj.reversed else 1.0)
@@ -286,6 +287,7 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
         name = carrier_joint(cut)
         carriers.append(BodySpec(name, f"{name}.link", np.zeros(2), mass, com, inertia, False))
         if rest is not None:
+            assert held is not None  # carrier_share leaves a rest only to a moving body
             props[cut.body_b] = (*rest, held[3])
     bodies = []
     for body in mechanism.moving_bodies:
@@ -408,11 +410,11 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
         joint_frame = model.addJointFrame(jid, frame_id[js.parent])
         frame_joint[js.link], frame_id[js.link] = (jid, pin.SE3.Identity()), joint_frame
         if js.link in hung:  # the child body's frame, with its inertia
-            body = hung[js.link]
-            placement = _se3(0.0, body.offset)
-            model.appendBodyToJoint(jid, spatial_inertia(body), placement)
-            body_frames[body.name] = model.addBodyFrame(body.name, jid, placement, joint_frame)
-            frame_joint[body.name], frame_id[body.name] = (jid, placement), body_frames[body.name]
+            child = hung[js.link]
+            placement = _se3(0.0, child.offset)
+            model.appendBodyToJoint(jid, spatial_inertia(child), placement)
+            body_frames[child.name] = model.addBodyFrame(child.name, jid, placement, joint_frame)
+            frame_joint[child.name], frame_id[child.name] = (jid, placement), body_frames[child.name]
     for carrier in spec.carriers:
         model.appendBodyToJoint(frame_joint[carrier.link][0], spatial_inertia(carrier), pin.SE3.Identity())
     for body, label, xy in spec.points:
@@ -486,6 +488,7 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
             q[idx] = pose(child)[1] - pose(parent)[1]
         else:
             j = mech.joint(js.tree_joint)
+            assert not isinstance(j, Revolute)  # a prismatic Pinocchio joint belongs to a line joint
             gap = (where(j.body_b, mech.body(j.body_b).points[j.point])
                    - where(j.body_a, mech.body(j.body_a).points[j.line_point]))
             q[idx] = float(rotate(pose(j.body_a)[1], j.direction) @ gap)

@@ -86,7 +86,8 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     """
     mech = kinematics.mechanism
     ref = kinematics.reference_inputs()
-    blocks, starts, notes = [], [], []
+    blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    starts, notes = [], []
     for i, driver in enumerate(mech.drivers):
         low, high = sweep_span(kinematics, i, branch, RANGE_MARGIN)
         values = np.linspace(low, high, samples)

@@ -19,6 +19,8 @@ from __future__ import annotations
 import json
 from xml.sax.saxutils import escape
 
+import numpy as np
+
 from xcheck.model import GROUND, Prismatic, Revolute
 
 from .model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
@@ -111,9 +113,9 @@ def urdf_text(spec: TreeSpec) -> str:
     _blocks(lines, spec, GROUND)
     carriers = {c.link: c for c in spec.carriers}
     hung = {b.link: b for b in spec.bodies}
-    points = {}
-    for body, label, xy in spec.points:
-        points.setdefault(body, []).append((label, xy))
+    points: dict[str, list[tuple[str, np.ndarray]]] = {}
+    for body_name, label, xy in spec.points:
+        points.setdefault(body_name, []).append((label, xy))
     for js in spec.joints:
         kind = "continuous" if js.kind == "revolute" else "prismatic"
         lines += [f'  <joint name="{_attr(js.name)}" type="{kind}">',

@@ -7,6 +7,7 @@ is used through its object API and the Agg canvas, with no global state.
 from __future__ import annotations
 
 import io
+from typing import Any
 
 import numpy as np
 
@@ -21,9 +22,9 @@ def snapshot(scene: Scene) -> dict:
     """What the figure draws, read from pymunk's bodies: per body its points
     (global, m), the revolutes' pins, the grooves' ends, the sliders."""
     mech = scene.mechanism
-    shot = {"bodies": {b.name: {label: scene.world_point(b.name, label) for label in b.points}
-                       for b in mech.bodies},
-            "pins": [], "grooves": [], "inputs": scene.inputs()[0], "gap": scene.joint_gaps()[0]}
+    shot: dict[str, Any] = {
+        "bodies": {b.name: {label: scene.world_point(b.name, label) for label in b.points} for b in mech.bodies},
+        "pins": [], "grooves": [], "inputs": scene.inputs()[0], "gap": scene.joint_gaps()[0]}
     for joint in mech.joints:
         if isinstance(joint, Revolute):
             grounded = GROUND in (joint.body_a, joint.body_b)

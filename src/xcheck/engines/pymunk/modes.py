@@ -224,7 +224,7 @@ def _summary(kinematics: Kinematics, runs: list[_Run], branch: str | None) -> pd
     """One row per setting; the observed order of the position error between
     a setting and the next coarser one of the same iterations and correction."""
     mech = kinematics.mechanism
-    rows = []
+    rows: list[dict] = []
     for run in runs:
         row = {"setting": len(rows), "error_bias": run.setting.correction, "iterations": run.setting.iterations,
                "time_step": run.dt, "status": run.failure or "ok"}

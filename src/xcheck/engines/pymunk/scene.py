@@ -50,7 +50,7 @@ import numpy as np
 import pymunk as pm
 
 from xcheck.kinematics import Kinematics, Solution, Status, rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism, MotionLaw, PinInSlot, Prismatic, Revolute
 from xcheck.motion import SimulationWindow, simulation_window
 
 __all__ = ["DEFAULT_MASS", "Scene", "build_scene", "native_window"]
@@ -120,11 +120,11 @@ def _mass_properties(mechanism: Mechanism, name: str, guides=()) -> tuple[float,
         ``defaulted`` names the properties that took a default.
     """
     body = mechanism.body(name)
-    defaulted = []
+    defaulted: list[str] = []
     mass = body.mass
     if mass is None:
         mass, defaulted = DEFAULT_MASS, defaulted + ["mass"]
-    points = np.array(list(body.points.values()) + [np.asarray(g, dtype=float) for g in guides] or [[0.0, 0.0]])
+    points = np.array(list(body.points.values()) + [np.asarray(g, dtype=float) for g in guides] or [np.zeros(2)])
     com = body.com
     if com is None:
         centroid = points.mean(axis=0)
@@ -156,19 +156,23 @@ class _Drive:
     constraint: pm.Constraint | None = None
     sign: float = 1.0
     direction: np.ndarray | None = None  # world direction of a kinematic slide
-    law: object = None
+    law: MotionLaw | _Shifted | None = None
 
     def before_step(self, t: float, dt: float) -> None:
+        assert self.law is not None  # every drive is made with its law
         if self.kind == "motor":
             # SimpleMotor holds b.w - a.w = -rate at the end of the step
+            assert isinstance(self.constraint, pm.SimpleMotor)
             _, qd, _ = self.law.at_time(t + dt)
             self.constraint.rate = -float(qd)
         elif self.kind == "kinematic-slide":
+            assert self.body is not None and self.direction is not None  # set by build_scene
             step = (float(self.law.at_time(t + dt)[0]) - float(self.law.at_time(t)[0])) / dt
             v = self.sign * step * self.direction
             self.body.velocity = (float(v[0]), float(v[1]))
         elif self.kind == "slide-servo":
             # the velocity solved in this step moves the bodies in the next one
+            assert isinstance(self.constraint, pm.PinJoint)
             self.constraint.distance = self.sign * float(self.law.at_time(t + 2.0 * dt)[0])
 
 
@@ -278,6 +282,7 @@ class Scene:
             if driver.quantity == "angle":
                 q[k], qd[k] = b.angle - a.angle, b.angular_velocity - a.angular_velocity
                 continue
+            assert not isinstance(joint, Revolute)  # a slide is on a line joint
             u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
             v = (self.point_velocity(joint.body_b, joint.point)
@@ -391,15 +396,18 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
             if drive.kind == "kinematic-rate":
                 # turning about the centre of gravity is exact in pymunk: put it on the pivot
                 joint = mech.joint(mech.drivers[drive.driver_index].joint)
-                pivot = joint.point_b if joint.body_b == body.name else joint.point_a
-                pb.center_of_gravity = tuple(float(x) for x in body.points[pivot])
+                assert isinstance(joint, Revolute)  # see prescribed
+                pivot = body.points[joint.point_b if joint.body_b == body.name else joint.point_a]
+                pb.center_of_gravity = (float(pivot[0]), float(pivot[1]))
             else:
                 joint = mech.joint(mech.drivers[drive.driver_index].joint)
+                assert isinstance(joint, Prismatic)  # see prescribed
                 line_angle = 0.0 if joint.body_a == GROUND else angle
                 drive.direction = rotate(line_angle, joint.direction)
             drives.append(drive)
         _place(pb, origin, angle, frame["velocity"][first], float(frame["omega"][first]))
         if drive is not None and drive.kind == "kinematic-rate":
+            assert isinstance(drive.law, MotionLaw)
             pb.angular_velocity = drive.sign * drive.law.rate
         space.add(pb)
         bodies[body.name] = pb
@@ -410,7 +418,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
     constraints: dict[str, list] = {}
     for joint in mech.joints:
         a, b = bodies[joint.body_a], bodies[joint.body_b]
-        made = []
+        made: list[pm.Constraint] = []
         if dynamic(joint.body_a, joint.body_b):
             if isinstance(joint, Revolute):
                 made.append(pm.PivotJoint(a, b, tuple(mech.body(joint.body_a).points[joint.point_a]),
@@ -435,6 +443,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         else:
             # a distance constraint from a fixed anchor behind the line point: its
             # length is the slide plus the back-off, never near zero
+            assert not isinstance(joint, Revolute)  # a slide is on a line joint
             backoff = _SERVO_BACKOFF * mech.size
             anchor = mech.body(joint.body_a).points[joint.line_point] - backoff * joint.direction
             servo = pm.PinJoint(a, b, tuple(anchor), tuple(mech.body(joint.body_b).points[joint.point]))
@@ -456,7 +465,7 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
 class _Shifted:
     """A motion law shifted by a constant (the slide servo's length)."""
 
-    law: object
+    law: MotionLaw
     offset: float
 
     def at_time(self, t):
@@ -470,7 +479,8 @@ def native_window(kinematics: Kinematics, branch: str | None = None,
     spaced times over it; ValueError if the native solver does not assemble
     the mechanism all along."""
     window = simulation_window(kinematics, branch)
-    native = kinematics.solve(*window.inputs(kinematics, window.times(count)), branch=branch)
+    q, qd, qdd = window.inputs(kinematics, window.times(count))
+    native = kinematics.solve(q, qd, qdd, branch=branch)
     if not np.all(native.status <= Status.NEAR_SINGULAR):
         bad = int(np.argmax(native.status > Status.NEAR_SINGULAR))
         raise ValueError(f"the native solver does not assemble the mechanism at t = "
