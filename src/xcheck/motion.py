@@ -33,10 +33,11 @@ class SimulationWindow:
         """``count`` equally spaced sample times from 0 to the end, shape (count,)."""
         return np.linspace(0.0, self.duration, count)
 
-    def inputs(self, kinematics: Kinematics, times: np.ndarray):
+    def inputs(self, kinematics: Kinematics, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The drivers' (q, qd, qdd) at ``times``, each of shape (len(times), k), SI."""
         laws = [d.law.at_time(times) for d in kinematics.mechanism.drivers]
-        return tuple(np.stack([np.broadcast_to(law[i], times.shape) for law in laws], axis=1) for i in range(3))
+        q, qd, qdd = (np.stack([np.broadcast_to(law[i], times.shape) for law in laws], axis=1) for i in range(3))
+        return q, qd, qdd
 
 
 def simulation_window(kinematics: Kinematics, branch: str | None = None, margin: float = 0.02,

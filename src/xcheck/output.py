@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from rich.console import Console
@@ -272,7 +273,7 @@ def run_json(run) -> dict:
 
     engines = {}
     for mode, outcome in run.outcomes.items():
-        entry = {c: None for c in CATEGORIES}
+        entry: dict[str, Any] = {c: None for c in CATEGORIES}
         entry["relative"] = {c: None for c in CATEGORIES}
         entry["tolerance"] = {c: None for c in CATEGORIES}
         entry["scale_floor"] = {c: None for c in CATEGORIES}
