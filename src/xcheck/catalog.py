@@ -7,7 +7,8 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["models_dir", "model_path", "model_names", "reports_dir", "comparisons_dir", "comparisons_path"]
+__all__ = ["models_dir", "model_path", "model_names", "benchmark_names", "BENCHMARKS", "reports_dir", "comparisons_dir",
+           "comparisons_path"]
 
 #: The repository's models/ (an editable or source install).
 _BUNDLED = Path(__file__).resolve().parents[2] / "models"
@@ -44,11 +45,21 @@ def model_path(name: str, directory: Path) -> Path:
         if as_path.is_file():
             return as_path
         raise InputError(f"{name}: expected a mechanism file, found no such file")
-    candidate = directory / f"{name}.toml"
-    if candidate.is_file():
-        return candidate
-    known = ", ".join(model_names(directory)) or "none"
+    for candidate in (directory / f"{name}.toml", directory / BENCHMARKS / f"{name}.toml"):
+        if candidate.is_file():
+            return candidate
+    known = ", ".join(model_names(directory) + benchmark_names(directory)) or "none"
     raise InputError(f"unknown mechanism {name!r}: expected one of {known} (in {directory})")
+
+
+#: the subfolder of the models directory with the free-motion benchmark problems
+#: (``xcheck simulate NAME``; ``xcheck run all`` runs the models beside it)
+BENCHMARKS = "benchmarks"
+
+
+def benchmark_names(directory: Path) -> list[str]:
+    """Names of the benchmark files in ``directory/benchmarks``, sorted (none if absent)."""
+    return sorted(p.stem for p in (Path(directory) / BENCHMARKS).glob("*.toml"))
 
 
 def _home(model_file: Path) -> Path:

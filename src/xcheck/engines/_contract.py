@@ -40,10 +40,22 @@ if TYPE_CHECKING:
     from xcheck.dynamics import Forces
     from xcheck.kinematics import Kinematics, Solution
 
-__all__ = ["KINDS", "Mode", "Engine", "NotApplicable"]
+__all__ = ["KINDS", "Mode", "Engine", "NotApplicable", "POINT_MASS_INERTIA", "positive_inertia"]
 
 #: what a mode does, in the order tables show them
 KINDS = ("kinematic", "dynamic")
+
+
+#: An engine that needs a positive moment of inertia (MuJoCo: above mjMINVAL =
+#: 1e-15 kg m^2; pymunk: above 0) gets this fraction of m size^2 for a point mass
+#: (inertia 0 in the file): its effect on the motion is below 1e-12 of the size.
+POINT_MASS_INERTIA = 1e-12
+
+
+def positive_inertia(mass: float, inertia: float, size: float, fraction: float = POINT_MASS_INERTIA) -> float:
+    """``inertia`` (kg m^2), or for a point mass (0) the least an engine can hold:
+    ``fraction`` (default :data:`POINT_MASS_INERTIA`) x mass x size^2."""
+    return inertia if inertia > 0.0 else fraction * mass * size * size
 
 
 class NotApplicable(Exception):

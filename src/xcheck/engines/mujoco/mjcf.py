@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from xcheck.engines._contract import positive_inertia
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
@@ -102,7 +103,8 @@ def mass_properties(mechanism: Mechanism) -> dict[str, MassProperties]:
         if body.mass is not None:
             assert body.inertia is not None  # the loader reads mass and inertia together
             com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-            out[body.name] = MassProperties(body.mass, com, body.inertia, False)
+            inertia = positive_inertia(body.mass, body.inertia, mechanism.size)  # a point mass: MuJoCo needs > 0
+            out[body.name] = MassProperties(body.mass, com, inertia, False)
             continue
         pts = np.array(list(body.points.values()))
         length = max((float(np.linalg.norm(p - q)) for p in pts for q in pts), default=0.0)

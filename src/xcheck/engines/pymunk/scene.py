@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk as pm
 
+from xcheck.engines._contract import positive_inertia
 from xcheck.kinematics import Kinematics, Solution, Status, rotate
 from xcheck.model import GROUND, Mechanism, MotionLaw, PinInSlot, Prismatic, Revolute
 from xcheck.motion import SimulationWindow, simulation_window
@@ -132,7 +133,9 @@ def _mass_properties(mechanism: Mechanism, name: str, guides=()) -> tuple[float,
         com = centroid if exact is None else exact
         defaulted.append("com" if exact is None else "com (on its groove line or pin)")
     inertia = body.inertia
-    if inertia is None:
+    if inertia is not None:
+        inertia = positive_inertia(mass, inertia, mechanism.size)  # a point mass: pymunk needs a moment > 0
+    else:
         span = max((float(np.linalg.norm(p - q)) for p in points for q in points), default=0.0)
         length = max(span, 0.1 * mechanism.size)
         inertia, defaulted = mass * length * length / 12.0, defaulted + ["inertia"]
