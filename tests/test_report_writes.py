@@ -12,7 +12,9 @@ import time
 from conftest import MODELS
 from typer.testing import CliRunner
 
-from xcheck.cli import _update_index, app
+from xcheck.catalog import model_names
+from xcheck.cli import app
+from xcheck.report import update_index
 
 
 def _touch(path, data: bytes = b"stale") -> None:
@@ -44,7 +46,8 @@ def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
 
 def test_index_update_waits_for_the_directory_lock(tmp_path):
     entry = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
-    worker = threading.Thread(target=_update_index, args=(tmp_path, [entry], MODELS, "xcheck run fourbar"))
+    worker = threading.Thread(target=update_index, args=(tmp_path, [entry], set(model_names(MODELS)),
+                                                         "xcheck run fourbar"))
     fd = os.open(tmp_path, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # another run writing the reports
@@ -57,3 +60,21 @@ def test_index_update_waits_for_the_directory_lock(tmp_path):
     worker.join(30)
     assert not worker.is_alive()
     assert "[fourbar](fourbar.md)" in (tmp_path / "README.md").read_text(encoding="utf-8")
+
+
+def test_the_index_is_built_from_its_data_not_from_its_markdown(tmp_path):
+    """A run of one mechanism keeps the other mechanisms' lines from index.json;
+    what the Markdown says is never read back."""
+    first = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
+    second = {"name": "slider-crank", "title": "Slider-crank", "passed": False, "worst": "x", "textbook": "-"}
+    keep = set(model_names(MODELS))
+    update_index(tmp_path, [first], keep, "xcheck run fourbar")
+    (tmp_path / "README.md").write_text("| [edited](edited.md) | by hand | pass | - | - |\n", encoding="utf-8")
+    update_index(tmp_path, [second], keep, "xcheck run slider-crank")
+    index = (tmp_path / "README.md").read_text(encoding="utf-8")
+    assert "[fourbar](fourbar.md)" in index and "[slider-crank](slider-crank.md)" in index
+    assert "edited" not in index
+    gone = {"name": "removed-model", "title": "gone", "passed": True, "worst": "-", "textbook": "-"}
+    update_index(tmp_path, [gone], keep, "xcheck run removed-model")
+    update_index(tmp_path, [first], keep, "xcheck run fourbar")
+    assert "removed-model" not in (tmp_path / "README.md").read_text(encoding="utf-8")  # not in the folder

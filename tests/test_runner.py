@@ -141,7 +141,8 @@ def test_reports_are_written_whole(tmp_path):
     # rerunning replaces the report; no staging directories are left behind
     assert _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "-q",
                 "--engines", "formulations").exit_code == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "two-body-arm", "two-body-arm.md"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "index.json", "two-body-arm",
+                                                           "two-body-arm.md"]
 
 
 def test_forces_and_energy_in_the_json_summary():

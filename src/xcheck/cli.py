@@ -21,7 +21,7 @@ from .api import printed_answers, select_modes
 from .catalog import model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
-from .fileio import directory_lock, write_atomic
+from .fileio import write_atomic
 from .kinematics import Kinematics, Status
 from .model import MAX_INSTANTS, Mechanism, load_mechanism
 from .output import (
@@ -36,7 +36,7 @@ from .output import (
     textbook_json,
     wide_console,
 )
-from .report import index_entry, write_index, write_report
+from .report import index_entry, update_index, write_report
 from .runner import run_mechanism
 from .units import evaluate_expression
 
@@ -354,7 +354,7 @@ def run_command(
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
         folder = next(f for t, f, _ in entries if t == target)
-        _update_index(target, [e for t, _, e in entries if t == target], folder, command)
+        update_index(target, [e for t, _, e in entries if t == target], set(model_names(folder)), command)
     if as_json:
         documents = [run_json(r) for r in results]
         if name == "all" or documents:
@@ -391,33 +391,6 @@ def _shown_model(name: str) -> str:
 
 def _shown_option(option: str, value: Path | None) -> str:
     return "" if value is None else f" {option} {_shown_path(Path(value))}"
-
-
-def _update_index(target: Path, entries: list[dict], model_folder: Path, command: str) -> None:
-    """Rewrite the reports' README.md with these entries, keeping the lines of
-    the other mechanisms of the same folder not run now; ``command`` is the
-    run that wrote it last. The read and the write are one step under the
-    directory's lock, so that concurrent runs do not lose each other's lines."""
-    existing = set(model_names(model_folder))
-    with directory_lock(target):
-        known = {e["name"]: e for e in _read_index(target)}
-        known.update({e["name"]: e for e in entries})
-        write_index([e for n, e in known.items() if n in existing or n in {x["name"] for x in entries}],
-                    target, command)
-
-
-def _read_index(reports_dir: Path) -> list[dict]:
-    """The entries of an existing reports/README.md (its table rows)."""
-    path = reports_dir / "README.md"
-    if not path.is_file():
-        return []
-    entries = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split(" | ")]
-        if len(cells) == 5 and cells[0].startswith("[") and "](" in cells[0]:
-            entries.append({"name": cells[0][1:cells[0].index("]")], "title": cells[1],
-                            "passed": cells[2] == "pass", "worst": cells[3], "textbook": cells[4]})
-    return entries
 
 
 @app.command("simulate")

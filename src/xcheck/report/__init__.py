@@ -10,6 +10,7 @@ writer left there.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -20,7 +21,7 @@ from ..runner import RunResult
 from . import _figures
 from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
 
-__all__ = ["write_report", "write_index", "index_entry"]
+__all__ = ["write_report", "write_index", "read_index", "update_index", "index_entry", "INDEX_DATA"]
 
 
 def write_report(run: RunResult, directory: str | Path, command: str, gif: bool = True) -> Path:
@@ -86,9 +87,39 @@ def index_entry(run: RunResult) -> dict:
             "worst": worst_text(run), "textbook": textbook_text(run)}
 
 
+#: the index's data beside its Markdown: the entries README.md is built from
+INDEX_DATA = "index.json"
+
+
 def write_index(entries: list[dict], directory: str | Path, command: str) -> Path:
-    """Write reports/README.md from index entries, keeping entries of other
-    mechanisms already listed there when only some were run."""
-    path = Path(directory) / "README.md"
-    write_atomic(path, index_markdown(sorted(entries, key=lambda e: e["name"]), command))
+    """Write reports/README.md and its data (:data:`INDEX_DATA`) from index entries."""
+    directory = Path(directory)
+    ordered = sorted(entries, key=lambda e: e["name"])
+    write_atomic(directory / INDEX_DATA, json.dumps({"written_by": command, "entries": ordered}, indent=1,
+                                                    ensure_ascii=False) + "\n")
+    path = directory / "README.md"
+    write_atomic(path, index_markdown(ordered, command))
     return path
+
+
+def read_index(directory: str | Path) -> list[dict]:
+    """The entries of a reports directory's index (from :data:`INDEX_DATA`; none
+    where it is missing or not xcheck's)."""
+    path = Path(directory) / INDEX_DATA
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return [e for e in data["entries"] if isinstance(e, dict) and isinstance(e.get("name"), str)]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+
+
+def update_index(directory: str | Path, entries: list[dict], keep: set[str], command: str) -> Path:
+    """Add these entries to a reports directory's index, keeping the entries
+    already there whose mechanisms are in ``keep`` (the folder's models);
+    ``command`` is the run that wrote it last. The read and the write are one
+    step under the directory's lock, so concurrent runs keep each other's lines."""
+    with directory_lock(directory):
+        known = {e["name"]: e for e in read_index(directory)}
+        known.update({e["name"]: e for e in entries})
+        fresh = {e["name"] for e in entries}
+        return write_index([e for n, e in known.items() if n in keep or n in fresh], directory, command)
