@@ -54,3 +54,29 @@ def test_bad_file_gives_one_line_and_exit_2(path):
     # whatever the file holds (a 200000-character expression, a 1e302 count)
     assert len(lines[0]) - len(str(path)) <= MAX_MESSAGE, f"{len(lines[0])} characters: {lines[0][:300]!r}"
     assert seconds < 10, f"{seconds:.1f} s for one bad file"
+
+
+HOSTILE = [p for p in BAD if p.stem.startswith("name-")]
+
+
+@pytest.mark.parametrize("command", ["run", "export"])
+@pytest.mark.parametrize("path", HOSTILE, ids=[p.stem for p in HOSTILE])
+def test_hostile_name_writes_nothing(tmp_path, path, command):
+    """A file whose [mechanism] name is hostile (path separators, '..', control
+    characters), run or exported from a models folder deep in a temporary
+    directory, is refused in one line and writes nothing anywhere there."""
+    models = tmp_path / "a" / "b" / "models"
+    models.mkdir(parents=True)
+    source = models / "hostile.toml"
+    source.write_bytes(path.read_bytes())
+    args = ["--engines", "formulations", "--samples", "3", "--out", str(tmp_path / "a" / "b" / "reports")] \
+        if command == "run" else []
+    done = invoke(command, "hostile", *args, "--models", str(models))
+    assert "Traceback" not in done.stderr + done.stdout, done.stderr[-3000:]
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"xcheck: error: {source}: mechanism.name: expected "), lines
+    assert not any(c in lines[0] for c in "\x00\x07\x1b\r"), "control characters reach the terminal"
+    written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p != source and p.is_file())
+    assert written == []
