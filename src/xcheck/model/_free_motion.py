@@ -125,7 +125,7 @@ def read_free_motion(reader: _Reader, value: Any, drivers: list[Driver], bodies:
                     repr(spec.get("output_step")))
     if round(duration / output_step) > MAX_OUTPUTS:
         reader.fail("free_motion.output_step", f"at most {MAX_OUTPUTS} outputs over the duration",
-                    f"{round(duration / output_step)}")
+                    f"{duration / output_step:.6g}")
     by_name = {d.name: d for d in drivers}
     at = dict(assembly_at)
     for key, given in reader.table(spec.get("at", {}), "free_motion.at").items():

@@ -177,7 +177,7 @@ class _Reader:
             try:
                 result = evaluate_expression(value)
             except ValueError as err:
-                self.fail(field, "a number or an arithmetic expression", f"{value!r} ({err})")
+                self.fail(field, "a number or an arithmetic expression", f"{_describe(value)} ({err})")
         else:
             self.fail(field, "a number", _describe(value))
         if not math.isfinite(result):
