@@ -41,8 +41,14 @@ def bench(name: str, samples: int, repeats: int) -> dict:
         solution = kin.solve(c, rates)
         times.append(time.perf_counter() - start)
     assert solution.success, "the benchmark sweep must solve"
-    return {"name": name, "samples": samples, "best": min(times), "median": float(np.median(times)),
-            "max_residual": float(solution.residual.max()), "mean_iterations": float(solution.iterations.mean())}
+    return {
+        "name": name,
+        "samples": samples,
+        "best": min(times),
+        "median": float(np.median(times)),
+        "max_residual": float(solution.residual.max()),
+        "mean_iterations": float(solution.iterations.mean()),
+    }
 
 
 def main() -> None:
@@ -51,14 +57,20 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("mechanisms", nargs="*", default=["fourbar", "slider-crank", "two-body-arm"])
     args = parser.parse_args()
-    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-          f"numpy {np.__version__}, one thread")
-    print(f"{'mechanism':14} {'samples':>8} {'best s':>8} {'median s':>9} {'samples/s':>11} "
-          f"{'iterations':>10} {'max residual m':>15}")
+    print(
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"numpy {np.__version__}, one thread"
+    )
+    print(
+        f"{'mechanism':14} {'samples':>8} {'best s':>8} {'median s':>9} {'samples/s':>11} "
+        f"{'iterations':>10} {'max residual m':>15}"
+    )
     for name in args.mechanisms:
         r = bench(name, args.samples, args.repeats)
-        print(f"{r['name']:14} {r['samples']:8d} {r['best']:8.3f} {r['median']:9.3f} "
-              f"{r['samples'] / r['best']:11.0f} {r['mean_iterations']:10.2f} {r['max_residual']:15.1e}")
+        print(
+            f"{r['name']:14} {r['samples']:8d} {r['best']:8.3f} {r['median']:9.3f} "
+            f"{r['samples'] / r['best']:11.0f} {r['mean_iterations']:10.2f} {r['max_residual']:15.1e}"
+        )
 
 
 if __name__ == "__main__":

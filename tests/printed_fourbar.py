@@ -19,10 +19,18 @@ from xcheck.textbook import ROUNDING as _ROUNDING
 
 #: the old keys and the vocabulary's quantities (formulations I, II, III)
 _KEYS = {
-    "theta1": "interior D C A", "theta2": "interior C B D", "theta3": "interior B A C",
-    "phi2": "vector B C angle", "phi3_II": "vector C D angle",
-    "x1": "body crank x", "y1": "body crank y", "x2": "body coupler x", "y2": "body coupler y",
-    "x3": "body rocker x", "y3": "body rocker y", "phi3_III": "body rocker angle",
+    "theta1": "interior D C A",
+    "theta2": "interior C B D",
+    "theta3": "interior B A C",
+    "phi2": "vector B C angle",
+    "phi3_II": "vector C D angle",
+    "x1": "body crank x",
+    "y1": "body crank y",
+    "x2": "body coupler x",
+    "y2": "body coupler y",
+    "x3": "body rocker x",
+    "y3": "body rocker y",
+    "phi3_III": "body rocker angle",
 }
 _INSTANTS = ["phi = 30 deg", "phi = 60 deg", "phi = 120 deg"]
 
@@ -37,8 +45,9 @@ def last_digit_units(printed: str, computed: float) -> float:
 def _table():
     kin = Kinematics(load_mechanism(MODELS / "fourbar.toml"))
     comparisons = load_comparisons(ROOT / "comparisons" / "fourbar.toml", kin.mechanism)
-    rows = {(r["quantity"], r["instant"]): r for r in check_printed(kin, comparisons)
-            if "table of results" in r["source"]}
+    rows = {
+        (r["quantity"], r["instant"]): r for r in check_printed(kin, comparisons) if "table of results" in r["source"]
+    }
     printed, rounding, wrong = [], set(), set()
     for key, quantity in _KEYS.items():
         values = []

@@ -25,7 +25,11 @@ def test_load_by_name_and_by_path_is_assembled():
 
 def test_select_modes_takes_groups_and_sequences():
     assert xcheck.select_modes(["mujoco-kinematic", "formulations"]) == (
-        "native", "mujoco-kinematic", "formulation-I", "formulation-II")
+        "native",
+        "mujoco-kinematic",
+        "formulation-I",
+        "formulation-II",
+    )
     assert xcheck.select_modes("pymunk") == ("native", "pymunk-dynamic")
     with pytest.raises(xcheck.InputError, match="found 'nosuch'"):
         xcheck.select_modes("nosuch")

@@ -69,8 +69,11 @@ def test_hostile_name_writes_nothing(tmp_path, path, command):
     models.mkdir(parents=True)
     source = models / "hostile.toml"
     source.write_bytes(path.read_bytes())
-    args = ["--engines", "formulations", "--samples", "3", "--out", str(tmp_path / "a" / "b" / "reports")] \
-        if command == "run" else []
+    args = (
+        ["--engines", "formulations", "--samples", "3", "--out", str(tmp_path / "a" / "b" / "reports")]
+        if command == "run"
+        else []
+    )
     done = invoke(command, "hostile", *args, "--models", str(models))
     assert "Traceback" not in done.stderr + done.stdout, done.stderr[-3000:]
     assert done.returncode == 2, done.stderr[-3000:]

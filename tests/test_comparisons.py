@@ -131,8 +131,7 @@ def test_verdicts_are_pinned(checked, name):
     keys = [(r["quantity"], r["printed_text"], r["instant"], r["branch"]) for r in results]
     assert len(set(keys)) == len(keys), "two entries compare the same printed value"
     expected = NOT_AGREEING[name]
-    found = {(r["quantity"], r["printed_text"], r["instant"]): r["verdict"] for r in results
-             if r["verdict"] != AGREES}
+    found = {(r["quantity"], r["printed_text"], r["instant"]): r["verdict"] for r in results if r["verdict"] != AGREES}
     assert found == expected
 
 
@@ -140,8 +139,17 @@ def test_verdicts_are_pinned(checked, name):
 def test_results_are_complete_and_finite(checked, name):
     _, results = checked(name)
     for r in results:
-        assert set(r) >= {"quantity", "printed", "computed", "unit", "deviation_percent", "deviation_digits",
-                          "verdict", "note", "source"}
+        assert set(r) >= {
+            "quantity",
+            "printed",
+            "computed",
+            "unit",
+            "deviation_percent",
+            "deviation_digits",
+            "verdict",
+            "note",
+            "source",
+        }
         assert math.isfinite(r["computed"]) and math.isfinite(r["deviation_digits"])
         assert r["deviation_percent"] is None or math.isfinite(r["deviation_percent"])
         assert r["unit"] and r["source"]
@@ -218,14 +226,24 @@ def test_fourbar_interior_angles_sum_to_a_full_turn(kinematics):
 
 # -- the vocabulary's rates against finite differences -----------------------
 
+
 def _phrase(kin: Kinematics, quantity: str, unit: str = "1"):
     """A parsed entry for a quantity (unit only has to fit its dimension)."""
-    units = {"length": "m", "angle": "rad", "velocity": "m/s", "acceleration": "m/s^2",
-             "angular rate": "rad/s", "angular acceleration": "rad/s^2", "count": "1"}
+    units = {
+        "length": "m",
+        "angle": "rad",
+        "velocity": "m/s",
+        "acceleration": "m/s^2",
+        "angular rate": "rad/s",
+        "angular acceleration": "rad/s^2",
+        "count": "1",
+    }
     for dimension, name in units.items():
-        text = (f'[comparisons]\nmechanism = "{kin.mechanism.name}"\ndocument = "t"\n'
-                f'instant = "{kin.mechanism.instants[0].label}"\n'
-                f'[[printed]]\nquantity = "{quantity}"\nprinted = "0"\nunit = "{name}"\nwhere = "t"\n')
+        text = (
+            f'[comparisons]\nmechanism = "{kin.mechanism.name}"\ndocument = "t"\n'
+            f'instant = "{kin.mechanism.instants[0].label}"\n'
+            f'[[printed]]\nquantity = "{quantity}"\nprinted = "0"\nunit = "{name}"\nwhere = "t"\n'
+        )
         try:
             return parse_comparisons(text, kin.mechanism).entries[0]
         except ModelError as err:
@@ -253,8 +271,10 @@ def test_vector_rates_match_central_differences(kinematics, name, vector):
     the differences' own O(h^2) error: halving h divides it by about 4."""
     kin = kinematics(name)
     times = np.linspace(0.0, 0.02, 9)
-    phrases = {c: _phrase(kin, f"vector {vector} {c}") for c in
-               ("length", "angle", "length-rate", "angle-rate", "length-acceleration", "angle-acceleration")}
+    phrases = {
+        c: _phrase(kin, f"vector {vector} {c}")
+        for c in ("length", "angle", "length-rate", "angle-rate", "length-acceleration", "angle-acceleration")
+    }
 
     def gaps(h):
         mid, ahead, behind = (_timed(kin, times + d) for d in (0.0, h, -h))
@@ -264,11 +284,19 @@ def test_vector_rates_match_central_differences(kinematics, name, vector):
         rel = {key: mid.point(second)[key] - mid.point(first)[key] for key in ("velocity", "acceleration")}
         length = quantity_values(mid, phrases["length"])
         v_scale, a_scale = (np.max(np.hypot(*rel[key].T)) for key in ("velocity", "acceleration"))
-        scale = {"length-rate": v_scale, "angle-rate": v_scale / np.min(length),
-                 "length-acceleration": a_scale, "angle-acceleration": a_scale / np.min(length)}
+        scale = {
+            "length-rate": v_scale,
+            "angle-rate": v_scale / np.min(length),
+            "length-acceleration": a_scale,
+            "angle-acceleration": a_scale / np.min(length),
+        }
         out = {}
-        for value, rate in (("length", "length-rate"), ("angle", "angle-rate"),
-                            ("length-rate", "length-acceleration"), ("angle-rate", "angle-acceleration")):
+        for value, rate in (
+            ("length", "length-rate"),
+            ("angle", "angle-rate"),
+            ("length-rate", "length-acceleration"),
+            ("angle-rate", "angle-acceleration"),
+        ):
             fd = (quantity_values(ahead, phrases[value]) - quantity_values(behind, phrases[value])) / (2 * h)
             exact = quantity_values(mid, phrases[rate])
             out[rate] = np.max(np.abs(fd - exact)) / scale[rate]
@@ -284,18 +312,22 @@ def test_vector_rates_match_central_differences(kinematics, name, vector):
 
 # -- verdicts on constructed values ----------------------------------------
 
-@pytest.mark.parametrize("printed,computed,expected", [
-    ("275,29", 275.29, AGREES),
-    ("275.29", 275.294, AGREES),      # decimal point or comma alike
-    ("200", 200.5, AGREES),           # exactly half a unit of the last digit
-    ("200", 200.5001, ROUNDING),      # just beyond, 0.25 % off
-    ("1.5", 1.5501, DISAGREES),       # 3.3 % off
-    ("100", 99.01, ROUNDING),         # 0.9999 % off
-    ("100", 99.0, DISAGREES),         # 1.0101 % off
-    ("0,0", 0.0, AGREES),
-    ("0.3", 0.0, DISAGREES),          # no relative deviation from zero
-    ("-2,30906", 2.30906, DISAGREES),
-])
+
+@pytest.mark.parametrize(
+    "printed,computed,expected",
+    [
+        ("275,29", 275.29, AGREES),
+        ("275.29", 275.294, AGREES),  # decimal point or comma alike
+        ("200", 200.5, AGREES),  # exactly half a unit of the last digit
+        ("200", 200.5001, ROUNDING),  # just beyond, 0.25 % off
+        ("1.5", 1.5501, DISAGREES),  # 3.3 % off
+        ("100", 99.01, ROUNDING),  # 0.9999 % off
+        ("100", 99.0, DISAGREES),  # 1.0101 % off
+        ("0,0", 0.0, AGREES),
+        ("0.3", 0.0, DISAGREES),  # no relative deviation from zero
+        ("-2,30906", 2.30906, DISAGREES),
+    ],
+)
 def test_verdict_thresholds(printed, computed, expected):
     assert verdict(printed, computed)[2] == expected
 
@@ -335,23 +367,26 @@ def test_good_text_parses(fourbar_mechanism):
     assert (entry.kind, entry.subject, entry.value, entry.unit) == ("interior", ("D", "C", "A"), 109.4, "deg")
 
 
-@pytest.mark.parametrize("old,new,field,found", [
-    ('quantity = "interior D C A"', 'quantity = "point Z x"', "printed[0].quantity", "'Z' in 'point Z x'"),
-    ('quantity = "interior D C A"', 'quantity = "body ground angle"', "printed[0].quantity", "'ground'"),
-    ('quantity = "interior D C A"', 'quantity = "point C speed"', "printed[0].quantity", "'point C speed'"),
-    ('quantity = "interior D C A"', 'quantity = "vector C C length"', "printed[0].quantity", "'vector C C length'"),
-    ('unit = "deg"\n', "", "printed[0].unit", "none"),
-    ('unit = "deg"', 'unit = "m/s"', "printed[0].unit", "'m/s'"),
-    ('printed = "109,4"', "printed = 109.4", "printed[0].printed", "109.4"),
-    ('printed = "109,4"', 'printed = "109.4 deg"', "printed[0].printed", "'109.4 deg'"),
-    ('instant = "phi = 30 deg"', 'instant = "phi = 31 deg"', "printed[0].instant", "'phi = 31 deg'"),
-    ('branch = "upper"', 'branch = "middle"', "comparisons.branch", "'middle'"),
-    ('where = "table"\n', 'where = "table"\nbranch = "middle"\n', "printed[0].branch", "'middle'"),
-    ('branch = "upper"', 'branch = "upper"\ninstant = "phi = 31 deg"', "comparisons.instant", "'phi = 31 deg'"),
-    ('mechanism = "fourbar"', 'mechanism = "slider-crank"', "comparisons.mechanism", "'slider-crank'"),
-    ('where = "table"', 'where = "table"\nsauce = "x"', "printed[0].sauce", "unknown key 'sauce'"),
-    ('where = "table"\n', "", "printed[0].where", "none"),
-])
+@pytest.mark.parametrize(
+    "old,new,field,found",
+    [
+        ('quantity = "interior D C A"', 'quantity = "point Z x"', "printed[0].quantity", "'Z' in 'point Z x'"),
+        ('quantity = "interior D C A"', 'quantity = "body ground angle"', "printed[0].quantity", "'ground'"),
+        ('quantity = "interior D C A"', 'quantity = "point C speed"', "printed[0].quantity", "'point C speed'"),
+        ('quantity = "interior D C A"', 'quantity = "vector C C length"', "printed[0].quantity", "'vector C C length'"),
+        ('unit = "deg"\n', "", "printed[0].unit", "none"),
+        ('unit = "deg"', 'unit = "m/s"', "printed[0].unit", "'m/s'"),
+        ('printed = "109,4"', "printed = 109.4", "printed[0].printed", "109.4"),
+        ('printed = "109,4"', 'printed = "109.4 deg"', "printed[0].printed", "'109.4 deg'"),
+        ('instant = "phi = 30 deg"', 'instant = "phi = 31 deg"', "printed[0].instant", "'phi = 31 deg'"),
+        ('branch = "upper"', 'branch = "middle"', "comparisons.branch", "'middle'"),
+        ('where = "table"\n', 'where = "table"\nbranch = "middle"\n', "printed[0].branch", "'middle'"),
+        ('branch = "upper"', 'branch = "upper"\ninstant = "phi = 31 deg"', "comparisons.instant", "'phi = 31 deg'"),
+        ('mechanism = "fourbar"', 'mechanism = "slider-crank"', "comparisons.mechanism", "'slider-crank'"),
+        ('where = "table"', 'where = "table"\nsauce = "x"', "printed[0].sauce", "unknown key 'sauce'"),
+        ('where = "table"\n', "", "printed[0].where", "none"),
+    ],
+)
 def test_bad_entry_is_one_line_naming_file_and_entry(tmp_path, fourbar_mechanism, old, new, field, found):
     assert old in GOOD
     path = tmp_path / "fourbar.toml"
@@ -364,7 +399,9 @@ def test_bad_entry_is_one_line_naming_file_and_entry(tmp_path, fourbar_mechanism
     assert str(err) == f"{path}: {field}: expected {err.expected}, found {err.found}"
     assert "\n" not in str(err)
 
+
 # -- the command line ---------------------------------------------------------
+
 
 def _run(*args: str) -> subprocess.CompletedProcess:
     """The command line, in this process (see :func:`conftest.invoke`)."""
@@ -375,8 +412,9 @@ def _shell(*args: str) -> subprocess.CompletedProcess:
     """The installed ``xcheck`` command in a fresh process: a smoke test."""
     env = {k: v for k, v in os.environ.items() if k not in ("XCHECK_MODELS", "XCHECK_COMPARISONS")}
     env["PYTHONIOENCODING"] = "utf-8"
-    return subprocess.run([str(XCHECK), *args], capture_output=True, text=True, encoding="utf-8", cwd=ROOT,
-                          env=env, timeout=300)
+    return subprocess.run(
+        [str(XCHECK), *args], capture_output=True, text=True, encoding="utf-8", cwd=ROOT, env=env, timeout=300
+    )
 
 
 def test_cli_json_has_the_textbook_comparison(checked):
@@ -411,5 +449,7 @@ def test_cli_bad_comparisons_file_is_one_line(tmp_path):
     done = _run("solve", "fourbar", "--comparisons", str(tmp_path))
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
-    assert lines == [f"xcheck: error: {tmp_path / 'fourbar.toml'}: printed[0].unit: expected the printed value's "
-                     "unit (one of deg, rad), found none"]
+    assert lines == [
+        f"xcheck: error: {tmp_path / 'fourbar.toml'}: printed[0].unit: expected the printed value's "
+        "unit (one of deg, rad), found none"
+    ]

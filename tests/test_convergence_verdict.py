@@ -24,8 +24,9 @@ def test_observed_order_and_limit_by_hand():
     assert math.isnan(observed_order(1e-14, 1e-15, 0.02, 0.01, floor=1e-12))  # round-off has none either
     # the largest error at 0.01 s that still shows order 4 - 0.5 from 1.6e-5 at 0.02 s: 1.6e-5 / 2^3.5
     assert ORDER_MARGIN == 0.5
-    assert convergence_limit(1.6e-5, 0.02, 0.01, 4.0, 1e-12) == pytest.approx(1.6e-5 / 11.313708498984761 + 1e-12,
-                                                                          rel=1e-14)
+    assert convergence_limit(1.6e-5, 0.02, 0.01, 4.0, 1e-12) == pytest.approx(
+        1.6e-5 / 11.313708498984761 + 1e-12, rel=1e-14
+    )
     assert math.isnan(convergence_limit(math.nan, 0.02, 0.01, 4.0, 1e-12))
 
 

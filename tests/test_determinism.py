@@ -11,8 +11,19 @@ from conftest import MODELS, invoke
 
 
 def _run(out) -> dict:
-    done = invoke("run", "fourbar", "--engines", "formulations,mujoco-kinematic", "--samples", "31", "--out", str(out),
-                  "--json", "--models", str(MODELS))
+    done = invoke(
+        "run",
+        "fourbar",
+        "--engines",
+        "formulations,mujoco-kinematic",
+        "--samples",
+        "31",
+        "--out",
+        str(out),
+        "--json",
+        "--models",
+        str(MODELS),
+    )
     assert "Traceback" not in done.stderr, done.stderr
     assert done.returncode in (0, 1), done.stderr
     document = json.loads(done.stdout)

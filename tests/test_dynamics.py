@@ -49,8 +49,12 @@ def with_mass(text: str, props: dict, extra: str = "") -> str:
     return text + extra
 
 
-LINKAGE = {"crank": (0.5, "[0.05, 0.01]", 0.002), "rocker": (1.2, "[0.3, 0.02]", 0.05),
-           "block": (0.3, "[0.01, -0.01]", 0.0005), "arm": (0.6, "[0.12, 0.01]", 0.004)}
+LINKAGE = {
+    "crank": (0.5, "[0.05, 0.01]", 0.002),
+    "rocker": (1.2, "[0.3, 0.02]", 0.05),
+    "block": (0.3, "[0.01, -0.01]", 0.0005),
+    "arm": (0.6, "[0.12, 0.01]", 0.004),
+}
 ARM_LOAD = """
 [dynamics]
 gravity = [0, -9.81]
@@ -72,10 +76,11 @@ EXTRA = {
     "inverted": with_mass(INVERTED, LINKAGE, ARM_LOAD),
     "block-driven": with_mass(BLOCK_DRIVEN, LINKAGE, ARM_LOAD),
     "slider-driven": SLIDER_DRIVEN + "\n[dynamics]\ngravity = [1, -9.81]\n",
-    "reversed": with_mass(REVERSED, {"crank": (0.4, "[0.03, 0.01]", 0.0006), "rod": (0.9, "[0.15, -0.01]", 0.01),
-                                     "slider": (0.7, '"L"', 0.0004)},
-                          '\n[dynamics]\ngravity = [0, -9.81]\n[[loads]]\nbody = "slider"\npoint = "L"\n'
-                          'force = [-50, 10]\n'),
+    "reversed": with_mass(
+        REVERSED,
+        {"crank": (0.4, "[0.03, 0.01]", 0.0006), "rod": (0.9, "[0.15, -0.01]", 0.01), "slider": (0.7, '"L"', 0.0004)},
+        '\n[dynamics]\ngravity = [0, -9.81]\n[[loads]]\nbody = "slider"\npoint = "L"\nforce = [-50, 10]\n',
+    ),
 }
 WITH_MASS = [name for name in MODEL_NAMES if not load_mechanism(MODELS / f"{name}.toml").without_mass]
 CASES = WITH_MASS + list(EXTRA)
@@ -87,8 +92,11 @@ _RESULTS: dict = {}
 
 def _kin(name: str) -> Kinematics:
     if name not in _KIN:
-        _KIN[name] = (Kinematics(parse_mechanism(EXTRA[name], name)) if name in EXTRA
-                      else Kinematics(load_mechanism(MODELS / f"{name}.toml")))
+        _KIN[name] = (
+            Kinematics(parse_mechanism(EXTRA[name], name))
+            if name in EXTRA
+            else Kinematics(load_mechanism(MODELS / f"{name}.toml"))
+        )
     return _KIN[name]
 
 
@@ -384,27 +392,50 @@ def test_partial_mass_data_names_the_bodies_that_lack_it():
     mass and inertia together on a body that has any)."""
     text = (MODELS / "slider-crank.toml").read_text().replace('mass = 1.0\ninertia = "1.0 * 0.35**2 / 12"\n', "")
     kin = Kinematics(parse_mechanism(text, "partial.toml"))
-    with pytest.raises(ModelError, match=r"^partial.toml: bodies.rod: expected mass and inertia on every moving "
-                                         r"body for dynamics, found none on rod \("):
+    with pytest.raises(
+        ModelError,
+        match=r"^partial.toml: bodies.rod: expected mass and inertia on every moving "
+        r"body for dynamics, found none on rod \(",
+    ):
         inverse_dynamics(kin.solve(kin.reference_inputs()[None]))
 
 
 BAD_LOADS = [
     ('[[loads]]\nbody = "ground"\ntorque = 1\n', "loads[0].body", "a moving body (crank, rod, slider)", "'ground'"),
     ('[[loads]]\nbody = "slider"\n', "loads[0]", "a 'force' [Fx, Fy] (N), a 'torque' (N m), or both", "neither"),
-    ('[[loads]]\nbody = "slider"\nforce = [1, 0]\n', "loads[0].point",
-     "where the force acts: a point of slider (B) or [x, y] in its frame", "none"),
+    (
+        '[[loads]]\nbody = "slider"\nforce = [1, 0]\n',
+        "loads[0].point",
+        "where the force acts: a point of slider (B) or [x, y] in its frame",
+        "none",
+    ),
     ('[[loads]]\nbody = "slider"\npoint = "A"\nforce = [1, 0]\n', "loads[0].point", "a point of slider (B)", "'A'"),
-    ('[[loads]]\nbody = "slider"\npoint = "B"\ntorque = 2\n', "loads[0].point",
-     "a point only with a 'force' (a torque acts on the whole body)", "'B'"),
+    (
+        '[[loads]]\nbody = "slider"\npoint = "B"\ntorque = 2\n',
+        "loads[0].point",
+        "a point only with a 'force' (a torque acts on the whole body)",
+        "'B'",
+    ),
     ('[[loads]]\nbody = "slider"\npoint = "B"\nforce = [1]\n', "loads[0].force", "a pair [x, y]", "[1]"),
-    ('[[loads]]\nbody = "rod"\ntorque = 1\nspin = 2\n', "loads[0].spin",
-     "one of the keys name, body, point, force, torque", "unknown key 'spin'"),
-    ('[[loads]]\nbody = "rod"\ntorque = 1\n[[loads]]\nbody = "crank"\ntorque = 1\nname = "load 1"\n',
-     "loads[1].name", "a name no other load has", "'load 1'"),
+    (
+        '[[loads]]\nbody = "rod"\ntorque = 1\nspin = 2\n',
+        "loads[0].spin",
+        "one of the keys name, body, point, force, torque",
+        "unknown key 'spin'",
+    ),
+    (
+        '[[loads]]\nbody = "rod"\ntorque = 1\n[[loads]]\nbody = "crank"\ntorque = 1\nname = "load 1"\n',
+        "loads[1].name",
+        "a name no other load has",
+        "'load 1'",
+    ),
     ('[dynamics]\ngravity = "down"\n', "dynamics.gravity", "a pair [x, y]", "'down'"),
-    ('[dynamics]\ngravity = [0, "-g"]\n', "dynamics.gravity[1]", "a number or an arithmetic expression",
-     "'-g' (unsupported element 'g')"),
+    (
+        '[dynamics]\ngravity = [0, "-g"]\n',
+        "dynamics.gravity[1]",
+        "a number or an arithmetic expression",
+        "'-g' (unsupported element 'g')",
+    ),
 ]
 
 
@@ -412,8 +443,7 @@ BAD_LOADS = [
 def test_bad_dynamics_input_is_one_line(extra, field, expected, found):
     """Malformed [dynamics] and [[loads]]: ModelError(file, field, expected, found)."""
     text = (MODELS / "slider-crank.toml").read_text().replace("[[loads]]", "[[unused]]")
-    text = text.replace('[[unused]]\nname = "working load"\nbody = "slider"\npoint = "B"\nforce = [-200, 0]',
-                        "")
+    text = text.replace('[[unused]]\nname = "working load"\nbody = "slider"\npoint = "B"\nforce = [-200, 0]', "")
     with pytest.raises(ModelError) as caught:
         parse_mechanism(text + "\n" + extra, "bad.toml")
     error = caught.value

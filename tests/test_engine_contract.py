@@ -27,8 +27,13 @@ class Shifted(engines.Engine):
 
     name = "toy"
     title = "a toy engine"
-    modes = (engines.Mode("toy-kinematic", "kinematic",
-                          Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "the toy: positions within 1e-6 of the size")),)
+    modes = (
+        engines.Mode(
+            "toy-kinematic",
+            "kinematic",
+            Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "the toy: positions within 1e-6 of the size"),
+        ),
+    )
 
     def run(self, mode, kinematics, *, native, samples, branch=None):
         trajectory = trajectory_from_solution(native, source=mode)
@@ -66,8 +71,17 @@ def _cli(*args):
 
 
 def test_toy_engines_are_judged_and_reported(toys, tmp_path):
-    result = _cli("run", "fourbar", "--engines", "toy,boom,absent,formulation-II", "--json", "--samples", "21",
-                  "--out", str(tmp_path))
+    result = _cli(
+        "run",
+        "fourbar",
+        "--engines",
+        "toy,boom,absent,formulation-II",
+        "--json",
+        "--samples",
+        "21",
+        "--out",
+        str(tmp_path),
+    )
     assert result.exit_code == 1, result.output  # boom failed
     doc = json.loads(result.stdout)
     toy = doc["engines"]["toy-kinematic"]

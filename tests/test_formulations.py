@@ -273,9 +273,16 @@ def _fourbar_driven_at_b() -> str:
     return text.replace('joint = "A"', 'joint = "B"').replace("at = { crank = 30 }", "at = { crank = 3.2 }")
 
 
-VARIANTS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "tilted-fourbar": TILTED_FOURBAR,
-            "slot-crank": SLOT_CRANK, "block-line": BLOCK_LINE, "scotch-yoke": SCOTCH_YOKE,
-            "fourbar-driven-at-b": _fourbar_driven_at_b(), "assur-iii": ASSUR_III}
+VARIANTS = {
+    "inverted": INVERTED,
+    "slider-driven": SLIDER_DRIVEN,
+    "tilted-fourbar": TILTED_FOURBAR,
+    "slot-crank": SLOT_CRANK,
+    "block-line": BLOCK_LINE,
+    "scotch-yoke": SCOTCH_YOKE,
+    "fourbar-driven-at-b": _fourbar_driven_at_b(),
+    "assur-iii": ASSUR_III,
+}
 NAMES = MODEL_NAMES + list(VARIANTS)
 
 # For each mechanism (models/ and variants): per formulation, None if it
@@ -288,13 +295,19 @@ EXPECTED = {
     "two-body-arm": {"formulation-I": "2 inputs", "formulation-II": None},
     "task-2-1": {"formulation-I": "5 moving bodies with 1 prismatic, 6 revolute", "formulation-II": None},
     "task-2-2": {"formulation-I": "the input is the slide", "formulation-II": None},
-    "task-2-3": {"formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
-                 "formulation-II": None},
+    "task-2-3": {
+        "formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
+        "formulation-II": None,
+    },
     "task-2-4": {"formulation-I": "5 moving bodies with 2 prismatic, 5 revolute", "formulation-II": None},
-    "task-2-5": {"formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
-                 "formulation-II": None},
-    "task-2-6": {"formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
-                 "formulation-II": None},
+    "task-2-5": {
+        "formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
+        "formulation-II": None,
+    },
+    "task-2-6": {
+        "formulation-I": "4 moving bodies with 1 pin-in-slot, 1 prismatic, 4 revolute",
+        "formulation-II": None,
+    },
     "task-2-7": {"formulation-I": "the input is the slide", "formulation-II": None},
     "inverted": {"formulation-I": "4 moving bodies", "formulation-II": None},
     "slider-driven": {"formulation-I": "the input is the slide", "formulation-II": None},
@@ -370,8 +383,10 @@ def _sweeps(kin: Kinematics, branch: str):
 
 def _expected(name: str) -> dict:
     if name not in EXPECTED:
-        pytest.fail(f"mechanism {name!r} is not classified: add it to EXPECTED in tests/test_formulations.py "
-                    "(which formulations apply, and why the others do not)")
+        pytest.fail(
+            f"mechanism {name!r} is not classified: add it to EXPECTED in tests/test_formulations.py "
+            "(which formulations apply, and why the others do not)"
+        )
     return EXPECTED[name]
 
 
@@ -533,8 +548,11 @@ if __name__ == "__main__":
 
     print(f"{'mechanism':22s} {'branch':9s} {'formulation':15s} {'relative':>9s}  worst quantity")
     for name in NAMES:
-        k = Kinematics(parse_mechanism(VARIANTS[name], name)) if name in VARIANTS else \
-            Kinematics(load_mechanism(MODELS / f"{name}.toml"))
+        k = (
+            Kinematics(parse_mechanism(VARIANTS[name], name))
+            if name in VARIANTS
+            else Kinematics(load_mechanism(MODELS / f"{name}.toml"))
+        )
         for method in FORMULATIONS:
             why = applicability(k)[method]
             if why is not None:
@@ -543,5 +561,6 @@ if __name__ == "__main__":
             for branch in k.branches:
                 tables = list(_compare(k, method, branch))
                 worst = max((t.loc[t["relative"].idxmax()] for t in tables), key=lambda row: row["relative"])
-                print(f"{name:22s} {branch:9s} {method:15s} {worst['relative']:9.2e}  "
-                      f"{worst['name']} {worst['quantity']}")
+                print(
+                    f"{name:22s} {branch:9s} {method:15s} {worst['relative']:9.2e}  {worst['name']} {worst['quantity']}"
+                )

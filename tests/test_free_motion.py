@@ -44,8 +44,15 @@ def double_fourbar_exact(times: np.ndarray) -> np.ndarray:
     about their pivots, two couplers at the tips' speed), V = 3.5 g sin(theta),
     so theta'' = -(3.5 / 3) g cos(theta); theta(0) = 90 deg, theta'(0) = -1
     rad/s (B0 moves at +1 m/s along x). (N, 2) m, from DOP853 at rtol 1e-13."""
-    ode = solve_ivp(lambda t, y: [y[1], -3.5 / 3.0 * G * math.cos(y[0])], (0.0, float(times[-1])),
-                    [math.pi / 2, -1.0], method="DOP853", rtol=1e-13, atol=1e-14, t_eval=times)
+    ode = solve_ivp(
+        lambda t, y: [y[1], -3.5 / 3.0 * G * math.cos(y[0])],
+        (0.0, float(times[-1])),
+        [math.pi / 2, -1.0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-14,
+        t_eval=times,
+    )
     return np.stack([np.cos(ode.y[0]), np.sin(ode.y[0])], axis=1)
 
 
@@ -95,6 +102,7 @@ def test_double_fourbar_passes_its_singular_positions_on_the_branch():
 
 # -- the file format and `xcheck simulate` ----------------------------------------
 
+
 def test_spring_and_damper_follow_the_damped_oscillator():
     """tests/data/spring-block.toml: m u'' + c u' + k u = 0 from u0 = 0.05 m at rest
     (closed form in its header); the damper's work keeps the energy balance."""
@@ -124,14 +132,20 @@ def test_simulate_json_states_the_pendulum_and_its_error():
     assert doc["native"]["singular_passes"] == []
 
 
-@pytest.mark.parametrize("change,field,found", [
-    (("duration = 2", "duration = 0"), "free_motion.duration", "0"),
-    (("stiffness = 200", "stiffness = -1"), "springs[0].stiffness", "-1"),
-    (('points = ["O", "B"]', 'points = ["O", "Q"]'), "springs[0].points", "'Q'"),
-    (("output_step = 0.01", "output_step = 0.3"), "free_motion.output_step", "0.3"),
-    (("tolerance = 1e-10", 'point_velocity = { point = "B", value = [0, 1] }'), "free_motion.point_velocity",
-     "violate by 1 m/s"),
-])
+@pytest.mark.parametrize(
+    "change,field,found",
+    [
+        (("duration = 2", "duration = 0"), "free_motion.duration", "0"),
+        (("stiffness = 200", "stiffness = -1"), "springs[0].stiffness", "-1"),
+        (('points = ["O", "B"]', 'points = ["O", "Q"]'), "springs[0].points", "'Q'"),
+        (("output_step = 0.01", "output_step = 0.3"), "free_motion.output_step", "0.3"),
+        (
+            ("tolerance = 1e-10", 'point_velocity = { point = "B", value = [0, 1] }'),
+            "free_motion.point_velocity",
+            "violate by 1 m/s",
+        ),
+    ],
+)
 def test_bad_free_motion_input_is_one_line(tmp_path, change, field, found):
     path = tmp_path / "bad.toml"
     text = (DATA / "spring-block.toml").read_text(encoding="utf-8")

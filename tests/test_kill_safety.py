@@ -33,16 +33,22 @@ STAGING = re.compile(r"\.(fourbar|fourbar\.old|fourbar\.md|README\.md)\.[a-z0-9_
 def _start(out: Path) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     env.pop("XCHECK_MODELS", None)
-    return subprocess.Popen([str(XCHECK), *COMMAND, "--out", str(out), "--models", str(MODELS)], cwd=ROOT, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [str(XCHECK), *COMMAND, "--out", str(out), "--models", str(MODELS)],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
 
 
 def _check_report(path: Path) -> None:
     text = path.read_text(encoding="utf-8")
     assert text.startswith("# fourbar: "), path
     assert "\n## Versions\n" in text, path
-    assert text.endswith("\n") and text.rstrip("\n").splitlines()[-1].startswith("Reproduce: `xcheck run fourbar"), \
+    assert text.endswith("\n") and text.rstrip("\n").splitlines()[-1].startswith("Reproduce: `xcheck run fourbar"), (
         f"{path} does not end with the command that reproduces it"
+    )
     assert text.rstrip("\n").endswith("`"), path
 
 

@@ -37,10 +37,11 @@ def _finite_difference_errors(kin: Kinematics, times: np.ndarray, h: float):
     mid, ahead, behind = (_sweep_in_time(kin, times + d) for d in (0.0, h, -h))
     for s in (mid, ahead, behind):
         assert s.success
+
     def rel(fd, exact):
         return np.max(np.abs(fd - exact)) / np.max(np.abs(exact))
-    errors = {"qd": rel((ahead.q - behind.q) / (2 * h), mid.qd),
-              "qdd": rel((ahead.qd - behind.qd) / (2 * h), mid.qdd)}
+
+    errors = {"qd": rel((ahead.q - behind.q) / (2 * h), mid.qd), "qdd": rel((ahead.qd - behind.qd) / (2 * h), mid.qdd)}
     for label in kin.mechanism.point_owners:
         if label in kin.mechanism.ground.points:
             continue
@@ -62,8 +63,13 @@ def _kin(kinematics, name):
 
 
 # time windows that stay inside each mechanism's feasible range
-WINDOWS = {"fourbar": (0.0, 1.5), "two-body-arm": (0.0, 0.2), "slider-crank": (0.0, 0.08),
-           "slider-driven": (0.0, 0.2), "inverted": (0.0, 1.0)}
+WINDOWS = {
+    "fourbar": (0.0, 1.5),
+    "two-body-arm": (0.0, 0.2),
+    "slider-crank": (0.0, 0.08),
+    "slider-driven": (0.0, 0.2),
+    "inverted": (0.0, 1.0),
+}
 STEPS = {"fourbar": 1e-3, "two-body-arm": 1e-4, "slider-crank": 1e-5, "slider-driven": 1e-4, "inverted": 1e-3}
 
 
@@ -100,13 +106,14 @@ def test_jacobian_and_gamma_against_finite_differences(kinematics, name):
         for j in range(system.n):
             dq = np.zeros(system.n)
             dq[j] = eps
-            numeric[:, j] = (system.residual((q + dq)[None], c[None])[0]
-                             - system.residual((q - dq)[None], c[None])[0]) / (2 * eps)
+            numeric[:, j] = (
+                system.residual((q + dq)[None], c[None])[0] - system.residual((q - dq)[None], c[None])[0]
+            ) / (2 * eps)
         assert np.max(np.abs(numeric - jac)) <= 1e-7 * np.max(np.abs(jac))
         # gamma = -(Phi_q qd)_q qd + input accelerations on driver rows
         djac = (system.jacobian((q + eps * qd)[None])[0] - system.jacobian((q - eps * qd)[None])[0]) / (2 * eps)
         expected = -djac @ qd
-        expected[system.n_kinematic:] += s.input_accelerations[i]
+        expected[system.n_kinematic :] += s.input_accelerations[i]
         gamma = system.gamma(q[None], qd[None], s.input_accelerations[i][None])[0]
         assert np.max(np.abs(gamma - expected)) <= 1e-6 * max(1.0, np.max(np.abs(gamma)))
 
@@ -170,8 +177,13 @@ def test_fourbar_sweep_back_and_forth_stays_on_branch(kinematics):
     """Down to the lower limit, up to the upper one and back: one branch throughout."""
     kin = kinematics("fourbar")
     rng = kin.input_range("crank")
-    c = np.concatenate([np.linspace(0.0, rng.low + 1e-7, 500), np.linspace(rng.low + 1e-7, rng.high - 1e-7, 1000),
-                        np.linspace(rng.high - 1e-7, 0.0, 500)])
+    c = np.concatenate(
+        [
+            np.linspace(0.0, rng.low + 1e-7, 500),
+            np.linspace(rng.low + 1e-7, rng.high - 1e-7, 1000),
+            np.linspace(rng.high - 1e-7, 0.0, 500),
+        ]
+    )
     s = kin.solve(c)
     assert s.success and np.all(_orientation(s, "B", "D", "C") == 1.0)
     np.testing.assert_allclose(s.q[0], s.q[-1], atol=1e-12)
@@ -190,8 +202,11 @@ def test_slider_crank_closed_form(kinematics):
     x = r * np.cos(theta) + root
     dx = -r * np.sin(theta) + u * r * np.cos(theta) / root  # per rad
     du = -r * np.cos(theta)
-    d2x = -r * np.cos(theta) + (du * r * np.cos(theta) - u * r * np.sin(theta)) / root \
+    d2x = (
+        -r * np.cos(theta)
+        + (du * r * np.cos(theta) - u * r * np.sin(theta)) / root
         + (u * r * np.cos(theta)) * (u * du) / root**3
+    )
     b = s.point("B")
     np.testing.assert_allclose(b["position"][:, 0], x, rtol=0, atol=1e-14)
     np.testing.assert_allclose(b["position"][:, 1], e, rtol=0, atol=1e-14)
@@ -227,6 +242,6 @@ def test_batch_and_one_by_one_agree(kinematics):
     c = np.radians(np.linspace(-120, 120, 25))
     batch = kin.solve(c, np.ones_like(c), np.full_like(c, 0.5))
     for i in range(0, 25, 6):
-        single = kin.solve(c[i:i + 1], [1.0], [0.5])
+        single = kin.solve(c[i : i + 1], [1.0], [0.5])
         np.testing.assert_allclose(single.q[0], batch.q[i], atol=1e-13)
         np.testing.assert_allclose(single.qdd[0], batch.qdd[i], rtol=1e-11, atol=1e-12)

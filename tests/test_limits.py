@@ -24,8 +24,11 @@ def pinned_chain(n: int, missing: int | None = None) -> str:
     parts = ['[mechanism]\nname = "chain"\n\n[ground]\npoints = { P = [0, 0] }\n']
     parts += [f"[bodies.b{i}]\npoints = {{ P = [0, 0], T{i} = [{i + 1}, 0] }}\n" for i in range(n)]
     joints = [i for i in range(n) if i != missing]
-    parts += [f'[[joints]]\nname = "J{i}"\ntype = "revolute"\nbodies = ["{f"b{i - 1}" if i else "ground"}", '
-              f'"b{i}"]\npoint = "P"\n' for i in joints]
+    parts += [
+        f'[[joints]]\nname = "J{i}"\ntype = "revolute"\nbodies = ["{f"b{i - 1}" if i else "ground"}", '
+        f'"b{i}"]\npoint = "P"\n'
+        for i in joints
+    ]
     parts += [f'[[drivers]]\nname = "d{i}"\njoint = "J{i}"\nstart = 0\nrate = 1\n' for i in joints]
     return "\n".join(parts)
 
@@ -46,6 +49,7 @@ def ground_star(n: int, coincide: tuple[int, int] | None = None) -> str:
 
 # -- loading is linear --------------------------------------------------------------
 # (these files used to hang the loader: its label check was O(n^4), 60 bodies 12 s)
+
 
 def test_long_chain_pinned_at_one_label_loads(tmp_path):
     mech = load_mechanism(write(tmp_path, pinned_chain(MAX_BODIES)))
@@ -80,8 +84,10 @@ def many_joint_points(n: int, coincide: tuple[int, int] | None = None, loads: in
         place[coincide[1]] = place[coincide[0]]
     ground = ", ".join(f"G{i} = {place[i]}" for i in range(n))
     plate = ", ".join(f"G{i} = [{i % 100}, {i // 100}]" for i in range(n))
-    parts = [f'[mechanism]\nname = "plate"\n\n[ground]\npoints = {{ {ground} }}\n',
-             f"[bodies.plate]\npoints = {{ {plate} }}\nmass = 1\ninertia = 1\n"]
+    parts = [
+        f'[mechanism]\nname = "plate"\n\n[ground]\npoints = {{ {ground} }}\n',
+        f"[bodies.plate]\npoints = {{ {plate} }}\nmass = 1\ninertia = 1\n",
+    ]
     parts += [f'[[joints]]\ntype = "revolute"\nbodies = ["ground", "plate"]\npoint = "G{i}"\n' for i in range(n)]
     parts.append('[[drivers]]\njoint = "G0"\nstart = 0\nrate = 1\n')
     parts += [f'[[loads]]\nbody = "plate"\ntorque = {i}\n' for i in range(loads)]
@@ -128,8 +134,9 @@ def test_shared_label_check_matches_the_pairwise_check(seed):
     rng = random.Random(seed)
     names = ["ground"] + [f"b{i}" for i in range(rng.randint(1, 6))]
     labels = "PQR"
-    bodies = [Body(name, {lbl: np.zeros(2) for lbl in labels if rng.random() < 0.6} or {"X": np.zeros(2)})
-              for name in names]
+    bodies = [
+        Body(name, {lbl: np.zeros(2) for lbl in labels if rng.random() < 0.6} or {"X": np.zeros(2)}) for name in names
+    ]
     joints = []
     for _ in range(rng.randint(0, 8)):
         a, b = rng.sample(bodies, 2)
@@ -149,13 +156,19 @@ def test_shared_label_check_matches_the_pairwise_check(seed):
 
 # -- stated limits ------------------------------------------------------------------
 
+
 def test_too_many_bodies_are_refused(tmp_path):
     path = write(tmp_path, pinned_chain(MAX_BODIES + 1))
     err = library_error(path)
-    assert (err.field, err.expected, err.found) == ("bodies", f"at most {MAX_BODIES} moving bodies",
-                                                    str(MAX_BODIES + 1))
-    error_line(run_cli("solve", str(path)), f"{path}: bodies: expected at most {MAX_BODIES} moving bodies, "
-               f"found {MAX_BODIES + 1}")
+    assert (err.field, err.expected, err.found) == (
+        "bodies",
+        f"at most {MAX_BODIES} moving bodies",
+        str(MAX_BODIES + 1),
+    )
+    error_line(
+        run_cli("solve", str(path)),
+        f"{path}: bodies: expected at most {MAX_BODIES} moving bodies, found {MAX_BODIES + 1}",
+    )
 
 
 def test_a_large_file_is_refused_before_parsing(tmp_path):
@@ -165,8 +178,10 @@ def test_a_large_file_is_refused_before_parsing(tmp_path):
     err = library_error(path)
     assert (err.field, err.found) == ("", "50000000 bytes")
     assert err.expected == f"a mechanism file of at most {MAX_FILE_BYTES} bytes"
-    error_line(run_cli("solve", str(path)), f"{path}: expected a mechanism file of at most {MAX_FILE_BYTES} "
-               "bytes, found 50000000 bytes")
+    error_line(
+        run_cli("solve", str(path)),
+        f"{path}: expected a mechanism file of at most {MAX_FILE_BYTES} bytes, found 50000000 bytes",
+    )
 
 
 def test_a_file_just_within_the_size_limit_loads(tmp_path):
@@ -187,21 +202,28 @@ def test_crlf_line_ends_still_read(tmp_path):
 
 @pytest.mark.parametrize("samples", [2, MAX_SAMPLES + 1, 100_000_000])
 def test_samples_out_of_bounds_are_refused(samples):
-    error_line(run_cli("run", "fourbar", "--samples", str(samples), "--models", str(MODELS), "--no-report"),
-               f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
+    error_line(
+        run_cli("run", "fourbar", "--samples", str(samples), "--models", str(MODELS), "--no-report"),
+        f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}",
+    )
 
 
 def test_too_many_at_states_are_refused():
     at = ",".join(["45"] * (MAX_AT_STATES + 1))
-    error_line(run_cli("solve", "fourbar", "--at", at, "--models", str(MODELS)),
-               f"fourbar.toml: --at: expected at most {MAX_AT_STATES} states, found {MAX_AT_STATES + 1}")
+    error_line(
+        run_cli("solve", "fourbar", "--at", at, "--models", str(MODELS)),
+        f"fourbar.toml: --at: expected at most {MAX_AT_STATES} states, found {MAX_AT_STATES + 1}",
+    )
 
 
 def test_too_many_instants_are_refused(tmp_path):
     text = FOURBAR.split("[[instants]]")[0] + "[[instants]]\ncrank = 30\n\n" * (MAX_AT_STATES + 1)
     err = library_error(write(tmp_path, text))
-    assert (err.field, err.expected, err.found) == ("instants", f"at most {MAX_AT_STATES} [[instants]]",
-                                                    str(MAX_AT_STATES + 1))
+    assert (err.field, err.expected, err.found) == (
+        "instants",
+        f"at most {MAX_AT_STATES} [[instants]]",
+        str(MAX_AT_STATES + 1),
+    )
 
 
 def test_limits_are_documented():

@@ -124,7 +124,8 @@ def test_committed_mjcf_is_current_and_opens(case, name):
     mech = kin.mechanism
     assert {model.body(i).name for i in range(1, model.nbody)} == {b.name for b in mech.moving_bodies}
     assert {model.site(i).name for i in range(model.nsite)} == {
-        f"{b.name}.{label}" for b in mech.bodies for label in b.points}
+        f"{b.name}.{label}" for b in mech.bodies for label in b.points
+    }
     assert model.neq == len(spanning_tree(mech).cuts)
     assert model.opt.gravity.tolist() == [*mech.gravity.tolist(), 0.0]  # the model's, zero when none
 
@@ -378,7 +379,9 @@ def test_a_loop_of_sliding_joints_only_runs():
 def test_a_loop_of_driven_joints_only_fails_both_modes_in_one_line():
     """Drive the wedge's slide too: the loop then has one undriven joint left, the
     incline, and runs; drive all three and nothing is left to cut."""
-    text = ALL_SLIDING + """
+    text = (
+        ALL_SLIDING
+        + """
 [[drivers]]
 name = "lift"
 joint = "wedge slide"
@@ -392,6 +395,7 @@ motion = "constant-rate"
 start = 0.1414213562373095
 rate = 0.7071067811865476
 """
+    )
     text = text.replace("at = { push = 0.1 }", "at = { push = 0.1, lift = 0.1, slope = 0.1414213562373095 }")
     try:
         kin = Kinematics(parse_mechanism(text, "wedges"))
@@ -475,8 +479,12 @@ def test_export_reports_a_bad_file_and_writes_the_rest(models_with_a_bad_file):
     assert "aaa-broken.toml: bodies: expected" in line and "found" in line
     for name in ("fourbar", "scotch-yoke"):
         text = (models / "mjcf" / f"{name}.xml").read_text()
-        assert text == export_files(Kinematics(parse_mechanism((models / f"{name}.toml").read_text(),
-                                                               models / f"{name}.toml"))).popitem()[1]
+        assert (
+            text
+            == export_files(
+                Kinematics(parse_mechanism((models / f"{name}.toml").read_text(), models / f"{name}.toml"))
+            ).popitem()[1]
+        )
 
 
 def test_export_check_lists_missing_and_stale_files(models_with_a_bad_file):
@@ -488,8 +496,10 @@ def test_export_check_lists_missing_and_stale_files(models_with_a_bad_file):
     (models / "mjcf" / "fourbar.xml").write_text("<mujoco/>\n")
     result = _export("--check", "--format", "mjcf", "--models", str(models))
     assert result.exit_code == 1
-    assert result.stdout.splitlines() == [f"stale: {models / 'mjcf' / 'fourbar.xml'}",
-                                          f"missing: {models / 'mjcf' / 'scotch-yoke.xml'}"]
+    assert result.stdout.splitlines() == [
+        f"stale: {models / 'mjcf' / 'fourbar.xml'}",
+        f"missing: {models / 'mjcf' / 'scotch-yoke.xml'}",
+    ]
     assert not (models / "mjcf" / "scotch-yoke.xml").exists()
     assert _export("--format", "mjcf", "--models", str(models)).exit_code == 0
     assert _export("--check", "--format", "mjcf", "--models", str(models)).exit_code == 0

@@ -45,18 +45,27 @@ URDF_DIR = MODELS / "urdf"
 # fixed in the slider (turned by 30 deg against it, the rotation locked at
 # 30 deg) and the ground's point E slides on it, so the prismatic tree joint is
 # reversed and has a locked angle. Same motion as slider-crank.
-REVERSED_SLIDER = (MODELS / "slider-crank.toml").read_text().replace(
-    'bodies = ["ground", "slider"]\nline = "E"\ndirection = 0\npoint = "B"',
-    'bodies = ["slider", "ground"]\nline = "B"\ndirection = 30\npoint = "E"\nangle = 30',
-).split("[[instants]]")[0]
+REVERSED_SLIDER = (
+    (MODELS / "slider-crank.toml")
+    .read_text()
+    .replace(
+        'bodies = ["ground", "slider"]\nline = "E"\ndirection = 0\npoint = "B"',
+        'bodies = ["slider", "ground"]\nline = "B"\ndirection = 30\npoint = "E"\nangle = 30',
+    )
+    .split("[[instants]]")[0]
+)
 
 INVERTED = (DATA / "inverted.toml").read_text()
 SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()
 
 # The slider-crank with its driven pin written crank-first, so the driven
 # revolute is reversed in the tree (input = minus the joint coordinate).
-REVERSED_DRIVER = (MODELS / "slider-crank.toml").read_text().replace(
-    'bodies = ["ground", "crank"]\npoint = "O"', 'bodies = ["crank", "ground"]\npoint = "O"').split("[[instants]]")[0]
+REVERSED_DRIVER = (
+    (MODELS / "slider-crank.toml")
+    .read_text()
+    .replace('bodies = ["ground", "crank"]\npoint = "O"', 'bodies = ["crank", "ground"]\npoint = "O"')
+    .split("[[instants]]")[0]
+)
 
 # A Scotch yoke: its only loop is closed by a prismatic and a pin-in-slot joint
 # (and the driven crank revolute), so it is cut at the pin-in-slot.
@@ -100,8 +109,12 @@ at = { crank = 0 }
 Y = [0.1, 0]
 """
 
-TEXTS = {"inverted": INVERTED, "slider-driven": SLIDER_DRIVEN, "reversed-slider": REVERSED_SLIDER,
-         "reversed-driver": REVERSED_DRIVER}
+TEXTS = {
+    "inverted": INVERTED,
+    "slider-driven": SLIDER_DRIVEN,
+    "reversed-slider": REVERSED_SLIDER,
+    "reversed-driver": REVERSED_DRIVER,
+}
 VARIANTS = ["reversed-slider", "reversed-driver"]
 MECHANISMS = MODEL_NAMES + ["inverted", "slider-driven"]
 
@@ -158,8 +171,7 @@ def test_frames_coincide_with_native_body_frames(name):
         assert abs(math.remainder(angle - state["angle"][0], 2 * math.pi)) < 1e-14
         for label in body.points:
             xy = data.oMf[pm.point_frames[f"{body.name}.{label}"]].translation
-            np.testing.assert_allclose(xy[:2], native.point(label, body.name)["position"][0], rtol=0,
-                                       atol=1e-14 * size)
+            np.testing.assert_allclose(xy[:2], native.point(label, body.name)["position"][0], rtol=0, atol=1e-14 * size)
     assert np.max(np.abs(Oracle(pm).loop_residual(q)), initial=0.0) < 1e-14 * size
     inputs = [dc.sign * q[dc.index] for dc in pm.drivers]
     np.testing.assert_allclose(inputs, kin.reference_inputs(), rtol=0, atol=1e-14)
@@ -191,8 +203,12 @@ def test_constraint_jacobian_and_drift_against_finite_differences(name):
         oracle.loop_residual(q)
         jac = oracle.loop_jacobian(q).copy()
         eps = 1e-6
-        numeric = np.column_stack([(oracle.loop_residual(q + eps * e) - oracle.loop_residual(q - eps * e)) / (2 * eps)
-                                   for e in np.eye(len(q))])
+        numeric = np.column_stack(
+            [
+                (oracle.loop_residual(q + eps * e) - oracle.loop_residual(q - eps * e)) / (2 * eps)
+                for e in np.eye(len(q))
+            ]
+        )
         assert np.max(np.abs(numeric - jac), initial=0.0) <= 1e-8 * max(1.0, np.max(np.abs(jac), initial=0.0))
         oracle.loop_residual(q + eps * v)
         ahead = oracle.loop_jacobian(q + eps * v) @ v
@@ -200,7 +216,8 @@ def test_constraint_jacobian_and_drift_against_finite_differences(name):
         behind = oracle.loop_jacobian(q - eps * v) @ v
         drift = oracle.drift(q, v)
         assert np.max(np.abs((ahead - behind) / (2 * eps) - drift), initial=0.0) <= 1e-7 * max(
-            1.0, np.max(np.abs(drift), initial=0.0))
+            1.0, np.max(np.abs(drift), initial=0.0)
+        )
 
 
 # -- kinematic mode ----------------------------------------------------------
@@ -236,17 +253,21 @@ def test_kinematic_mode_sweeps_the_feasible_range_and_the_law():
     assert law.centre - law.amplitude <= slide.inputs.min() < slide.inputs.max() <= law.centre + law.amplitude
     w = 2 * math.pi * law.frequency
     # on the harmonic law, qdd = -w^2 (q - centre) and |qd| = w sqrt(A^2 - (q - centre)^2)
-    np.testing.assert_allclose(slide.input_accelerations[:, 0], -w * w * (slide.inputs[:, 0] - law.centre),
-                               atol=1e-9)
-    np.testing.assert_allclose(np.abs(slide.input_rates[:, 0]),
-                               w * np.sqrt(np.maximum(law.amplitude**2 - (slide.inputs[:, 0] - law.centre) ** 2, 0)),
-                               atol=1e-6)
+    np.testing.assert_allclose(slide.input_accelerations[:, 0], -w * w * (slide.inputs[:, 0] - law.centre), atol=1e-9)
+    np.testing.assert_allclose(
+        np.abs(slide.input_rates[:, 0]),
+        w * np.sqrt(np.maximum(law.amplitude**2 - (slide.inputs[:, 0] - law.centre) ** 2, 0)),
+        atol=1e-6,
+    )
 
 
-@pytest.mark.parametrize("name,old,new", [
-    ("slider-crank", "ends = [\"A\", \"B\"]\nlength = 350", "ends = [\"A\", \"B\"]\nlength = 351"),
-    ("fourbar", "ends = [\"B\", \"C\"]\nlength = 450", "ends = [\"B\", \"C\"]\nlength = 451"),
-])
+@pytest.mark.parametrize(
+    "name,old,new",
+    [
+        ("slider-crank", 'ends = ["A", "B"]\nlength = 350', 'ends = ["A", "B"]\nlength = 351'),
+        ("fourbar", 'ends = ["B", "C"]\nlength = 450', 'ends = ["B", "C"]\nlength = 451'),
+    ],
+)
 def test_a_link_one_millimetre_too_long_is_caught(name, old, new):
     """Pinocchio run on a model with one link 1 mm too long, compared with the
     right native solution: the position difference is of the order of the
@@ -317,8 +338,9 @@ def test_dynamic_mode_drives_a_reversed_input_joint():
 def test_dynamic_mode_reports_a_diverging_run():
     """Baumgarte gains beyond the stability limit of semi-implicit Euler
     (measured: 1.0 per step diverges, 0.7 does not) are reported, not raised."""
-    result = run_dynamic(_kin("fourbar"), steps=(100,), samples=11, integrators=("semi-implicit-euler-baumgarte",),
-                         baumgarte=1.5)
+    result = run_dynamic(
+        _kin("fourbar"), steps=(100,), samples=11, integrators=("semi-implicit-euler-baumgarte",), baumgarte=1.5
+    )
     assert not result.ok and result.trajectories == []
     assert " at t = " in result.reason and "\n" not in result.reason
     assert result.summary.status.iloc[0] != "ok"
@@ -335,8 +357,9 @@ def test_a_loop_closed_by_sliding_joints_runs_in_both_modes():
     assert result.ok, result.reason
     t = result.trajectories[0]
     theta = t.inputs[:, 0]
-    np.testing.assert_allclose(t.points["Y"]["position"], np.column_stack([0.1 * np.cos(theta), 0 * theta]),
-                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        t.points["Y"]["position"], np.column_stack([0.1 * np.cos(theta), 0 * theta]), rtol=0, atol=1e-15
+    )
     assert run_dynamic(kin, steps=(200,), integrators=("rk4",)).ok
 
 
@@ -344,10 +367,13 @@ def test_a_loop_closed_by_sliding_joints_runs_in_both_modes():
 # its slot as written, or at its guide (a prismatic cut, CONTACT_6D) with the
 # slot listed first.
 YOKE_TEXT = (MODELS.parent / "tests" / "data" / "scotch-yoke.toml").read_text()
-_GUIDE, _SLOT, _DRIVERS = (YOKE_TEXT.index(k) for k in ('[[joints]]\nname = "guide"', '[[joints]]\nname = "slot"',
-                                                       "[[drivers]]"))
-YOKES = {"slot": YOKE_TEXT, "guide": YOKE_TEXT[:_GUIDE] + YOKE_TEXT[_SLOT:_DRIVERS] + YOKE_TEXT[_GUIDE:_SLOT]
-         + YOKE_TEXT[_DRIVERS:]}
+_GUIDE, _SLOT, _DRIVERS = (
+    YOKE_TEXT.index(k) for k in ('[[joints]]\nname = "guide"', '[[joints]]\nname = "slot"', "[[drivers]]")
+)
+YOKES = {
+    "slot": YOKE_TEXT,
+    "guide": YOKE_TEXT[:_GUIDE] + YOKE_TEXT[_SLOT:_DRIVERS] + YOKE_TEXT[_GUIDE:_SLOT] + YOKE_TEXT[_DRIVERS:],
+}
 
 
 def _yoke(cut: str) -> Kinematics:
@@ -415,14 +441,22 @@ def test_urdf_of_a_carrier_loads_and_matches_the_programmatic_model(cut, tmp_pat
     (loop,) = loops["loops"]
     assert loop["contact_type"] == ("CONTACT_3D" if cut == "slot" else "CONTACT_6D")
     f1, f2 = (urdf.frames[urdf.getFrameId(loop[k], pin.FrameType.BODY)] for k in ("frame1", "frame2"))
-    cm = pin.RigidConstraintModel(getattr(pin.ContactType, loop["contact_type"]), urdf, f1.parentJoint,
-                                  f1.placement, f2.parentJoint, f2.placement, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    cm = pin.RigidConstraintModel(
+        getattr(pin.ContactType, loop["contact_type"]),
+        urdf,
+        f1.parentJoint,
+        f1.placement,
+        f2.parentJoint,
+        f2.placement,
+        pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+    )
     cd = cm.createData()
     pin.forwardKinematics(urdf, udata, qu)
     cm.calc(urdf, udata, cd)
     assert np.max(np.abs(cd.oMc1.translation - cd.oMc2.translation)) < 1e-15
-    np.testing.assert_allclose(cd.oMc1.rotation.T @ cd.oMc2.rotation if cut == "guide" else np.eye(3), np.eye(3),
-                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        cd.oMc1.rotation.T @ cd.oMc2.rotation if cut == "guide" else np.eye(3), np.eye(3), rtol=0, atol=1e-15
+    )
 
 
 def test_bad_options_fail_in_one_line():
@@ -447,7 +481,8 @@ def test_committed_urdf_files_are_current(name):
         path = URDF_DIR / file_name
         assert path.exists() and path.read_text(encoding="utf-8") == text, (
             f"models/urdf/{file_name} is missing or stale: regenerate it with `xcheck export --format urdf` "
-            "and commit it")
+            "and commit it"
+        )
 
 
 def _urdf_configuration(urdf_model, pm, q):
@@ -458,7 +493,7 @@ def _urdf_configuration(urdf_model, pm, q):
         x = q[pm.model.idx_qs[pm.model.getJointId(urdf_model.names[j])]]
         k = urdf_model.idx_qs[j]
         if urdf_model.joints[j].nq == 2:
-            qu[k:k + 2] = [math.cos(x), math.sin(x)]
+            qu[k : k + 2] = [math.cos(x), math.sin(x)]
         else:
             qu[k] = x
     return qu
@@ -484,8 +519,9 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
             kind = pin.FrameType.JOINT if frame.type == pin.FrameType.JOINT else pin.FrameType.BODY
             other = urdf.getFrameId(frame.name, kind)
             assert other < urdf.nframes, frame.name
-            np.testing.assert_allclose(udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0,
-                                       atol=1e-15 * kin.system.size + 1e-15)
+            np.testing.assert_allclose(
+                udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=1e-15 * kin.system.size + 1e-15
+            )
     for j in range(1, pm.model.njoints):
         u = urdf.getJointId(pm.model.names[j])
         np.testing.assert_allclose(urdf.inertias[u].matrix(), pm.model.inertias[j].matrix(), rtol=0, atol=1e-15)
@@ -493,8 +529,17 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
     cms = []
     for loop in loops["loops"]:
         f1, f2 = (urdf.frames[urdf.getFrameId(loop[k], pin.FrameType.BODY)] for k in ("frame1", "frame2"))
-        cms.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, urdf, f1.parentJoint, f1.placement,
-                                            f2.parentJoint, f2.placement, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+        cms.append(
+            pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D,
+                urdf,
+                f1.parentJoint,
+                f1.placement,
+                f2.parentJoint,
+                f2.placement,
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            )
+        )
     assert len(cms) == len(pm.constraints)
     pin.forwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q_ref))
     for cm in cms:

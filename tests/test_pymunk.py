@@ -79,8 +79,14 @@ def _disagreements(rows: list[dict], size: float) -> list[str]:
     twice (plus their ``time_step``), ``size`` the mechanism's; the first row
     against the tolerances, all three against the expected orders."""
     problems = []
-    limits = {"position_error": POSITION_TOL * size, "angle_error": ANGLE_TOL, "velocity_error": RATE_TOL,
-              "omega_error": RATE_TOL, "acceleration_error": ACCELERATION_TOL, "alpha_error": ACCELERATION_TOL}
+    limits = {
+        "position_error": POSITION_TOL * size,
+        "angle_error": ANGLE_TOL,
+        "velocity_error": RATE_TOL,
+        "omega_error": RATE_TOL,
+        "acceleration_error": ACCELERATION_TOL,
+        "alpha_error": ACCELERATION_TOL,
+    }
     for key, limit in limits.items():
         if not rows[0][key] <= limit:
             problems.append(f"{key} {rows[0][key]:.3g} > {limit:.3g}")
@@ -89,8 +95,10 @@ def _disagreements(rows: list[dict], size: float) -> list[str]:
         if coarse["position_error"] > 1e-12 * size:  # above round-off only
             order = math.log(coarse["position_error"] / fine["position_error"]) / math.log(steps)
             if not POSITION_ORDER[0] <= order <= POSITION_ORDER[1]:
-                problems.append(f"position error order {order:.2f} between time steps "
-                                f"{coarse['time_step']:.3g} and {fine['time_step']:.3g} s")
+                problems.append(
+                    f"position error order {order:.2f} between time steps "
+                    f"{coarse['time_step']:.3g} and {fine['time_step']:.3g} s"
+                )
         ratio = (coarse["velocity_error"] / fine["velocity_error"]) ** (1.0 / math.log2(steps))
         if not RATE_RATIO[0] <= ratio <= RATE_RATIO[1]:
             problems.append(f"velocity error ratio {ratio:.2f} per doubled time step")
@@ -149,7 +157,8 @@ def test_summary_is_data(simulated, name):
         assert row["time_step"] == trajectory.settings["time_step"]
         assert row["joint_gap"] == np.max(trajectory.diagnostics["joint_gap"])
     assert summary.loc[0, "order"] == pytest.approx(
-        math.log(summary.loc[1, "position_error"] / summary.loc[0, "position_error"]) / math.log(2.0))
+        math.log(summary.loc[1, "position_error"] / summary.loc[0, "position_error"]) / math.log(2.0)
+    )
     failed = summary[summary["status"] != "ok"]
     assert failed["position_error"].isna().all()  # a failed run has no error figures, only its status
     assert all("\n" not in status for status in summary["status"])
@@ -179,8 +188,12 @@ def test_scene_maps_body_frames(kinematics, name):
         if body.com is not None and pb.body_type == pb.DYNAMIC:
             assert tuple(pb.center_of_gravity) == tuple(body.com)
         for label in body.points:
-            assert np.allclose(scene.world_point(body.name, label), native.point(label, body.name)["position"][0],
-                               rtol=0, atol=1e-15 * size)
+            assert np.allclose(
+                scene.world_point(body.name, label),
+                native.point(label, body.name)["position"][0],
+                rtol=0,
+                atol=1e-15 * size,
+            )
     assert scene.joint_gaps()[0] <= 1e-15 * size
 
 
@@ -238,9 +251,10 @@ def test_groove_opens_with_the_time_step_when_the_effective_mass_couples():
     the time step (measured gap 7.9e-5 m at 2.2e-4 s, 1.6e-4 m at 4.5e-4 s)
     and the scene leaves the native configuration (0.20 m), where the default
     centre of mass on the line gives 2.4e-7 m at second order."""
-    source = INVERTED.replace("[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }",
-                              "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }\n"
-                              "mass = 1\ninertia = 0.1\ncom = [0.5, 0.1]")
+    source = INVERTED.replace(
+        "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }",
+        "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }\nmass = 1\ninertia = 0.1\ncom = [0.5, 0.1]",
+    )
     assert source != INVERTED
     result = run_dynamic(Kinematics(parse_mechanism(source, "inverted-off-line")), settings=DEFAULT_SETTINGS[:2])
     assert result.ok, result.reason
@@ -264,9 +278,10 @@ def test_scene_that_comes_apart_is_reported_not_raised():
 def test_scene_that_goes_non_finite_is_reported_not_raised():
     """A rocker with a moment of inertia of 1e-300 kg m^2 (positive, so the
     model accepts it) makes pymunk's state NaN: reported as a failed mode."""
-    source = INVERTED.replace("[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }",
-                              "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }\n"
-                              "mass = 1\ninertia = 1e-300\ncom = [0.5, 0.3]")
+    source = INVERTED.replace(
+        "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }",
+        "[bodies.rocker]\npoints = { C = [0, 0], S = [1, 0] }\nmass = 1\ninertia = 1e-300\ncom = [0.5, 0.3]",
+    )
     assert source != INVERTED
     kin = Kinematics(parse_mechanism(source, "inverted-nan"))
     result = run_dynamic(kin, settings=[Setting(50, 50)])

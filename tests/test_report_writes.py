@@ -32,12 +32,31 @@ def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
     _touch(out / ".README.md.zz99yy88")
     _touch(out / ".fourbar.md.q1w2e3r4")
     # what xcheck did not write stays, hidden or not
-    keep = [".git/config", ".notes.abcdefgh/mine.txt", ".mine.txt.abcdefgh", ".other.old.a1b2c3d5/other/x.png",
-            "notes.md"]
+    keep = [
+        ".git/config",
+        ".notes.abcdefgh/mine.txt",
+        ".mine.txt.abcdefgh",
+        ".other.old.a1b2c3d5/other/x.png",
+        "notes.md",
+    ]
     for name in keep:
         _touch(out / name)
-    result = CliRunner().invoke(app, ["run", "fourbar", "--engines", "formulations", "--samples", "31", "--quiet",
-                                      "--out", str(out), "--models", str(MODELS)])
+    result = CliRunner().invoke(
+        app,
+        [
+            "run",
+            "fourbar",
+            "--engines",
+            "formulations",
+            "--samples",
+            "31",
+            "--quiet",
+            "--out",
+            str(out),
+            "--models",
+            str(MODELS),
+        ],
+    )
     assert result.exit_code == 0, result.output
     left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     assert [p for p in left if p.startswith(".")] == sorted(k for k in keep if k.startswith("."))
@@ -46,8 +65,9 @@ def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
 
 def test_index_update_waits_for_the_directory_lock(tmp_path):
     entry = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
-    worker = threading.Thread(target=update_index, args=(tmp_path, [entry], set(model_names(MODELS)),
-                                                         "xcheck run fourbar"))
+    worker = threading.Thread(
+        target=update_index, args=(tmp_path, [entry], set(model_names(MODELS)), "xcheck run fourbar")
+    )
     fd = os.open(tmp_path, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # another run writing the reports

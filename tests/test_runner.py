@@ -69,14 +69,18 @@ def test_run_all_json_is_a_list():
     assert result.exit_code == 0, result.output
     docs = json.loads(result.stdout)
     assert [d["mechanism"] for d in docs] == MODEL_NAMES
-    assert all(set(d["engines"]) | set(d["not_applicable"]) == {"native", "formulation-I", "formulation-II"}
-               for d in docs)
+    assert all(
+        set(d["engines"]) | set(d["not_applicable"]) == {"native", "formulation-I", "formulation-II"} for d in docs
+    )
 
 
-@pytest.mark.parametrize("args,message", [
-    (["run", "nosuch"], "unknown mechanism 'nosuch'"),
-    (["run", "fourbar", "--engines", "bullet"], "--engines: expected modes or groups"),
-])
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["run", "nosuch"], "unknown mechanism 'nosuch'"),
+        (["run", "fourbar", "--engines", "bullet"], "--engines: expected modes or groups"),
+    ],
+)
 def test_bad_input_exits_2(args, message):
     result = _cli(*args)
     assert result.exit_code == 2
@@ -99,8 +103,9 @@ def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
         return ET.tostring(root, encoding="unicode")
 
     monkeypatch.setattr(mujoco_engine, "mjcf_text", longer_crank)
-    result = _cli("run", "fourbar", "--engines", "mujoco-kinematic,pinocchio-kinematic", "--no-report",
-                  "--samples", "31")
+    result = _cli(
+        "run", "fourbar", "--engines", "mujoco-kinematic,pinocchio-kinematic", "--no-report", "--samples", "31"
+    )
     assert result.exit_code == 1, result.output
     lines = result.stdout.splitlines()
     row = next(line for line in lines if line.startswith("mujoco-kinematic"))
@@ -127,8 +132,13 @@ def test_reports_are_written_whole(tmp_path):
     assert result.exit_code == 0, result.output
     assert result.stdout == ""
     report = (tmp_path / "two-body-arm.md").read_text()
-    for heading in ("## Printed answers", "## Comparison with the native solution",
-                    "## Dynamic modes: error against time step", "## Native solver", "## Versions"):
+    for heading in (
+        "## Printed answers",
+        "## Comparison with the native solution",
+        "## Dynamic modes: error against time step",
+        "## Native solver",
+        "## Versions",
+    ):
         assert heading in report
     for image in ("drawing.png", "quantities.png", "differences.png", "convergence.png", "motion.gif"):
         assert (tmp_path / "two-body-arm" / image).stat().st_size > 1000
@@ -139,10 +149,13 @@ def test_reports_are_written_whole(tmp_path):
     index = (tmp_path / "README.md").read_text()
     assert "[two-body-arm](two-body-arm.md)" in index
     # rerunning replaces the report; no staging directories are left behind
-    assert _cli("run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "-q",
-                "--engines", "formulations").exit_code == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "index.json", "two-body-arm",
-                                                           "two-body-arm.md"]
+    assert (
+        _cli(
+            "run", "two-body-arm", "--out", str(tmp_path), "--samples", "21", "-q", "--engines", "formulations"
+        ).exit_code
+        == 0
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["README.md", "index.json", "two-body-arm", "two-body-arm.md"]
 
 
 def test_forces_and_energy_in_the_json_summary():

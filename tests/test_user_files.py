@@ -120,8 +120,9 @@ def test_a_driver_that_stands_still_gives_statics(tmp_path):
     for degrees in (60.0, 200.0, 60.0 + 720.0):
         state = _json("solve", path, "--at", repr(degrees))["states"][0]
         assert state["bodies"]["crank"]["omega"] == 0.0 and state["bodies"]["yoke"]["velocity"] == [0.0, 0.0]
-        assert state["drivers"]["crank"]["effort"] == pytest.approx(10.0 * 0.1 * math.sin(math.radians(degrees)),
-                                                                    abs=1e-12)
+        assert state["drivers"]["crank"]["effort"] == pytest.approx(
+            10.0 * 0.1 * math.sin(math.radians(degrees)), abs=1e-12
+        )
 
 
 def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
@@ -137,8 +138,10 @@ def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
 def test_constant_acceleration_crank_reaches_any_angle_modulo_a_turn(tmp_path):
     """From rest at 200 deg with alpha = 1 rad/s^2: 0 deg (= 360) is reached after
     160 deg, where omega = sqrt(2 alpha * 160 deg)."""
-    text = FOURBAR_200.read_text().replace('motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
-                                           'motion = "constant-acceleration"\nstart = 200\nacceleration = 1.0')
+    text = FOURBAR_200.read_text().replace(
+        'motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
+        'motion = "constant-acceleration"\nstart = 200\nacceleration = 1.0',
+    )
     path = tmp_path / "accelerating.toml"
     path.write_text(text)
     for degrees in ("0", "360", "-360"):
@@ -165,10 +168,16 @@ def test_an_unreachable_instant_does_not_block_at(tmp_path):
     assert result.exit_code == 2 and "instants[1].x_A" in result.stderr and "0.7" in result.stderr
 
 
-SLIDER_HARMONIC = (MODELS / "slider-crank.toml").read_text().replace(
-    'name = "crank"\njoint = "O"\nmotion = "constant-rate"\nstart = 0\nrate = 100                # rad/s',
-    'name = "slide"\njoint = "slide"\nmotion = "harmonic"\ncentre = 340\namplitude = 80\nfrequency = 5',
-).replace("at = { crank = 0 }", "at = { slide = 400 }").split("[[instants]]")[0]
+SLIDER_HARMONIC = (
+    (MODELS / "slider-crank.toml")
+    .read_text()
+    .replace(
+        'name = "crank"\njoint = "O"\nmotion = "constant-rate"\nstart = 0\nrate = 100                # rad/s',
+        'name = "slide"\njoint = "slide"\nmotion = "harmonic"\ncentre = 340\namplitude = 80\nfrequency = 5',
+    )
+    .replace("at = { crank = 0 }", "at = { slide = 400 }")
+    .split("[[instants]]")[0]
+)
 
 
 def test_one_rule_for_harmonic_inputs_in_solve_and_run(tmp_path):
@@ -197,8 +206,19 @@ def test_run_all_reports_a_bad_file_and_runs_the_rest(tmp_path):
     folder.mkdir()
     (folder / "aaa-bad.toml").write_text("[mechanism]\nname = 'bad'\n[[joints]]\ntype = 'welded'\n")
     (folder / "fourbar-200.toml").write_text(FOURBAR_200.read_text())
-    result = _cli("run", "all", "--models", folder, "--engines", "formulations", "--samples", "11",
-                  "--out", tmp_path / "out", "-q")
+    result = _cli(
+        "run",
+        "all",
+        "--models",
+        folder,
+        "--engines",
+        "formulations",
+        "--samples",
+        "11",
+        "--out",
+        tmp_path / "out",
+        "-q",
+    )
     assert result.exit_code == 2
     assert "aaa-bad.toml" in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert (tmp_path / "out" / "fourbar-200.md").is_file()
@@ -233,14 +253,20 @@ def test_a_users_report_and_index_say_what_was_run(tmp_path, monkeypatch):
     report = (tmp_path / "rep" / "fourbar-200.md").read_text()
     assert "No printed answers were given" in report and "comparisons/fourbar-200.toml" in report
     reproduce = next(line for line in report.splitlines() if line.startswith("Reproduce:"))
-    assert reproduce == ("Reproduce: `xcheck run fourbar-200.toml --engines formulations --samples 11 "
-                         "--out rep`")
+    assert reproduce == ("Reproduce: `xcheck run fourbar-200.toml --engines formulations --samples 11 --out rep`")
     index = (tmp_path / "rep" / "README.md").read_text()
     assert "xcheck run all" not in index and "`xcheck run fourbar-200.toml" in index
 
 
-@pytest.mark.parametrize("text,expected", [("degrees(asin(0.5))", 30.0), ("acos(-1)", math.pi),
-                                           ("4 * atan(1)", math.pi), ("degrees(atan(1 / sqrt(3)))", 30.0)])
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        ("degrees(asin(0.5))", 30.0),
+        ("acos(-1)", math.pi),
+        ("4 * atan(1)", math.pi),
+        ("degrees(atan(1 / sqrt(3)))", 30.0),
+    ],
+)
 def test_inverse_trigonometry_in_expressions(text, expected):
     assert evaluate_expression(text) == pytest.approx(expected, rel=1e-15)
 
@@ -263,8 +289,10 @@ def test_mujoco_dynamic_says_it_used_default_masses():
 def test_a_harmonic_crank_angle_sweeps_its_arc_across_the_start_of_a_turn():
     """A crank of the turning four-bar rocked by 190 +- 40 deg: the sweep covers
     150 ... 230 deg, rates from the law (0 at the turning points, 40 deg * 2 pi at 190)."""
-    text = FOURBAR_200.read_text().replace('motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
-                                           'motion = "harmonic"\ncentre = 190\namplitude = 40\nfrequency = 1')
+    text = FOURBAR_200.read_text().replace(
+        'motion = "constant-rate"\nstart = 200\nrate = 1.5             # rad/s',
+        'motion = "harmonic"\ncentre = 190\namplitude = 40\nfrequency = 1',
+    )
     kin = Kinematics(parse_mechanism(text.replace("at = { crank = 200 }", "at = { crank = 190 }")))
     inputs, rates, _ = sweep_inputs(kin, 11)
     assert np.allclose(np.degrees(inputs[:, 0]), np.linspace(150.0, 230.0, 11), atol=1e-7)
@@ -310,8 +338,19 @@ def test_a_report_that_cannot_be_written_is_one_line_and_the_rest_run(tmp_path):
     folder.mkdir()
     for name in ("fourbar-200", "wedge"):
         (folder / f"{name}.toml").write_text((DATA / f"{name}.toml").read_text())
-    result = _cli("run", "all", "--models", folder, "--engines", "formulations", "--samples", "11",
-                  "--out", blocked / "reports", "--json")
+    result = _cli(
+        "run",
+        "all",
+        "--models",
+        folder,
+        "--engines",
+        "formulations",
+        "--samples",
+        "11",
+        "--out",
+        blocked / "reports",
+        "--json",
+    )
     lines = result.stderr.strip().splitlines()
     assert result.exit_code == 2 and len(lines) == 2, result.output
     assert all("expected a directory where the report of" in line for line in lines)
@@ -340,8 +379,9 @@ def test_rocker_driven_range_closed_form():
     """The rocker's limits where crank (0.1) and coupler (|BC| = sqrt(0.13)) line up."""
     r4_sq, ad = 0.05**2 + 0.3**2, 0.35
     coupler = math.sqrt(0.2**2 + 0.3**2)
-    limits = sorted(math.acos((ac**2 - ad**2 - r4_sq) / (2.0 * ad * math.sqrt(r4_sq)))
-                    for ac in (coupler + 0.1, coupler - 0.1))
+    limits = sorted(
+        math.acos((ac**2 - ad**2 - r4_sq) / (2.0 * ad * math.sqrt(r4_sq))) for ac in (coupler + 0.1, coupler - 0.1)
+    )
     rng = _json("list", DATA / "rocker-driven.toml")[0]["ranges"][0]
     assert rng["low"] == pytest.approx(limits[0], abs=1e-9) and rng["high"] == pytest.approx(limits[1], abs=1e-9)
 
@@ -353,13 +393,16 @@ def test_an_unbounded_slide_is_not_a_full_turn():
     assert "no limit within" in rng["text"] and "mm" in rng["text"]
 
 
-@pytest.mark.parametrize("args,field,found", [
-    (("--at", "30", "--rate", "abc"), "--rate crank", "'abc'"),
-    (("--at", "30", "--rate", "1:2"), "--rate", "'1:2'"),
-    (("--at", "30,40", "--rate", "1,2"), "--rate", "found 2"),
-    (("--at", "30", "--rate", "1e400"), "--rate crank", "not finite"),
-    (("--at", "30", "--rate", "1", "--accel", "1:2"), "--accel", "'1:2'"),
-])
+@pytest.mark.parametrize(
+    "args,field,found",
+    [
+        (("--at", "30", "--rate", "abc"), "--rate crank", "'abc'"),
+        (("--at", "30", "--rate", "1:2"), "--rate", "'1:2'"),
+        (("--at", "30,40", "--rate", "1,2"), "--rate", "found 2"),
+        (("--at", "30", "--rate", "1e400"), "--rate crank", "not finite"),
+        (("--at", "30", "--rate", "1", "--accel", "1:2"), "--accel", "'1:2'"),
+    ],
+)
 def test_bad_rates_are_one_line(args, field, found):
     result = _cli("solve", FOURBAR_200, *args)
     line = result.stderr.strip()

@@ -6,8 +6,20 @@ from .errors import InputError, ModelError, XcheckError  # noqa: E402
 from .kinematics import Kinematics, Solution, Status  # noqa: E402
 from .model import Mechanism, load_mechanism  # noqa: E402
 
-__all__ = ["InputError", "Kinematics", "Mechanism", "ModelError", "Solution", "Status", "XcheckError",
-           "__version__", "load", "load_mechanism", "printed_answers", "select_modes"]
+__all__ = [
+    "InputError",
+    "Kinematics",
+    "Mechanism",
+    "ModelError",
+    "Solution",
+    "Status",
+    "XcheckError",
+    "__version__",
+    "load",
+    "load_mechanism",
+    "printed_answers",
+    "select_modes",
+]
 
 _API = ("load", "printed_answers", "select_modes")
 

@@ -69,11 +69,14 @@ def select_modes(chosen: str | Sequence[str] | None = None) -> tuple[str, ...]:
         elif item in groups:
             picked.extend(groups[item])
         else:
-            raise InputError(f"--engines: expected modes or groups among {', '.join(every)}, "
-                             f"{', '.join(groups)}, found {item!r}")
+            raise InputError(
+                f"--engines: expected modes or groups among {', '.join(every)}, {', '.join(groups)}, found {item!r}"
+            )
     if not picked:
-        raise InputError(f"--engines: expected at least one mode or group among {', '.join(every)}, "
-                         f"{', '.join(groups)}, found {text!r}")
+        raise InputError(
+            f"--engines: expected at least one mode or group among {', '.join(every)}, "
+            f"{', '.join(groups)}, found {text!r}"
+        )
     return tuple(dict.fromkeys(["native", *picked]))
 
 
@@ -95,9 +98,15 @@ def printed_answers(kinematics: Kinematics, comparisons: str | Path | None = Non
     return check_printed(kinematics, printed), printed.document
 
 
-def compare(name: str | Path | Kinematics, engines: str | Sequence[str] | None = None, samples: int = 181,
-            branch: str | None = None, models: str | Path | None = None,
-            comparisons: str | Path | None = None, progress=None) -> RunResult:
+def compare(
+    name: str | Path | Kinematics,
+    engines: str | Sequence[str] | None = None,
+    samples: int = 181,
+    branch: str | None = None,
+    models: str | Path | None = None,
+    comparisons: str | Path | None = None,
+    progress=None,
+) -> RunResult:
     """Every requested mode on one mechanism against the exact native solution
     (``xcheck run`` without printing or reports).
 

@@ -7,8 +7,16 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["models_dir", "model_path", "model_names", "benchmark_names", "BENCHMARKS", "reports_dir", "comparisons_dir",
-           "comparisons_path"]
+__all__ = [
+    "models_dir",
+    "model_path",
+    "model_names",
+    "benchmark_names",
+    "BENCHMARKS",
+    "reports_dir",
+    "comparisons_dir",
+    "comparisons_path",
+]
 
 #: The repository's models/ (an editable or source install).
 _BUNDLED = Path(__file__).resolve().parents[2] / "models"

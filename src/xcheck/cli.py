@@ -55,8 +55,11 @@ ModelsOption = Annotated[
 ]
 ComparisonsOption = Annotated[
     Optional[Path],
-    typer.Option("--comparisons", help="Directory of printed textbook answers (default: comparisons/ beside "
-                                       "the models directory, or $XCHECK_COMPARISONS)."),
+    typer.Option(
+        "--comparisons",
+        help="Directory of printed textbook answers (default: comparisons/ beside "
+        "the models directory, or $XCHECK_COMPARISONS).",
+    ),
 ]
 
 
@@ -82,8 +85,9 @@ def _version(value: bool):
 
 @app.callback()
 def _main(
-    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
-                                          help="Print the version and exit.")] = False,
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+    ] = False,
 ):
     """Exact kinematics of planar mechanisms, cross-checked against physics engines."""
 
@@ -91,12 +95,16 @@ def _main(
 @app.command("list")
 @_reports_errors
 def list_command(
-    where: Annotated[Optional[Path], typer.Argument(
-        help="A directory of mechanism files or one .toml file (default: the models directory).",
-        show_default=False)] = None,
+    where: Annotated[
+        Optional[Path],
+        typer.Argument(
+            help="A directory of mechanism files or one .toml file (default: the models directory).", show_default=False
+        ),
+    ] = None,
     models: ModelsOption = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON (ranges in SI, with the display text) "
-                                          "instead of a table.")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print JSON (ranges in SI, with the display text) instead of a table.")
+    ] = False,
 ):
     """List the mechanisms: name, title, source, degrees of freedom, input range.
 
@@ -121,8 +129,16 @@ def list_command(
         except XcheckError as err:
             failures.append(str(err))
             continue
-        rows.append({"name": mech.name, "title": mech.title, "source": mech.source, "file": str(path),
-                     "dof": dof["rank"], "ranges": [_range_json(kin, rng) for rng in ranges]})
+        rows.append(
+            {
+                "name": mech.name,
+                "title": mech.title,
+                "source": mech.source,
+                "file": str(path),
+                "dof": dof["rank"],
+                "ranges": [_range_json(kin, rng) for rng in ranges],
+            }
+        )
     if as_json:
         typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, allow_nan=False))
     else:
@@ -130,13 +146,22 @@ def list_command(
         for header in ("name", "title", "source", "DOF", "input range"):
             table.add_column(header, overflow="fold")
         for row in rows:
-            table.add_row(row["name"], row["title"], row["source"], str(row["dof"]),
-                          "\n".join(r["text"] for r in row["ranges"]))
+            table.add_row(
+                row["name"], row["title"], row["source"], str(row["dof"]), "\n".join(r["text"] for r in row["ranges"])
+            )
         console = wide_console()
         console.print(table)
-        console.print("Engines: " + ", ".join(
-            escape(f"{e.name} ({', '.join(m.name for m in e.modes)})" + (f": {e.available()}" if e.available() else ""))
-            for e in registry.engines()) + ". `xcheck engines` says more.", highlight=False)
+        console.print(
+            "Engines: "
+            + ", ".join(
+                escape(
+                    f"{e.name} ({', '.join(m.name for m in e.modes)})" + (f": {e.available()}" if e.available() else "")
+                )
+                for e in registry.engines()
+            )
+            + ". `xcheck engines` says more.",
+            highlight=False,
+        )
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
@@ -148,9 +173,15 @@ def _range_json(kin: Kinematics, rng) -> dict:
     crank turns round or a slide met no limit within its search span) and the
     display text."""
     driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
-    return {"driver": rng.driver, "quantity": driver.quantity, "unit": "rad" if driver.quantity == "angle" else "m",
-            "low": rng.low, "high": rng.high, "full_turn": rng.full_turn and driver.quantity == "angle",
-            "text": range_text(kin, rng)}
+    return {
+        "driver": rng.driver,
+        "quantity": driver.quantity,
+        "unit": "rad" if driver.quantity == "angle" else "m",
+        "low": rng.low,
+        "high": rng.high,
+        "full_turn": rng.full_turn and driver.quantity == "angle",
+        "text": range_text(kin, rng),
+    }
 
 
 @app.command("engines")
@@ -166,10 +197,18 @@ def engines_command(
     Examples: xcheck engines;  xcheck engines --json
     """
     rows: list[dict[str, Any]] = [
-        {"name": e.name, "title": e.title, "available": not e.available(), "reason": e.available() or None,
-         "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
-         "forces": e.force_tolerance is not None, "export_format": e.export_format, "notes": e.notes}
-        for e in registry.engines()]
+        {
+            "name": e.name,
+            "title": e.title,
+            "available": not e.available(),
+            "reason": e.available() or None,
+            "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
+            "forces": e.force_tolerance is not None,
+            "export_format": e.export_format,
+            "notes": e.notes,
+        }
+        for e in registry.engines()
+    ]
     problems = registry.load_problems()
     if as_json:
         typer.echo(json.dumps({"engines": rows, "plugin_errors": problems}, indent=2, ensure_ascii=False))
@@ -178,9 +217,14 @@ def engines_command(
     for header in ("engine", "modes", "status", "forces", "writes", "notes"):
         table.add_column(header, overflow="fold")
     for row in rows:
-        table.add_row(escape(row["name"]), escape("\n".join(f"{m['name']} ({m['kind']})" for m in row["modes"])),
-                      "ready" if row["available"] else escape(row["reason"]), "yes" if row["forces"] else "no",
-                      escape(row["export_format"] or "-"), escape(row["notes"]))
+        table.add_row(
+            escape(row["name"]),
+            escape("\n".join(f"{m['name']} ({m['kind']})" for m in row["modes"])),
+            "ready" if row["available"] else escape(row["reason"]),
+            "yes" if row["forces"] else "no",
+            escape(row["export_format"] or "-"),
+            escape(row["notes"]),
+        )
     wide_console().print(table)
     for name, reason in problems.items():
         typer.echo(f"xcheck: error: entry point {name!r} of group {registry.ENTRY_POINT_GROUP!r}: {reason}", err=True)
@@ -190,21 +234,35 @@ def engines_command(
 @_reports_errors
 def solve_command(
     name: Annotated[str, typer.Argument(help="Mechanism name (see `xcheck list`) or path to a .toml file.")],
-    at: Annotated[Optional[str], typer.Option(
-        "--at", metavar="V[,V…]",
-        help="Input values in display units (degrees for angles, the model's length unit for slides); "
-             "separate states by commas and, for several drivers, their values by colons (30:45). "
-             "Rates come from the drivers' motion (angles modulo a turn; a driver that stands still gives "
-             "a static position) unless --rate gives them. Default: the instants in the model file.")] = None,
-    rate: Annotated[Optional[str], typer.Option(
-        "--rate", metavar="V[:V…]",
-        help="With --at: the drivers' rates for every state (angular_rate of [units] for angles, length "
-             "unit/s for slides), instead of the motion laws'; 0 gives a static position.")] = None,
-    accel: Annotated[Optional[str], typer.Option(
-        "--accel", metavar="V[:V…]",
-        help="With --rate: the drivers' accelerations (rate unit per s), default 0.")] = None,
-    branch: Annotated[Optional[str], typer.Option(
-        "--branch", help="Assembly branch (default: the model file's first).")] = None,
+    at: Annotated[
+        Optional[str],
+        typer.Option(
+            "--at",
+            metavar="V[,V…]",
+            help="Input values in display units (degrees for angles, the model's length unit for slides); "
+            "separate states by commas and, for several drivers, their values by colons (30:45). "
+            "Rates come from the drivers' motion (angles modulo a turn; a driver that stands still gives "
+            "a static position) unless --rate gives them. Default: the instants in the model file.",
+        ),
+    ] = None,
+    rate: Annotated[
+        Optional[str],
+        typer.Option(
+            "--rate",
+            metavar="V[:V…]",
+            help="With --at: the drivers' rates for every state (angular_rate of [units] for angles, length "
+            "unit/s for slides), instead of the motion laws'; 0 gives a static position.",
+        ),
+    ] = None,
+    accel: Annotated[
+        Optional[str],
+        typer.Option(
+            "--accel", metavar="V[:V…]", help="With --rate: the drivers' accelerations (rate unit per s), default 0."
+        ),
+    ] = None,
+    branch: Annotated[
+        Optional[str], typer.Option("--branch", help="Assembly branch (default: the model file's first).")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
@@ -217,8 +275,10 @@ def solve_command(
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
     if at is None and (rate is not None or accel is not None):
-        raise InputError(f"{mech.path}: {'--rate' if rate is not None else '--accel'}: expected it with --at "
-                         "(the instants of the file carry their own rates), found no --at")
+        raise InputError(
+            f"{mech.path}: {'--rate' if rate is not None else '--accel'}: expected it with --at "
+            "(the instants of the file carry their own rates), found no --at"
+        )
     if accel is not None and rate is None:
         raise InputError(f"{mech.path}: --accel: expected it with --rate, found --accel alone")
     kin = Kinematics(mech)
@@ -231,9 +291,13 @@ def solve_command(
         fields = [f"instants[{i}]" for i in range(len(states))]
     else:
         states = _parse_at(at, mech, rate, accel)
-        labels = ["at " + ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, value[0])}"
-                                    for d, value in zip(mech.drivers, s))
-                  for s in states]
+        labels = [
+            "at "
+            + ", ".join(
+                f"{d.name} = {mech.units.show_input(d.quantity, value[0])}" for d, value in zip(mech.drivers, s)
+            )
+            for s in states
+        ]
         fields = None
     _check_ranges(kin, states, branch, fields)
     values = np.array(states)  # (N, k, 3)
@@ -279,22 +343,41 @@ MAX_SAMPLES = 100_000
 @_reports_errors
 def run_command(
     name: Annotated[str, typer.Argument(help="Mechanism name, path to a .toml file, or 'all'.")],
-    engines: Annotated[Optional[str], typer.Option(
-        "--engines", metavar="MODE[,MODE…]",
-        help="Modes to run (default: all; `xcheck engines` lists them): native, the engines' modes (e.g. "
-             "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
-             "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).")] = None,
-    samples: Annotated[int, typer.Option("--samples", help="Samples of the sweeps over the feasible "
-                                         f"input range (3 to {MAX_SAMPLES}).")] = 181,
-    branch: Annotated[Optional[str], typer.Option(
-        "--branch", help="Assembly branch (default: the file's first).")] = None,
+    engines: Annotated[
+        Optional[str],
+        typer.Option(
+            "--engines",
+            metavar="MODE[,MODE…]",
+            help="Modes to run (default: all; `xcheck engines` lists them): native, the engines' modes (e.g. "
+            "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
+            "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).",
+        ),
+    ] = None,
+    samples: Annotated[
+        int,
+        typer.Option("--samples", help=f"Samples of the sweeps over the feasible input range (3 to {MAX_SAMPLES})."),
+    ] = 181,
+    branch: Annotated[
+        Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
-    out: Annotated[Optional[Path], typer.Option("--out", help="Directory of the Markdown reports (default: "
-                                                "reports/ beside the models directory).")] = None,
+    out: Annotated[
+        Optional[Path],
+        typer.Option(
+            "--out", help="Directory of the Markdown reports (default: reports/ beside the models directory)."
+        ),
+    ] = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown reports.")] = True,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar and no tables (--json still "
-                                        "prints); the exit code says whether all modes are within "
-                                        "tolerance.")] = False,
+    quiet: Annotated[
+        bool,
+        typer.Option(
+            "--quiet",
+            "-q",
+            help="No progress bar and no tables (--json still "
+            "prints); the exit code says whether all modes are within "
+            "tolerance.",
+        ),
+    ] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
 ):
@@ -312,13 +395,26 @@ def run_command(
     names = model_names(directory) if name == "all" else [name]
     if out is not None and out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: expected a directory for the reports, found a file")
-    options = ((f" --engines {engines}" if engines else "") + (f" --samples {samples}" if samples != 181 else "")
-               + (f" --branch {branch}" if branch else "") + _shown_option("--models", models)
-               + _shown_option("--comparisons", comparisons) + _shown_option("--out", out))
+    options = (
+        (f" --engines {engines}" if engines else "")
+        + (f" --samples {samples}" if samples != 181 else "")
+        + (f" --branch {branch}" if branch else "")
+        + _shown_option("--models", models)
+        + _shown_option("--comparisons", comparisons)
+        + _shown_option("--out", out)
+    )
     stderr = Console(stderr=True)
     results, entries, failures = [], [], []
-    progress = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                        TimeElapsedColumn(), console=stderr, transient=True, disable=quiet or not stderr.is_terminal)
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+        disable=quiet or not stderr.is_terminal,
+    )
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
         for model in names:
@@ -345,11 +441,15 @@ def run_command(
                     write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
                     entries.append((target, path.parent, index_entry(run)))
                 except OSError as err:
-                    failures.append(f"{target}: expected a directory where the report of {label} can be "
-                                    f"written, found {err.strerror or err}")
+                    failures.append(
+                        f"{target}: expected a directory where the report of {label} can be "
+                        f"written, found {err.strerror or err}"
+                    )
                 except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
-                    failures.append(f"{path}: report: expected a written report, found an internal error "
-                                    f"({type(err).__name__}: {err}); please report it")
+                    failures.append(
+                        f"{path}: report: expected a written report, found an internal error "
+                        f"({type(err).__name__}: {err}); please report it"
+                    )
             results.append(run)
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
@@ -358,8 +458,9 @@ def run_command(
     if as_json:
         documents = [run_json(r) for r in results]
         if name == "all" or documents:
-            typer.echo(json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False,
-                                  ensure_ascii=False))
+            typer.echo(
+                json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False, ensure_ascii=False)
+            )
     elif not quiet:
         console = wide_console()
         for run in results:
@@ -397,10 +498,13 @@ def _shown_option(option: str, value: Path | None) -> str:
 @_reports_errors
 def simulate_command(
     name: Annotated[str, typer.Argument(help="Mechanism name or path to a .toml file with a [free_motion] section.")],
-    duration: Annotated[Optional[float], typer.Option(
-        "--duration", help="Simulated time, s (default: the file's [free_motion] duration).")] = None,
-    branch: Annotated[Optional[str], typer.Option(
-        "--branch", help="Assembly branch (default: the file's first).")] = None,
+    duration: Annotated[
+        Optional[float],
+        typer.Option("--duration", help="Simulated time, s (default: the file's [free_motion] duration)."),
+    ] = None,
+    branch: Annotated[
+        Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress line.")] = False,
     models: ModelsOption = None,
@@ -434,21 +538,30 @@ def simulate_command(
     else:
         print_simulation(wide_console(), reference)
     if not reference.converged:
-        typer.echo(f"xcheck: the reference did not reach the tolerance ({reference.tolerance:g} of the size)"
-                   f": {reference.relative:.3g} at the finest step {reference.motion.step:.3g} s",
-                   err=True)
+        typer.echo(
+            f"xcheck: the reference did not reach the tolerance ({reference.tolerance:g} of the size)"
+            f": {reference.relative:.3g} at the finest step {reference.motion.step:.3g} s",
+            err=True,
+        )
         raise typer.Exit(1)
 
 
 @app.command("export")
 @_reports_errors
 def export_command(
-    names: Annotated[Optional[list[str]], typer.Argument(
-        help="Mechanisms to export (default: all in the models directory).")] = None,
-    fmt: Annotated[str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the "
-                                     "loop-closure list), or all.")] = "all",
-    check: Annotated[bool, typer.Option("--check", help="Write nothing; list each file that is missing or "
-                                        "differs from what would be written, exit 1 if any.")] = False,
+    names: Annotated[
+        Optional[list[str]], typer.Argument(help="Mechanisms to export (default: all in the models directory).")
+    ] = None,
+    fmt: Annotated[
+        str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the loop-closure list), or all.")
+    ] = "all",
+    check: Annotated[
+        bool,
+        typer.Option(
+            "--check",
+            help="Write nothing; list each file that is missing or differs from what would be written, exit 1 if any.",
+        ),
+    ] = False,
     models: ModelsOption = None,
 ):
     """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf) from the mechanism files.
@@ -495,8 +608,10 @@ def export_command(
                 try:
                     write_atomic(target, text)
                 except OSError as err:
-                    typer.echo(f"xcheck: error: {target}: expected a file that can be written, found "
-                               f"{err.strerror or err}", err=True)
+                    typer.echo(
+                        f"xcheck: error: {target}: expected a file that can be written, found {err.strerror or err}",
+                        err=True,
+                    )
                     failed += 1
                     continue
                 typer.echo(f"wrote {target}")
@@ -521,22 +636,27 @@ def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[lis
     for item in text.split(","):
         parts = item.split(":")
         if len(parts) != len(mech.drivers):
-            raise InputError(f"{mech.path}: {option}: expected {len(mech.drivers)} value(s) per state separated "
-                             f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {item!r}")
+            raise InputError(
+                f"{mech.path}: {option}: expected {len(mech.drivers)} value(s) per state separated "
+                f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {item!r}"
+            )
         state = []
         for driver, part in zip(mech.drivers, parts):
             try:
                 value = evaluate_expression(part.strip())
             except ValueError as err:
-                raise InputError(f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
-                                 f"expression, found {part!r} ({err})") from None
+                raise InputError(
+                    f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
+                    f"expression, found {part!r} ({err})"
+                ) from None
             state.append(value * scale_of(driver))
         states.append(state)
     return states
 
 
-def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
-              accel: str | None = None) -> list[list[tuple[float, float, float]]]:
+def _parse_at(
+    text: str, mech: Mechanism, rate: str | None = None, accel: str | None = None
+) -> list[list[tuple[float, float, float]]]:
     """``--at`` values (display units) to per-state (q, qd, qdd) per driver, SI.
 
     Rates and accelerations come from ``--rate``/``--accel`` (one state each,
@@ -546,17 +666,19 @@ def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
     if count > MAX_AT_STATES:
         raise InputError(f"{mech.path}: --at: expected at most {MAX_AT_STATES} states, found {count}")
     u = mech.units
-    values = _parse_values(text, mech, "--at",
-                           lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)
+    values = _parse_values(text, mech, "--at", lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)
     if rate is not None:
+
         def per_second(driver):
             return u.angular_rate_factor if driver.quantity == "angle" else u.length_factor
+
         rates = _parse_values(rate, mech, "--rate", per_second)
         accels = _parse_values(accel, mech, "--accel", per_second) if accel is not None else [[0.0] * len(mech.drivers)]
         for option, given in (("--rate", rates), ("--accel", accels)):
             if len(given) != 1:
-                raise InputError(f"{mech.path}: {option}: expected one state (applied to every --at state), "
-                                 f"found {len(given)}")
+                raise InputError(
+                    f"{mech.path}: {option}: expected one state (applied to every --at state), found {len(given)}"
+                )
             if not all(math.isfinite(v) for v in given[0]):
                 raise InputError(f"{mech.path}: {option}: expected finite values, found {given[0]}")
         return [[(q, qd, qdd) for q, qd, qdd in zip(state, rates[0], accels[0])] for state in values]
@@ -570,13 +692,17 @@ def _parse_at(text: str, mech: Mechanism, rate: str | None = None,
                 result = (math.inf, math.inf, math.inf)
             shown = mech.units.show_input(driver.quantity, value, digits=12)
             if result is None:
-                raise InputError(f"{mech.path}: --at {driver.name}: expected a value that the driver's "
-                                 f"{driver.law.kind} motion reaches (or give the rates with --rate), found "
-                                 f"{shown}, which it never does")
+                raise InputError(
+                    f"{mech.path}: --at {driver.name}: expected a value that the driver's "
+                    f"{driver.law.kind} motion reaches (or give the rates with --rate), found "
+                    f"{shown}, which it never does"
+                )
             if not all(math.isfinite(v) for v in result):
-                raise InputError(f"{mech.path}: --at {driver.name}: expected a value at which the driver's "
-                                 f"{driver.law.kind} motion has a finite rate and acceleration, "
-                                 f"found {shown} (the motion law overflows)")
+                raise InputError(
+                    f"{mech.path}: --at {driver.name}: expected a value at which the driver's "
+                    f"{driver.law.kind} motion has a finite rate and acceleration, "
+                    f"found {shown} (the motion law overflows)"
+                )
             state.append(result)
         states.append(state)
     return states
@@ -604,8 +730,10 @@ def _check_ranges(kin: Kinematics, states, branch, fields) -> None:
         if not rng.contains(q):
             expected = f"an input within the feasible range ({range_text(kin, rng)})"
         elif any(limit is not None and abs(q - limit) <= clearance for limit in (rng.low, rng.high)):
-            expected = (f"an input clear of the limit positions ({range_text(kin, rng)}): the mechanism is "
-                        "singular there and its rates are not determined")
+            expected = (
+                f"an input clear of the limit positions ({range_text(kin, rng)}): the mechanism is "
+                "singular there and its rates are not determined"
+            )
         else:
             continue
         found = mech.units.show_input(driver.quantity, q, digits=12)
@@ -620,11 +748,16 @@ def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
         status = Status(int(code))
         if status <= Status.NEAR_SINGULAR:
             continue
-        inputs = ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, solution.inputs[i, k])}"
-                           for k, d in enumerate(mech.drivers))
+        inputs = ", ".join(
+            f"{d.name} = {mech.units.show_input(d.quantity, solution.inputs[i, k])}" for k, d in enumerate(mech.drivers)
+        )
         field = fields[i] if fields else "--at"
-        raise ModelError(mech.path, field, "a state where the mechanism assembles with determined velocities",
-                         f"{status.label} at {inputs} ({status.message})")
+        raise ModelError(
+            mech.path,
+            field,
+            "a state where the mechanism assembles with determined velocities",
+            f"{status.label} at {inputs} ({status.message})",
+        )
 
 
 def main() -> None:

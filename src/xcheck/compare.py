@@ -17,10 +17,23 @@ import pandas as pd
 
 from .kinematics import Kinematics, Solution
 
-__all__ = ["BODY_QUANTITIES", "POINT_QUANTITIES", "Trajectory", "ModeResult", "differences", "native_at",
-           "observed_order", "convergence_study", "empty_study", "STUDY_COLUMNS", "relative_to_floored_scale",
-           "sample_errors", "scale_floors",
-           "trajectory_from_solution", "STANDARD_GRAVITY"]
+__all__ = [
+    "BODY_QUANTITIES",
+    "POINT_QUANTITIES",
+    "Trajectory",
+    "ModeResult",
+    "differences",
+    "native_at",
+    "observed_order",
+    "convergence_study",
+    "empty_study",
+    "STUDY_COLUMNS",
+    "relative_to_floored_scale",
+    "sample_errors",
+    "scale_floors",
+    "trajectory_from_solution",
+    "STANDARD_GRAVITY",
+]
 
 #: per body: key -> shape suffix; angles are compared modulo 2 pi
 BODY_QUANTITIES = {"position": 2, "angle": 0, "velocity": 2, "omega": 0, "acceleration": 2, "alpha": 0}
@@ -32,8 +45,9 @@ SCALE_FLOOR = 1e-3
 STANDARD_GRAVITY = 9.80665
 
 
-def observed_order(coarse_error: float, fine_error: float, coarse_step: float, fine_step: float,
-                   floor: float = 0.0) -> float:
+def observed_order(
+    coarse_error: float, fine_error: float, coarse_step: float, fine_step: float, floor: float = 0.0
+) -> float:
     """The observed order of convergence between two runs,
     log(e_coarse / e_fine) / log(h_coarse / h_fine).
 
@@ -96,8 +110,17 @@ def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float
         g = float(np.hypot(*mechanism.gravity)) or STANDARD_GRAVITY
         w = math.sqrt(a_in) if a_in > 0.0 else math.sqrt(g / size)
     a = max(w * w, a_in)
-    return {"size": size, "rate": w, "angular_acceleration": a, "position": size, "angle": 1.0,
-            "omega": w, "alpha": a, "velocity": w * size, "acceleration": a * size}
+    return {
+        "size": size,
+        "rate": w,
+        "angular_acceleration": a,
+        "position": size,
+        "angle": 1.0,
+        "omega": w,
+        "alpha": a,
+        "velocity": w * size,
+        "acceleration": a * size,
+    }
 
 
 @dataclass
@@ -193,16 +216,22 @@ def convergence_study(series, timestep, position_error, status, floor: float = 0
         time step; ``order`` is :func:`observed_order` between a run and the
         previous (coarser) one of its series, NaN for the first.
     """
-    table = pd.DataFrame({"series": [str(v) for v in series], "timestep": np.asarray(timestep, dtype=float),
-                          "position_error": np.asarray(position_error, dtype=float),
-                          "status": [str(v) for v in status]})
+    table = pd.DataFrame(
+        {
+            "series": [str(v) for v in series],
+            "timestep": np.asarray(timestep, dtype=float),
+            "position_error": np.asarray(position_error, dtype=float),
+            "status": [str(v) for v in status],
+        }
+    )
     table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
     orders = [math.nan] * len(table)
     for i in range(1, len(table)):
         coarse, fine = table.iloc[i - 1], table.iloc[i]
         if coarse.series == fine.series:
-            orders[i] = observed_order(coarse.position_error, fine.position_error, coarse.timestep,
-                                       fine.timestep, floor)
+            orders[i] = observed_order(
+                coarse.position_error, fine.position_error, coarse.timestep, fine.timestep, floor
+            )
     table["order"] = orders
     return table
 
@@ -211,7 +240,9 @@ def trajectory_from_solution(solution: Solution, source: str = "native") -> Traj
     """The native solution as a :class:`Trajectory` (for uniform handling)."""
     mech = solution.mechanism
     return Trajectory(
-        source=source, inputs=solution.inputs, input_rates=solution.input_rates,
+        source=source,
+        inputs=solution.inputs,
+        input_rates=solution.input_rates,
         input_accelerations=solution.input_accelerations,
         bodies={b.name: solution.body(b.name) for b in mech.moving_bodies},
         points={label: solution.point(label) for label in mech.point_owners},
@@ -225,16 +256,23 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
 
 def native_at(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> Solution:
     """The native solution at a trajectory's own inputs, rates and accelerations."""
-    return kinematics.solve(trajectory.inputs, trajectory.input_rates, trajectory.input_accelerations,
-                            branch=branch)
+    return kinematics.solve(trajectory.inputs, trajectory.input_rates, trajectory.input_accelerations, branch=branch)
 
 
 def _errors(trajectory: Trajectory, native: Solution):
     """(kind, name, quantity, error (N,), native magnitude (N,)) for every quantity the trajectory has."""
-    sources = [("body", name, q, native.body(name)) for name in trajectory.bodies
-               for q in BODY_QUANTITIES if q in trajectory.bodies[name]]
-    sources += [("point", label, q, native.point(label)) for label in trajectory.points
-                for q in POINT_QUANTITIES if q in trajectory.points[label]]
+    sources = [
+        ("body", name, q, native.body(name))
+        for name in trajectory.bodies
+        for q in BODY_QUANTITIES
+        if q in trajectory.bodies[name]
+    ]
+    sources += [
+        ("point", label, q, native.point(label))
+        for label in trajectory.points
+        for q in POINT_QUANTITIES
+        if q in trajectory.points[label]
+    ]
     for kind, name, quantity, reference in sources:
         values = (trajectory.bodies if kind == "body" else trajectory.points)[name][quantity]
         exact = reference[quantity]
@@ -261,8 +299,13 @@ def sample_errors(trajectory: Trajectory, native: Solution) -> dict[str, np.ndar
     return {q: np.where(good, e, np.nan) for q, e in worst.items()}
 
 
-def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None,
-                native: Solution | None = None, floors: dict[str, float] | None = None) -> pd.DataFrame:
+def differences(
+    kinematics: Kinematics,
+    trajectory: Trajectory,
+    branch: str | None = None,
+    native: Solution | None = None,
+    floors: dict[str, float] | None = None,
+) -> pd.DataFrame:
     """Differences between a trajectory and the native solution at its inputs.
 
     Returns
@@ -298,18 +341,26 @@ def differences(kinematics: Kinematics, trajectory: Trajectory, branch: str | No
             continue
         where = np.flatnonzero(determined)
         worst = where[int(np.argmax(error[where]))]
-        rows.append({
-            "kind": kind, "name": name, "quantity": quantity,
-            "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error[where] ** 2))),
-            "scale": float(np.max(magnitude[where])),
-            "worst_sample": int(worst), "worst_input": float(trajectory.inputs[worst, 0]),
-            "samples": int(good.sum()), "missing": int(good.sum() - determined.sum()),
-        })
+        rows.append(
+            {
+                "kind": kind,
+                "name": name,
+                "quantity": quantity,
+                "max_abs": float(error[worst]),
+                "rms": float(np.sqrt(np.mean(error[where] ** 2))),
+                "scale": float(np.max(magnitude[where])),
+                "worst_sample": int(worst),
+                "worst_input": float(trajectory.inputs[worst, 0]),
+                "samples": int(good.sum()),
+                "missing": int(good.sum() - determined.sum()),
+            }
+        )
     return relative_to_floored_scale(pd.DataFrame(rows), "quantity", floors)
 
 
-def relative_to_floored_scale(table: pd.DataFrame, kind_column: str,
-                              floors: dict[str, float] | None = None) -> pd.DataFrame:
+def relative_to_floored_scale(
+    table: pd.DataFrame, kind_column: str, floors: dict[str, float] | None = None
+) -> pd.DataFrame:
     """Floor each row's ``scale`` at :data:`SCALE_FLOOR` of the largest scale of
     its kind (rows with equal ``kind_column``) and at the physical floor
     ``floors[kind]`` (SI, 0 where not given; stated in a ``floor`` column),
@@ -321,6 +372,9 @@ def relative_to_floored_scale(table: pd.DataFrame, kind_column: str,
         table["scale"] = np.maximum(np.maximum(table["scale"], SCALE_FLOOR * largest), floor)
         table.insert(list(table.columns).index("scale") + 1, "floor", floor)
         with np.errstate(divide="ignore", invalid="ignore"):
-            table.insert(list(table.columns).index("floor") + 1, "max_rel",
-                         np.where(table["scale"] > 0, table["max_abs"] / table["scale"], table["max_abs"]))
+            table.insert(
+                list(table.columns).index("floor") + 1,
+                "max_rel",
+                np.where(table["scale"] > 0, table["max_abs"] / table["scale"], table["max_abs"]),
+            )
     return table

@@ -19,8 +19,9 @@ except ImportError:  # not on Windows: writers are not serialised there
 __all__ = ["write_atomic", "directory_lock", "remove_stale_staging", "REPORT_IMAGES"]
 
 #: The files of a report's image folder (reports/NAME/).
-REPORT_IMAGES = frozenset({"drawing.png", "quantities.png", "differences.png", "convergence.png", "forces.png",
-                           "motion.gif"})
+REPORT_IMAGES = frozenset(
+    {"drawing.png", "quantities.png", "differences.png", "convergence.png", "forces.png", "motion.gif"}
+)
 
 #: A hidden temporary name as ``tempfile`` makes it: "." + name + "." + 8 characters
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[a-z0-9_]{8}")

@@ -40,8 +40,9 @@ class SimulationWindow:
         return q, qd, qdd
 
 
-def simulation_window(kinematics: Kinematics, branch: str | None = None, margin: float = 0.02,
-                      time_cap: float = 10.0) -> SimulationWindow:
+def simulation_window(
+    kinematics: Kinematics, branch: str | None = None, margin: float = 0.02, time_cap: float = 10.0
+) -> SimulationWindow:
     """How long the drivers' motion laws can run from t = 0.
 
     Parameters
@@ -83,8 +84,10 @@ def simulation_window(kinematics: Kinematics, branch: str | None = None, margin:
             pad = margin * abs(rng.high) if rng.high else margin
             inside &= q[:, k] <= rng.high - pad
     if not inside[0]:
-        raise InputError(f"{mech.path}: drivers: expected a motion that starts inside the feasible range, "
-                         "found one that starts at or past a limit position")
+        raise InputError(
+            f"{mech.path}: drivers: expected a motion that starts inside the feasible range, "
+            "found one that starts at or past a limit position"
+        )
     if not inside.all():
         duration, reason = float(times[np.argmin(inside) - 1]), "feasible range"
     return SimulationWindow(duration, reason)
@@ -118,8 +121,9 @@ def law_states(mechanism, inputs: np.ndarray):
     return rates, accelerations, reached
 
 
-def reached_span(driver, low: float, high: float, around: float | None = None,
-                 count: int = 4001) -> tuple[float, float] | None:
+def reached_span(
+    driver, low: float, high: float, around: float | None = None, count: int = 4001
+) -> tuple[float, float] | None:
     """The stretch of ``[low, high]`` (SI) that the driver's motion law reaches
     without a gap, to (high - low) / (count - 1) refined by bisection at its
     ends; None if it reaches no value there.
@@ -188,6 +192,8 @@ def sweep_span(kinematics: Kinematics, k: int, branch: str | None = None, margin
         span = reached_span(driver, ref - 2.0 * math.pi, ref + 2.0 * math.pi, around=ref)
     if span is None:
         shown = " … ".join(mech.units.show_input(driver.quantity, v) for v in (low, high))
-        raise InputError(f"{mech.path}: drivers[{k}]: expected a motion that reaches the feasible range "
-                         f"({shown}), found one that never does")
+        raise InputError(
+            f"{mech.path}: drivers[{k}]: expected a motion that reaches the feasible range "
+            f"({shown}), found one that never does"
+        )
     return span

@@ -12,8 +12,16 @@ from rich.table import Table
 
 from .kinematics import InputRange, Kinematics, Solution, Status
 
-__all__ = ["solution_json", "print_solution", "range_text", "wide_console", "textbook_json", "print_textbook",
-           "run_json", "print_run"]
+__all__ = [
+    "solution_json",
+    "print_solution",
+    "range_text",
+    "wide_console",
+    "textbook_json",
+    "print_textbook",
+    "run_json",
+    "print_run",
+]
 
 
 def _number(value) -> float | None:
@@ -48,8 +56,11 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
         status = Status(int(solution.status[i]))
         state = {
             "inputs": {
-                d.name: {"q": _number(solution.inputs[i, k]), "qd": _number(solution.input_rates[i, k]),
-                         "qdd": _number(solution.input_accelerations[i, k])}
+                d.name: {
+                    "q": _number(solution.inputs[i, k]),
+                    "qd": _number(solution.input_rates[i, k]),
+                    "qdd": _number(solution.input_accelerations[i, k]),
+                }
                 for k, d in enumerate(mech.drivers)
             },
             "status": status.label,
@@ -57,9 +68,14 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
             "residual": _number(solution.residual[i]),
             "singularity": _number(solution.singularity[i]),
             "bodies": {
-                name: {"position": _pair(s["position"][i]), "angle": _number(s["angle"][i]),
-                       "velocity": _pair(s["velocity"][i]), "omega": _number(s["omega"][i]),
-                       "acceleration": _pair(s["acceleration"][i]), "alpha": _number(s["alpha"][i])}
+                name: {
+                    "position": _pair(s["position"][i]),
+                    "angle": _number(s["angle"][i]),
+                    "velocity": _pair(s["velocity"][i]),
+                    "omega": _number(s["omega"][i]),
+                    "acceleration": _pair(s["acceleration"][i]),
+                    "alpha": _number(s["alpha"][i]),
+                }
                 for name, s in bodies.items()
             },
             "points": {
@@ -68,18 +84,26 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
             },
         }
         if forces is not None:
-            state["joints"] = {name: {q: (_pair(v[i]) if v.ndim == 2 else _number(v[i])) for q, v in values.items()}
-                               for name, values in forces.joints.items()}
-            state["drivers"] = {name: {q: _number(v[i]) for q, v in values.items()}
-                                for name, values in forces.drivers.items()}
+            state["joints"] = {
+                name: {q: (_pair(v[i]) if v.ndim == 2 else _number(v[i])) for q, v in values.items()}
+                for name, values in forces.joints.items()
+            }
+            state["drivers"] = {
+                name: {q: _number(v[i]) for q, v in values.items()} for name, values in forces.drivers.items()
+            }
         if labels is not None:
             state = {"label": labels[i], **state}
         states.append(state)
     units = {"length": "m", "angle": "rad", "time": "s"}
     if forces is not None:
         units.update(force="N", torque="N m")
-    return {"mechanism": mech.name, "branch": solution.branch, "units": units,
-            "angles": "continuous: never wrapped (a crank two turns on is 4 pi further)", "states": states}
+    return {
+        "mechanism": mech.name,
+        "branch": solution.branch,
+        "units": units,
+        "angles": "continuous: never wrapped (a crank two turns on is 4 pi further)",
+        "states": states,
+    }
 
 
 def _inward(value: float, up: bool, digits: int = 6) -> float:
@@ -103,8 +127,7 @@ def range_text(kin: Kinematics, rng: InputRange) -> str:
         return f"{rng.driver}: full turn"
     if rng.full_turn:  # a slide that met no limit position within its search span
         ref = float(kin.reference_inputs()[[d.name for d in kin.mechanism.drivers].index(rng.driver)])
-        return (f"{rng.driver}: no limit within {(ref - rng.span) / scale:.6g} … {(ref + rng.span) / scale:.6g} "
-                f"{unit}")
+        return f"{rng.driver}: no limit within {(ref - rng.span) / scale:.6g} … {(ref + rng.span) / scale:.6g} {unit}"
     low = "-inf" if rng.low is None else f"{_inward(rng.low / scale, up=True):.6g}"
     high = "+inf" if rng.high is None else f"{_inward(rng.high / scale, up=False):.6g}"
     return f"{rng.driver}: {low} … {high} {unit}"
@@ -140,46 +163,86 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
         inputs = []
         for k, d in enumerate(mech.drivers):
             if d.quantity == "angle":
-                inputs.append(f"{d.name} = {_fmt(solution.inputs[i, k] / A)} {u.angle}, "
-                              f"{_fmt(solution.input_rates[i, k] / W)} {u.angular_rate}, "
-                              f"{_fmt(solution.input_accelerations[i, k] / W)} {alpha_unit}")
+                inputs.append(
+                    f"{d.name} = {_fmt(solution.inputs[i, k] / A)} {u.angle}, "
+                    f"{_fmt(solution.input_rates[i, k] / W)} {u.angular_rate}, "
+                    f"{_fmt(solution.input_accelerations[i, k] / W)} {alpha_unit}"
+                )
             else:
-                inputs.append(f"{d.name} = {_fmt(solution.inputs[i, k] / L)} {u.length}, "
-                              f"{_fmt(solution.input_rates[i, k] / L)} {u.length}/s, "
-                              f"{_fmt(solution.input_accelerations[i, k] / L)} {u.length}/s^2")
+                inputs.append(
+                    f"{d.name} = {_fmt(solution.inputs[i, k] / L)} {u.length}, "
+                    f"{_fmt(solution.input_rates[i, k] / L)} {u.length}/s, "
+                    f"{_fmt(solution.input_accelerations[i, k] / L)} {u.length}/s^2"
+                )
         title = f"[bold]{mech.name}[/bold]" + (f" — {labels[i]}" if labels else "")
         console.print(title)
         console.print("  " + "; ".join(inputs))
         style = "green" if status == Status.OK else "yellow" if status == Status.NEAR_SINGULAR else "red"
-        console.print(f"  status [{style}]{status.label}[/{style}] ({status.message}); "
-                      f"loop-closure residual {solution.residual[i] / L:.2g} {u.length}; "
-                      f"conditioning {solution.singularity[i]:.2g}; branch {solution.branch}")
+        console.print(
+            f"  status [{style}]{status.label}[/{style}] ({status.message}); "
+            f"loop-closure residual {solution.residual[i] / L:.2g} {u.length}; "
+            f"conditioning {solution.singularity[i]:.2g}; branch {solution.branch}"
+        )
 
         bodies = Table(box=None, pad_edge=False, header_style="bold")
-        for header in ("body", f"x [{u.length}]", f"y [{u.length}]", f"φ [{u.angle}]", f"vx [{u.velocity}]",
-                       f"vy [{u.velocity}]", f"ω [{u.angular_rate}]", f"ax [{u.acceleration}]",
-                       f"ay [{u.acceleration}]", f"α [{alpha_unit}]"):
+        for header in (
+            "body",
+            f"x [{u.length}]",
+            f"y [{u.length}]",
+            f"φ [{u.angle}]",
+            f"vx [{u.velocity}]",
+            f"vy [{u.velocity}]",
+            f"ω [{u.angular_rate}]",
+            f"ax [{u.acceleration}]",
+            f"ay [{u.acceleration}]",
+            f"α [{alpha_unit}]",
+        ):
             bodies.add_column(header, justify="right" if header != "body" else "left", no_wrap=True)
         for b in mech.moving_bodies:
             s = solution.body(b.name)
-            bodies.add_row(b.name, _fmt(s["position"][i, 0] / L), _fmt(s["position"][i, 1] / L),
-                           _fmt(s["angle"][i] / A), _fmt(s["velocity"][i, 0] / V), _fmt(s["velocity"][i, 1] / V),
-                           _fmt(s["omega"][i] / W), _fmt(s["acceleration"][i, 0] / AC),
-                           _fmt(s["acceleration"][i, 1] / AC), _fmt(s["alpha"][i] / W))
+            bodies.add_row(
+                b.name,
+                _fmt(s["position"][i, 0] / L),
+                _fmt(s["position"][i, 1] / L),
+                _fmt(s["angle"][i] / A),
+                _fmt(s["velocity"][i, 0] / V),
+                _fmt(s["velocity"][i, 1] / V),
+                _fmt(s["omega"][i] / W),
+                _fmt(s["acceleration"][i, 0] / AC),
+                _fmt(s["acceleration"][i, 1] / AC),
+                _fmt(s["alpha"][i] / W),
+            )
         console.print(bodies)
 
         points = Table(box=None, pad_edge=False, header_style="bold")
-        for header in ("point", "body", f"x [{u.length}]", f"y [{u.length}]", f"vx [{u.velocity}]",
-                       f"vy [{u.velocity}]", f"|v| [{u.velocity}]", f"ax [{u.acceleration}]",
-                       f"ay [{u.acceleration}]", f"|a| [{u.acceleration}]"):
-            points.add_column(header, justify="left" if header in ("point", "body") else "right",
-                              no_wrap=True)
+        for header in (
+            "point",
+            "body",
+            f"x [{u.length}]",
+            f"y [{u.length}]",
+            f"vx [{u.velocity}]",
+            f"vy [{u.velocity}]",
+            f"|v| [{u.velocity}]",
+            f"ax [{u.acceleration}]",
+            f"ay [{u.acceleration}]",
+            f"|a| [{u.acceleration}]",
+        ):
+            points.add_column(header, justify="left" if header in ("point", "body") else "right", no_wrap=True)
         for label, owner in mech.point_owners.items():
             p = solution.point(label)
             v, a = p["velocity"][i], p["acceleration"][i]
-            points.add_row(label, owner, _fmt(p["position"][i, 0] / L), _fmt(p["position"][i, 1] / L),
-                           _fmt(v[0] / V), _fmt(v[1] / V), _fmt(float(np.hypot(*v)) / V),
-                           _fmt(a[0] / AC), _fmt(a[1] / AC), _fmt(float(np.hypot(*a)) / AC))
+            points.add_row(
+                label,
+                owner,
+                _fmt(p["position"][i, 0] / L),
+                _fmt(p["position"][i, 1] / L),
+                _fmt(v[0] / V),
+                _fmt(v[1] / V),
+                _fmt(float(np.hypot(*v)) / V),
+                _fmt(a[0] / AC),
+                _fmt(a[1] / AC),
+                _fmt(float(np.hypot(*a)) / AC),
+            )
         console.print(points)
         if forces is not None:
             _print_forces(console, solution, forces, i)
@@ -191,23 +254,35 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
     mech = solution.mechanism
     reactions = Table(box=None, pad_edge=False, header_style="bold")
     for header in ("joint", "type", "force of → on", "Fx [N]", "Fy [N]", "|F| [N]", "normal [N]", "moment [N·m]"):
-        reactions.add_column(header, justify="left" if header in ("joint", "type", "force of → on") else "right",
-                             no_wrap=True)
+        reactions.add_column(
+            header, justify="left" if header in ("joint", "type", "force of → on") else "right", no_wrap=True
+        )
     for joint in mech.joints:
         values = forces.joints[joint.name]
         f = values["reaction"][i]
-        reactions.add_row(joint.name, joint.kind, f"{joint.body_a} → {joint.body_b}", _fmt(f[0]), _fmt(f[1]),
-                          _fmt(float(np.hypot(*f))), _fmt(values["normal"][i]) if "normal" in values else "",
-                          _fmt(values["moment"][i]) if "moment" in values else "")
+        reactions.add_row(
+            joint.name,
+            joint.kind,
+            f"{joint.body_a} → {joint.body_b}",
+            _fmt(f[0]),
+            _fmt(f[1]),
+            _fmt(float(np.hypot(*f))),
+            _fmt(values["normal"][i]) if "normal" in values else "",
+            _fmt(values["moment"][i]) if "moment" in values else "",
+        )
     console.print(reactions)
     efforts = Table(box=None, pad_edge=False, header_style="bold")
     for header in ("driver", "joint", "effort", "unit", "power [W]"):
-        efforts.add_column(header, justify="left" if header in ("driver", "joint", "unit") else "right",
-                           no_wrap=True)
+        efforts.add_column(header, justify="left" if header in ("driver", "joint", "unit") else "right", no_wrap=True)
     for k, driver in enumerate(mech.drivers):
         effort = forces.drivers[driver.name]["effort"][i]
-        efforts.add_row(driver.name, driver.joint, _fmt(effort), "N·m" if driver.quantity == "angle" else "N",
-                        _fmt(effort * solution.input_rates[i, k]))
+        efforts.add_row(
+            driver.name,
+            driver.joint,
+            _fmt(effort),
+            "N·m" if driver.quantity == "angle" else "N",
+            _fmt(effort * solution.input_rates[i, k]),
+        )
     console.print(efforts)
 
 
@@ -231,8 +306,10 @@ _VERDICT_STYLE = {"agrees": "green", "rounding": "yellow", "disagrees": "red"}
 def print_textbook(console: Console, results: list[dict], document: str = "") -> None:
     """The table of printed values against the exact ones, with the verdicts."""
     counts = {v: sum(r["verdict"] == v for r in results) for v in _VERDICT_STYLE}
-    console.print(f"[bold]Printed answers[/bold]{' — ' + document if document else ''}: {len(results)} values; "
-                  + ", ".join(f"[{_VERDICT_STYLE[v]}]{n} {v}[/{_VERDICT_STYLE[v]}]" for v, n in counts.items()))
+    console.print(
+        f"[bold]Printed answers[/bold]{' — ' + document if document else ''}: {len(results)} values; "
+        + ", ".join(f"[{_VERDICT_STYLE[v]}]{n} {v}[/{_VERDICT_STYLE[v]}]" for v, n in counts.items())
+    )
     several_instants = len({r["instant"] for r in results}) > 1
     several_branches = len({r["branch"] for r in results}) > 1
     table = Table(box=None, pad_edge=False, header_style="bold")
@@ -240,15 +317,21 @@ def print_textbook(console: Console, results: list[dict], document: str = "") ->
     headers += ["printed", "computed", "unit", "deviation %", "last digits", "verdict", "note"]
     for header in headers:
         numeric = header in ("printed", "computed", "deviation %", "last digits")
-        table.add_column(header, justify="right" if numeric else "left",
-                         no_wrap=header != "note", overflow="fold")
+        table.add_column(header, justify="right" if numeric else "left", no_wrap=header != "note", overflow="fold")
     for r in results:
         digits = max(6, sum(c.isdigit() for c in r["printed_text"].lstrip("-0,.")) + 2)
         percent = "—" if r["deviation_percent"] is None else f"{r['deviation_percent']:+.3g}"
         style = _VERDICT_STYLE[r["verdict"]]
         cells = [r["symbol"], r["quantity"]] + [r["instant"]] * several_instants + [r["branch"]] * several_branches
-        cells += [r["printed_text"], _fmt(r["computed"], digits), r["unit"], percent, f"{r['deviation_digits']:+.3g}",
-                  f"[{style}]{r['verdict']}[/{style}]", r["note"]]
+        cells += [
+            r["printed_text"],
+            _fmt(r["computed"], digits),
+            r["unit"],
+            percent,
+            f"{r['deviation_digits']:+.3g}",
+            f"[{style}]{r['verdict']}[/{style}]",
+            r["note"],
+        ]
         table.add_row(*cells)
     console.print(table)
     console.print()
@@ -284,28 +367,50 @@ def run_json(run) -> dict:
             entry["scale_floor"][row.category] = _number(getattr(row, "floor", math.nan))
             if hasattr(row, "basis"):  # a dynamic mode judged by its convergence
                 entry.setdefault("convergence", {})[row.category] = {
-                    "basis": row.basis, "expected_order": _number(row.expected_order),
-                    "observed_order": _number(row.observed_order), "coarse_error": _number(row.coarse_error),
-                    "coarse_step": _number(row.coarse_step), "step": _number(row.step),
-                    "estimate": _number(row.estimate), "measured": _number(row.relative)}
+                    "basis": row.basis,
+                    "expected_order": _number(row.expected_order),
+                    "observed_order": _number(row.observed_order),
+                    "coarse_error": _number(row.coarse_error),
+                    "coarse_step": _number(row.coarse_step),
+                    "step": _number(row.step),
+                    "estimate": _number(row.estimate),
+                    "measured": _number(row.relative),
+                }
         entry.update({"pass": outcome.passed, "reason": outcome.reason or None})
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
-        forces[row.engine] = {"max_abs": _number(row.max_abs), "unit": row.unit or None,
-                              "relative": _number(row.max_rel), "tolerance": _number(row.tolerance),
-                              "scale_floor": _number(getattr(row, "floor", math.nan)),
-                              "worst": f"{row.name} {row.quantity}".strip() or None, "states": int(row.states),
-                              "pass": bool(row.passed), "reason": row.reason or None}
-    energy = None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v)
-                                               for k, v in run.energy.items()}
-    return {"mechanism": run.mechanism.name, "samples": int(run.native.inputs.shape[0]), "branch": run.branch,
-            "pass": run.passed, "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
-            "engines": engines, "not_applicable": run.not_applicable,
-            "forces": forces, "energy": energy, "forces_not_computed": run.no_forces or None,
-            "textbook": textbook_json(run.textbook),
-            "timings": {"seconds": round(run.seconds, 3),
-                        "engines": {mode: round(outcome.seconds, 3) for mode, outcome in run.outcomes.items()}}}
+        forces[row.engine] = {
+            "max_abs": _number(row.max_abs),
+            "unit": row.unit or None,
+            "relative": _number(row.max_rel),
+            "tolerance": _number(row.tolerance),
+            "scale_floor": _number(getattr(row, "floor", math.nan)),
+            "worst": f"{row.name} {row.quantity}".strip() or None,
+            "states": int(row.states),
+            "pass": bool(row.passed),
+            "reason": row.reason or None,
+        }
+    energy = (
+        None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v) for k, v in run.energy.items()}
+    )
+    return {
+        "mechanism": run.mechanism.name,
+        "samples": int(run.native.inputs.shape[0]),
+        "branch": run.branch,
+        "pass": run.passed,
+        "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
+        "engines": engines,
+        "not_applicable": run.not_applicable,
+        "forces": forces,
+        "energy": energy,
+        "forces_not_computed": run.no_forces or None,
+        "textbook": textbook_json(run.textbook),
+        "timings": {
+            "seconds": round(run.seconds, 3),
+            "engines": {mode: round(outcome.seconds, 3) for mode, outcome in run.outcomes.items()},
+        },
+    }
 
 
 def print_run(console: Console, run) -> None:
@@ -323,8 +428,11 @@ def print_run(console: Console, run) -> None:
         table.add_column(c, justify="right", no_wrap=True)
     failures = []
     driver = mech.drivers[0]
-    scale, unit = ((mech.units.angle_factor, mech.units.angle) if driver.quantity == "angle"
-                   else (mech.units.length_factor, mech.units.length))
+    scale, unit = (
+        (mech.units.angle_factor, mech.units.angle)
+        if driver.quantity == "angle"
+        else (mech.units.length_factor, mech.units.length)
+    )
     for mode, outcome in run.outcomes.items():
         if not outcome.ok:
             table.add_row(mode, "[red]failed[/red]", *["—"] * len(CATEGORIES))
@@ -340,13 +448,17 @@ def print_run(console: Console, run) -> None:
             style = "green" if r.passed else "red"
             cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:.2g}")
             if not r.passed:
-                failures.append(f"{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
-                                f"{driver.name} = {r.worst_input / scale:.4g} {unit}")
+                failures.append(
+                    f"{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
+                    f"{driver.name} = {r.worst_input / scale:.4g} {unit}"
+                )
         table.add_row(mode, "[green]pass[/green]" if outcome.passed else "[red]FAIL[/red]", *cells)
     console.print(table)
-    console.print("  largest difference from the native solution / tolerance: position per mechanism size, "
-                  "angle in rad, rates per the quantity's largest magnitude (floored); a dynamic mode's tolerance "
-                  "is the largest error its own convergence at the expected order allows (basis: report, JSON)")
+    console.print(
+        "  largest difference from the native solution / tolerance: position per mechanism size, "
+        "angle in rad, rates per the quantity's largest magnitude (floored); a dynamic mode's tolerance "
+        "is the largest error its own convergence at the expected order allows (basis: report, JSON)"
+    )
     for failure in failures:
         console.print(f"  [red]{failure}[/red]")
     if run.not_applicable:
@@ -362,13 +474,16 @@ def print_run(console: Console, run) -> None:
         console.print("  joint reactions and driving effort vs native: " + ", ".join(parts))
         e = run.energy
         style = "green" if e["passed"] else "red"
-        console.print(f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] of "
-                      f"{e['scale']:.3g} W")
+        console.print(
+            f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] of {e['scale']:.3g} W"
+        )
     if run.textbook:
         counts = {v: sum(r["verdict"] == v for r in run.textbook) for v in ("agrees", "rounding", "disagrees")}
-        console.print(f"  printed answers: {len(run.textbook)} values — {counts['agrees']} agree, "
-                      f"{counts['rounding']} rounding, {counts['disagrees']} disagree (table: xcheck solve "
-                      f"{mech.name}, or the report)")
+        console.print(
+            f"  printed answers: {len(run.textbook)} values — {counts['agrees']} agree, "
+            f"{counts['rounding']} rounding, {counts['disagrees']} disagree (table: xcheck solve "
+            f"{mech.name}, or the report)"
+        )
 
 
 def simulation_json(reference) -> dict:
@@ -381,13 +496,21 @@ def simulation_json(reference) -> dict:
     last = len(motion.times) - 1
     final = {
         "t": _number(motion.times[last]),
-        "points": {label: {"position": _pair(solution.point(label)["position"][last]),
-                           "velocity": _pair(solution.point(label)["velocity"][last])}
-                   for label in mech.point_owners},
-        "bodies": {b.name: {"position": _pair(solution.body(b.name)["position"][last]),
-                            "angle": _number(solution.body(b.name)["angle"][last]),
-                            "omega": _number(solution.body(b.name)["omega"][last])}
-                   for b in mech.moving_bodies},
+        "points": {
+            label: {
+                "position": _pair(solution.point(label)["position"][last]),
+                "velocity": _pair(solution.point(label)["velocity"][last]),
+            }
+            for label in mech.point_owners
+        },
+        "bodies": {
+            b.name: {
+                "position": _pair(solution.body(b.name)["position"][last]),
+                "angle": _number(solution.body(b.name)["angle"][last]),
+                "omega": _number(solution.body(b.name)["omega"][last]),
+            }
+            for b in mech.moving_bodies
+        },
     }
     return {
         "mechanism": mech.name,
@@ -395,17 +518,22 @@ def simulation_json(reference) -> dict:
         "output_step": _number(motion.times[1] - motion.times[0]) if len(motion.times) > 1 else None,
         "native": {
             "final": final,
-            "error_estimate": {"largest": _number(reference.estimate.max()), "relative": _number(reference.relative),
-                               "final": _number(reference.estimate[-1]), "converged": reference.converged,
-                               "basis": "the largest difference so far between the two finest RK4 runs of a "
-                                        "halving ladder (about 15 times the finer run's error)"},
+            "error_estimate": {
+                "largest": _number(reference.estimate.max()),
+                "relative": _number(reference.relative),
+                "final": _number(reference.estimate[-1]),
+                "converged": reference.converged,
+                "basis": "the largest difference so far between the two finest RK4 runs of a "
+                "halving ladder (about 15 times the finer run's error)",
+            },
             "step": _number(motion.step),
             "singular_passes": [_number(t) for t in motion.singular_passes],
             "loop_closure": _number(motion.residual.max()),
-            "energy_balance": {"largest": _number(abs(motion.energy_error).max()),
-                               "energy_start": _number(motion.energy[0]),
-                               "note": "E(t) - E(0) - W(t): kinetic + potential energy against the work of "
-                                       "loads and dampers"},
+            "energy_balance": {
+                "largest": _number(abs(motion.energy_error).max()),
+                "energy_start": _number(motion.energy[0]),
+                "note": "E(t) - E(0) - W(t): kinetic + potential energy against the work of loads and dampers",
+            },
             "ladder": [{k: _number(v) for k, v in entry.items()} for entry in reference.ladder],
             "cpu_seconds": _number(sum(entry["seconds"] for entry in reference.ladder)),
         },
@@ -416,8 +544,9 @@ def print_simulation(console, reference) -> None:
     """The tables of ``xcheck simulate``: the final state and what backs it."""
     doc = simulation_json(reference)
     native = doc["native"]
-    table = Table(title=f"{doc['mechanism']}: free motion, native reference at t = {doc['duration']:g} s",
-                  header_style="bold")
+    table = Table(
+        title=f"{doc['mechanism']}: free motion, native reference at t = {doc['duration']:g} s", header_style="bold"
+    )
     for header in ("point / body", "x [m]", "y [m]", "vx [m/s]", "vy [m/s]", "angle [rad]", "omega [rad/s]"):
         table.add_column(escape(header), justify="left" if header == "point / body" else "right")
     for label, p in native["final"]["points"].items():
@@ -432,7 +561,9 @@ def print_simulation(console, reference) -> None:
         f"loop closure before each projection <= {_g(native['loop_closure'])} m; energy balance "
         f"{_g(native['energy_balance']['largest'])} J; singular positions passed at "
         f"{', '.join(f'{t:.4g}' for t in native['singular_passes']) or 'none'} s; "
-        f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.", highlight=False)
+        f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.",
+        highlight=False,
+    )
 
 
 def _g(value) -> str:

@@ -46,10 +46,24 @@ from .kinematics import Kinematics, Solution
 from .motion import law_states, sweep_span
 from .tolerances import Tolerance, convergence_round_off
 
-__all__ = ["is_static", "all_modes", "tolerance", "CATEGORIES", "NATIVE_TOLERANCE", "ModeOutcome", "RunResult",
-           "run_mechanism", "sweep_inputs", "versions", "convergence_table", "force_tolerance", "ORDER_MARGIN",
-           "convergence_limit",
-           "NEWTON_EULER_TOLERANCE", "ENERGY_TOLERANCE"]
+__all__ = [
+    "is_static",
+    "all_modes",
+    "tolerance",
+    "CATEGORIES",
+    "NATIVE_TOLERANCE",
+    "ModeOutcome",
+    "RunResult",
+    "run_mechanism",
+    "sweep_inputs",
+    "versions",
+    "convergence_table",
+    "force_tolerance",
+    "ORDER_MARGIN",
+    "convergence_limit",
+    "NEWTON_EULER_TOLERANCE",
+    "ENERGY_TOLERANCE",
+]
 
 
 def all_modes() -> tuple[str, ...]:
@@ -63,8 +77,13 @@ CATEGORIES = ("position", "velocity", "acceleration", "angle", "omega", "alpha")
 
 
 #: the general solver against its own equations
-NATIVE_TOLERANCE = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "the solver's own equations: loop closure and the "
-                             "velocity and acceleration equations satisfied to round-off")
+NATIVE_TOLERANCE = Tolerance(
+    1e-12,
+    1e-12,
+    1e-12,
+    1e-12,
+    "the solver's own equations: loop closure and the velocity and acceleration equations satisfied to round-off",
+)
 
 
 def tolerance(mode: str) -> Tolerance:
@@ -202,14 +221,17 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     for k, driver in enumerate(mech.drivers):
         if not reached[:, k].all():
             shown = mech.units.show_input(driver.quantity, float(inputs[np.argmin(reached[:, k]), k]))
-            raise InputError(f"{mech.path}: assembly.at.{driver.name}: expected a value that the driver's "
-                             f"{driver.law.kind} motion reaches (the sweep takes the rates from the laws), "
-                             f"found {shown}, which it never does")
+            raise InputError(
+                f"{mech.path}: assembly.at.{driver.name}: expected a value that the driver's "
+                f"{driver.law.kind} motion reaches (the sweep takes the rates from the laws), "
+                f"found {shown}, which it never does"
+            )
     return inputs, rates, accelerations
 
 
-def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolerance,
-                condition: float = 1.0) -> pd.DataFrame:
+def _categorise(
+    kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolerance, condition: float = 1.0
+) -> pd.DataFrame:
     """Per category: the worst row of a differences table against the tolerance;
     ``floor`` is the physical floor of the category's scale (the table's)."""
     size = kinematics.system.size
@@ -228,19 +250,26 @@ def _categorise(kinematics: Kinematics, details: pd.DataFrame, tolerance: Tolera
         row = part.iloc[worst]
         limit = tolerance.limit(category, condition)
         missing = int(part.missing.max()) if "missing" in part else 0
-        rows.append({"category": category, "max_abs": float(part.max_abs.max()),
-                     "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
-                     "relative": float(relative.iloc[worst]), "tolerance": limit,
-                     "floor": float(part["floor"].max()) if "floor" in part else math.nan,
-                     "passed": bool(relative.iloc[worst] <= limit) and missing == 0, "missing": missing,
-                     "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing
-                                                                else ""),
-                     "worst_input": float(row.worst_input)})
+        rows.append(
+            {
+                "category": category,
+                "max_abs": float(part.max_abs.max()),
+                "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
+                "relative": float(relative.iloc[worst]),
+                "tolerance": limit,
+                "floor": float(part["floor"].max()) if "floor" in part else math.nan,
+                "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
+                "missing": missing,
+                "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing else ""),
+                "worst_input": float(row.worst_input),
+            }
+        )
     return pd.DataFrame(rows)
 
 
-def convergence_limit(coarse_error: float, coarse_step: float, fine_step: float, order: float,
-                      round_off: float) -> float:
+def convergence_limit(
+    coarse_error: float, coarse_step: float, fine_step: float, order: float, round_off: float
+) -> float:
     """The largest error at ``fine_step`` that still shows convergence at an
     order of at least ``order`` - :data:`ORDER_MARGIN` from ``coarse_error`` at
     ``coarse_step``, plus ``round_off`` (:func:`convergence_round_off`): the
@@ -261,8 +290,15 @@ def _step_and_series(trajectory: Trajectory) -> tuple[float, str]:
     return float(settings.get("timestep", math.nan)), str(settings.get("series", ""))
 
 
-def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, categories: pd.DataFrame,
-                         tolerance: Tolerance, floors: dict, branch: str | None) -> pd.DataFrame:
+def _convergence_verdict(
+    kinematics: Kinematics,
+    mode: str,
+    result: ModeResult,
+    categories: pd.DataFrame,
+    tolerance: Tolerance,
+    floors: dict,
+    branch: str | None,
+) -> pd.DataFrame:
     """Judge a dynamic mode's categories by its convergence to the exact answer.
 
     The compared run (time step h_f) and the next coarser run of the same
@@ -279,8 +315,7 @@ def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, 
     expected = engines.mode(mode).orders
     compared = result.trajectories[0]
     step, series = _step_and_series(compared)
-    coarser = [t for t in result.trajectories[1:] if _step_and_series(t)[1] == series
-               and _step_and_series(t)[0] > step]
+    coarser = [t for t in result.trajectories[1:] if _step_and_series(t)[1] == series and _step_and_series(t)[0] > step]
     coarse = min(coarser, key=lambda t: _step_and_series(t)[0]) if coarser else None
     coarse_errors, coarse_step = {}, math.nan
     if coarse is not None:
@@ -303,27 +338,34 @@ def _convergence_verdict(kinematics: Kinematics, mode: str, result: ModeResult, 
         estimate = coarse_error * (step / coarse_step) ** order if math.isfinite(coarse_error) else math.nan
         observed = observed_order(coarse_error, fine, coarse_step, step)
         by_order = coarse is not None and math.isfinite(coarse_error) and fine <= limit
-        ladder = (f"from {coarse_error:.3g} at dt = {coarse_step:.4g} s to {fine:.3g} at dt = {step:.4g} s; "
-                  f"the expected order predicts {estimate:.3g}")
+        ladder = (
+            f"from {coarse_error:.3g} at dt = {coarse_step:.4g} s to {fine:.3g} at dt = {step:.4g} s; "
+            f"the expected order predicts {estimate:.3g}"
+        )
         if by_order or (coarse is not None and fine > round_off):
-            basis = (f"observed order {observed:.3g} (expected {order:g}; accepted: the error falls at least at "
-                     f"order {order - ORDER_MARGIN:g} above a noise floor of {round_off:g}) " + ladder)
+            basis = (
+                f"observed order {observed:.3g} (expected {order:g}; accepted: the error falls at least at "
+                f"order {order - ORDER_MARGIN:g} above a noise floor of {round_off:g}) " + ladder
+            )
         elif fine <= round_off:
-            basis = (f"within the engine's round-off bound ({fine:.2g} <= {round_off:g}), where no order shows"
-                     + (f" (observed {observed:.3g} " + ladder + ")" if coarse is not None else ""))
+            basis = f"within the engine's round-off bound ({fine:.2g} <= {round_off:g}), where no order shows" + (
+                f" (observed {observed:.3g} " + ladder + ")" if coarse is not None else ""
+            )
             limit = round_off if math.isnan(limit) else limit
         else:
             basis = "no coarser run of the same settings ran through: the order cannot be observed"
-        categories.loc[i, ["expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate",
-                           "tolerance"]] = [order, observed, coarse_error, coarse_step, step, estimate, limit]
+        categories.loc[
+            i, ["expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate", "tolerance"]
+        ] = [order, observed, coarse_error, coarse_step, step, estimate, limit]
         categories.loc[i, "passed"] = bool(fine <= limit) and int(row.missing) == 0
         categories.loc[i, "basis"] = basis
     categories["passed"] = categories["passed"].astype(bool)
     return categories
 
 
-def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tolerance,
-                       floors: dict[str, float]) -> ModeOutcome:
+def _native_self_check(
+    kinematics: Kinematics, native: Solution, tolerance: Tolerance, floors: dict[str, float]
+) -> ModeOutcome:
     """The general solver against its own equations: Phi = 0, Phi_q qd = -Phi_t, Phi_q qdd = gamma;
     rates relative to size x the largest |qd| or |qdd|, floored by ``floors`` (:func:`scale_floors`)."""
     system = kinematics.system
@@ -339,16 +381,27 @@ def _native_self_check(kinematics: Kinematics, native: Solution, tolerance: Tole
     for category, gap, scale in (
         ("position", native.residual[good], system.size),
         ("velocity", system.residual_metres(velocity_gap), max(floors["velocity"], system.size * np.max(np.abs(qd)))),
-        ("acceleration", system.residual_metres(acceleration_gap),
-         max(floors["acceleration"], system.size * np.max(np.abs(qdd)))),
+        (
+            "acceleration",
+            system.residual_metres(acceleration_gap),
+            max(floors["acceleration"], system.size * np.max(np.abs(qdd))),
+        ),
     ):
         worst = int(np.argmax(gap))
         relative = float(gap[worst] / scale)
-        rows.append({"category": category, "max_abs": float(gap[worst]), "rms": float(np.sqrt(np.mean(gap**2))),
-                     "relative": relative, "tolerance": tolerance.limit(category),
-                     "floor": floors.get(category, math.nan),
-                     "passed": relative <= tolerance.limit(category), "worst": "constraint equations",
-                     "worst_input": float(inputs[worst])})
+        rows.append(
+            {
+                "category": category,
+                "max_abs": float(gap[worst]),
+                "rms": float(np.sqrt(np.mean(gap**2))),
+                "relative": relative,
+                "tolerance": tolerance.limit(category),
+                "floor": floors.get(category, math.nan),
+                "passed": relative <= tolerance.limit(category),
+                "worst": "constraint equations",
+                "worst_input": float(inputs[worst]),
+            }
+        )
     table = pd.DataFrame(rows)
     failed = int((~good).sum())
     reason = f"{failed} of {len(good)} samples did not assemble" if failed else ""
@@ -362,8 +415,9 @@ def _condition(solution: Solution) -> float:
     return float(1.0 / solution.singularity[good].min()) if good.any() else 1.0
 
 
-def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None,
-              floors: dict[str, float]):
+def _run_mode(
+    kinematics: Kinematics, mode: str, native: Solution, samples: int, branch: str | None, floors: dict[str, float]
+):
     """Run one non-native mode; never raises (a failure is an outcome). ``floors``:
     the physical floors of the scales (:func:`scale_floors` of the native sweep)."""
     start = time.perf_counter()
@@ -374,11 +428,13 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
     except NotApplicable:
         raise
     except Exception as err:  # an engine's failure is this mode's outcome, not the run's
-        return ModeOutcome(mode, False, f"{type(err).__name__}: {err}".splitlines()[0],
-                           seconds=time.perf_counter() - start)
+        return ModeOutcome(
+            mode, False, f"{type(err).__name__}: {err}".splitlines()[0], seconds=time.perf_counter() - start
+        )
     if not result.ok or not result.trajectories:
-        return ModeOutcome(mode, False, result.reason or "no trajectory", result=result,
-                           seconds=time.perf_counter() - start)
+        return ModeOutcome(
+            mode, False, result.reason or "no trajectory", result=result, seconds=time.perf_counter() - start
+        )
     trajectory = result.trajectories[0]
     reference = native_at(kinematics, trajectory, branch)
     details = differences(kinematics, trajectory, branch=branch, native=reference, floors=floors)
@@ -386,12 +442,28 @@ def _run_mode(kinematics: Kinematics, mode: str, native: Solution, samples: int,
     if spec.kind == "dynamic" and not categories.empty:
         categories = _convergence_verdict(kinematics, mode, result, categories, tolerance, floors, branch)
     passed = bool(not categories.empty and categories.passed.all())
-    return ModeOutcome(mode, True, "", passed, categories, details, result, trajectory,
-                       sample_errors(trajectory, reference), time.perf_counter() - start)
+    return ModeOutcome(
+        mode,
+        True,
+        "",
+        passed,
+        categories,
+        details,
+        result,
+        trajectory,
+        sample_errors(trajectory, reference),
+        time.perf_counter() - start,
+    )
 
 
-def run_mechanism(kinematics: Kinematics, modes=None, samples: int = 181, branch: str | None = None,
-                  textbook: list[dict] | None = None, progress=None) -> RunResult:
+def run_mechanism(
+    kinematics: Kinematics,
+    modes=None,
+    samples: int = 181,
+    branch: str | None = None,
+    textbook: list[dict] | None = None,
+    progress=None,
+) -> RunResult:
     """Run the native solver and the requested modes on one mechanism.
 
     Parameters
@@ -426,8 +498,9 @@ def run_mechanism(kinematics: Kinematics, modes=None, samples: int = 181, branch
             not_applicable[mode] = missing
             continue
         if static and engines.mode(mode).kind == "dynamic":
-            not_applicable[mode] = ("the drivers stand still (every state is a static position): there is no "
-                                    "motion to integrate")
+            not_applicable[mode] = (
+                "the drivers stand still (every state is a static position): there is no motion to integrate"
+            )
             continue
         try:
             outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch, floors)
@@ -448,8 +521,11 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     except XcheckError as err:
         run.no_forces = str(err)
         return
-    sources = ["newton-euler"] + [e.name for e in engines.engines() if e.force_tolerance is not None
-                                  and not e.available() and any(m.name in modes for m in e.modes)]
+    sources = ["newton-euler"] + [
+        e.name
+        for e in engines.engines()
+        if e.force_tolerance is not None and not e.available() and any(m.name in modes for m in e.modes)
+    ]
     if progress is not None:
         progress("forces")
     run.native_forces = inverse_dynamics(window_states(kinematics, branch))
@@ -490,4 +566,3 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             found[package] = "not installed"
     return found
-

@@ -89,14 +89,30 @@ _UNITS = {
     "angular acceleration": {"rad/s^2": 1.0, "s^-2": 1.0, "deg/s^2": math.pi / 180.0},
     "count": {"1": 1.0},
 }
-_POINT = {"x": "length", "y": "length", "vx": "velocity", "vy": "velocity", "v": "velocity",
-          "ax": "acceleration", "ay": "acceleration", "a": "acceleration"}
+_POINT = {
+    "x": "length",
+    "y": "length",
+    "vx": "velocity",
+    "vy": "velocity",
+    "v": "velocity",
+    "ax": "acceleration",
+    "ay": "acceleration",
+    "a": "acceleration",
+}
 _BODY = {**_POINT, "angle": "angle", "omega": "angular rate", "alpha": "angular acceleration"}
-_VECTOR = {"length": "length", "angle": "angle", "length-rate": "velocity", "angle-rate": "angular rate",
-           "length-acceleration": "acceleration", "angle-acceleration": "angular acceleration"}
-_GRAMMAR = ("'point P x|y|vx|vy|v|ax|ay|a', 'body NAME x|y|angle|vx|vy|v|omega|ax|ay|a|alpha', "
-            "'vector P Q length|angle|length-rate|angle-rate|length-acceleration|angle-acceleration', "
-            "'interior P Q R' or 'dof'")
+_VECTOR = {
+    "length": "length",
+    "angle": "angle",
+    "length-rate": "velocity",
+    "angle-rate": "angular rate",
+    "length-acceleration": "acceleration",
+    "angle-acceleration": "angular acceleration",
+}
+_GRAMMAR = (
+    "'point P x|y|vx|vy|v|ax|ay|a', 'body NAME x|y|angle|vx|vy|v|omega|ax|ay|a|alpha', "
+    "'vector P Q length|angle|length-rate|angle-rate|length-acceleration|angle-acceleration', "
+    "'interior P Q R' or 'dof'"
+)
 #: Raises the ModelError for (field, expected, found).
 _Fail = Callable[[str, str, str], NoReturn]
 #: a value as printed: sign, digits, optional decimal comma or point and digits
@@ -183,13 +199,15 @@ def load_comparisons(path: str | Path, mechanism: Mechanism) -> Comparisons:
     except OSError as err:
         raise ModelError(str(path), "", "a readable comparisons file", err.strerror or str(err)) from err
     except UnicodeDecodeError as err:
-        raise ModelError(str(path), "", "a UTF-8 text file",
-                         f"bytes that are not UTF-8 at byte offset {err.start}") from err
+        raise ModelError(
+            str(path), "", "a UTF-8 text file", f"bytes that are not UTF-8 at byte offset {err.start}"
+        ) from err
     return parse_comparisons(text, mechanism, str(path))
 
 
 def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -> Comparisons:
     """Parse and check the TOML text of a comparisons file (see :func:`load_comparisons`)."""
+
     def fail(field: str, expected: str, found: str) -> NoReturn:
         raise ModelError(path, field, expected, found)
 
@@ -211,8 +229,11 @@ def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -
     branches = list(mechanism.assembly.branches)
     default_instant = head.get("instant", instants[0] if len(instants) == 1 else None)
     if "instant" in head and default_instant not in instants:
-        fail("comparisons.instant", f"an instant label of the model ({', '.join(map(repr, instants)) or 'none'})",
-             repr(default_instant))
+        fail(
+            "comparisons.instant",
+            f"an instant label of the model ({', '.join(map(repr, instants)) or 'none'})",
+            repr(default_instant),
+        )
     default_branch = head.get("branch", branches[0])
     if default_branch not in branches:
         fail("comparisons.branch", f"a branch of the model ({', '.join(branches)})", repr(default_branch))
@@ -230,8 +251,7 @@ def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -
         kind, subject, component, dimension = _parse_quantity(quantity, mechanism, f"{field}.quantity", fail)
         printed = spec.get("printed")
         if not isinstance(printed, str) or not _PRINTED.fullmatch(printed.strip()):
-            fail(f"{field}.printed", 'the value as printed, as a string (e.g. "275,29" or "-3.296")',
-                 repr(printed))
+            fail(f"{field}.printed", 'the value as printed, as a string (e.g. "275,29" or "-3.296")', repr(printed))
         if "unit" not in spec:
             fail(f"{field}.unit", f"the printed value's unit (one of {', '.join(_UNITS[dimension])})", "none")
         unit = spec["unit"]
@@ -242,17 +262,33 @@ def parse_comparisons(text: str, mechanism: Mechanism, path: str = "<string>") -
         if kind == "dof":  # a property of the assembly, not of an instant
             instant = instant if instant in instants else ""
         elif instant not in instants:
-            fail(f"{field}.instant", f"an instant label of the model ({', '.join(map(repr, instants)) or 'none'})",
-                 "none" if instant is None else repr(instant))
+            fail(
+                f"{field}.instant",
+                f"an instant label of the model ({', '.join(map(repr, instants)) or 'none'})",
+                "none" if instant is None else repr(instant),
+            )
         branch = spec.get("branch", default_branch)
         if branch not in branches:
             fail(f"{field}.branch", f"a branch of the model ({', '.join(branches)})", repr(branch))
         printed = printed.strip()
-        entries.append(Printed(
-            quantity=quantity, kind=kind, subject=subject, component=component, dimension=dimension,
-            text=printed, value=float(printed.replace(",", ".")), unit=unit,
-            symbol=_string(spec, "symbol", field, fail), source=f"{document}, {where}",
-            note=_string(spec, "note", field, fail), instant=instant, branch=branch, field=field))
+        entries.append(
+            Printed(
+                quantity=quantity,
+                kind=kind,
+                subject=subject,
+                component=component,
+                dimension=dimension,
+                text=printed,
+                value=float(printed.replace(",", ".")),
+                unit=unit,
+                symbol=_string(spec, "symbol", field, fail),
+                source=f"{document}, {where}",
+                note=_string(spec, "note", field, fail),
+                instant=instant,
+                branch=branch,
+                field=field,
+            )
+        )
     return Comparisons(path, name, document, notes, tuple(entries))
 
 
@@ -374,8 +410,16 @@ def quantity_values(solution, entry: Printed) -> np.ndarray:
             return np.angle(np.exp(1j * state["angle"]))
         if component in ("omega", "alpha"):
             return state[component]
-        key = {"x": "position", "y": "position", "vx": "velocity", "vy": "velocity", "v": "velocity",
-               "ax": "acceleration", "ay": "acceleration", "a": "acceleration"}[component]
+        key = {
+            "x": "position",
+            "y": "position",
+            "vx": "velocity",
+            "vy": "velocity",
+            "v": "velocity",
+            "ax": "acceleration",
+            "ay": "acceleration",
+            "a": "acceleration",
+        }[component]
         vec = state[key]
         if component in ("v", "a"):
             return np.hypot(vec[:, 0], vec[:, 1])
@@ -436,13 +480,17 @@ def check_printed(kinematics: Kinematics, comparisons: Comparisons) -> list[dict
             key = (entry.instant, entry.branch)
             if key not in solutions:
                 state = np.array(instants[entry.instant].states(mech))
-                solution = kinematics.solve(state[None, :, 0], state[None, :, 1], state[None, :, 2],
-                                            branch=entry.branch)
+                solution = kinematics.solve(
+                    state[None, :, 0], state[None, :, 1], state[None, :, 2], branch=entry.branch
+                )
                 status = Status(int(solution.status[0]))
                 if status > Status.NEAR_SINGULAR:
-                    raise ModelError(comparisons.path, f"{entry.field}.instant",
-                                     "an instant where the mechanism assembles with determined velocities",
-                                     f"{entry.instant!r} on branch {entry.branch}: {status.label}")
+                    raise ModelError(
+                        comparisons.path,
+                        f"{entry.field}.instant",
+                        "an instant where the mechanism assembles with determined velocities",
+                        f"{entry.instant!r} on branch {entry.branch}: {status.label}",
+                    )
                 solutions[key] = solution
             exact = float(quantity_values(solutions[key], entry)[0])
         turns = 0
@@ -451,11 +499,22 @@ def check_printed(kinematics: Kinematics, comparisons: Comparisons) -> list[dict
             exact += turns * 2.0 * math.pi
         computed = exact / entry.scale
         percent, digits, result = verdict(entry.text, computed)
-        results.append({
-            "quantity": entry.quantity, "symbol": entry.symbol, "printed": entry.value,
-            "printed_text": entry.text, "computed": computed, "unit": entry.unit,
-            "deviation_percent": percent, "deviation_digits": digits, "verdict": result,
-            "turns": turns, "note": entry.note, "source": entry.source,
-            "instant": entry.instant, "branch": entry.branch,
-        })
+        results.append(
+            {
+                "quantity": entry.quantity,
+                "symbol": entry.symbol,
+                "printed": entry.value,
+                "printed_text": entry.text,
+                "computed": computed,
+                "unit": entry.unit,
+                "deviation_percent": percent,
+                "deviation_digits": digits,
+                "verdict": result,
+                "turns": turns,
+                "note": entry.note,
+                "source": entry.source,
+                "instant": entry.instant,
+                "branch": entry.branch,
+            }
+        )
     return results

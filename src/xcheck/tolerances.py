@@ -14,8 +14,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Tolerance", "EPSILON", "CONDITIONING_FACTOR", "conditioned_round_off", "ROUND_OFF", "EXACT",
-           "CONVERGES", "CONVERGENCE_NOTE", "convergence_round_off"]
+__all__ = [
+    "Tolerance",
+    "EPSILON",
+    "CONDITIONING_FACTOR",
+    "conditioned_round_off",
+    "ROUND_OFF",
+    "EXACT",
+    "CONVERGES",
+    "CONVERGENCE_NOTE",
+    "convergence_round_off",
+]
 
 
 @dataclass(frozen=True)
@@ -40,9 +49,14 @@ class Tolerance:
     def limit(self, category: str, condition: float = 1.0) -> float:
         """The bound of a category; with ``conditioned``, at least the round-off
         that the sweep's conditioning allows (:func:`conditioned_round_off`)."""
-        base = {"position": self.position, "angle": self.angle, "velocity": self.velocity,
-                "omega": self.velocity, "acceleration": self.acceleration,
-                "alpha": self.acceleration}[category]
+        base = {
+            "position": self.position,
+            "angle": self.angle,
+            "velocity": self.velocity,
+            "omega": self.velocity,
+            "acceleration": self.acceleration,
+            "alpha": self.acceleration,
+        }[category]
         return max(base, conditioned_round_off(category, condition)) if self.conditioned else base
 
 
@@ -66,22 +80,38 @@ def conditioned_round_off(category: str, condition: float) -> float:
     rates stay below 5e-14 and the bound is 5.4e-11.
     """
     power = 1 if category in ("position", "angle") else 2
-    return CONDITIONING_FACTOR * EPSILON * condition ** power
+    return CONDITIONING_FACTOR * EPSILON * condition**power
 
 
-CONDITIONED = ("; at least 10 eps kappa (positions, angles) and 10 eps kappa^2 (rates), kappa the largest "
-                "condition number of the scaled constraint Jacobian over the compared states")
-ROUND_OFF = Tolerance(1e-10, 1e-10, 1e-9, 1e-9, "round-off: the engine's own kinematics must reproduce the "
-                       "exact solution (measured at most 3.4e-14 of the size, 1.2e-12 relative, over all models)"
-                       + CONDITIONED, conditioned=True)
-EXACT = Tolerance(1e-12, 1e-12, 1e-12, 1e-12, "independent exact method: round-off (measured at most "
-                   "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)" + CONDITIONED,
-                   conditioned=True)
+CONDITIONED = (
+    "; at least 10 eps kappa (positions, angles) and 10 eps kappa^2 (rates), kappa the largest "
+    "condition number of the scaled constraint Jacobian over the compared states"
+)
+ROUND_OFF = Tolerance(
+    1e-10,
+    1e-10,
+    1e-9,
+    1e-9,
+    "round-off: the engine's own kinematics must reproduce the "
+    "exact solution (measured at most 3.4e-14 of the size, 1.2e-12 relative, over all models)" + CONDITIONED,
+    conditioned=True,
+)
+EXACT = Tolerance(
+    1e-12,
+    1e-12,
+    1e-12,
+    1e-12,
+    "independent exact method: round-off (measured at most "
+    "5.1e-14 relative over all models, 1.6e-13 on the test mechanisms)" + CONDITIONED,
+    conditioned=True,
+)
 #: a dynamic mode's category judged by its convergence (the mode's expected orders), not a fixed bound
 CONVERGES = math.nan
 #: the end of the basis of a tolerance judged by convergence
-CONVERGENCE_NOTE = ("; each error at most the coarser step's times (h_f / h_c)^(order - 0.5) plus the engine's "
-                    "noise floor (its kinematic round-off bound)")
+CONVERGENCE_NOTE = (
+    "; each error at most the coarser step's times (h_f / h_c)^(order - 0.5) plus the engine's "
+    "noise floor (its kinematic round-off bound)"
+)
 
 
 def convergence_round_off(category: str) -> float:

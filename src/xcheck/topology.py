@@ -73,9 +73,10 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
         If a body is not connected to the ground, or a loop has only driven joints.
     """
     driven = {d.joint: d.name for d in mechanism.drivers}
-    order = sorted(range(len(mechanism.joints)),
-                   key=lambda i: (mechanism.joints[i].name not in driven,
-                                  isinstance(mechanism.joints[i], Revolute), i))
+    order = sorted(
+        range(len(mechanism.joints)),
+        key=lambda i: (mechanism.joints[i].name not in driven, isinstance(mechanism.joints[i], Revolute), i),
+    )
     root = {b.name: b.name for b in mechanism.bodies}
 
     def find(body: str) -> str:
@@ -92,8 +93,12 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
             root[ra] = rb
             tree_edges.append(joint)
         elif joint.name in driven:
-            raise ModelError(mechanism.path, f"joints[{i}]", "a loop with a joint that is not driven (engines "
-                             "drive tree joints and cut loops at undriven ones)", "a loop of driven joints only")
+            raise ModelError(
+                mechanism.path,
+                f"joints[{i}]",
+                "a loop with a joint that is not driven (engines drive tree joints and cut loops at undriven ones)",
+                "a loop of driven joints only",
+            )
         else:
             cuts.append(joint)
 
@@ -112,13 +117,18 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
             break
     loose = [b.name for b in mechanism.moving_bodies if b.name not in placed]
     if loose:
-        raise ModelError(mechanism.path, f"bodies.{loose[0]}", "a body connected to the ground through joints",
-                         "a body with no path of joints to the ground")
+        raise ModelError(
+            mechanism.path,
+            f"bodies.{loose[0]}",
+            "a body connected to the ground through joints",
+            "a body with no path of joints to the ground",
+        )
     return Topology(tuple(tree), tuple(cuts))
 
 
-def carrier_share(mechanism: Mechanism, cut: Prismatic | PinInSlot, held: tuple[float, np.ndarray, float] | None,
-                  line_mass: float) -> tuple[tuple[float, np.ndarray, float], tuple[float, np.ndarray, float] | None]:
+def carrier_share(
+    mechanism: Mechanism, cut: Prismatic | PinInSlot, held: tuple[float, np.ndarray, float] | None, line_mass: float
+) -> tuple[tuple[float, np.ndarray, float], tuple[float, np.ndarray, float] | None]:
     """The mass a cut's carrier takes from the body it is held to, keeping the
     mechanism's mass distribution exact.
 

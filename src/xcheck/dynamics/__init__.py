@@ -9,17 +9,17 @@ dynamics and tabulate :func:`force_differences`. The sign conventions are in
 """
 
 from ._compare import (
-                       WINDOW_SAMPLES,
-                       ForceResult,
-                       compare_forces,
-                       determined_states,
-                       energy_summary,
-                       engine_forces,
-                       force_differences,
-                       force_engines,
-                       force_floors,
-                       force_summary,
-                       window_states,
+    WINDOW_SAMPLES,
+    ForceResult,
+    compare_forces,
+    determined_states,
+    energy_summary,
+    engine_forces,
+    force_differences,
+    force_engines,
+    force_floors,
+    force_summary,
+    window_states,
 )
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data

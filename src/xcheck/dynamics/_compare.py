@@ -23,9 +23,18 @@ from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
 
-__all__ = ["force_engines", "WINDOW_SAMPLES", "ForceResult", "window_states", "force_differences", "force_floors",
-           "engine_forces", "compare_forces", "force_summary", "energy_summary"]
-
+__all__ = [
+    "force_engines",
+    "WINDOW_SAMPLES",
+    "ForceResult",
+    "window_states",
+    "force_differences",
+    "force_floors",
+    "engine_forces",
+    "compare_forces",
+    "force_summary",
+    "energy_summary",
+]
 
 
 def force_engines() -> tuple[str, ...]:
@@ -33,6 +42,7 @@ def force_engines() -> tuple[str, ...]:
     from xcheck import engines  # the registry imports the engines' descriptions, which import this package
 
     return tuple(e.name for e in engines.engines() if e.force_tolerance is not None)
+
 
 #: States sampled over the simulation window by default (every 5 degrees of a turning crank).
 WINDOW_SAMPLES = 73
@@ -52,8 +62,9 @@ def window_states(kinematics: Kinematics, branch: str | None = None, samples: in
     return kinematics.solve(*window.inputs(kinematics, window.times(samples)), branch=branch)
 
 
-def determined_states(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
-                      solution: Solution | None = None) -> Solution:
+def determined_states(
+    kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution: Solution | None = None
+) -> Solution:
     """``solution``, or :func:`window_states` with ``samples`` states, checked
     to be determined everywhere: the states an engine's inverse dynamics runs at.
 
@@ -66,8 +77,9 @@ def determined_states(kinematics: Kinematics, branch: str | None = None, samples
         solution = window_states(kinematics, branch, **({} if samples is None else {"samples": samples}))
     if not solution.success:
         i = int(np.argmax(solution.status > Status.NEAR_SINGULAR))
-        raise ValueError(f"the native states are not all determined ({Status(int(solution.status[i])).message} "
-                         f"at sample {i})")
+        raise ValueError(
+            f"the native states are not all determined ({Status(int(solution.status[i])).message} at sample {i})"
+        )
     return solution
 
 
@@ -128,14 +140,17 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
     good = native.status <= Status.NEAR_SINGULAR
     mech = kinematics.mechanism
     rows = []
-    for kind, source, exact_all, known in (("joint", forces.joints, reference.joints, JOINT_QUANTITIES),
-                                           ("driver", forces.drivers, reference.drivers, DRIVER_QUANTITIES)):
+    for kind, source, exact_all, known in (
+        ("joint", forces.joints, reference.joints, JOINT_QUANTITIES),
+        ("driver", forces.drivers, reference.drivers, DRIVER_QUANTITIES),
+    ):
         for name, quantities in source.items():
             for quantity, values in quantities.items():
                 base = quantity.strip("|")
                 if base not in known or base not in exact_all[name]:
-                    raise ValueError(f"expected quantities of {kind} {name!r} among "
-                                     f"{', '.join(exact_all[name])}, found {quantity!r}")
+                    raise ValueError(
+                        f"expected quantities of {kind} {name!r} among {', '.join(exact_all[name])}, found {quantity!r}"
+                    )
                 exact = exact_all[name][base]
                 values = np.asarray(values, dtype=float)
                 if quantity != base:
@@ -147,14 +162,21 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                     continue
                 magnitude = _magnitude(exact)[good]
                 worst = int(np.flatnonzero(finite)[np.argmax(error[finite])])
-                rows.append({
-                    "kind": kind, "name": name, "quantity": quantity,
-                    "unit": quantity_unit(mech, kind, name, base),
-                    "max_abs": float(error[worst]), "rms": float(np.sqrt(np.mean(error[finite] ** 2))),
-                    "scale": float(np.max(magnitude)), "worst_sample": worst,
-                    "worst_input": float(forces.inputs[worst, 0]),
-                    "samples": int(good.sum()), "missing": int(good.sum() - finite.sum()),
-                })
+                rows.append(
+                    {
+                        "kind": kind,
+                        "name": name,
+                        "quantity": quantity,
+                        "unit": quantity_unit(mech, kind, name, base),
+                        "max_abs": float(error[worst]),
+                        "rms": float(np.sqrt(np.mean(error[finite] ** 2))),
+                        "scale": float(np.max(magnitude)),
+                        "worst_sample": worst,
+                        "worst_input": float(forces.inputs[worst, 0]),
+                        "samples": int(good.sum()),
+                        "missing": int(good.sum() - finite.sum()),
+                    }
+                )
     # the floors follow the drivers' laws at the source's inputs: an engine's realised rates of a driver
     # that stands still are round-off, not zero, and would drop the static fallback of scale_floors
     law_rates, law_accelerations, _ = law_states(mech, forces.inputs)
@@ -226,16 +248,16 @@ def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None
 
             forces = engines.engine(engine).inverse_dynamics(kinematics, branch=branch, **options)
         else:
-            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *force_engines()])}), "
-                             f"found {engine!r}")
+            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *force_engines()])}), found {engine!r}")
         table = force_differences(kinematics, forces, branch)
     except Exception as error:  # noqa: BLE001 - a failed engine is data: reported, the others still run
         return ForceResult(engine, mech.name, False, _one_line(error), seconds=time.perf_counter() - start)
     return ForceResult(engine, mech.name, True, "", forces, table, time.perf_counter() - start)
 
 
-def compare_forces(kinematics: Kinematics, engines=None, branch: str | None = None,
-                   options: dict | None = None) -> list[ForceResult]:
+def compare_forces(
+    kinematics: Kinematics, engines=None, branch: str | None = None, options: dict | None = None
+) -> list[ForceResult]:
     """:func:`engine_forces` for each engine (default: newton-euler and every
     :func:`force_engines`; ``options``: engine -> keyword arguments)."""
     engines = ("newton-euler", *force_engines()) if engines is None else engines
@@ -251,13 +273,30 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
     ``states`` and ``seconds``."""
     rows = []
     for r in results:
-        row = {"engine": r.engine, "ok": r.ok, "reason": r.reason, "max_rel": np.nan, "name": "", "quantity": "",
-               "max_abs": np.nan, "unit": "", "floor": np.nan, "states": 0, "seconds": r.seconds}
+        row = {
+            "engine": r.engine,
+            "ok": r.ok,
+            "reason": r.reason,
+            "max_rel": np.nan,
+            "name": "",
+            "quantity": "",
+            "max_abs": np.nan,
+            "unit": "",
+            "floor": np.nan,
+            "states": 0,
+            "seconds": r.seconds,
+        }
         if r.ok and r.table is not None and not r.table.empty:
             worst = r.table.iloc[int(np.nanargmax(r.table["max_rel"].to_numpy()))]
-            row.update(max_rel=float(worst["max_rel"]), name=worst["name"], quantity=worst["quantity"],
-                       max_abs=float(worst["max_abs"]), unit=worst["unit"], floor=float(worst["floor"]),
-                       states=int(worst["samples"]))
+            row.update(
+                max_rel=float(worst["max_rel"]),
+                name=worst["name"],
+                quantity=worst["quantity"],
+                max_abs=float(worst["max_abs"]),
+                unit=worst["unit"],
+                floor=float(worst["floor"]),
+                states=int(worst["samples"]),
+            )
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -294,6 +333,11 @@ def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: i
     kinetic, potential = mechanical_energy(solution)
     work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(times))])
     change = kinetic + potential - kinetic[0] - potential[0]
-    return {"residual": residual, "scale": scale, "relative": residual / scale if scale > 0 else residual,
-            "work_error": float(np.max(np.abs(work - change))), "energy_swing": float(np.max(np.abs(change))),
-            "samples": samples}
+    return {
+        "residual": residual,
+        "scale": scale,
+        "relative": residual / scale if scale > 0 else residual,
+        "work_error": float(np.max(np.abs(work - change))),
+        "energy_swing": float(np.max(np.abs(change))),
+        "samples": samples,
+    }

@@ -63,14 +63,21 @@ def energy_balance(solution: Solution, forces: Forces) -> pd.DataFrame:
     kinetic_rate = np.zeros(n)
     potential_rate = np.zeros(n)
     for b in body_dynamics(solution).values():
-        kinetic_rate += (b["mass"] * np.sum(b["velocity"] * b["acceleration"], axis=1)
-                         + b["inertia"] * b["omega"] * b["alpha"])
+        kinetic_rate += (
+            b["mass"] * np.sum(b["velocity"] * b["acceleration"], axis=1) + b["inertia"] * b["omega"] * b["alpha"]
+        )
         potential_rate -= b["mass"] * (b["velocity"] @ mech.gravity)
     for load in mech.loads:
         state = solution.body(load.body)
         arm = _rot(state["angle"], load.point)
         v = state["velocity"] + state["omega"][:, None] * _perp(arm)
         loads += v @ load.force + load.torque * state["omega"]
-    return pd.DataFrame({"drive": drive, "loads": loads, "kinetic_rate": kinetic_rate,
-                         "potential_rate": potential_rate,
-                         "residual": drive + loads - kinetic_rate - potential_rate})
+    return pd.DataFrame(
+        {
+            "drive": drive,
+            "loads": loads,
+            "kinetic_rate": kinetic_rate,
+            "potential_rate": potential_rate,
+            "residual": drive + loads - kinetic_rate - potential_rate,
+        }
+    )

@@ -30,8 +30,7 @@ import numpy as np
 from ..errors import ModelError
 from ..model import Mechanism, PinInSlot, Prismatic, Revolute
 
-__all__ = ["JOINT_QUANTITIES", "DRIVER_QUANTITIES", "Forces", "require_mass_data", "joint_quantities",
-           "quantity_unit"]
+__all__ = ["JOINT_QUANTITIES", "DRIVER_QUANTITIES", "Forces", "require_mass_data", "joint_quantities", "quantity_unit"]
 
 #: per joint: quantity -> shape suffix (2: a vector in the global frame)
 JOINT_QUANTITIES = {"reaction": 2, "normal": 0, "moment": 0}
@@ -109,6 +108,9 @@ def require_mass_data(mechanism: Mechanism) -> None:
     missing = mechanism.without_mass
     if missing:
         some = "it" if len(missing) == 1 else "them"
-        raise ModelError(mechanism.path, f"bodies.{missing[0]}",
-                         "mass and inertia on every moving body for dynamics",
-                         f"none on {', '.join(missing)} (add mass = kg, inertia = kg m^2 and com to {some})")
+        raise ModelError(
+            mechanism.path,
+            f"bodies.{missing[0]}",
+            "mass and inertia on every moving body for dynamics",
+            f"none on {', '.join(missing)} (add mass = kg, inertia = kg m^2 and com to {some})",
+        )

@@ -32,8 +32,17 @@ from scipy.linalg import null_space
 
 from ..kinematics import Kinematics, Solution, Status
 
-__all__ = ["FreeState", "FreeMotion", "FreeReference", "mass_matrix", "simulate_free", "free_reference",
-           "consistent_state", "release_state", "simulate"]
+__all__ = [
+    "FreeState",
+    "FreeMotion",
+    "FreeReference",
+    "mass_matrix",
+    "simulate_free",
+    "free_reference",
+    "consistent_state",
+    "release_state",
+    "simulate",
+]
 
 #: smallest singular value of the dimensionless constraint Jacobian below which
 #: a local minimum (over the steps) counts as passing a singular configuration
@@ -110,12 +119,23 @@ class FreeMotion:
         inputs = system.input_values(self.q)
         k = inputs.shape[1]
         jac = system.jacobian(self.q)
-        rates = np.einsum("nij,nj->ni", jac, self.qd)[:, system.n_kinematic:]
-        gamma = system.gamma(self.q, self.qd, np.zeros((n, k)))[:, system.n_kinematic:]
-        accelerations = np.einsum("nij,nj->ni", jac, self.qdd)[:, system.n_kinematic:] - gamma
-        return Solution(self.kinematics, self.kinematics._branch_name(None), inputs, rates, accelerations,
-                        self.q, self.qd, self.qdd, np.full(n, int(Status.OK)), self.residual,
-                        np.ones(n), np.zeros(n, dtype=int))
+        rates = np.einsum("nij,nj->ni", jac, self.qd)[:, system.n_kinematic :]
+        gamma = system.gamma(self.q, self.qd, np.zeros((n, k)))[:, system.n_kinematic :]
+        accelerations = np.einsum("nij,nj->ni", jac, self.qdd)[:, system.n_kinematic :] - gamma
+        return Solution(
+            self.kinematics,
+            self.kinematics._branch_name(None),
+            inputs,
+            rates,
+            accelerations,
+            self.q,
+            self.qd,
+            self.qdd,
+            np.full(n, int(Status.OK)),
+            self.residual,
+            np.ones(n),
+            np.zeros(n, dtype=int),
+        )
 
     @property
     def energy_error(self) -> np.ndarray:
@@ -163,7 +183,7 @@ def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
     n = blocks.shape[0] * 3
     out = np.zeros((n, n))
     for i, block in enumerate(blocks):
-        out[3 * i:3 * i + 3, 3 * i:3 * i + 3] = block
+        out[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = block
     return out
 
 
@@ -215,16 +235,18 @@ class _Joints:
         count = len(coincidences)
         self.x_rows, self.y_rows = 2 * np.arange(count), 2 * np.arange(count) + 1
         self.rows = 2 * count + sum(t.rows for t in self.others)
-        self.row_is_angle = np.array([False] * (2 * count) + [t.is_angle for t in self.others for _ in range(t.rows)],
-                                     dtype=bool)
+        self.row_is_angle = np.array(
+            [False] * (2 * count) + [t.is_angle for t in self.others for _ in range(t.rows)], dtype=bool
+        )
 
     def _turned(self, q: np.ndarray):
         padded = np.concatenate([q, np.zeros(3)])
         c, sn = np.cos(padded[2::3]), np.sin(padded[2::3])
 
         def turn(index, s):
-            return np.stack([c[index] * s[:, 0] - sn[index] * s[:, 1], sn[index] * s[:, 0] + c[index] * s[:, 1]],
-                            axis=1)
+            return np.stack(
+                [c[index] * s[:, 0] - sn[index] * s[:, 1], sn[index] * s[:, 0] + c[index] * s[:, 1]], axis=1
+            )
 
         return padded, turn(self.a, self.s_a), turn(self.b, self.s_b)
 
@@ -251,7 +273,7 @@ class _Joints:
             for t in self.others:
                 block = np.zeros((1, t.rows, self.n))
                 t.jacobian(poses, block)
-                out[start:start + t.rows] = block[0]
+                out[start : start + t.rows] = block[0]
                 start += t.rows
         return out
 
@@ -277,13 +299,28 @@ class _Dynamics:
         self.joints = _Joints(self.system)
         self.bodies = _Bodies(kinematics)
         self.index = {b.name: i for i, b in enumerate(mech.moving_bodies)}
-        self.loads = [(3 * self.index[load.body], np.asarray(load.point, dtype=float),
-                       np.asarray(load.force, dtype=float), float(load.torque))
-                      for load in mech.loads if load.body in self.index]
+        self.loads = [
+            (
+                3 * self.index[load.body],
+                np.asarray(load.point, dtype=float),
+                np.asarray(load.force, dtype=float),
+                float(load.torque),
+            )
+            for load in mech.loads
+            if load.body in self.index
+        ]
         self.gravity = np.asarray(mech.gravity, dtype=float)
         owners = mech.point_owners
-        self.springs = [(self._anchor(owners[s.points[0]], s.points[0]), self._anchor(owners[s.points[1]], s.points[1]),
-                         s.stiffness, s.rest_length, s.damping) for s in mech.springs]
+        self.springs = [
+            (
+                self._anchor(owners[s.points[0]], s.points[0]),
+                self._anchor(owners[s.points[1]], s.points[1]),
+                s.stiffness,
+                s.rest_length,
+                s.damping,
+            )
+            for s in mech.springs
+        ]
         size = self.system.size
         self.size = size
         self.scale_rows = np.where(self.joints.row_is_angle, 1.0, 1.0 / size)
@@ -307,7 +344,7 @@ class _Dynamics:
             return s, np.zeros(2), np.zeros(2)
         c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
         arm = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
-        return q[k:k + 2] + arm, qd[k:k + 2] + w * np.array([-arm[1], arm[0]]), arm
+        return q[k : k + 2] + arm, qd[k : k + 2] + w * np.array([-arm[1], arm[0]]), arm
 
     def _spring_states(self, q: np.ndarray, qd: np.ndarray):
         """Per spring: (length l, rate dl/dt, unit vector from the first end to the second, the
@@ -321,8 +358,9 @@ class _Dynamics:
             yield length, float(unit @ (vr - vp)), unit, (first, arm_p), (second, arm_r), stiffness, rest, damping
 
     def residual_metres(self, q: np.ndarray) -> float:
-        return float(np.max(np.abs(self.joints.residual(q)) * np.where(self.joints.row_is_angle, self.size, 1.0),
-                            initial=0.0))
+        return float(
+            np.max(np.abs(self.joints.residual(q)) * np.where(self.joints.row_is_angle, self.size, 1.0), initial=0.0)
+        )
 
     def _mass(self, q: np.ndarray) -> np.ndarray:
         """M(q), (n, n)."""
@@ -342,13 +380,13 @@ class _Dynamics:
         for k, p, f, torque in self.loads:
             c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
             arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
-            out[k:k + 2] += f
+            out[k : k + 2] += f
             out[k + 2] += arm[0] * f[1] - arm[1] * f[0] + torque
         for length, rate, unit, (first, arm_p), (second, arm_r), stiffness, rest, damping in self._spring_states(q, qd):
             tension = stiffness * (length - rest) + damping * rate
             for (k, _), arm, force in ((first, arm_p, tension * unit), (second, arm_r, -tension * unit)):
                 if k is not None:
-                    out[k:k + 2] += force
+                    out[k : k + 2] += force
                     out[k + 2] += arm[0] * force[1] - arm[1] * force[0]
         return out
 
@@ -359,7 +397,7 @@ class _Dynamics:
         for k, p, f, torque in self.loads:
             c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
             arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
-            velocity = qd[k:k + 2] + w * np.array([-arm[1], arm[0]])
+            velocity = qd[k : k + 2] + w * np.array([-arm[1], arm[0]])
             total += float(f @ velocity) + torque * w
         for _, rate, *_, damping in self._spring_states(q, qd):
             total -= damping * rate * rate
@@ -371,12 +409,21 @@ class _Dynamics:
         rates = qd.reshape(-1, 3)
         kinetic = 0.5 * float(np.einsum("bi,bij,bj->", rates, blocks, rates))
         centres = q.reshape(-1, 3)[:, :2] + self.bodies.arms(q)
-        springs = sum(0.5 * stiffness * (length - rest) ** 2
-                      for length, _, _, _, _, stiffness, rest, _ in self._spring_states(q, np.zeros_like(q)))
+        springs = sum(
+            0.5 * stiffness * (length - rest) ** 2
+            for length, _, _, _, _, stiffness, rest, _ in self._spring_states(q, np.zeros_like(q))
+        )
         return kinetic - float(self.bodies.mass @ (centres @ self.gravity)) + springs
 
-    def _constrained(self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray,
-                     measure: bool = False, cutoff: float = RANK_CUTOFF) -> tuple[np.ndarray, float]:
+    def _constrained(
+        self,
+        mass: np.ndarray,
+        jac: np.ndarray,
+        load: np.ndarray,
+        gap: np.ndarray,
+        measure: bool = False,
+        cutoff: float = RANK_CUTOFF,
+    ) -> tuple[np.ndarray, float]:
         """The x minimising (1/2) x^T M x - load^T x subject to J x = gap, and
         the singularity measure of J there.
 
@@ -410,8 +457,9 @@ class _Dynamics:
     def acceleration(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """q'' by Gauss's principle: M q'' - Q as small as the constraints
         J q'' = gamma allow (M-weighted)."""
-        return self._constrained(self._mass(q), self.joints.jacobian(q), self.forces(q, qd),
-                                 self.joints.gamma(q, qd))[0]
+        return self._constrained(self._mass(q), self.joints.jacobian(q), self.forces(q, qd), self.joints.gamma(q, qd))[
+            0
+        ]
 
     def project(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
         """(q, qd) moved onto Phi = 0 and Phi_q qd = 0 by the M-weighted
@@ -423,18 +471,29 @@ class _Dynamics:
         for _ in range(PROJECTION_ITERATIONS):
             if gap <= tolerance:
                 break
-            q = q + self._constrained(self._mass(q), self.joints.jacobian(q), zero, -self.joints.residual(q),
-                                      measure=True, cutoff=PROJECTION_CUTOFF)[0]
+            q = (
+                q
+                + self._constrained(
+                    self._mass(q),
+                    self.joints.jacobian(q),
+                    zero,
+                    -self.joints.residual(q),
+                    measure=True,
+                    cutoff=PROJECTION_CUTOFF,
+                )[0]
+            )
             gap = self.residual_metres(q)
         jac = self.joints.jacobian(q)
-        correction, singular = self._constrained(self._mass(q), jac, zero, -(jac @ qd), measure=True,
-                                                 cutoff=PROJECTION_CUTOFF)
+        correction, singular = self._constrained(
+            self._mass(q), jac, zero, -(jac @ qd), measure=True, cutoff=PROJECTION_CUTOFF
+        )
         self.measure = singular
         return q, qd + correction, before, singular
 
 
-def simulate_free(kinematics: Kinematics, start: FreeState, duration: float, output_step: float,
-                  step: float) -> FreeMotion:
+def simulate_free(
+    kinematics: Kinematics, start: FreeState, duration: float, output_step: float, step: float
+) -> FreeMotion:
     """Integrate the free mechanism from ``start`` over ``duration`` (s).
 
     Parameters
@@ -484,8 +543,9 @@ def simulate_free(kinematics: Kinematics, start: FreeState, duration: float, out
             raise FloatingPointError(f"the integration went non-finite at t = {times[i]:.6g} s")
         q_out[i], qd_out[i], qdd_out[i] = q, qd, dyn.acceleration(q, qd)
         residual[i], energy[i], work[i] = drift, dyn.energy(q, qd), w
-    return FreeMotion(kinematics, times, q_out, qd_out, qdd_out, residual, energy, work, passes, h,
-                      time.process_time() - begin)
+    return FreeMotion(
+        kinematics, times, q_out, qd_out, qdd_out, residual, energy, work, passes, h, time.process_time() - begin
+    )
 
 
 def consistent_state(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> FreeState:
@@ -505,9 +565,16 @@ def _difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) ->
     return np.maximum(np.maximum.accumulate(delta.max(axis=1)), ROUND_OFF * size)
 
 
-def free_reference(kinematics: Kinematics, start: FreeState, duration: float, output_step: float,
-                   tolerance: float = 1e-9, first_step: float | None = None, max_halvings: int = 6,
-                   progress=None) -> FreeReference:
+def free_reference(
+    kinematics: Kinematics,
+    start: FreeState,
+    duration: float,
+    output_step: float,
+    tolerance: float = 1e-9,
+    first_step: float | None = None,
+    max_halvings: int = 6,
+    progress=None,
+) -> FreeReference:
     """The native reference of a free motion: RK4 runs at halving steps until
     two consecutive ones differ by at most ``tolerance`` x the mechanism's
     size at every output (see :class:`FreeReference`).
@@ -527,8 +594,12 @@ def free_reference(kinematics: Kinematics, start: FreeState, duration: float, ou
         if progress is not None:
             progress(step)
         motion = simulate_free(kinematics, start, duration, output_step, step)
-        entry = {"step": motion.step, "steps": int(round(duration / motion.step)), "seconds": motion.seconds,
-                 "difference": math.nan}
+        entry = {
+            "step": motion.step,
+            "steps": int(round(duration / motion.step)),
+            "seconds": motion.seconds,
+            "difference": math.nan,
+        }
         if coarse is not None:
             estimate = _difference(kinematics, motion, coarse)
             entry["difference"] = float(estimate.max())
@@ -564,14 +635,22 @@ def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeStat
     rates = np.array([[spec.rates.get(d.name, 0.0) for d in mech.drivers]])
     solution = kinematics.solve(inputs, rates, np.zeros_like(rates), branch=branch)
     if solution.status[0] > Status.NEAR_SINGULAR:
-        raise ModelError(mech.path, "free_motion.at", "a position where the mechanism assembles with a "
-                         "determined velocity", Status(int(solution.status[0])).message)
+        raise ModelError(
+            mech.path,
+            "free_motion.at",
+            "a position where the mechanism assembles with a determined velocity",
+            Status(int(solution.status[0])).message,
+        )
     q, qd = solution.q[0], solution.qd[0]
     if spec.point is not None and spec.point_velocity is not None:
         body = mech.point_owners[spec.point]
         if body not in system.body_index or system.body_index[body] < 0:
-            raise ModelError(mech.path, "free_motion.point_velocity.point", "a point on a moving body",
-                             f"{spec.point!r} on the ground")
+            raise ModelError(
+                mech.path,
+                "free_motion.point_velocity.point",
+                "a point on a moving body",
+                f"{spec.point!r} on the ground",
+            )
         k = 3 * system.body_index[body]
         s = np.asarray(mech.body(body).points[spec.point], dtype=float)
         c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
@@ -586,13 +665,18 @@ def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeStat
         qd = free @ amounts
         miss = float(np.hypot(*(rows @ qd - spec.point_velocity)))
         if miss > 1e-9 * max(float(np.hypot(*spec.point_velocity)), 1e-300):
-            raise ModelError(mech.path, "free_motion.point_velocity", "a velocity the joints allow at the "
-                             "release position", f"one they violate by {miss:.3g} m/s")
+            raise ModelError(
+                mech.path,
+                "free_motion.point_velocity",
+                "a velocity the joints allow at the release position",
+                f"one they violate by {miss:.3g} m/s",
+            )
     return consistent_state(kinematics, q, qd)
 
 
-def simulate(kinematics: Kinematics, branch: str | None = None, duration: float | None = None,
-             progress=None) -> FreeReference:
+def simulate(
+    kinematics: Kinematics, branch: str | None = None, duration: float | None = None, progress=None
+) -> FreeReference:
     """The native reference of the mechanism's ``[free_motion]`` (optionally
     over another ``duration``, s): :func:`free_reference` from :func:`release_state`."""
     spec = kinematics.mechanism.free_motion

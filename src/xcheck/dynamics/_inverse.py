@@ -95,10 +95,17 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
             force += load.force
             moment += _cross(at - position, np.broadcast_to(load.force, at.shape)) + load.torque
         out[body.name] = {
-            "mass": float(body.mass), "inertia": float(body.inertia), "com": position, "arm": arm,
+            "mass": float(body.mass),
+            "inertia": float(body.inertia),
+            "com": position,
+            "arm": arm,
             "velocity": state["velocity"] + omega[:, None] * normal,
             "acceleration": state["acceleration"] + alpha[:, None] * normal - (omega**2)[:, None] * arm,
-            "angle": phi, "omega": omega, "alpha": alpha, "force": force, "moment": moment,
+            "angle": phi,
+            "omega": omega,
+            "alpha": alpha,
+            "force": force,
+            "moment": moment,
         }
     return out
 
@@ -117,7 +124,7 @@ def _solve(matrices: np.ndarray, rhs: np.ndarray, good: np.ndarray) -> tuple[np.
         sol = np.linalg.solve(a, b[..., None])[..., 0]
         x[good] = sol
         r = np.einsum("nij,nj->ni", a, sol) - b
-        scale = (np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(sol, axis=1) + np.linalg.norm(b, axis=1))
+        scale = np.linalg.norm(a, axis=(1, 2)) * np.linalg.norm(sol, axis=1) + np.linalg.norm(b, axis=1)
         residual[good] = np.linalg.norm(r, axis=1) / np.where(scale > 0.0, scale, 1.0)
     return x, residual
 
@@ -167,9 +174,13 @@ def inverse_dynamics(solution: Solution) -> Forces:
         m = b["mass"]
         linear = m * b["acceleration"] - b["force"]
         # moment about the frame origin: I_G alpha + arm x m a_G - (moments of the loads about the origin)
-        rotational = (b["inertia"] * b["alpha"] + _cross(b["arm"], m * b["acceleration"])
-                      - b["moment"] - _cross(b["arm"], b["force"]))
-        rhs[:, 3 * i:3 * i + 2] = linear
+        rotational = (
+            b["inertia"] * b["alpha"]
+            + _cross(b["arm"], m * b["acceleration"])
+            - b["moment"]
+            - _cross(b["arm"], b["force"])
+        )
+        rhs[:, 3 * i : 3 * i + 2] = linear
         rhs[:, 3 * i + 2] = rotational
     q = np.where(good[:, None], solution.q, 0.0)
     jacobian = system.jacobian(q)  # (N, rows, n), rows = n after assembly
@@ -181,7 +192,7 @@ def inverse_dynamics(solution: Solution) -> Forces:
         out = joints[joint.name]
         if isinstance(joint, Revolute):
             # Phi = r_a + A_a s_a - r_b - A_b s_b: the constraint force on b is -lambda
-            out["reaction"] = -multipliers[:, row:row + 2]
+            out["reaction"] = -multipliers[:, row : row + 2]
             row += 2
             continue
         _, normal = _line_frame(solution, joint)
@@ -193,10 +204,17 @@ def inverse_dynamics(solution: Solution) -> Forces:
             row += 1
     for k, driver in enumerate(mech.drivers):
         drivers[driver.name]["effort"] = multipliers[:, system.n_kinematic + k]
-    return Forces("native", solution.inputs, solution.input_rates, solution.input_accelerations, joints, drivers,
-                  diagnostics={"residual": residual},
-                  notes="Multipliers of M q'' - Phi_q^T lambda = Q in body-frame coordinates (x, y, phi), "
-                        "with the exact kinematic solution and the analytic constraint Jacobian.")
+    return Forces(
+        "native",
+        solution.inputs,
+        solution.input_rates,
+        solution.input_accelerations,
+        joints,
+        drivers,
+        diagnostics={"residual": residual},
+        notes="Multipliers of M q'' - Phi_q^T lambda = Q in body-frame coordinates (x, y, phi), "
+        "with the exact kinematic solution and the analytic constraint Jacobian.",
+    )
 
 
 def newton_euler(solution: Solution) -> Forces:
@@ -232,7 +250,7 @@ def newton_euler(solution: Solution) -> Forces:
         if direction is None:
             d[:, i + 2, col] += sign
             return
-        d[:, i:i + 2, col] += sign * direction
+        d[:, i : i + 2, col] += sign * direction
         d[:, i + 2, col] += sign * _cross(at - bodies[body]["com"], direction)
 
     def point(body: str, label: str) -> np.ndarray:
@@ -277,7 +295,7 @@ def newton_euler(solution: Solution) -> Forces:
     rhs = np.zeros((n_samples, n))
     for name, b in bodies.items():
         i = 3 * index[name]
-        rhs[:, i:i + 2] = b["mass"] * b["acceleration"] - b["force"]
+        rhs[:, i : i + 2] = b["mass"] * b["acceleration"] - b["force"]
         rhs[:, i + 2] = b["inertia"] * b["alpha"] - b["moment"]
     d = np.where(good[:, None, None], d, np.eye(n))
     unknowns, residual = _solve(d, np.where(good[:, None], rhs, 0.0), good)
@@ -285,7 +303,7 @@ def newton_euler(solution: Solution) -> Forces:
     joints, drivers = _empty(mech, n_samples)
     for owner, quantity, col in layout:
         if quantity == "reaction":
-            joints[owner.name]["reaction"] = unknowns[:, col:col + 2]
+            joints[owner.name]["reaction"] = unknowns[:, col : col + 2]
         elif quantity == "normal":
             joints[owner.name]["normal"] = unknowns[:, col]
             joints[owner.name]["reaction"] = unknowns[:, col, None] * _line_frame(solution, owner)[1]
@@ -293,7 +311,14 @@ def newton_euler(solution: Solution) -> Forces:
             joints[owner.name]["moment"] = unknowns[:, col]
         else:
             drivers[owner.name]["effort"] = unknowns[:, col]
-    return Forces("native-newton-euler", solution.inputs, solution.input_rates, solution.input_accelerations,
-                  joints, drivers, diagnostics={"residual": residual},
-                  notes="Per-body Newton-Euler equations at the centres of mass (M a = D R + Q, seed 003), "
-                        "D assembled from the points where the reactions and efforts act.")
+    return Forces(
+        "native-newton-euler",
+        solution.inputs,
+        solution.input_rates,
+        solution.input_accelerations,
+        joints,
+        drivers,
+        diagnostics={"residual": residual},
+        notes="Per-body Newton-Euler equations at the centres of mass (M a = D R + Q, seed 003), "
+        "D assembled from the points where the reactions and efforts act.",
+    )

@@ -32,5 +32,20 @@ from ._registry import (
     unregister,
 )
 
-__all__ = ["KINDS", "Engine", "Mode", "NotApplicable", "ENTRY_POINT_GROUP", "engine", "engine_of", "engines",
-           "exporters", "groups", "load_problems", "mode", "modes", "register", "unregister"]
+__all__ = [
+    "KINDS",
+    "Engine",
+    "Mode",
+    "NotApplicable",
+    "ENTRY_POINT_GROUP",
+    "engine",
+    "engine_of",
+    "engines",
+    "exporters",
+    "groups",
+    "load_problems",
+    "mode",
+    "modes",
+    "register",
+    "unregister",
+]

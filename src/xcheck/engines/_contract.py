@@ -153,8 +153,9 @@ class Engine:
             return f"not installed: {', '.join(missing)}" + (f" ({self.install})" if self.install else "")
         return ""
 
-    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
-            branch: str | None = None) -> ModeResult:
+    def run(
+        self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int, branch: str | None = None
+    ) -> ModeResult:
         """Run one of the engine's modes on a mechanism.
 
         Parameters
@@ -176,8 +177,9 @@ class Engine:
         """
         kind = next((m.kind for m in self.modes if m.name == mode), None)
         if kind is None:
-            raise ValueError(f"expected a mode of {self.name} ({', '.join(m.name for m in self.modes)}), "
-                             f"found {mode!r}")
+            raise ValueError(
+                f"expected a mode of {self.name} ({', '.join(m.name for m in self.modes)}), found {mode!r}"
+            )
         function = self._function(f"run_{kind}")
         if kind == "kinematic":
             return function(kinematics, samples=samples, branch=branch)

@@ -13,15 +13,30 @@ from importlib import metadata
 
 from ._contract import KINDS, Engine, Mode
 
-__all__ = ["ENTRY_POINT_GROUP", "register", "unregister", "engines", "engine", "modes", "mode", "engine_of",
-           "groups", "exporters", "load_problems"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "register",
+    "unregister",
+    "engines",
+    "engine",
+    "modes",
+    "mode",
+    "engine_of",
+    "groups",
+    "exporters",
+    "load_problems",
+]
 
 #: the entry-point group through which an installed package adds engines:
 #: ``[project.entry-points."xcheck.engines"] myengine = "mypackage.xcheck_engine:MyEngine"``
 ENTRY_POINT_GROUP = "xcheck.engines"
 #: the engines xcheck ships, in the order tables show them ("module:class")
-_BUILT_IN = ("xcheck.formulations.engine:Formulations", "xcheck.engines.mujoco:MuJoCo",
-             "xcheck.engines.pinocchio:Pinocchio", "xcheck.engines.pymunk:Pymunk")
+_BUILT_IN = (
+    "xcheck.formulations.engine:Formulations",
+    "xcheck.engines.mujoco:MuJoCo",
+    "xcheck.engines.pinocchio:Pinocchio",
+    "xcheck.engines.pymunk:Pymunk",
+)
 
 _registered: dict[str, Engine] = {}
 _loaded = False
@@ -59,8 +74,9 @@ def _add(engine: Engine, replace: bool = False) -> None:
     taken = {m.name: e.name for e in _registered.values() if e.name != engine.name for m in e.modes}
     for m in engine.modes:
         if m.kind not in KINDS:
-            raise ValueError(f"{engine.name}: mode {m.name!r}: expected a kind among {', '.join(KINDS)}, "
-                             f"found {m.kind!r}")
+            raise ValueError(
+                f"{engine.name}: mode {m.name!r}: expected a kind among {', '.join(KINDS)}, found {m.kind!r}"
+            )
         if m.name in taken or m.name == "native":
             raise ValueError(f"{engine.name}: mode {m.name!r} is already provided by {taken.get(m.name, 'xcheck')}")
     _registered[engine.name] = engine

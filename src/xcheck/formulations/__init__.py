@@ -26,8 +26,16 @@ from ._closed_form import recognise, solve_closed_form
 from ._common import NotApplicable
 from ._vector_loops import LoopPlan, plan_loops, solve_vector_loops
 
-__all__ = ["FORMULATIONS", "LoopPlan", "NotApplicable", "applicability", "formulation", "plan_loops",
-           "recognise", "run_formulation"]
+__all__ = [
+    "FORMULATIONS",
+    "LoopPlan",
+    "NotApplicable",
+    "applicability",
+    "formulation",
+    "plan_loops",
+    "recognise",
+    "run_formulation",
+]
 
 #: name -> function(kinematics, inputs, rates, accelerations, branch=None) -> Trajectory
 FORMULATIONS = {
@@ -61,8 +69,9 @@ def applicability(kinematics: Kinematics) -> dict[str, str | None]:
     return result
 
 
-def run_formulation(name: str, kinematics: Kinematics, inputs, rates=None, accelerations=None,
-                    branch: str | None = None) -> ModeResult:
+def run_formulation(
+    name: str, kinematics: Kinematics, inputs, rates=None, accelerations=None, branch: str | None = None
+) -> ModeResult:
     """A formulation as a :class:`~xcheck.compare.ModeResult`: ``ok`` False
     with ``reason`` "not applicable: ..." when it does not apply; one
     trajectory otherwise. Other errors propagate."""

@@ -116,15 +116,21 @@ class _FourBar:
     def lengths(self):
         """r = AB, d = BC, s = DC, l = AD (m), the seed's names."""
         loc = self.local
-        return (abs(loc[self.crank, "B"] - loc[self.crank, "A"]), abs(loc[self.coupler, "C"] - loc[self.coupler, "B"]),
-                abs(loc[self.rocker, "C"] - loc[self.rocker, "D"]), abs(self.d - self.a))
+        return (
+            abs(loc[self.crank, "B"] - loc[self.crank, "A"]),
+            abs(loc[self.coupler, "C"] - loc[self.coupler, "B"]),
+            abs(loc[self.rocker, "C"] - loc[self.rocker, "D"]),
+            abs(self.d - self.a),
+        )
 
     def describe(self) -> str:
         r, d, s, l = _shown(self.mechanism, self.lengths)
         a, b, c, dd = self.labels
-        return (f"four-bar {a}{b}{c}{dd}: crank {self.crank} {a}{b} = {r}, coupler {self.coupler} {b}{c} = {d}, "
-                f"rocker {self.rocker} {dd}{c} = {s}, ground {a}{dd} = {l}; theta1 (at {dd}) from eq. (2), "
-                f"theta2 (at {c}) from eq. (3), theta3 (at {b}) from eq. (4)")
+        return (
+            f"four-bar {a}{b}{c}{dd}: crank {self.crank} {a}{b} = {r}, coupler {self.coupler} {b}{c} = {d}, "
+            f"rocker {self.rocker} {dd}{c} = {s}, ground {a}{dd} = {l}; theta1 (at {dd}) from eq. (2), "
+            f"theta2 (at {c}) from eq. (3), theta3 (at {b}) from eq. (4)"
+        )
 
     def _crank_angle(self, c, cd, cdd):
         """The seed's phi: the crank AB from the ground line AD (rad), with rates."""
@@ -182,8 +188,7 @@ class _FourBar:
             t2d = -h_p * phid / h_t
             t2dd = -(h_pp * phid**2 + h_tt * t2d**2 + h_p * phidd) / h_t
         t3d, t3dd = -phid - t1d - t2d, -phidd - t1dd - t2dd
-        return (np.stack([t1, t1d, t1dd]), np.stack([t2, t2d, t2dd]), np.stack([t3, t3d, t3dd]), ok,
-                np.abs(np.sin(t2)))
+        return (np.stack([t1, t1d, t1dd]), np.stack([t2, t2d, t2dd]), np.stack([t3, t3d, t3dd]), ok, np.abs(np.sin(t2)))
 
     def reference_thetas(self, kinematics: Kinematics, branch: str):
         """theta1, theta2 (rad) in the general solver's assembly of ``branch``."""
@@ -212,8 +217,10 @@ class _FourBar:
                 gaps[sigma] = abs(float(wrap(values - want[index])))
             best = min(gaps, key=gaps.__getitem__)
             if not gaps[best] <= _BRANCH_MATCH:
-                raise RuntimeError(f"{SOURCE}: {self.mechanism.name}: no root of theta{index + 1} reproduces "
-                                   f"the general solver's assembly (closest off by {gaps[best]:.3g} rad)")
+                raise RuntimeError(
+                    f"{SOURCE}: {self.mechanism.name}: no root of theta{index + 1} reproduces "
+                    f"the general solver's assembly (closest off by {gaps[best]:.3g} rad)"
+                )
             roots.append(best)
         return roots
 
@@ -229,20 +236,38 @@ class _FourBar:
         a = np.full(n, self.a, dtype=complex)
         d = np.full(n, self.d, dtype=complex)
         # crank: its frame turns with the input
-        crank = Frame.through_point(a, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0],
-                                    loc[self.crank, "A"])
+        crank = Frame.through_point(
+            a, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0], loc[self.crank, "A"]
+        )
         # rocker: D -> C at beta + pi - theta1
         psi_r = beta + math.pi - th1[0]
-        rocker = Frame.through_point(d, zero, zero, psi_r - cmath.phase(loc[self.rocker, "C"] - loc[self.rocker, "D"]),
-                                     -th1[1], -th1[2], loc[self.rocker, "D"])
+        rocker = Frame.through_point(
+            d,
+            zero,
+            zero,
+            psi_r - cmath.phase(loc[self.rocker, "C"] - loc[self.rocker, "D"]),
+            -th1[1],
+            -th1[2],
+            loc[self.rocker, "D"],
+        )
         # coupler: B -> C at beta + phi + pi + theta3, through B = A + r e^{i(beta + phi)}
         ab = r * np.exp(1j * (beta + phi))
         b, bd, bdd = a + ab, 1j * phid * ab, (1j * phidd - phid**2) * ab
         psi_c = beta + phi + math.pi + th3[0]
-        coupler = Frame.through_point(b, bd, bdd, psi_c - cmath.phase(loc[self.coupler, "C"] - loc[self.coupler, "B"]),
-                                      phid + th3[1], phidd + th3[2], loc[self.coupler, "B"])
-        diagnostics = {"theta1": th1[0] % (2 * math.pi), "theta2": th2[0] % (2 * math.pi),
-                       "theta3": th3[0] % (2 * math.pi)}
+        coupler = Frame.through_point(
+            b,
+            bd,
+            bdd,
+            psi_c - cmath.phase(loc[self.coupler, "C"] - loc[self.coupler, "B"]),
+            phid + th3[1],
+            phidd + th3[2],
+            loc[self.coupler, "B"],
+        )
+        diagnostics = {
+            "theta1": th1[0] % (2 * math.pi),
+            "theta2": th2[0] % (2 * math.pi),
+            "theta3": th3[0] % (2 * math.pi),
+        }
         return {self.crank: crank, self.coupler: coupler, self.rocker: rocker}, ok, singularity, diagnostics
 
 
@@ -276,9 +301,11 @@ class _SliderCrank:
     def describe(self) -> str:
         r, l, e = _shown(self.mechanism, self.lengths)
         o, a, b = self.labels
-        return (f"offset slider-crank {o}{a}{b}: crank {self.crank} {o}{a} = {r}, rod {self.rod} {a}{b} = {l}, "
-                f"{b} on a ground line at offset e = {e} from {o}; x = r cos t + sqrt(l^2 - (e - r sin t)^2) "
-                "along the line")
+        return (
+            f"offset slider-crank {o}{a}{b}: crank {self.crank} {o}{a} = {r}, rod {self.rod} {a}{b} = {l}, "
+            f"{b} on a ground line at offset e = {e} from {o}; x = r cos t + sqrt(l^2 - (e - r sin t)^2) "
+            "along the line"
+        )
 
     def _angle(self, c, cd, cdd):
         """t: the crank O->A from the line's direction (rad), with rates."""
@@ -300,8 +327,11 @@ class _SliderCrank:
         with np.errstate(divide="ignore", invalid="ignore"):
             x = r * np.cos(t) + sigma * root
             xd = -r * np.sin(t) * td - sigma * v * vd / root
-            xdd = (-r * np.cos(t) * td**2 - r * np.sin(t) * tdd
-                   - sigma * ((vd**2 + v * vdd) / root + v * v * vd**2 / root**3))
+            xdd = (
+                -r * np.cos(t) * td**2
+                - r * np.sin(t) * tdd
+                - sigma * ((vd**2 + v * vdd) / root + v * v * vd**2 / root**3)
+            )
             beta = np.arctan2(v, sigma * root)
             betad = sigma * vd / root
             betadd = sigma * (vdd / root + v * vd**2 / root**3)
@@ -319,8 +349,10 @@ class _SliderCrank:
         gaps = {s: abs(float(self.closed_form(c_ref[:, 0], zero, zero, s)[0][0, 0]) - x_ref) for s in (1.0, -1.0)}
         best = min(gaps, key=gaps.__getitem__)
         if not gaps[best] <= _BRANCH_MATCH * self.mechanism.size:
-            raise RuntimeError(f"{SOURCE}: {self.mechanism.name}: no root of the slider position reproduces "
-                               f"the general solver's assembly (closest off by {gaps[best]:.3g} m)")
+            raise RuntimeError(
+                f"{SOURCE}: {self.mechanism.name}: no root of the slider position reproduces "
+                f"the general solver's assembly (closest off by {gaps[best]:.3g} m)"
+            )
         return [best]
 
     def frames(self, c, cd, cdd, roots):
@@ -332,18 +364,27 @@ class _SliderCrank:
         loc, n = self.local, c.shape[0]
         zero = np.zeros(n, dtype=complex)
         o = np.full(n, self.o, dtype=complex)
-        crank = Frame.through_point(o, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0],
-                                    loc[self.crank, "O"])
+        crank = Frame.through_point(
+            o, zero, zero, self.sign * c[:, 0], self.sign * cd[:, 0], self.sign * cdd[:, 0], loc[self.crank, "O"]
+        )
         delta = cmath.phase(self.u)
         b = self.o + (x[0] + 1j * e) * self.u
         bd, bdd = x[1] * self.u, x[2] * self.u
-        rod = Frame.through_point(b, bd, bdd, delta + beta[0] - cmath.phase(loc[self.rod, "B"] - loc[self.rod, "A"]),
-                                  beta[1], beta[2], loc[self.rod, "B"])
+        rod = Frame.through_point(
+            b,
+            bd,
+            bdd,
+            delta + beta[0] - cmath.phase(loc[self.rod, "B"] - loc[self.rod, "A"]),
+            beta[1],
+            beta[2],
+            loc[self.rod, "B"],
+        )
         frames = {self.crank: crank, self.rod: rod}
         if self.slider is not None:
             still = np.zeros(n)
-            frames[self.slider] = Frame.through_point(b, bd, bdd, np.full(n, self.slider_angle), still, still.copy(),
-                                                      loc[self.slider, "B"])
+            frames[self.slider] = Frame.through_point(
+                b, bd, bdd, np.full(n, self.slider_angle), still, still.copy(), loc[self.slider, "B"]
+            )
         return frames, ok, singularity, {"slide_x": x[0], "rod_angle": beta[0]}
 
 
@@ -356,15 +397,21 @@ def _recognise_four_bar(mech: Mechanism, joint: Revolute, crank: str, sign: floa
     if rocker == crank or any(len(found) != 1 for found in links.values()):
         _fail(mech, "the four revolutes do not form one loop ground-crank-coupler-rocker-ground")
     (jb,), (jc,) = links[crank, coupler], links[coupler, rocker]
-    local = {(crank, "A"): _local(mech, crank, _joint_point(joint, crank)),
-             (crank, "B"): _local(mech, crank, _joint_point(jb, crank)),
-             (coupler, "B"): _local(mech, coupler, _joint_point(jb, coupler)),
-             (coupler, "C"): _local(mech, coupler, _joint_point(jc, coupler)),
-             (rocker, "C"): _local(mech, rocker, _joint_point(jc, rocker)),
-             (rocker, "D"): _local(mech, rocker, _joint_point(other, rocker))}
+    local = {
+        (crank, "A"): _local(mech, crank, _joint_point(joint, crank)),
+        (crank, "B"): _local(mech, crank, _joint_point(jb, crank)),
+        (coupler, "B"): _local(mech, coupler, _joint_point(jb, coupler)),
+        (coupler, "C"): _local(mech, coupler, _joint_point(jc, coupler)),
+        (rocker, "C"): _local(mech, rocker, _joint_point(jc, rocker)),
+        (rocker, "D"): _local(mech, rocker, _joint_point(other, rocker)),
+    }
     a, d = _local(mech, GROUND, _joint_point(joint, GROUND)), _local(mech, GROUND, _joint_point(other, GROUND))
-    labels = (_joint_point(joint, GROUND), _joint_point(jb, crank), _joint_point(jc, coupler),
-              _joint_point(other, GROUND))
+    labels = (
+        _joint_point(joint, GROUND),
+        _joint_point(jb, crank),
+        _joint_point(jc, coupler),
+        _joint_point(other, GROUND),
+    )
     four = _FourBar(mech, crank, coupler, rocker, sign, a, d, local, labels)
     if min(four.lengths) <= _DEGENERATE * mech.size:
         _fail(mech, "a link of the four-bar has zero length")
@@ -381,9 +428,11 @@ def _recognise_slider_crank(mech: Mechanism, joint: Revolute, crank: str, sign: 
     if rod == GROUND:
         _fail(mech, bad)
     rest = [j for j in mech.joints if j not in (joint, ja)]
-    local = {(crank, "O"): _local(mech, crank, _joint_point(joint, crank)),
-             (crank, "A"): _local(mech, crank, _joint_point(ja, crank)),
-             (rod, "A"): _local(mech, rod, _joint_point(ja, rod))}
+    local = {
+        (crank, "O"): _local(mech, crank, _joint_point(joint, crank)),
+        (crank, "A"): _local(mech, crank, _joint_point(ja, crank)),
+        (rod, "A"): _local(mech, rod, _joint_point(ja, rod)),
+    }
     o = _local(mech, GROUND, _joint_point(joint, GROUND))
     if len(mech.moving_bodies) == 2:
         # the rod's pin B in a slot of the ground
@@ -409,15 +458,17 @@ def _recognise_slider_crank(mech: Mechanism, joint: Revolute, crank: str, sign: 
             # slider point P on the ground line through Q: B = Q + s d + e^{i angle}(B - P)
             slider_angle = guide.angle
             turn = cmath.exp(1j * slider_angle)
-            l0 = (_local(mech, GROUND, guide.line_point)
-                  + turn * (local[slider, "B"] - _local(mech, slider, guide.point)))
+            l0 = _local(mech, GROUND, guide.line_point) + turn * (
+                local[slider, "B"] - _local(mech, slider, guide.point)
+            )
             u = d
         else:
             # the line is on the slider, the ground point P on it: B = P + e^{i a}(B - Q) - s e^{i a} d
             slider_angle = -guide.angle
             turn = cmath.exp(1j * slider_angle)
-            l0 = _local(mech, GROUND, guide.point) + turn * (local[slider, "B"]
-                                                                 - _local(mech, slider, guide.line_point))
+            l0 = _local(mech, GROUND, guide.point) + turn * (
+                local[slider, "B"] - _local(mech, slider, guide.line_point)
+            )
             u = turn * d
         label_b = _joint_point(jb, rod)
     labels = (_joint_point(joint, GROUND), _joint_point(ja, crank), label_b)
@@ -443,16 +494,21 @@ def recognise(mechanism: Mechanism) -> _FourBar | _SliderCrank:
         if sum(GROUND in (j.body_a, j.body_b) for j in mech.joints) != 2:
             _fail(mech, "four revolutes, but not two of them at ground pivots")
         return _recognise_four_bar(mech, joint, crank, sign)
-    if (n_bodies == 3 and kinds == ["prismatic"] + ["revolute"] * 3) or \
-            (n_bodies == 2 and kinds == ["pin-in-slot", "revolute", "revolute"]):
+    if (n_bodies == 3 and kinds == ["prismatic"] + ["revolute"] * 3) or (
+        n_bodies == 2 and kinds == ["pin-in-slot", "revolute", "revolute"]
+    ):
         return _recognise_slider_crank(mech, joint, crank, sign)
     joint_text = ", ".join(f"{kinds.count(k)} {k}" for k in sorted(set(kinds)))
-    _fail(mech, f"{n_bodies} moving bodies with {joint_text} joints: formulation I has closed forms "
-                "for a four-bar and an offset slider-crank only")
+    _fail(
+        mech,
+        f"{n_bodies} moving bodies with {joint_text} joints: formulation I has closed forms "
+        "for a four-bar and an offset slider-crank only",
+    )
 
 
-def solve_closed_form(kinematics: Kinematics, inputs, rates=None, accelerations=None,
-                      branch: str | None = None) -> Trajectory:
+def solve_closed_form(
+    kinematics: Kinematics, inputs, rates=None, accelerations=None, branch: str | None = None
+) -> Trajectory:
     """Formulation I over a sweep of inputs.
 
     Parameters
@@ -490,7 +546,21 @@ def solve_closed_form(kinematics: Kinematics, inputs, rates=None, accelerations=
     status = status_from_singularity(ok, np.where(ok, singularity, 0.0))
     for key, value in diagnostics.items():
         diagnostics[key] = np.where(ok, value, np.nan)
-    notes = (f"{SOURCE} (generalized coordinate, direct substitution): {found.describe()}; roots "
-             + ", ".join("+" if s > 0 else "-" for s in roots) + f" match branch {name!r}")
-    return build_trajectory(kinematics, SOURCE, c, cd, cdd, frames, status, singularity, diagnostics, notes,
-                            {"formulation": "I", "mechanism": found.kind, "branch": name, "roots": roots})
+    notes = (
+        f"{SOURCE} (generalized coordinate, direct substitution): {found.describe()}; roots "
+        + ", ".join("+" if s > 0 else "-" for s in roots)
+        + f" match branch {name!r}"
+    )
+    return build_trajectory(
+        kinematics,
+        SOURCE,
+        c,
+        cd,
+        cdd,
+        frames,
+        status,
+        singularity,
+        diagnostics,
+        notes,
+        {"formulation": "I", "mechanism": found.kind, "branch": name, "roots": roots},
+    )

@@ -13,8 +13,15 @@ import numpy as np
 from ..compare import Trajectory
 from ..kinematics import NEAR_SINGULAR, SINGULAR, Kinematics, Status
 
-__all__ = ["NotApplicable", "Frame", "as_inputs", "body_frames_from_q", "build_trajectory",
-           "status_from_singularity", "wrap"]
+__all__ = [
+    "NotApplicable",
+    "Frame",
+    "as_inputs",
+    "body_frames_from_q",
+    "build_trajectory",
+    "status_from_singularity",
+    "wrap",
+]
 
 
 class NotApplicable(Exception):
@@ -61,8 +68,7 @@ class Frame:
     def point(self, local: complex):
         """Position, velocity, acceleration (complex, (N,)) of a point of the body."""
         arm = np.exp(1j * self.phi) * local
-        return (self.r + arm, self.rd + 1j * self.phid * arm,
-                self.rdd + (1j * self.phidd - self.phid**2) * arm)
+        return (self.r + arm, self.rd + 1j * self.phid * arm, self.rdd + (1j * self.phidd - self.phid**2) * arm)
 
 
 def wrap(angle):
@@ -78,6 +84,7 @@ def as_inputs(kinematics: Kinematics, inputs, rates=None, accelerations=None):
     ValueError
         If a shape is not (N, k) (or (N,) when k = 1), or a value is not finite.
     """
+
     def shaped(values, name, shape=None):
         arr = kinematics.input_array(values, shape)
         if not np.all(np.isfinite(arr)):
@@ -114,9 +121,19 @@ def status_from_singularity(assembled: np.ndarray, singularity: np.ndarray) -> n
     return status
 
 
-def build_trajectory(kinematics: Kinematics, source: str, c, cd, cdd, frames: dict[str, Frame],
-                     status: np.ndarray, singularity: np.ndarray, diagnostics: dict, notes: str,
-                     settings: dict) -> Trajectory:
+def build_trajectory(
+    kinematics: Kinematics,
+    source: str,
+    c,
+    cd,
+    cdd,
+    frames: dict[str, Frame],
+    status: np.ndarray,
+    singularity: np.ndarray,
+    diagnostics: dict,
+    notes: str,
+    settings: dict,
+) -> Trajectory:
     """A :class:`Trajectory` of every moving body and named point.
 
     Rows that did not assemble hold NaN everywhere; rows at a singular
@@ -131,16 +148,28 @@ def build_trajectory(kinematics: Kinematics, source: str, c, cd, cdd, frames: di
     lost = status == Status.NOT_CONVERGED
     undetermined = lost | (status == Status.SINGULAR)
     for frame in (frames[b.name] for b in mech.moving_bodies):
-        for name, rows in (("r", lost), ("phi", lost), ("rd", undetermined), ("rdd", undetermined),
-                           ("phid", undetermined), ("phidd", undetermined)):
+        for name, rows in (
+            ("r", lost),
+            ("phi", lost),
+            ("rd", undetermined),
+            ("rdd", undetermined),
+            ("phid", undetermined),
+            ("phidd", undetermined),
+        ):
             values = getattr(frame, name)
             values[rows] = complex(np.nan, np.nan) if np.iscomplexobj(values) else np.nan
     bodies = {}
     q = np.empty((n, 3 * len(mech.moving_bodies)))
     for i, body in enumerate(mech.moving_bodies):
         f = frames[body.name]
-        bodies[body.name] = {"position": _xy(f.r), "angle": f.phi, "velocity": _xy(f.rd), "omega": f.phid,
-                             "acceleration": _xy(f.rdd), "alpha": f.phidd}
+        bodies[body.name] = {
+            "position": _xy(f.r),
+            "angle": f.phi,
+            "velocity": _xy(f.rd),
+            "omega": f.phid,
+            "acceleration": _xy(f.rdd),
+            "alpha": f.phidd,
+        }
         q[:, 3 * i], q[:, 3 * i + 1], q[:, 3 * i + 2] = f.r.real, f.r.imag, f.phi
     points = {}
     for label, owner in mech.point_owners.items():
@@ -153,5 +182,14 @@ def build_trajectory(kinematics: Kinematics, source: str, c, cd, cdd, frames: di
         system = kinematics.system
         residual[ok] = system.residual_metres(system.residual(q[ok], c[ok]))
     diagnostics = {"status": status, "singularity": singularity, "residual": residual, **diagnostics}
-    return Trajectory(source=source, inputs=c, input_rates=cd, input_accelerations=cdd, bodies=bodies,
-                      points=points, settings=settings, diagnostics=diagnostics, notes=notes)
+    return Trajectory(
+        source=source,
+        inputs=c,
+        input_rates=cd,
+        input_accelerations=cdd,
+        bodies=bodies,
+        points=points,
+        settings=settings,
+        diagnostics=diagnostics,
+        notes=notes,
+    )

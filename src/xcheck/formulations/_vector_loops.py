@@ -125,8 +125,7 @@ class LoopPlan:
         if kind == "slide":
             return f"s({name})"
         members = [b for b, r in self.root.items() if r == name]
-        return f"phi({name})" + (f" (with {', '.join(m for m in members if m != name)})" if len(members) > 1
-                                 else "")
+        return f"phi({name})" + (f" (with {', '.join(m for m in members if m != name)})" if len(members) > 1 else "")
 
     def describe(self) -> list[str]:
         """The loops in solving order, one line each."""
@@ -172,8 +171,7 @@ def _angle_ties(mech: Mechanism):
                 if b not in root:
                     root[b], offset[b] = start, want
                     queue.append(b)
-                elif (abs(wrap(offset[b][0] - want[0])) > 1e-12
-                      or not np.array_equal(offset[b][1], want[1])):
+                elif abs(wrap(offset[b][0] - want[0])) > 1e-12 or not np.array_equal(offset[b][1], want[1]):
                     _fail(mech, f"the angle ties close on themselves inconsistently at {why}")
     return root, offset
 
@@ -231,8 +229,9 @@ def _loop_terms(mech: Mechanism, cycle) -> tuple[_Term, ...]:
             d = complex(joint.direction[0], joint.direction[1])
             sign = 1.0 if u == joint.body_a else -1.0
             q_label, p_label = joint.line_point, joint.point
-            text = f"{q_label}→{p_label} [slide {joint.name}]" if sign > 0 else \
-                f"{p_label}→{q_label} [slide {joint.name}]"
+            text = (
+                f"{q_label}→{p_label} [slide {joint.name}]" if sign > 0 else f"{p_label}→{q_label} [slide {joint.name}]"
+            )
             terms.append(_Term(joint.body_a, sign * d, joint.name, text))
         next_joint = joints[cycle[(index + 1) % len(cycle)][0]]
         label_in, p_in = _joint_point(mech, joint, v)
@@ -310,15 +309,23 @@ def plan_loops(mechanism: Mechanism) -> LoopPlan:
                 break
             counts.append(len(found))
         else:
-            left = ", ".join(sorted(plan.unknown_name(("angle", c)) for c in unknown_classes)
-                             + sorted(f"s({s})" for s in unknown_slides))
+            left = ", ".join(
+                sorted(plan.unknown_name(("angle", c)) for c in unknown_classes)
+                + sorted(f"s({s})" for s in unknown_slides)
+            )
             solved = f"after {len(plan.loops)} loop(s) with two unknowns each, " if plan.loops else ""
             most = [n for n in counts if n > 0]
             if most and min(most) > 2:
-                _fail(mech, f"not dyadic: {solved}every remaining loop has {min(most)} or more unknowns "
-                            f"(of {left}): the loops must be solved simultaneously")
-            _fail(mech, f"{solved}{left} cannot be found two at a time from any loop "
-                        f"(loops with {sorted(set(counts))} unknowns)")
+                _fail(
+                    mech,
+                    f"not dyadic: {solved}every remaining loop has {min(most)} or more unknowns "
+                    f"(of {left}): the loops must be solved simultaneously",
+                )
+            _fail(
+                mech,
+                f"{solved}{left} cannot be found two at a time from any loop "
+                f"(loops with {sorted(set(counts))} unknowns)",
+            )
     return plan
 
 
@@ -534,23 +541,28 @@ def _choose_branches(kinematics: Kinematics, plan: LoopPlan, branch: str | None)
     signs = []
     for loop in plan.loops:
         gaps = {}
-        for sigma in ((1.0,) if loop.case == "two lengths" else (1.0, -1.0)):
+        for sigma in (1.0,) if loop.case == "two lengths" else (1.0, -1.0):
             values, ok = _solve_position(loop, state, sigma)
-            gap = max(abs(float(wrap(v[0] - reference[u]))) if u[0] == "angle" else abs(v[0] - reference[u]) / size
-                      for u, v in zip(loop.unknowns, values))
+            gap = max(
+                abs(float(wrap(v[0] - reference[u]))) if u[0] == "angle" else abs(v[0] - reference[u]) / size
+                for u, v in zip(loop.unknowns, values)
+            )
             gaps[sigma] = (gap if ok[0] else math.inf, values)
         sigma = min(gaps, key=lambda s: gaps[s][0])
         if gaps[sigma][0] > _BRANCH_MATCH:
-            raise RuntimeError(f"{SOURCE}: {kinematics.mechanism.name}: no root of {loop.describe(plan)} "
-                               f"reproduces the general solver's assembly (closest off by {gaps[sigma][0]:.3g})")
+            raise RuntimeError(
+                f"{SOURCE}: {kinematics.mechanism.name}: no root of {loop.describe(plan)} "
+                f"reproduces the general solver's assembly (closest off by {gaps[sigma][0]:.3g})"
+            )
         for u, v in zip(loop.unknowns, gaps[sigma][1]):
             state.set(u, 0, v)
         signs.append(sigma)
     return signs
 
 
-def solve_vector_loops(kinematics: Kinematics, inputs, rates=None, accelerations=None,
-                       branch: str | None = None) -> Trajectory:
+def solve_vector_loops(
+    kinematics: Kinematics, inputs, rates=None, accelerations=None, branch: str | None = None
+) -> Trajectory:
     """Formulation II over a sweep of inputs.
 
     Parameters
@@ -600,8 +612,10 @@ def solve_vector_loops(kinematics: Kinematics, inputs, rates=None, accelerations
     frames = {mech.ground.name: Frame.fixed(n)}
     for joint, parent, child in plan.tree:
         # child origin = parent origin + (joint point on parent) + slide - (joint point on child)
-        terms = [_Term(parent, _joint_point(mech, joint, parent)[1], None, ""),
-                 _Term(child, -_joint_point(mech, joint, child)[1], None, "")]
+        terms = [
+            _Term(parent, _joint_point(mech, joint, parent)[1], None, ""),
+            _Term(child, -_joint_point(mech, joint, child)[1], None, ""),
+        ]
         if not isinstance(joint, Revolute):
             sign = 1.0 if parent == joint.body_a else -1.0
             terms.append(_Term(joint.body_a, sign * complex(*joint.direction), joint.name, ""))
@@ -614,10 +628,23 @@ def solve_vector_loops(kinematics: Kinematics, inputs, rates=None, accelerations
         frames[child] = Frame(r, rd, rdd, phi.copy(), phid.copy(), phidd.copy())
     status = status_from_singularity(assembled, singularity)
     described = plan.describe()
-    notes = (f"{SOURCE} (relative coordinates, complex-number method): "
-             + ("; ".join(described) if described else "no closed loop: every angle and slide is an input")
-             + "; branch roots " + ", ".join("+" if s > 0 else "-" for s in signs) + f" match branch {name!r}")
-    return build_trajectory(kinematics, SOURCE, c, cd, cdd, frames, status, singularity,
-                            {"loop_closure": np.where(assembled, closure, np.nan)}, notes,
-                            {"formulation": "II", "branch": name, "loops": described,
-                             "roots": signs})
+    notes = (
+        f"{SOURCE} (relative coordinates, complex-number method): "
+        + ("; ".join(described) if described else "no closed loop: every angle and slide is an input")
+        + "; branch roots "
+        + ", ".join("+" if s > 0 else "-" for s in signs)
+        + f" match branch {name!r}"
+    )
+    return build_trajectory(
+        kinematics,
+        SOURCE,
+        c,
+        cd,
+        cdd,
+        frames,
+        status,
+        singularity,
+        {"loop_closure": np.where(assembled, closure, np.nan)},
+        notes,
+        {"formulation": "II", "branch": name, "loops": described, "roots": signs},
+    )

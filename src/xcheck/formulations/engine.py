@@ -24,18 +24,22 @@ class Formulations(Engine):
         Mode("formulation-I", "kinematic", EXACT, style=dict(color="tab:gray", lw=0, marker="o", ms=3, mfc="none")),
         Mode("formulation-II", "kinematic", EXACT, style=dict(color="tab:brown", lw=0, marker="x", ms=3)),
     )
-    notes = ("Formulation I: a four-bar or an offset slider-crank driven at its crank; formulation II: every "
-             "mechanism that can be solved two unknowns at a time (dyadic).")
+    notes = (
+        "Formulation I: a four-bar or an offset slider-crank driven at its crank; formulation II: every "
+        "mechanism that can be solved two unknowns at a time (dyadic)."
+    )
 
-    def run(self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int,
-            branch: str | None = None) -> ModeResult:
+    def run(
+        self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int, branch: str | None = None
+    ) -> ModeResult:
         from xcheck.compare import ModeResult
         from xcheck.formulations import NotApplicable as Outside
         from xcheck.formulations import formulation
 
         try:
-            trajectory = formulation(mode)(kinematics, native.inputs, native.input_rates,
-                                           native.input_accelerations, branch=branch)
+            trajectory = formulation(mode)(
+                kinematics, native.inputs, native.input_rates, native.input_accelerations, branch=branch
+            )
         except Outside as err:
             raise NotApplicable(err.reason) from err
         return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])

@@ -101,7 +101,7 @@ def tangent(system: ConstraintSystem, q: np.ndarray, jac: np.ndarray | None = No
     ``jac`` is Phi_q at q when the caller has it already.
     """
     rhs = np.zeros((q.shape[0], system.n_rows, system.n_drivers))
-    rhs[:, system.n_kinematic:, :] = np.eye(system.n_drivers)
+    rhs[:, system.n_kinematic :, :] = np.eye(system.n_drivers)
     return solve_linear(system.jacobian(q) if jac is None else jac, rhs)
 
 
@@ -119,8 +119,14 @@ def det_sign(system: ConstraintSystem, jac: np.ndarray) -> np.ndarray:
     return np.sign(np.linalg.det(system.scaled_jacobian(jac)))
 
 
-def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: np.ndarray,
-                max_step: float = np.radians(2.0), min_step: float = 1e-10):
+def continue_to(
+    system: ConstraintSystem,
+    q: np.ndarray,
+    c: np.ndarray,
+    target: np.ndarray,
+    max_step: float = np.radians(2.0),
+    min_step: float = 1e-10,
+):
     """Walk the inputs from c (configuration q) to target, staying on the branch.
 
     Parameters
@@ -166,8 +172,11 @@ def continue_to(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, target: 
             correction = np.max(np.abs((q_new[0] - guess) * system.coordinate_scale()))
             new_jac = system.jacobian(q_new)
             new_sign = det_sign(system, new_jac)[0]
-            accepted = (correction <= MAX_CORRECTION and (new_sign == sign or sign == 0.0)
-                        and inverse_condition(system, new_jac)[0] >= MIN_CONDITION)
+            accepted = (
+                correction <= MAX_CORRECTION
+                and (new_sign == sign or sign == 0.0)
+                and inverse_condition(system, new_jac)[0] >= MIN_CONDITION
+            )
         if accepted:
             sign, jac = new_sign, new_jac
             q, c = q_new[0], c_next

@@ -71,8 +71,7 @@ class Status(IntEnum):
 _STATUS_MESSAGES = {
     Status.OK: "assembled; velocity and acceleration determined",
     Status.NEAR_SINGULAR: "close to a singular configuration: results lose accuracy",
-    Status.SINGULAR: "singular configuration (dead centre or limit position): "
-                     "velocity and acceleration not determined",
+    Status.SINGULAR: "singular configuration (dead centre or limit position): velocity and acceleration not determined",
     Status.NOT_CONVERGED: "the mechanism does not assemble at this input",
     Status.BRANCH_JUMP: "the solution would leave the assembly branch here",
 }
@@ -131,15 +130,20 @@ class Solution:
             zero2, zero = np.zeros((n, 2)), np.zeros(n)
             return zero2, zero, zero2, zero, zero2, zero
         k = 3 * index
-        return (self.q[:, k:k + 2], self.q[:, k + 2], self.qd[:, k:k + 2], self.qd[:, k + 2],
-                self.qdd[:, k:k + 2], self.qdd[:, k + 2])
+        return (
+            self.q[:, k : k + 2],
+            self.q[:, k + 2],
+            self.qd[:, k : k + 2],
+            self.qd[:, k + 2],
+            self.qdd[:, k : k + 2],
+            self.qdd[:, k + 2],
+        )
 
     def body(self, name: str) -> dict[str, np.ndarray]:
         """A body frame's state: position (N, 2) m, angle (N,) rad, velocity,
         omega, acceleration, alpha."""
         r, phi, rd, phid, rdd, phidd = self._frame(name)
-        return {"position": r, "angle": phi, "velocity": rd, "omega": phid,
-                "acceleration": rdd, "alpha": phidd}
+        return {"position": r, "angle": phi, "velocity": rd, "omega": phid, "acceleration": rdd, "alpha": phidd}
 
     def point(self, label: str, body: str | None = None) -> dict[str, np.ndarray]:
         """A named point's position, velocity and acceleration, each (N, 2), SI.
@@ -154,7 +158,7 @@ class Solution:
         return {
             "position": r + arm,
             "velocity": rd + phid[:, None] * normal,
-            "acceleration": rdd + phidd[:, None] * normal - (phid ** 2)[:, None] * arm,
+            "acceleration": rdd + phidd[:, None] * normal - (phid**2)[:, None] * arm,
         }
 
 
@@ -235,8 +239,9 @@ class Kinematics:
         if branch is None:
             return names[0]
         if branch not in names:
-            raise ModelError(self.mechanism.path, "assembly.branches",
-                             f"a branch named one of {', '.join(names)}", repr(branch))
+            raise ModelError(
+                self.mechanism.path, "assembly.branches", f"a branch named one of {', '.join(names)}", repr(branch)
+            )
         return branch
 
     # -- assembly and mobility ---------------------------------------------
@@ -255,8 +260,7 @@ class Kinematics:
         jac = self.system.scaled_jacobian(self.system.jacobian(q[None], kinematic_only=True))[0]
         singular_values = np.linalg.svd(jac, compute_uv=False) if jac.size else np.zeros(0)
         rank = int(np.sum(singular_values > 1e-9 * max(1.0, singular_values.max(initial=0.0))))
-        return {"grubler": self.mechanism.grubler(), "rank": self.system.n - rank,
-                "drivers": self.system.n_drivers}
+        return {"grubler": self.mechanism.grubler(), "rank": self.system.n - rank, "drivers": self.system.n_drivers}
 
     def assemble(self, branch: str | None = None) -> np.ndarray:
         """The configuration at the reference inputs on a branch, shape (n,).
@@ -280,22 +284,31 @@ class Kinematics:
         field_name = f"assembly.branches.{name}" if drawn else "assembly.branches"
         loops = len(mech.joints) - len(mech.moving_bodies)
         if loops > 0 and not drawn:
-            raise ModelError(mech.path, "assembly.branches",
-                             "a rough sketch of a few points that picks the assembly branch "
-                             f"(the mechanism has {loops} closed loop(s))", "none")
+            raise ModelError(
+                mech.path,
+                "assembly.branches",
+                "a rough sketch of a few points that picks the assembly branch "
+                f"(the mechanism has {loops} closed loop(s))",
+                "none",
+            )
         where = ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, c_ref))
 
         def no_assembly(why: str):
-            return ModelError(mech.path, field_name, f"a sketch from which the mechanism assembles at {where}",
-                              f"none that closes the loops ({why})")
+            return ModelError(
+                mech.path,
+                field_name,
+                f"a sketch from which the mechanism assembles at {where}",
+                f"none that closes the loops ({why})",
+            )
 
         sketch = {**{lbl: xy for lbl, xy in mech.ground.points.items()}, **drawn}
         try:
             with np.errstate(all="ignore"):  # absurd sizes overflow: reported below, not warned
                 guess = system.unwind_angles(self._sketch_guess(sketch), c_ref)
                 fitted = system.unwind_angles(self._fit_sketch(guess, c_ref, sketch), c_ref)
-                joint_gap = float(system.residual_metres(system.residual(fitted[None], c_ref[None],
-                                                                         kinematic_only=True))[0])
+                joint_gap = float(
+                    system.residual_metres(system.residual(fitted[None], c_ref[None], kinematic_only=True))[0]
+                )
                 dof = self.mobility(fitted)
         except np.linalg.LinAlgError as err:
             raise no_assembly(f"the linear algebra failed: {err}") from None
@@ -303,25 +316,33 @@ class Kinematics:
         joints_close = joint_gap <= 1e-2 * system.size
         if not joints_close and dof["grubler"] == dof["drivers"]:
             # the joints themselves cannot close near the sketch: the geometry or the sketch is wrong
-            raise no_assembly(f"the best fit leaves the joints {joint_gap / mech.units.length_factor:.3g} "
-                              f"{mech.units.length} apart")
+            raise no_assembly(
+                f"the best fit leaves the joints {joint_gap / mech.units.length_factor:.3g} {mech.units.length} apart"
+            )
         if dof["rank"] != dof["drivers"]:
             raise ModelError(
-                mech.path, "drivers",
+                mech.path,
+                "drivers",
                 f"{dof['rank']} driver(s), one per degree of freedom (Grübler count {dof['grubler']}, "
-                f"rank of the constraint Jacobian {dof['rank']})", f"{dof['drivers']}")
+                f"rank of the constraint Jacobian {dof['rank']})",
+                f"{dof['drivers']}",
+            )
         if system.n_rows != system.n:
             raise ModelError(
-                mech.path, "joints",
+                mech.path,
+                "joints",
                 f"independent joint constraints (Grübler count {dof['grubler']} degrees of freedom)",
                 f"{system.n_rows - system.n} redundant constraint equation(s), which xcheck cannot solve: "
-                "replace a joint by one that removes fewer degrees of freedom")
+                "replace a joint by one that removes fewer degrees of freedom",
+            )
         q, residual, _, ok = newton(system, fitted[None], c_ref[None], max_iter=50)
         if not ok[0]:
             gap = residual[0] / mech.units.length_factor
-            raise no_assembly(f"Newton-Raphson left a violation of {gap:.3g} {mech.units.length}"
-                              if np.isfinite(gap) and gap < 1e3 * system.size / mech.units.length_factor
-                              else "Newton-Raphson diverged from the sketch")
+            raise no_assembly(
+                f"Newton-Raphson left a violation of {gap:.3g} {mech.units.length}"
+                if np.isfinite(gap) and gap < 1e3 * system.size / mech.units.length_factor
+                else "Newton-Raphson diverged from the sketch"
+            )
         q = q[0]  # body angles continuous: never wrapped, the angle rows hold exactly
         self._assembled[name] = q
         return q
@@ -341,7 +362,7 @@ class Kinematics:
                 phi = math.atan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a * b))
             else:
                 phi = 0.0
-            q[3 * i:3 * i + 2] = wc - rotate(np.array([phi]), lc)[0]
+            q[3 * i : 3 * i + 2] = wc - rotate(np.array([phi]), lc)[0]
             q[3 * i + 2] = phi
         return q
 
@@ -350,8 +371,12 @@ class Kinematics:
         points, the pull relaxed in stages (1, 0.1, 0.01, 0.001) so that the
         fit closes the loops without wandering off the sketched branch."""
         system, mech = self.system, self.mechanism
-        targets = [(system.body_index[b.name], b.points[lbl], sketch[lbl])
-                   for b in mech.moving_bodies for lbl in b.points if lbl in sketch]
+        targets = [
+            (system.body_index[b.name], b.points[lbl], sketch[lbl])
+            for b in mech.moving_bodies
+            for lbl in b.points
+            if lbl in sketch
+        ]
         if system.n_rows + 2 * len(targets) < system.n:
             return q0  # too few equations for least squares; Newton decides
         size = system.size
@@ -359,8 +384,10 @@ class Kinematics:
 
         def residuals(q, weight):
             phi = system.residual(q[None], c_ref[None])[0] * row_scale
-            pulls = [weight * (q[3 * i:3 * i + 2] + rotate(q[3 * i + 2:3 * i + 3], s)[0] - xy) / size
-                     for i, s, xy in targets]
+            pulls = [
+                weight * (q[3 * i : 3 * i + 2] + rotate(q[3 * i + 2 : 3 * i + 3], s)[0] - xy) / size
+                for i, s, xy in targets
+            ]
             return np.concatenate([phi] + pulls) if pulls else phi
 
         def jacobian(q, weight):
@@ -368,15 +395,24 @@ class Kinematics:
             rows = []
             for i, s, _ in targets:
                 row = np.zeros((2, system.n))
-                row[:, 3 * i:3 * i + 2] = np.eye(2)
-                row[:, 3 * i + 2] = _perp(rotate(q[3 * i + 2:3 * i + 3], s))[0]
+                row[:, 3 * i : 3 * i + 2] = np.eye(2)
+                row[:, 3 * i + 2] = _perp(rotate(q[3 * i + 2 : 3 * i + 3], s))[0]
                 rows.append(weight * row / size)
             return np.vstack([jac] + rows) if rows else jac
 
         q = q0
         for weight in (1.0, 1e-1, 1e-2, 1e-3):
-            q = least_squares(residuals, q, jac=jacobian, args=(weight,), method="lm", xtol=1e-15,
-                              ftol=1e-15, gtol=1e-15, max_nfev=2000).x
+            q = least_squares(
+                residuals,
+                q,
+                jac=jacobian,
+                args=(weight,),
+                method="lm",
+                xtol=1e-15,
+                ftol=1e-15,
+                gtol=1e-15,
+                max_nfev=2000,
+            ).x
         return q
 
     # -- feasible range ---------------------------------------------------
@@ -463,11 +499,17 @@ class Kinematics:
         reduced = x[idx] - 2.0 * math.pi * turns[idx]
         scale = self.system.input_scale()[0]
         anchor = np.clip(np.searchsorted(c_atlas, reduced, side="right") - 1, 0, len(c_atlas) - 1)
-        guess = _predict(self.system, c_atlas * scale, q_atlas, c_atlas[:, None], anchor, reduced * scale,
-                         reduced[:, None])
+        guess = _predict(
+            self.system, c_atlas * scale, q_atlas, c_atlas[:, None], anchor, reduced * scale, reduced[:, None]
+        )
         shift = 0.0 if period is None else turns[idx, None] * period
-        return (idx, guess + shift, q_atlas[anchor] + shift,
-                (c_atlas[anchor] + 2.0 * math.pi * turns[idx])[:, None], anchor)
+        return (
+            idx,
+            guess + shift,
+            q_atlas[anchor] + shift,
+            (c_atlas[anchor] + 2.0 * math.pi * turns[idx])[:, None],
+            anchor,
+        )
 
     def _shift_by_turns(self, branch: str, q: np.ndarray, c: np.ndarray, target: np.ndarray):
         """(q, c) moved by whole turns of periodic inputs to within half a turn of target."""
@@ -483,8 +525,14 @@ class Kinematics:
         return q, c
 
     # -- sweeps -----------------------------------------------------------
-    def solve(self, inputs, rates=None, accelerations=None, branch: str | None = None,
-              waypoint_spacing: float = math.radians(2.0)) -> Solution:
+    def solve(
+        self,
+        inputs,
+        rates=None,
+        accelerations=None,
+        branch: str | None = None,
+        waypoint_spacing: float = math.radians(2.0),
+    ) -> Solution:
         """Positions, velocities and accelerations over a sweep of inputs.
 
         Parameters
@@ -586,8 +634,7 @@ class Kinematics:
             signs = det_sign(system, system.jacobian(atlas[1]))
             return idx, guess, base_q, base_c, signs[anchor]
         n_samples = c.shape[0]
-        path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(),
-                                                        axis=1))])
+        path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(), axis=1))])
         bins = np.floor(path / waypoint_spacing)
         waypoints = np.flatnonzero(np.concatenate([[True], bins[1:] != bins[:-1]]))
         if waypoints[-1] != n_samples - 1:

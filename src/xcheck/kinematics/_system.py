@@ -93,8 +93,12 @@ class _Coincidence:
     is_angle: bool = False
 
     def residual(self, poses, c):
-        return (poses.frame(self.a)[0] + poses.rotate(self.a, self.s_a)
-                - poses.frame(self.b)[0] - poses.rotate(self.b, self.s_b))
+        return (
+            poses.frame(self.a)[0]
+            + poses.rotate(self.a, self.s_a)
+            - poses.frame(self.b)[0]
+            - poses.rotate(self.b, self.s_b)
+        )
 
     def jacobian(self, poses, out):
         for index, s, sign in ((self.a, self.s_a, 1.0), (self.b, self.s_b, -1.0)):
@@ -106,8 +110,10 @@ class _Coincidence:
             out[:, :, k + 2] = sign * _perp(poses.rotate(index, s))
 
     def gamma(self, poses, cdd):
-        return (poses.rotate(self.a, self.s_a) * (poses.rates(self.a)[1] ** 2)[:, None]
-                - poses.rotate(self.b, self.s_b) * (poses.rates(self.b)[1] ** 2)[:, None])
+        return (
+            poses.rotate(self.a, self.s_a) * (poses.rates(self.a)[1] ** 2)[:, None]
+            - poses.rotate(self.b, self.s_b) * (poses.rates(self.b)[1] ** 2)[:, None]
+        )
 
 
 @dataclass(frozen=True)
@@ -145,11 +151,11 @@ class _Projection:
         w, as_q, as_p, d = self._parts(poses)
         if self.b >= 0:
             k = 3 * self.b
-            out[:, 0, k:k + 2] = w
+            out[:, 0, k : k + 2] = w
             out[:, 0, k + 2] = _dot(w, _perp(as_p))
         if self.a >= 0:
             k = 3 * self.a
-            out[:, 0, k:k + 2] = -w
+            out[:, 0, k : k + 2] = -w
             out[:, 0, k + 2] = _dot(_perp(w), d) - _dot(w, _perp(as_q))
 
     def gamma(self, poses, cdd):
@@ -157,8 +163,12 @@ class _Projection:
         rd_a, phid_a = poses.rates(self.a)
         rd_b, phid_b = poses.rates(self.b)
         dd = rd_b + phid_b[:, None] * _perp(as_p) - rd_a - phid_a[:, None] * _perp(as_q)
-        quadratic = (-phid_a ** 2 * _dot(w, d) + 2.0 * phid_a * _dot(_perp(w), dd)
-                     - phid_b ** 2 * _dot(w, as_p) + phid_a ** 2 * _dot(w, as_q))
+        quadratic = (
+            -(phid_a**2) * _dot(w, d)
+            + 2.0 * phid_a * _dot(_perp(w), dd)
+            - phid_b**2 * _dot(w, as_p)
+            + phid_a**2 * _dot(w, as_q)
+        )
         value = -quadratic
         if self.driver is not None:
             value = value + cdd[:, self.driver]
@@ -273,7 +283,7 @@ class ConstraintSystem:
         for t, start in zip(self.terms, self._offsets):
             if start >= rows:
                 break
-            t.jacobian(poses, out[:, start:start + t.rows])
+            t.jacobian(poses, out[:, start : start + t.rows])
         return out
 
     def gamma(self, q: np.ndarray, qd: np.ndarray, cdd: np.ndarray) -> np.ndarray:
@@ -284,13 +294,13 @@ class ConstraintSystem:
     def velocity_rhs(self, cd: np.ndarray) -> np.ndarray:
         """-Phi_t: zero for joints, the input rates for driver rows; shape (N, rows)."""
         rhs = np.zeros((cd.shape[0], self.n_rows))
-        rhs[:, self.n_kinematic:] = cd
+        rhs[:, self.n_kinematic :] = cd
         return rhs
 
     def input_values(self, q: np.ndarray) -> np.ndarray:
         """The drivers' current inputs (joint angles, slides) at q, shape (N, k)."""
         zero = np.zeros((q.shape[0], self.n_drivers))
-        return -self.residual(q, zero)[:, self.n_kinematic:]
+        return -self.residual(q, zero)[:, self.n_kinematic :]
 
     def unwind_angles(self, q: np.ndarray, c: np.ndarray) -> np.ndarray:
         """q with body angles moved by whole turns so that every angle row holds.
@@ -352,5 +362,4 @@ class ConstraintSystem:
 
     def input_scale(self) -> np.ndarray:
         """Per-driver scale making inputs dimensionless (1 for angles, 1/size for slides); (k,)."""
-        return np.array([1.0 if d.quantity == "angle" else 1.0 / self.size
-                         for d in self.mechanism.drivers])
+        return np.array([1.0 if d.quantity == "angle" else 1.0 / self.size for d in self.mechanism.drivers])

@@ -80,11 +80,12 @@ def read_springs(reader: _Reader, value: Any, bodies: list[Body], units: Units) 
         spec = reader.table(spec, where, ("name", "points", "stiffness", "rest_length", "damping"))
         ends = spec.get("points")
         if not (isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends)):
-            reader.fail(f"{where}.points", "two point labels [\"A\", \"B\"]", _describe(ends))
+            reader.fail(f"{where}.points", 'two point labels ["A", "B"]', _describe(ends))
         for end in ends:
             if end not in labels:
-                reader.fail(f"{where}.points", f"point labels of the mechanism ({', '.join(sorted(labels))})",
-                            repr(end))
+                reader.fail(
+                    f"{where}.points", f"point labels of the mechanism ({', '.join(sorted(labels))})", repr(end)
+                )
         if ends[0] == ends[1]:
             reader.fail(f"{where}.points", "two different points", repr(ends))
         stiffness = reader.number(spec.get("stiffness"), f"{where}.stiffness")
@@ -103,29 +104,40 @@ def read_springs(reader: _Reader, value: Any, bodies: list[Body], units: Units) 
     return springs
 
 
-def read_free_motion(reader: _Reader, value: Any, drivers: list[Driver], bodies: list[Body], units: Units,
-                     assembly_at: dict[str, float]) -> FreeMotionSpec:
+def read_free_motion(
+    reader: _Reader, value: Any, drivers: list[Driver], bodies: list[Body], units: Units, assembly_at: dict[str, float]
+) -> FreeMotionSpec:
     """``[free_motion]``: duration (s), output_step (s, default duration / 1000),
     at (drivers' values, display units; default [assembly].at), velocity (drivers'
     rates, display rate units) or point_velocity = { point, value = [vx, vy] }
     (velocity unit), tolerance (default 1e-9)."""
     from ._load import _Reader
 
-    spec = reader.table(value, "free_motion", ("duration", "output_step", "at", "velocity", "point_velocity",
-                                               "tolerance"))
+    spec = reader.table(
+        value, "free_motion", ("duration", "output_step", "at", "velocity", "point_velocity", "tolerance")
+    )
     duration = reader.number(spec.get("duration"), "free_motion.duration")
     if duration <= 0.0:
         reader.fail("free_motion.duration", "a duration above 0 s", repr(spec.get("duration")))
     output_step = reader.number(spec.get("output_step", duration / 1000.0), "free_motion.output_step")
     if not 0.0 < output_step <= duration:
-        reader.fail("free_motion.output_step", f"a step above 0 s and at most the duration ({duration:g} s)",
-                    repr(spec.get("output_step")))
+        reader.fail(
+            "free_motion.output_step",
+            f"a step above 0 s and at most the duration ({duration:g} s)",
+            repr(spec.get("output_step")),
+        )
     if abs(duration / output_step - round(duration / output_step)) > 1e-9 * duration / output_step:
-        reader.fail("free_motion.output_step", f"a whole fraction of the duration ({duration:g} s)",
-                    repr(spec.get("output_step")))
+        reader.fail(
+            "free_motion.output_step",
+            f"a whole fraction of the duration ({duration:g} s)",
+            repr(spec.get("output_step")),
+        )
     if round(duration / output_step) > MAX_OUTPUTS:
-        reader.fail("free_motion.output_step", f"at most {MAX_OUTPUTS} outputs over the duration",
-                    f"{duration / output_step:.6g}")
+        reader.fail(
+            "free_motion.output_step",
+            f"at most {MAX_OUTPUTS} outputs over the duration",
+            f"{duration / output_step:.6g}",
+        )
     by_name = {d.name: d for d in drivers}
     at = dict(assembly_at)
     for key, given in reader.table(spec.get("at", {}), "free_motion.at").items():
@@ -136,13 +148,13 @@ def read_free_motion(reader: _Reader, value: Any, drivers: list[Driver], bodies:
     for key, given in reader.table(spec.get("velocity", {}), "free_motion.velocity").items():
         if key not in by_name:
             reader.fail(f"free_motion.velocity.{key}", f"a driver ({', '.join(by_name)})", repr(key))
-        rates[key] = reader.number(given, f"free_motion.velocity.{key}",
-                                   _Reader.input_scales(by_name[key].quantity, units)[1])
+        rates[key] = reader.number(
+            given, f"free_motion.velocity.{key}", _Reader.input_scales(by_name[key].quantity, units)[1]
+        )
     point, velocity = None, None
     if "point_velocity" in spec:
         if rates:
-            reader.fail("free_motion.point_velocity", "either 'velocity' (drivers' rates) or 'point_velocity'",
-                        "both")
+            reader.fail("free_motion.point_velocity", "either 'velocity' (drivers' rates) or 'point_velocity'", "both")
         pv = reader.table(spec["point_velocity"], "free_motion.point_velocity", ("point", "value"))
         labels = {label for b in bodies for label in b.points}
         point = pv.get("point")
@@ -151,8 +163,7 @@ def read_free_motion(reader: _Reader, value: Any, drivers: list[Driver], bodies:
         velocity = reader.vector(pv.get("value"), "free_motion.point_velocity.value", units.velocity_factor)
     tolerance = reader.number(spec.get("tolerance", 1e-9), "free_motion.tolerance")
     if not 1e-13 <= tolerance <= 1e-2:
-        reader.fail("free_motion.tolerance", "a relative accuracy between 1e-13 and 1e-2",
-                    repr(spec.get("tolerance")))
+        reader.fail("free_motion.tolerance", "a relative accuracy between 1e-13 and 1e-2", repr(spec.get("tolerance")))
     return FreeMotionSpec(duration, output_step, at, rates, point, velocity, tolerance)
 
 

@@ -43,8 +43,20 @@ from ._mechanism import (
 
 __all__ = ["load_mechanism", "parse_mechanism", "MAX_BODIES", "MAX_FILE_BYTES", "MAX_INSTANTS"]
 
-_TOP_KEYS = ("mechanism", "units", "ground", "bodies", "joints", "drivers", "assembly", "instants",
-             "dynamics", "loads", "springs", "free_motion")
+_TOP_KEYS = (
+    "mechanism",
+    "units",
+    "ground",
+    "bodies",
+    "joints",
+    "drivers",
+    "assembly",
+    "instants",
+    "dynamics",
+    "loads",
+    "springs",
+    "free_motion",
+)
 _JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
 #: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
 _TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
@@ -73,8 +85,9 @@ def load_mechanism(path: str | Path) -> Mechanism:
     try:
         text = data.decode("utf-8-sig")  # a BOM, as Windows editors write one, is not content
     except UnicodeDecodeError as err:
-        raise ModelError(str(path), "", "a UTF-8 text file",
-                         f"bytes that are not UTF-8 at byte offset {err.start}") from err
+        raise ModelError(
+            str(path), "", "a UTF-8 text file", f"bytes that are not UTF-8 at byte offset {err.start}"
+        ) from err
     # line ends as text mode reads them
     return parse_mechanism(text.replace("\r\n", "\n").replace("\r", "\n"), str(path))
 
@@ -149,8 +162,11 @@ class _Reader:
         if allowed is not None:
             for key in value:
                 if key not in allowed:
-                    self.fail(f"{field}.{key}" if field else key,
-                              f"one of the keys {', '.join(allowed)}", f"unknown key {key!r}")
+                    self.fail(
+                        f"{field}.{key}" if field else key,
+                        f"one of the keys {', '.join(allowed)}",
+                        f"unknown key {key!r}",
+                    )
         return value
 
     def text(self, value: Any, field: str) -> str:
@@ -198,26 +214,39 @@ class _Reader:
     # -- sections ---------------------------------------------------------
     def mechanism(self, data: dict) -> Mechanism:
         self.table(data, "", _TOP_KEYS)
-        for key, form in (("mechanism", "[mechanism]"), ("bodies", "[bodies.NAME]"),
-                          ("joints", "[[joints]]"), ("drivers", "[[drivers]]")):
+        for key, form in (
+            ("mechanism", "[mechanism]"),
+            ("bodies", "[bodies.NAME]"),
+            ("joints", "[[joints]]"),
+            ("drivers", "[[drivers]]"),
+        ):
             if key not in data:
                 self.fail(key, f"a {form} section", "none")
         meta = self.table(data["mechanism"], "mechanism", ("name", "title", "source", "notes"))
         name = self.text(meta.get("name"), "mechanism.name")
         if not _SAFE_NAME.fullmatch(name):
             # the name names the report and the exported files: it must stay a plain file name
-            self.fail("mechanism.name", "a name of letters, digits, spaces, '-', '_' and '.', neither starting "
-                      "with '.' or a space nor ending with a space, at most 100 characters (it names the report "
-                      "and the exported files)",
-                      ascii(name) if len(name) <= 60 else ascii(name[:57]) + "...")
+            self.fail(
+                "mechanism.name",
+                "a name of letters, digits, spaces, '-', '_' and '.', neither starting "
+                "with '.' or a space nor ending with a space, at most 100 characters (it names the report "
+                "and the exported files)",
+                ascii(name) if len(name) <= 60 else ascii(name[:57]) + "...",
+            )
         title = self.text(meta.get("title", name), "mechanism.title")
         source = self.string(meta.get("source", ""), "mechanism.source")
         notes = self.string(meta.get("notes", ""), "mechanism.notes")
         units = self.units(data.get("units", {}))
         length = units.length_factor
 
-        bodies = [Body(GROUND, self.points(self.table(data.get("ground", {}), "ground", ("points",))
-                                            .get("points", {}), "ground.points", length))]
+        bodies = [
+            Body(
+                GROUND,
+                self.points(
+                    self.table(data.get("ground", {}), "ground", ("points",)).get("points", {}), "ground.points", length
+                ),
+            )
+        ]
         self.point_fields.update({(GROUND, lbl): f"ground.points.{lbl}" for lbl in bodies[0].points})
         sketches: dict[str, np.ndarray] = {}
         body_specs = self.table(data["bodies"], "bodies")
@@ -241,8 +270,11 @@ class _Reader:
         gravity = self.dynamics(data.get("dynamics", {}))
         loads = self.loads(data.get("loads", []), by_name, units)
         springs = read_springs(self, data.get("springs", []), bodies, units)
-        free_motion = (read_free_motion(self, data["free_motion"], drivers, bodies, units, dict(assembly.at))
-                       if "free_motion" in data else None)
+        free_motion = (
+            read_free_motion(self, data["free_motion"], drivers, bodies, units, dict(assembly.at))
+            if "free_motion" in data
+            else None
+        )
         return Mechanism(
             name=name,
             title=title,
@@ -268,11 +300,13 @@ class _Reader:
         return Units(
             length=length,
             angle=self.choice(spec.get("angle", "deg"), "units.angle", tuple(ANGLE_UNITS)),
-            angular_rate=self.choice(spec.get("angular_rate", "rad/s"), "units.angular_rate",
-                                     tuple(ANGULAR_RATE_UNITS)),
+            angular_rate=self.choice(
+                spec.get("angular_rate", "rad/s"), "units.angular_rate", tuple(ANGULAR_RATE_UNITS)
+            ),
             velocity=self.choice(spec.get("velocity", default_v), "units.velocity", tuple(VELOCITY_UNITS)),
-            acceleration=self.choice(spec.get("acceleration", default_v + "^2"), "units.acceleration",
-                                     tuple(ACCELERATION_UNITS)),
+            acceleration=self.choice(
+                spec.get("acceleration", default_v + "^2"), "units.acceleration", tuple(ACCELERATION_UNITS)
+            ),
         )
 
     def body(self, name: str, value: Any, units: Units) -> tuple[Body, dict[str, np.ndarray]]:
@@ -280,8 +314,7 @@ class _Reader:
         field = f"bodies.{name}"
         if name == GROUND:
             self.fail(field, "a body name other than 'ground' (use the [ground] section)", repr(name))
-        spec = self.table(value, field, ("points", "ends", "length", "sketch", "axis",
-                                          "mass", "com", "inertia"))
+        spec = self.table(value, field, ("points", "ends", "length", "sketch", "axis", "mass", "com", "inertia"))
         length = units.length_factor
         forms = [k for k in ("ends", "sketch") if k in spec]
         if len(forms) > 1:
@@ -290,8 +323,12 @@ class _Reader:
         sketch: dict[str, np.ndarray] = {}
         if "ends" in spec:
             ends = spec["ends"]
-            if not (isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends)
-                    and ends[0] != ends[1]):
+            if not (
+                isinstance(ends, list)
+                and len(ends) == 2
+                and all(isinstance(e, str) for e in ends)
+                and ends[0] != ends[1]
+            ):
                 self.fail(f"{field}.ends", "two different point labels", _describe(ends))
             if "length" not in spec:
                 self.fail(f"{field}.length", "the distance between the ends", "none")
@@ -308,10 +345,10 @@ class _Reader:
             origin, angle = next(iter(sketch.values())), 0.0
             if "axis" in spec:
                 axis = spec["axis"]
-                if not (isinstance(axis, list) and len(axis) == 2
-                        and all(isinstance(a, str) and a in sketch for a in axis)):
-                    self.fail(f"{field}.axis", f"two labels of the sketch ({', '.join(sketch)})",
-                              _describe(axis))
+                if not (
+                    isinstance(axis, list) and len(axis) == 2 and all(isinstance(a, str) and a in sketch for a in axis)
+                ):
+                    self.fail(f"{field}.axis", f"two labels of the sketch ({', '.join(sketch)})", _describe(axis))
                 origin, tip = sketch[axis[0]], sketch[axis[1]]
                 if np.allclose(origin, tip, rtol=0.0, atol=1e-12):
                     self.fail(f"{field}.axis", "two points at different positions", "coincident points")
@@ -324,8 +361,7 @@ class _Reader:
         extra = self.points(spec.get("points", {}), f"{field}.points", length)
         for label in extra:
             if label in points:
-                self.fail(f"{field}.points.{label}", "a label not already given by 'ends' or 'sketch'",
-                          "a duplicate")
+                self.fail(f"{field}.points.{label}", "a label not already given by 'ends' or 'sketch'", "a duplicate")
         points.update(extra)
         self.point_fields.update({(name, lbl): f"{field}.points.{lbl}" for lbl in extra})
         if not points:
@@ -336,13 +372,15 @@ class _Reader:
             mass = self.number(spec.get("mass"), f"{field}.mass", positive=True)
             inertia = self.number(spec.get("inertia"), f"{field}.inertia")
             if inertia < 0.0:  # 0: a point mass (about its centre of mass)
-                self.fail(f"{field}.inertia", "a moment of inertia of at least 0 (0 for a point mass)",
-                          _describe(spec.get("inertia")))
+                self.fail(
+                    f"{field}.inertia",
+                    "a moment of inertia of at least 0 (0 for a point mass)",
+                    _describe(spec.get("inertia")),
+                )
             com_spec = spec.get("com", [0.0, 0.0])
             if isinstance(com_spec, str):
                 if com_spec not in points:
-                    self.fail(f"{field}.com", f"a point of {name} ({', '.join(points)}) or [x, y]",
-                              repr(com_spec))
+                    self.fail(f"{field}.com", f"a point of {name} ({', '.join(points)}) or [x, y]", repr(com_spec))
                 com = points[com_spec]
             else:
                 com = self.vector(com_spec, f"{field}.com", length)
@@ -354,8 +392,7 @@ class _Reader:
         joints, names = [], set()
         for i, spec in enumerate(value):
             field = f"joints[{i}]"
-            spec = self.table(spec, field, ("name", "type", "bodies", "point", "points", "line",
-                                             "direction", "angle"))
+            spec = self.table(spec, field, ("name", "type", "bodies", "point", "points", "line", "direction", "angle"))
             kind = self.choice(spec.get("type"), f"{field}.type", _JOINT_TYPES)
             pair = spec.get("bodies")
             if not (isinstance(pair, list) and len(pair) == 2):
@@ -378,8 +415,7 @@ class _Reader:
 
     def point_of(self, label: Any, body: Body, field: str) -> str:
         if not isinstance(label, str) or label not in body.points:
-            self.fail(field, f"a point of {body.name} ({', '.join(body.points) or 'none'})",
-                      _describe(label))
+            self.fail(field, f"a point of {body.name} ({', '.join(body.points) or 'none'})", _describe(label))
         return label
 
     def revolute(self, spec: dict, field: str, a: Body, b: Body) -> Revolute:
@@ -406,14 +442,18 @@ class _Reader:
         line = spec.get("line")
         if isinstance(line, list):
             if len(line) != 2 or "direction" in spec:
-                self.fail(f"{field}.line", "two points of the first body, or one point with 'direction'",
-                          _describe(line))
+                self.fail(
+                    f"{field}.line", "two points of the first body, or one point with 'direction'", _describe(line)
+                )
             p0 = self.point_of(line[0], a, f"{field}.line[0]")
             p1 = self.point_of(line[1], a, f"{field}.line[1]")
             direction = a.points[p1] - a.points[p0]
             if math.hypot(*direction) <= 1e-12:
-                self.fail(f"{field}.line", "two points at different positions (a line of non-zero length)",
-                          f"{p0} and {p1} coincide")
+                self.fail(
+                    f"{field}.line",
+                    "two points at different positions (a line of non-zero length)",
+                    f"{p0} and {p1} coincide",
+                )
         else:
             p0 = self.point_of(line, a, f"{field}.line")
             if "direction" not in spec:
@@ -448,8 +488,11 @@ class _Reader:
             # the first body not linked to the first owner: the same pair a pairwise check finds first
             second = next((name for name in others if group.find(name) != root), None)
             if second is not None:
-                self.fail("joints", f"a revolute joint at {label!r} between {first} and {second} "
-                          "(they share the label)", "none: rename one of the points")
+                self.fail(
+                    "joints",
+                    f"a revolute joint at {label!r} between {first} and {second} (they share the label)",
+                    "none: rename one of the points",
+                )
 
     def check_joint_points(self, bodies: list[Body], joints: list) -> None:
         """Two different joint points of one body must not coincide: that is a
@@ -475,15 +518,18 @@ class _Reader:
                 cells.setdefault(_cell(b.points[label]), []).append(k)
             for i, first in enumerate(labels):
                 cx, cy = _cell(b.points[first])
-                near = sorted(k for dx in (-1, 0, 1) for dy in (-1, 0, 1)
-                              for k in cells.get((cx + dx, cy + dy), ()) if k > i)
+                near = sorted(
+                    k for dx in (-1, 0, 1) for dy in (-1, 0, 1) for k in cells.get((cx + dx, cy + dy), ()) if k > i
+                )
                 for k in near:
                     second = labels[k]
                     if np.all(np.abs(b.points[first] - b.points[second]) <= _COINCIDENT):
-                        self.fail(self.point_fields.get((b.name, second), f"bodies.{b.name}"),
-                                  f"joint point {second!r} of {b.name} apart from its joint point {first!r} "
-                                  "(a link of non-zero length; for one place use one label)",
-                                  f"{first} and {second} coincide")
+                        self.fail(
+                            self.point_fields.get((b.name, second), f"bodies.{b.name}"),
+                            f"joint point {second!r} of {b.name} apart from its joint point {first!r} "
+                            "(a link of non-zero length; for one place use one label)",
+                            f"{first} and {second} coincide",
+                        )
 
     def drivers(self, value: Any, joints: list, units: Units) -> list[Driver]:
         if not isinstance(value, list) or not value:
@@ -494,8 +540,22 @@ class _Reader:
         names: set[str] = set()
         for i, spec in enumerate(value):
             field = f"drivers[{i}]"
-            spec = self.table(spec, field, ("name", "joint", "motion", "start", "rate", "acceleration",
-                                             "centre", "amplitude", "frequency", "phase"))
+            spec = self.table(
+                spec,
+                field,
+                (
+                    "name",
+                    "joint",
+                    "motion",
+                    "start",
+                    "rate",
+                    "acceleration",
+                    "centre",
+                    "amplitude",
+                    "frequency",
+                    "phase",
+                ),
+            )
             joint_name = spec.get("joint")
             if not isinstance(joint_name, str) or joint_name not in by_name:
                 self.fail(f"{field}.joint", f"a joint ({', '.join(by_name)})", _describe(joint_name))
@@ -506,22 +566,35 @@ class _Reader:
             quantity = "angle" if isinstance(joint, Revolute) else "slide"
             q_scale, rate_scale = self.input_scales(quantity, units)
             kind = self.choice(spec.get("motion", "constant-rate"), f"{field}.motion", MotionLaw.KINDS)
-            allowed = {"constant-rate": ("start", "rate"),
-                       "constant-acceleration": ("start", "rate", "acceleration"),
-                       "harmonic": ("centre", "amplitude", "frequency", "phase")}[kind]
+            allowed = {
+                "constant-rate": ("start", "rate"),
+                "constant-acceleration": ("start", "rate", "acceleration"),
+                "harmonic": ("centre", "amplitude", "frequency", "phase"),
+            }[kind]
             for key in ("start", "rate", "acceleration", "centre", "amplitude", "frequency", "phase"):
                 if key in spec and key not in allowed:
                     self.fail(f"{field}.{key}", f"only {', '.join(allowed)} for motion {kind!r}", repr(key))
+
             def get(key, scale, default=0.0, spec=spec, field=field):
                 return self.number(spec.get(key, default), f"{field}.{key}", scale)
 
             if kind == "harmonic":
-                law = MotionLaw(kind, centre=get("centre", q_scale), amplitude=get("amplitude", q_scale),
-                                frequency=self.number(spec.get("frequency"), f"{field}.frequency", positive=True),
-                                phase=get("phase", units.angle_factor), turns=quantity == "angle")
+                law = MotionLaw(
+                    kind,
+                    centre=get("centre", q_scale),
+                    amplitude=get("amplitude", q_scale),
+                    frequency=self.number(spec.get("frequency"), f"{field}.frequency", positive=True),
+                    phase=get("phase", units.angle_factor),
+                    turns=quantity == "angle",
+                )
             else:
-                law = MotionLaw(kind, start=get("start", q_scale), rate=get("rate", rate_scale),
-                                acceleration=get("acceleration", rate_scale), turns=quantity == "angle")
+                law = MotionLaw(
+                    kind,
+                    start=get("start", q_scale),
+                    rate=get("rate", rate_scale),
+                    acceleration=get("acceleration", rate_scale),
+                    turns=quantity == "angle",
+                )
             name = self.text(spec.get("name", joint_name), f"{field}.name")
             if name in names:
                 self.fail(f"{field}.name", "a name no other driver has", repr(name))
@@ -541,8 +614,11 @@ class _Reader:
         for body in bodies:
             for label, xy in body.points.items():
                 if not np.all(np.abs(xy) <= MAGNITUDE_LIMIT):
-                    self.fail(self.point_fields.get((body.name, label), f"bodies.{body.name}.points.{label}"),
-                              f"coordinates within {MAGNITUDE_LIMIT:g} m", f"{xy.tolist()} m")
+                    self.fail(
+                        self.point_fields.get((body.name, label), f"bodies.{body.name}.points.{label}"),
+                        f"coordinates within {MAGNITUDE_LIMIT:g} m",
+                        f"{xy.tolist()} m",
+                    )
         size = max((float(np.max(np.abs(xy))) for body in bodies for xy in body.points.values()), default=1.0)
         size = max(size, 1e-300)
         for i, driver in enumerate(drivers):
@@ -556,9 +632,13 @@ class _Reader:
             for key, value in keys.items():
                 scaled = value * (per if key != "start" and key != "centre" else 1.0)
                 if not (math.isfinite(scaled) and scaled <= MAGNITUDE_LIMIT):
-                    self.fail(f"drivers[{i}].{key}", f"a motion whose speeds and accelerations at the "
-                              f"mechanism's size stay within {MAGNITUDE_LIMIT:g} (SI), so that their products "
-                              "cannot overflow", f"{value:g} (SI)")
+                    self.fail(
+                        f"drivers[{i}].{key}",
+                        f"a motion whose speeds and accelerations at the "
+                        f"mechanism's size stay within {MAGNITUDE_LIMIT:g} (SI), so that their products "
+                        "cannot overflow",
+                        f"{value:g} (SI)",
+                    )
 
     @staticmethod
     def input_scales(quantity: str, units: Units) -> tuple[float, float]:
@@ -567,15 +647,22 @@ class _Reader:
             return units.angle_factor, units.angular_rate_factor
         return units.length_factor, units.length_factor
 
-    def assembly(self, value: Any, drivers: list[Driver], bodies: dict[str, Body], units: Units,
-                 body_sketches: dict[str, np.ndarray]) -> Assembly:
+    def assembly(
+        self,
+        value: Any,
+        drivers: list[Driver],
+        bodies: dict[str, Body],
+        units: Units,
+        body_sketches: dict[str, np.ndarray],
+    ) -> Assembly:
         spec = self.table(value, "assembly", ("at", "branches"))
         at_spec = self.table(spec.get("at", {}), "assembly.at")
         at = {}
         for d in drivers:
             if d.name in at_spec:
-                at[d.name] = self.number(at_spec[d.name], f"assembly.at.{d.name}",
-                                         self.input_scales(d.quantity, units)[0])
+                at[d.name] = self.number(
+                    at_spec[d.name], f"assembly.at.{d.name}", self.input_scales(d.quantity, units)[0]
+                )
             else:
                 at[d.name] = float(d.law.at_time(0.0)[0])
         for key in at_spec:
@@ -587,8 +674,7 @@ class _Reader:
             points = self.points(sketch, f"assembly.branches.{branch}", units.length_factor)
             for label in points:
                 if label not in labels:
-                    self.fail(f"assembly.branches.{branch}.{label}", "a point label of the mechanism",
-                              repr(label))
+                    self.fail(f"assembly.branches.{branch}.{label}", "a point label of the mechanism", repr(label))
             branches[branch] = {**body_sketches, **points}
         if not branches:
             branches["default"] = dict(body_sketches)
@@ -606,8 +692,9 @@ class _Reader:
             label = self.text(spec.get("label", f"instant {i + 1}"), f"{field}.label")
             for key in spec:
                 if key != "label" and key not in {d.name for d in drivers}:
-                    self.fail(f"{field}.{key}", f"'label' or a driver ({', '.join(d.name for d in drivers)})",
-                              repr(key))
+                    self.fail(
+                        f"{field}.{key}", f"'label' or a driver ({', '.join(d.name for d in drivers)})", repr(key)
+                    )
             inputs, problem = {}, None
             for d in drivers:
                 if d.name not in spec:
@@ -628,8 +715,11 @@ class _Reader:
                 self.fail(f"{field}.q", "the input value", "none")
             q = self.number(value["q"], f"{field}.q", q_scale)
             if "qd" in value or "qdd" in value:
-                return (q, self.number(value.get("qd", 0.0), f"{field}.qd", rate_scale),
-                        self.number(value.get("qdd", 0.0), f"{field}.qdd", rate_scale))
+                return (
+                    q,
+                    self.number(value.get("qd", 0.0), f"{field}.qd", rate_scale),
+                    self.number(value.get("qdd", 0.0), f"{field}.qdd", rate_scale),
+                )
         else:
             q = self.number(value, field, q_scale)
         try:
@@ -637,13 +727,19 @@ class _Reader:
         except OverflowError:  # absurd rates or accelerations
             state = (math.inf, math.inf, math.inf)
         if state is None:
-            raise _Unreached(field, f"a value that the motion of driver {driver.name!r} reaches, or explicit "
-                             "qd/qdd", _describe(value))
+            raise _Unreached(
+                field,
+                f"a value that the motion of driver {driver.name!r} reaches, or explicit qd/qdd",
+                _describe(value),
+            )
         if not all(math.isfinite(v) for v in state):
-            raise _Unreached(field, f"a value at which the motion of driver {driver.name!r} has a finite rate "
-                             "and acceleration, or explicit qd/qdd", f"{_describe(value)} (the motion law overflows)")
+            raise _Unreached(
+                field,
+                f"a value at which the motion of driver {driver.name!r} has a finite rate "
+                "and acceleration, or explicit qd/qdd",
+                f"{_describe(value)} (the motion law overflows)",
+            )
         return state
-
 
     def dynamics(self, value: Any) -> np.ndarray:
         """Gravity (m/s^2, global frame, SI whatever [units] says); zero if not given."""
@@ -673,16 +769,23 @@ class _Reader:
             if "force" in spec:
                 where = spec.get("point")
                 if where is None:
-                    self.fail(f"{field}.point", f"where the force acts: a point of {body_name} "
-                              f"({', '.join(body.points)}) or [x, y] in its frame", "none")
+                    self.fail(
+                        f"{field}.point",
+                        f"where the force acts: a point of {body_name} "
+                        f"({', '.join(body.points)}) or [x, y] in its frame",
+                        "none",
+                    )
                 if isinstance(where, str):
                     label = self.point_of(where, body, f"{field}.point")
                     point = body.points[label]
                 else:
                     point = self.vector(where, f"{field}.point", units.length_factor)
             elif "point" in spec:
-                self.fail(f"{field}.point", "a point only with a 'force' (a torque acts on the whole body)",
-                          _describe(spec["point"]))
+                self.fail(
+                    f"{field}.point",
+                    "a point only with a 'force' (a torque acts on the whole body)",
+                    _describe(spec["point"]),
+                )
             name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
             if name in names:
                 self.fail(f"{field}.name", "a name no other load has", repr(name))

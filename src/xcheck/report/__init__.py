@@ -42,8 +42,9 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> P
         raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
     existing = directory / name
     if existing.exists() and not (existing.is_dir() and (existing / "drawing.png").is_file()):
-        raise FileExistsError(f"{existing} exists and is not a report's image folder: xcheck replaces only "
-                              "folders it wrote")
+        raise FileExistsError(
+            f"{existing} exists and is not a report's image folder: xcheck replaces only folders it wrote"
+        )
     staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
     umask = os.umask(0)
     os.umask(umask)
@@ -83,8 +84,13 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> P
 
 def index_entry(run: RunResult) -> dict:
     """The line of reports/README.md for one run."""
-    return {"name": run.mechanism.name, "title": run.mechanism.title, "passed": run.passed,
-            "worst": worst_text(run), "textbook": textbook_text(run)}
+    return {
+        "name": run.mechanism.name,
+        "title": run.mechanism.title,
+        "passed": run.passed,
+        "worst": worst_text(run),
+        "textbook": textbook_text(run),
+    }
 
 
 #: the index's data beside its Markdown: the entries README.md is built from
@@ -95,8 +101,10 @@ def write_index(entries: list[dict], directory: str | Path, command: str) -> Pat
     """Write reports/README.md and its data (:data:`INDEX_DATA`) from index entries."""
     directory = Path(directory)
     ordered = sorted(entries, key=lambda e: e["name"])
-    write_atomic(directory / INDEX_DATA, json.dumps({"written_by": command, "entries": ordered}, indent=1,
-                                                    ensure_ascii=False) + "\n")
+    write_atomic(
+        directory / INDEX_DATA,
+        json.dumps({"written_by": command, "entries": ordered}, indent=1, ensure_ascii=False) + "\n",
+    )
     path = directory / "README.md"
     write_atomic(path, index_markdown(ordered, command))
     return path

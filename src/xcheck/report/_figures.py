@@ -63,8 +63,11 @@ def tracked(run: RunResult) -> tuple[str, str]:
     not driven directly (the output link)."""
     mech, native = run.mechanism, run.native
     ground = set(mech.ground.points)
-    speeds = {label: np.nanmax(np.linalg.norm(native.point(label)["velocity"], axis=1))
-              for label in mech.point_owners if label not in ground}
+    speeds = {
+        label: np.nanmax(np.linalg.norm(native.point(label)["velocity"], axis=1))
+        for label in mech.point_owners
+        if label not in ground
+    }
     point = max(speeds, key=lambda label: speeds[label])
     driven = set()
     for d in mech.drivers:
@@ -96,8 +99,7 @@ def _draw_pose(ax, run: RunResult, i: int, alpha: float, labels: bool) -> None:
     for n, body in enumerate(mech.moving_bodies):
         pts = np.array([native.point(label, body.name)["position"][i] for label in body.points]) / scale
         outline = _body_outline(pts)
-        ax.plot(outline[:, 0], outline[:, 1], "-", color=colors[n % 10], lw=2.5, alpha=alpha,
-                solid_capstyle="round")
+        ax.plot(outline[:, 0], outline[:, 1], "-", color=colors[n % 10], lw=2.5, alpha=alpha, solid_capstyle="round")
         if len(outline) > 3:
             ax.fill(outline[:, 0], outline[:, 1], color=colors[n % 10], alpha=0.12 * alpha)
     for label in mech.point_owners:
@@ -127,8 +129,11 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
     for n, i in enumerate(chosen):
         _draw_pose(ax, run, i, alpha=0.25 + 0.75 * (n == len(chosen) // 2), labels=n == len(chosen) // 2)
     values, label = _input_axis(run, native.inputs[chosen, 0])
-    title = (f"{mech.name}: {label.split(' [')[0]} = " + ", ".join(f"{v:.4g}" for v in values)
-             + f" {label.split('[')[1].rstrip(']')} (labels at the middle pose; grey: paths)")
+    title = (
+        f"{mech.name}: {label.split(' [')[0]} = "
+        + ", ".join(f"{v:.4g}" for v in values)
+        + f" {label.split('[')[1].rstrip(']')} (labels at the middle pose; grey: paths)"
+    )
     ax.set_title(textwrap.fill(title, 80), fontsize=9)  # 80 characters of 9 pt fit the 7 in figure
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel(f"x [{unit}]")
@@ -215,8 +220,9 @@ def quantities(run: RunResult) -> bytes:
         ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
         ax.grid(alpha=0.3)
     axes.flat[0].legend(fontsize=7, loc="best")
-    figure.suptitle(f"{mech.name}: quantities against the input (native: line; engines: markers and dashes)",
-                    fontsize=10)
+    figure.suptitle(
+        f"{mech.name}: quantities against the input (native: line; engines: markers and dashes)", fontsize=10
+    )
     figure.tight_layout()
     return _png(figure)
 
@@ -224,8 +230,14 @@ def quantities(run: RunResult) -> bytes:
 def error_plots(run: RunResult) -> bytes:
     """Each mode's largest error over all bodies and points against the input, log scale (PNG)."""
     figure, axes = plt.subplots(2, 3, figsize=(13, 7))
-    units = {"position": "m", "velocity": "m/s", "acceleration": "m/s²", "angle": "rad", "omega": "rad/s",
-             "alpha": "rad/s²"}
+    units = {
+        "position": "m",
+        "velocity": "m/s",
+        "acceleration": "m/s²",
+        "angle": "rad",
+        "omega": "rad/s",
+        "alpha": "rad/s²",
+    }
     for ax, category in zip(axes.flat, CATEGORIES):
         for mode, outcome in run.outcomes.items():
             errors = outcome.errors.get(category)
@@ -239,8 +251,11 @@ def error_plots(run: RunResult) -> bytes:
         ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
         ax.grid(alpha=0.3, which="both")
     axes.flat[0].legend(fontsize=7, loc="best")
-    figure.suptitle(f"{run.mechanism.name}: difference from the native solution (largest over all bodies "
-                    "and points; 1e-18 marks an exact zero)", fontsize=10)
+    figure.suptitle(
+        f"{run.mechanism.name}: difference from the native solution (largest over all bodies "
+        "and points; 1e-18 marks an exact zero)",
+        fontsize=10,
+    )
     figure.tight_layout()
     return _png(figure)
 
@@ -258,21 +273,27 @@ def convergence_plot(run: RunResult) -> bytes | None:
             if len(part) < 1:
                 continue
             ok = part[part.position_error > 0]
-            line, = ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=series)
+            (line,) = ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=series)
             orders = part.order.dropna()
             if len(orders):
-                ax.annotate(f"order {orders.iloc[-1]:.2f}", (ok.timestep.iloc[-1], ok.position_error.iloc[-1]),
-                            xytext=(4, -10), textcoords="offset points", fontsize=7, color=line.get_color())
+                ax.annotate(
+                    f"order {orders.iloc[-1]:.2f}",
+                    (ok.timestep.iloc[-1], ok.position_error.iloc[-1]),
+                    xytext=(4, -10),
+                    textcoords="offset points",
+                    fontsize=7,
+                    color=line.get_color(),
+                )
         ax.set_title(mode, fontsize=9)
         ax.set_xlabel("time step [s]")
         ax.set_ylabel("largest position error [m]")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
-    figure.suptitle(f"{run.mechanism.name}: error against time step (observed order between the two "
-                    "smallest steps)", fontsize=10)
+    figure.suptitle(
+        f"{run.mechanism.name}: error against time step (observed order between the two smallest steps)", fontsize=10
+    )
     figure.tight_layout()
     return _png(figure)
-
 
 
 def forces_plot(run: RunResult) -> bytes | None:
@@ -316,7 +337,7 @@ def forces_plot(run: RunResult) -> bytes | None:
         ax.set_ylabel(label)
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(panels):]:
+    for ax in list(axes.flat)[len(panels) :]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
     figure.suptitle(f"{run.mechanism.name}: driving effort and joint reactions over the simulation window", fontsize=10)

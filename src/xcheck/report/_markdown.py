@@ -14,8 +14,14 @@ from ..runner import CATEGORIES, RunResult, convergence_table, tolerance, versio
 
 __all__ = ["report_markdown", "index_markdown", "verdict_counts", "worst_text", "textbook_text"]
 
-_CATEGORY_UNIT = {"position": "of size", "angle": "rad", "velocity": "rel.", "omega": "rel.",
-                  "acceleration": "rel.", "alpha": "rel."}
+_CATEGORY_UNIT = {
+    "position": "of size",
+    "angle": "rad",
+    "velocity": "rel.",
+    "omega": "rel.",
+    "acceleration": "rel.",
+    "alpha": "rel.",
+}
 
 
 def _g(value, digits: int = 3) -> str:
@@ -65,25 +71,32 @@ def _comparison_section(run: RunResult) -> str:
             result += f" ({outcome.reason})"
         rows.append([f"`{mode}`", result] + cells + [worst])
     text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
-    text += ("\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
-             "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
-             "quantity over all bodies and points, but at least its scale floor (below). `native` is checked "
-             "against its own equations (loop closure, velocity and acceleration equations). A dynamic mode's "
-             "tolerance is the largest error its own convergence at the expected order allows (the verdict's "
-             "basis is under the dynamic modes). ✗ marks a difference beyond its tolerance.")
+    text += (
+        "\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
+        "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
+        "quantity over all bodies and points, but at least its scale floor (below). `native` is checked "
+        "against its own equations (loop closure, velocity and acceleration equations). A dynamic mode's "
+        "tolerance is the largest error its own convergence at the expected order allows (the verdict's "
+        "basis is under the dynamic modes). ✗ marks a difference beyond its tolerance."
+    )
     if run.not_applicable:
         text += "\n\nNot applicable here: " + "; ".join(f"`{m}`: {r}" for m, r in run.not_applicable.items()) + "."
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
-        [[f"`{m}`", _g(t.position, 2), _g(t.angle, 2), _g(t.velocity, 2), _g(t.acceleration, 2), t.basis]
-         for m, t in ((m, tolerance(m)) for m in run.outcomes)])
+        [
+            [f"`{m}`", _g(t.position, 2), _g(t.angle, 2), _g(t.velocity, 2), _g(t.acceleration, 2), t.basis]
+            for m, t in ((m, tolerance(m)) for m in run.outcomes)
+        ],
+    )
     f = run.floors
     if f:
-        text += (f"\n\nScale floors (rates relative to at least these, from the mechanism's size L = "
-                 f"{_g(f['size'])} m and its inputs' characteristic rate w = {_g(f['rate'])} rad/s and "
-                 f"angular acceleration a = max(w², inputs') = {_g(f['angular_acceleration'])} rad/s²): omega "
-                 f"{_g(f['omega'])} rad/s, alpha {_g(f['alpha'])} rad/s², velocity w·L = {_g(f['velocity'])} m/s, "
-                 f"acceleration a·L = {_g(f['acceleration'])} m/s².")
+        text += (
+            f"\n\nScale floors (rates relative to at least these, from the mechanism's size L = "
+            f"{_g(f['size'])} m and its inputs' characteristic rate w = {_g(f['rate'])} rad/s and "
+            f"angular acceleration a = max(w², inputs') = {_g(f['angular_acceleration'])} rad/s²): omega "
+            f"{_g(f['omega'])} rad/s, alpha {_g(f['alpha'])} rad/s², velocity w·L = {_g(f['velocity'])} m/s, "
+            f"acceleration a·L = {_g(f['acceleration'])} m/s²."
+        )
     return text
 
 
@@ -97,22 +110,49 @@ def _input_text(run: RunResult, value: float) -> str:
 def _textbook_section(run: RunResult) -> str:
     if not run.textbook:
         stem = Path(run.mechanism.path).stem
-        return ("No printed answers were given for this mechanism. To check a worked solution against it, "
-                f"write the printed values in `comparisons/{stem}.toml` beside the `models/` folder that holds "
-                f"`{stem}.toml` (or beside the file itself), in the format of xcheck's `comparisons/README.md`; "
-                "`--comparisons DIR` names another folder.")
+        return (
+            "No printed answers were given for this mechanism. To check a worked solution against it, "
+            f"write the printed values in `comparisons/{stem}.toml` beside the `models/` folder that holds "
+            f"`{stem}.toml` (or beside the file itself), in the format of xcheck's `comparisons/README.md`; "
+            "`--comparisons DIR` names another folder."
+        )
     counts = verdict_counts(run.textbook)
     rows = []
     for r in run.textbook:
-        rows.append([r.get("symbol", ""), r.get("quantity", ""), r.get("instant", ""),
-                     r.get("printed_text", _g(r["printed"], 6)),
-                     _g(r["computed"], 6), r.get("unit", ""), _g(r.get("deviation_percent"), 2),
-                     _g(r.get("deviation_digits"), 2), f"**{r['verdict']}**" if r["verdict"] == "disagrees"
-                     else r["verdict"], r.get("note", "")])
-    head = (f"{len(run.textbook)} printed values: {counts['agrees']} agree (within half a unit of the last printed "
-            f"digit), {counts['rounding']} within rounding (1 %), {counts['disagrees']} disagree.\n\n")
-    return head + _table(["symbol", "quantity", "instant", "printed", "computed", "unit", "deviation %",
-                          "last digits", "verdict", "note"], rows, "lllrrlrrll")
+        rows.append(
+            [
+                r.get("symbol", ""),
+                r.get("quantity", ""),
+                r.get("instant", ""),
+                r.get("printed_text", _g(r["printed"], 6)),
+                _g(r["computed"], 6),
+                r.get("unit", ""),
+                _g(r.get("deviation_percent"), 2),
+                _g(r.get("deviation_digits"), 2),
+                f"**{r['verdict']}**" if r["verdict"] == "disagrees" else r["verdict"],
+                r.get("note", ""),
+            ]
+        )
+    head = (
+        f"{len(run.textbook)} printed values: {counts['agrees']} agree (within half a unit of the last printed "
+        f"digit), {counts['rounding']} within rounding (1 %), {counts['disagrees']} disagree.\n\n"
+    )
+    return head + _table(
+        [
+            "symbol",
+            "quantity",
+            "instant",
+            "printed",
+            "computed",
+            "unit",
+            "deviation %",
+            "last digits",
+            "verdict",
+            "note",
+        ],
+        rows,
+        "lllrrlrrll",
+    )
 
 
 def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
@@ -124,16 +164,34 @@ def _dynamic_section(run: RunResult, images: dict[str, str]) -> str:
         trajectory = outcome.trajectory
         parts.append(f"**`{mode}`** — compared: {trajectory.notes if trajectory is not None else outcome.reason}")
         if not table.empty:
-            parts.append(_table(["series", "time step [s]", "position error [m]", "observed order", "status"],
-                                [[str(r.series), _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3),
-                                  str(r.status)]
-                                 for r in table.itertuples()], "lrrrl"))
+            parts.append(
+                _table(
+                    ["series", "time step [s]", "position error [m]", "observed order", "status"],
+                    [
+                        [str(r.series), _g(r.timestep, 3), _g(r.position_error, 3), _g(r.order, 3), str(r.status)]
+                        for r in table.itertuples()
+                    ],
+                    "lrrrl",
+                )
+            )
         if "basis" in outcome.categories:
-            parts.append("Verdict (the compared run against the next coarser one of the same settings):\n\n" + _table(
-                ["category", "difference", "limit", "result", "basis"],
-                [[str(r.category), _g(r.relative, 3), _g(r.tolerance, 3), "pass" if r.passed else "**FAIL**",
-                  str(r.basis)]
-                 for r in outcome.categories.itertuples()], "lrrll"))
+            parts.append(
+                "Verdict (the compared run against the next coarser one of the same settings):\n\n"
+                + _table(
+                    ["category", "difference", "limit", "result", "basis"],
+                    [
+                        [
+                            str(r.category),
+                            _g(r.relative, 3),
+                            _g(r.tolerance, 3),
+                            "pass" if r.passed else "**FAIL**",
+                            str(r.basis),
+                        ]
+                        for r in outcome.categories.itertuples()
+                    ],
+                    "lrrll",
+                )
+            )
     if "convergence" in images:
         parts.insert(0, f"![error against time step]({images['convergence']})")
     return "\n\n".join(parts) if parts else "No dynamic mode ran."
@@ -155,9 +213,11 @@ def _solver_section(run: RunResult) -> str:
         f"- Sample status: {', '.join(f'{n} {s}' for s, n in counts.items())}.",
     ]
     if good.any():
-        lines.append(f"- Largest loop-closure residual: {_g(float(native.residual[good].max()), 2)} m; smallest "
-                     f"inverse condition number of the Jacobian: {_g(float(native.singularity[good].min()), 2)} "
-                     f"(0 would be a singular configuration: dead centre or limit position).")
+        lines.append(
+            f"- Largest loop-closure residual: {_g(float(native.residual[good].max()), 2)} m; smallest "
+            f"inverse condition number of the Jacobian: {_g(float(native.singularity[good].min()), 2)} "
+            f"(0 would be a singular configuration: dead centre or limit position)."
+        )
     return "\n".join(lines)
 
 
@@ -171,25 +231,35 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
         if not r.ok:
             rows.append([f"`{r.engine}`", f"**failed**: {r.reason}", "—", "—", "—", "—"])
             continue
-        rows.append([f"`{r.engine}`", "pass" if r.passed else "**FAIL**", _g(r.max_rel, 2),
-                     f"{_g(r.tolerance, 2)} (scale ≥ {_g(r.floor, 3)} {r.unit})",
-                     f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}", str(r.states)])
+        rows.append(
+            [
+                f"`{r.engine}`",
+                "pass" if r.passed else "**FAIL**",
+                _g(r.max_rel, 2),
+                f"{_g(r.tolerance, 2)} (scale ≥ {_g(r.floor, 3)} {r.unit})",
+                f"{r.name} {r.quantity}: {_g(r.max_abs, 3)} {r.unit}",
+                str(r.states),
+            ]
+        )
     e = run.energy
     assert e is not None  # computed with the forces
-    text = ("Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
-            "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
-            "each source against the native multipliers of M q'' - Phi_q^T lambda = Q at the source's own "
-            "states. `newton-euler` is the seed's per-body form M a = D R + Q; pymunk gives magnitudes only "
-            "(impulses over a step divided by the step). Differences are relative to the largest native "
-            "magnitude, but at least M·max(g, a·L) for forces and that times L for moments (M: the moving "
-            "mass).\n\n")
-    text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows,
-                   "llrrlr")
-    text += (f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
-             f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
-             f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 2)}); the work done since t = 0 matches the "
-             f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
-             f"energy swing {_g(e['energy_swing'], 3)} J).")
+    text = (
+        "Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
+        "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
+        "each source against the native multipliers of M q'' - Phi_q^T lambda = Q at the source's own "
+        "states. `newton-euler` is the seed's per-body form M a = D R + Q; pymunk gives magnitudes only "
+        "(impulses over a step divided by the step). Differences are relative to the largest native "
+        "magnitude, but at least M·max(g, a·L) for forces and that times L for moments (M: the moving "
+        "mass).\n\n"
+    )
+    text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows, "llrrlr")
+    text += (
+        f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
+        f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
+        f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 2)}); the work done since t = 0 matches the "
+        f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
+        f"energy swing {_g(e['energy_swing'], 3)} J)."
+    )
     if "forces" in images:
         text += f"\n\n![reactions and driving effort]({images['forces']})"
     return text
@@ -220,13 +290,24 @@ def index_markdown(entries: list[dict], command: str) -> str:
     """reports/README.md: one line per mechanism with its worst disagreement."""
     rows = []
     for e in entries:
-        rows.append([f"[{e['name']}]({e['name']}.md)", e["title"], "pass" if e["passed"] else "**FAIL**",
-                     e["worst"], e["textbook"]])
-    return ("# Reports\n\nOne report per mechanism: every engine mode against the exact native solution, and "
-            "the printed answers checked value by value. Last written by `" + command + "`; each report "
-            "names the command that reproduces it.\n\n"
-            + _table(["mechanism", "title", "result", "largest difference relative to its tolerance",
-                      "printed answers"], rows) + "\n")
+        rows.append(
+            [
+                f"[{e['name']}]({e['name']}.md)",
+                e["title"],
+                "pass" if e["passed"] else "**FAIL**",
+                e["worst"],
+                e["textbook"],
+            ]
+        )
+    return (
+        "# Reports\n\nOne report per mechanism: every engine mode against the exact native solution, and "
+        "the printed answers checked value by value. Last written by `" + command + "`; each report "
+        "names the command that reproduces it.\n\n"
+        + _table(
+            ["mechanism", "title", "result", "largest difference relative to its tolerance", "printed answers"], rows
+        )
+        + "\n"
+    )
 
 
 def worst_text(run: RunResult) -> str:
@@ -242,4 +323,3 @@ def textbook_text(run: RunResult) -> str:
         return "none printed"
     c = verdict_counts(run.textbook)
     return f"{c['agrees']} agree, {c['rounding']} rounding, {c['disagrees']} disagree"
-

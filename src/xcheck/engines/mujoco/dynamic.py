@@ -49,10 +49,14 @@ class Setting:
             model.eq_solref[:] = (2.0 * timestep, 1.0)
             model.eq_solimp[:] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
             model.opt.tolerance = 1e-12
-        return {"setting": self.name, "integrator": self.integrator, "timestep": timestep,
-                "solref": [float(v) for v in model.eq_solref[0]] if model.neq else [],
-                "solimp": [float(v) for v in model.eq_solimp[0]] if model.neq else [],
-                "solver_tolerance": float(model.opt.tolerance)}
+        return {
+            "setting": self.name,
+            "integrator": self.integrator,
+            "timestep": timestep,
+            "solref": [float(v) for v in model.eq_solref[0]] if model.neq else [],
+            "solimp": [float(v) for v in model.eq_solimp[0]] if model.neq else [],
+            "solver_tolerance": float(model.opt.tolerance),
+        }
 
 
 #: What a user starts from: the file as written (MuJoCo's defaults).
@@ -90,8 +94,17 @@ class Run:
     steps: int = 0
 
 
-def simulate(model: mujoco.MjModel, mechanism: Mechanism, layout: Layout, setting: Setting, timestep: float,
-             duration: float, qpos0: np.ndarray, qvel0: np.ndarray, samples: int) -> Run:
+def simulate(
+    model: mujoco.MjModel,
+    mechanism: Mechanism,
+    layout: Layout,
+    setting: Setting,
+    timestep: float,
+    duration: float,
+    qpos0: np.ndarray,
+    qvel0: np.ndarray,
+    samples: int,
+) -> Run:
     """Integrate from (qpos0, qvel0) at t = 0 for ``duration`` s, sampling ``samples`` states.
 
     Each step, the controls are the drivers' law values and rates at the

@@ -45,8 +45,14 @@ def _cross(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, branch: str | None = None,
-                   samples: int | None = None, solution=None) -> Forces:
+def inverse_forces(
+    kinematics: Kinematics,
+    model: mujoco.MjModel,
+    lay: Layout,
+    branch: str | None = None,
+    samples: int | None = None,
+    solution=None,
+) -> Forces:
     """Reactions and efforts from MuJoCo over the native states ``solution``
     (default: :func:`~xcheck.dynamics.window_states` with ``samples`` states).
 
@@ -63,8 +69,10 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
     projection = oracle.project(start, inputs[0], inputs)
     if not projection.converged.all():
         i = int(np.argmin(projection.converged))
-        raise ValueError(f"MuJoCo's Newton projection did not close the loops at sample {i} "
-                         f"(violation {projection.residual[i]:.3g} m)")
+        raise ValueError(
+            f"MuJoCo's Newton projection did not close the loops at sample {i} "
+            f"(violation {projection.residual[i]:.3g} m)"
+        )
 
     dyn = copy.deepcopy(model)
     dyn.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
@@ -180,13 +188,20 @@ def inverse_forces(kinematics: Kinematics, model: mujoco.MjModel, lay: Layout, b
             out["normal"][i] = force_ab @ normal
             if isinstance(joint, Prismatic):
                 out["moment"][i] = moment_ab
-    return Forces("mujoco", inputs, rates, accelerations, joints, drivers,
-                  diagnostics={"residual": residual, "constraint_violation": projection.residual},
-                  settings={"states": n, "gravity": [float(g) for g in dyn.opt.gravity]},
-                  notes="MuJoCo's kinematic oracle at each native state, then mj_rne (M qacc + bias, gravity "
-                        "included) on the model with constraints disabled; loop-cut forces and input efforts "
-                        "from [J_cut^T S^T] x = rne - loads (mj_jacSite, mj_applyFT); tree joints' reactions "
-                        "from cfrc_int (mj_rnePostConstraint with the cut forces and loads as xfrc_applied).")
+    return Forces(
+        "mujoco",
+        inputs,
+        rates,
+        accelerations,
+        joints,
+        drivers,
+        diagnostics={"residual": residual, "constraint_violation": projection.residual},
+        settings={"states": n, "gravity": [float(g) for g in dyn.opt.gravity]},
+        notes="MuJoCo's kinematic oracle at each native state, then mj_rne (M qacc + bias, gravity "
+        "included) on the model with constraints disabled; loop-cut forces and input efforts "
+        "from [J_cut^T S^T] x = rne - loads (mj_jacSite, mj_applyFT); tree joints' reactions "
+        "from cfrc_int (mj_rnePostConstraint with the cut forces and loads as xfrc_applied).",
+    )
 
 
 def _angle(data: mujoco.MjData, body_ids: dict, body: str) -> float:

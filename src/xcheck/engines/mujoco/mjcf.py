@@ -49,9 +49,24 @@ from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolut
 from xcheck.motion import simulation_window
 from xcheck.topology import Topology, TreeJoint, carrier_share, spanning_tree
 
-__all__ = ["DEFAULT_MASS", "SERVO_FREQUENCY", "CARRIER_INERTIA", "CARRIER_INERTIA_FLOOR", "MassProperties", "MjJoint",
-           "Layout", "layout", "mass_properties", "carrier_name", "carrier_note", "weld_site", "carrier_split",
-           "file_mass_properties", "joint_coordinates", "mjcf_text"]
+__all__ = [
+    "DEFAULT_MASS",
+    "SERVO_FREQUENCY",
+    "CARRIER_INERTIA",
+    "CARRIER_INERTIA_FLOOR",
+    "MassProperties",
+    "MjJoint",
+    "Layout",
+    "layout",
+    "mass_properties",
+    "carrier_name",
+    "carrier_note",
+    "weld_site",
+    "carrier_split",
+    "file_mass_properties",
+    "joint_coordinates",
+    "mjcf_text",
+]
 
 #: Mass (kg) of a body whose model gives no mass properties.
 DEFAULT_MASS = 1.0
@@ -118,8 +133,9 @@ def carrier_name(joint) -> str:
     return f"{joint.name}.carrier"
 
 
-def carrier_split(mechanism: Mechanism, cut, held: MassProperties | None,
-                  line_body: MassProperties | None) -> tuple[MassProperties, MassProperties | None]:
+def carrier_split(
+    mechanism: Mechanism, cut, held: MassProperties | None, line_body: MassProperties | None
+) -> tuple[MassProperties, MassProperties | None]:
     """(carrier's mass properties in its own frame, what is left to the held body).
 
     :func:`xcheck.topology.carrier_share`, plus, for a pin-in-slot carrier, a
@@ -133,8 +149,12 @@ def carrier_split(mechanism: Mechanism, cut, held: MassProperties | None,
     held, line_body : MassProperties or None
         ``body_b``'s and ``body_a``'s current mass properties; None for the ground.
     """
-    carrier, rest = carrier_share(mechanism, cut, None if held is None else (held.mass, held.com, held.inertia),
-                                  line_body.mass if line_body is not None else DEFAULT_MASS)
+    carrier, rest = carrier_share(
+        mechanism,
+        cut,
+        None if held is None else (held.mass, held.com, held.inertia),
+        line_body.mass if line_body is not None else DEFAULT_MASS,
+    )
     mass, com, inertia = carrier
     if isinstance(cut, PinInSlot):
         inertia = _carrier_inertia(mass, mechanism.size**2)
@@ -153,15 +173,22 @@ def carrier_note(mechanism: Mechanism, topology: Topology) -> str:
     _, carriers = file_mass_properties(mechanism, topology)
     if not carriers:
         return ""
-    pins = {name: props for name, props in carriers.items()
-            if isinstance(mechanism.joint(name[:-len(".carrier")]), PinInSlot)}
-    text = (f"Loops with no undriven revolute are closed through carrier bodies ({', '.join(carriers)}) whose "
-            "mass is taken from the bodies they are held to, so the mass distribution is the model's.")
+    pins = {
+        name: props
+        for name, props in carriers.items()
+        if isinstance(mechanism.joint(name[: -len(".carrier")]), PinInSlot)
+    }
+    text = (
+        f"Loops with no undriven revolute are closed through carrier bodies ({', '.join(carriers)}) whose "
+        "mass is taken from the bodies they are held to, so the mass distribution is the model's."
+    )
     if pins:
         largest = max(props.inertia for props in pins.values())
-        text += (f" The only term not in the model: the pin-in-slot carriers' rotational inertia (at most "
-                 f"{largest:.3g} kg m^2, turning with the slot's body), a moment of that times the slot's "
-                 "angular acceleration.")
+        text += (
+            f" The only term not in the model: the pin-in-slot carriers' rotational inertia (at most "
+            f"{largest:.3g} kg m^2, turning with the slot's body), a moment of that times the slot's "
+            "angular acceleration."
+        )
     return text
 
 
@@ -284,7 +311,7 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
     """
     frames = {GROUND: (np.zeros(2), 0.0)}
     for i, body in enumerate(mechanism.moving_bodies):
-        frames[body.name] = (np.asarray(q[3 * i:3 * i + 2]), float(q[3 * i + 2]))
+        frames[body.name] = (np.asarray(q[3 * i : 3 * i + 2]), float(q[3 * i + 2]))
 
     def world(body: str, label: str) -> np.ndarray:
         r, phi = frames[body]
@@ -372,25 +399,39 @@ def mjcf_text(kinematics: Kinematics) -> str:
         "of the model joint (axis -z where the tree runs from body_b to body_a); slide qpos = the joint's "
         "slide displacement. A pin-in-slot is a slide and a hinge in one body.",
         "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp)"
-        + ("" if not carriers else
-           "; a loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J and closed through "
-           "a carrier body 'J.carrier' with a slide along J's line (qpos = J's slide displacement), held to the "
-           "pin by a connect or to the block by a site weld. Carrier masses are taken from the held bodies "
-           "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep its "
-           "totals; prismatic: half the block), so the mass distribution is the model's; a pin-in-slot carrier "
-           f"adds only a rotational inertia of {_num(CARRIER_INERTIA)} m size^2, at least "
-           f"{_num(CARRIER_INERTIA_FLOOR)} kg m^2 (MuJoCo needs one)")
+        + (
+            ""
+            if not carriers
+            else "; a loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J and closed through "
+            "a carrier body 'J.carrier' with a slide along J's line (qpos = J's slide displacement), held to the "
+            "pin by a connect or to the block by a site weld. Carrier masses are taken from the held bodies "
+            "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep its "
+            "totals; prismatic: half the block), so the mass distribution is the model's; a pin-in-slot carrier "
+            f"adds only a rotational inertia of {_num(CARRIER_INERTIA)} m size^2, at least "
+            f"{_num(CARRIER_INERTIA_FLOOR)} kg m^2 (MuJoCo needs one)"
+        )
         + ". "
-        + (f"Gravity {_vec(*mech.gravity, 0.0)} m/s^2: the model's." if np.any(mech.gravity) else
-           "Gravity is zero: the model gives none (the kinematic comparison does not depend on loads).")
-        + (f" The model's applied loads ({', '.join(load.name for load in mech.loads)}) are not in the file: "
-           "xcheck's inverse dynamics applies them (xfrc_applied)." if mech.loads else "")
+        + (
+            f"Gravity {_vec(*mech.gravity, 0.0)} m/s^2: the model's."
+            if np.any(mech.gravity)
+            else "Gravity is zero: the model gives none (the kinematic comparison does not depend on loads)."
+        )
+        + (
+            f" The model's applied loads ({', '.join(load.name for load in mech.loads)}) are not in the file: "
+            "xcheck's inverse dynamics applies them (xfrc_applied)."
+            if mech.loads
+            else ""
+        )
         + " Links never collide (contype = conaffinity = 0).",
-        "Mass properties: " + ("the model's." if not defaults else
-                               f"defaults for {', '.join(defaults)} (the model gives none): "
-                               f"{_num(DEFAULT_MASS)} kg at the centroid of the body's points, inertia "
-                               f"m (L^2/12 + r^2/2), L the body's largest point distance, r = "
-                               f"{_num(DEFAULT_DISC_FRACTION)} x mechanism size."),
+        "Mass properties: "
+        + (
+            "the model's."
+            if not defaults
+            else f"defaults for {', '.join(defaults)} (the model gives none): "
+            f"{_num(DEFAULT_MASS)} kg at the centroid of the body's points, inertia "
+            f"m (L^2/12 + r^2/2), L the body's largest point distance, r = "
+            f"{_num(DEFAULT_DISC_FRACTION)} x mechanism size."
+        ),
         "Each input is driven by a position servo (kp, ctrl = the motion law's value) plus a velocity servo "
         f"(kv, ctrl = the law's rate): critically damped at {_num(SERVO_FREQUENCY)} rad/s for the input's "
         "smallest apparent inertia over the simulation window (gains rounded to 3 digits). Options are "
@@ -428,8 +469,9 @@ def mjcf_text(kinematics: Kinematics) -> str:
         parent = mech.body(tj.parent)
         # the two points that coincide at zero joint coordinates: the pin's, or the
         # line point (body_a) and the sliding point (body_b)
-        point_a, point_b = ((joint.point_a, joint.point_b) if isinstance(joint, Revolute)
-                            else (joint.line_point, joint.point))
+        point_a, point_b = (
+            (joint.point_a, joint.point_b) if isinstance(joint, Revolute) else (joint.line_point, joint.point)
+        )
         angle = joint.angle if isinstance(joint, Prismatic) else 0.0  # phi_b - phi_a, locked
         if tj.reversed:
             s_parent, s_child, angle = parent.points[point_b], body.points[point_a], -angle
@@ -452,16 +494,21 @@ def mjcf_text(kinematics: Kinematics) -> str:
                 j_attrs["axis"] = _vec(axis[0], axis[1], 0.0)
             ET.SubElement(el, "joint", j_attrs)
         props = written[body.name]
-        ET.SubElement(el, "inertial", pos=_vec(props.com[0], props.com[1], 0.0), mass=_num(props.mass),
-                      diaginertia=_vec(props.inertia, props.inertia, props.inertia))
+        ET.SubElement(
+            el,
+            "inertial",
+            pos=_vec(props.com[0], props.com[1], 0.0),
+            mass=_num(props.mass),
+            diaginertia=_vec(props.inertia, props.inertia, props.inertia),
+        )
         labels = list(body.points)
         pts = [body.points[lbl] for lbl in labels]
         if len(pts) == 1:
-            ET.SubElement(el, "geom", type="box", pos=_vec(pts[0][0], pts[0][1], 0.0),
-                          size=_vec(3 * radius, 2 * radius, radius))
+            ET.SubElement(
+                el, "geom", type="box", pos=_vec(pts[0][0], pts[0][1], 0.0), size=_vec(3 * radius, 2 * radius, radius)
+            )
         for p, q in zip(pts, pts[1:]):
-            ET.SubElement(el, "geom", type="capsule", size=_num(radius),
-                          fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0))
+            ET.SubElement(el, "geom", type="capsule", size=_num(radius), fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0))
         for label, xy in zip(labels, pts):
             ET.SubElement(el, "site", name=_site(body.name, label), pos=_vec(xy[0], xy[1], 0.0))
         add_weld_sites(el, body.name)
@@ -473,11 +520,17 @@ def mjcf_text(kinematics: Kinematics) -> str:
         for cut in _carried(lay.topology, body):
             name, line = carrier_name(cut), mech.body(body).points[cut.line_point]
             el = ET.SubElement(parent_el, "body", name=name, pos=_vec(line[0], line[1], 0.0))
-            ET.SubElement(el, "joint", name=name, type="slide", pos="0 0 0",
-                          axis=_vec(cut.direction[0], cut.direction[1], 0.0))
+            ET.SubElement(
+                el, "joint", name=name, type="slide", pos="0 0 0", axis=_vec(cut.direction[0], cut.direction[1], 0.0)
+            )
             props = carriers[name]
-            ET.SubElement(el, "inertial", pos=_vec(props.com[0], props.com[1], 0.0), mass=_num(props.mass),
-                          diaginertia=_vec(props.inertia, props.inertia, props.inertia))
+            ET.SubElement(
+                el,
+                "inertial",
+                pos=_vec(props.com[0], props.com[1], 0.0),
+                mass=_num(props.mass),
+                diaginertia=_vec(props.inertia, props.inertia, props.inertia),
+            )
             ET.SubElement(el, "site", name=name, pos="0 0 0")
 
     for tj in children.get(GROUND, []):
@@ -488,11 +541,17 @@ def mjcf_text(kinematics: Kinematics) -> str:
         equality = ET.SubElement(root, "equality")
         for cut in lay.topology.cuts:
             if isinstance(cut, Revolute):
-                ET.SubElement(equality, "connect", name=cut.name, site1=_site(cut.body_a, cut.point_a),
-                              site2=_site(cut.body_b, cut.point_b))
+                ET.SubElement(
+                    equality,
+                    "connect",
+                    name=cut.name,
+                    site1=_site(cut.body_a, cut.point_a),
+                    site2=_site(cut.body_b, cut.point_b),
+                )
             elif isinstance(cut, PinInSlot):
-                ET.SubElement(equality, "connect", name=cut.name, site1=carrier_name(cut),
-                              site2=_site(cut.body_b, cut.point))
+                ET.SubElement(
+                    equality, "connect", name=cut.name, site1=carrier_name(cut), site2=_site(cut.body_b, cut.point)
+                )
             else:
                 ET.SubElement(equality, "weld", name=cut.name, site1=carrier_name(cut), site2=weld_site(cut))
 

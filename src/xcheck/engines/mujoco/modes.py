@@ -90,8 +90,9 @@ def _sweeps(kinematics: Kinematics, samples: int, branch: str | None, margin: fl
     return sweeps
 
 
-def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None = None, margin: float = 1e-3,
-                  xml: str | None = None) -> ModeResult:
+def run_kinematic(
+    kinematics: Kinematics, samples: int = 361, branch: str | None = None, margin: float = 1e-3, xml: str | None = None
+) -> ModeResult:
     """MuJoCo as a kinematic oracle over the feasible range of each input.
 
     Positions by Newton projection on MuJoCo's loop residuals (``efc_pos``)
@@ -136,29 +137,45 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
     if not converged.all():
         i = int(np.argmin(converged))
         where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[i]))
-        return ModeResult(KINEMATIC_MODE, mech.name, False,
-                          f"MuJoCo's Newton projection did not close the loops at {where} "
-                          f"(violation {residual[i]:.3g} m)")
+        return ModeResult(
+            KINEMATIC_MODE,
+            mech.name,
+            False,
+            f"MuJoCo's Newton projection did not close the loops at {where} (violation {residual[i]:.3g} m)",
+        )
     rates, accelerations, reached = law_states(mech, inputs)
     stand_ins = int((~reached).sum())
     qvel = np.array([oracle.velocity(q[i], rates[i]) for i in range(len(q))])
     qacc = np.array([oracle.acceleration(q[i], qvel[i], accelerations[i]) for i in range(len(q))])
     bodies, points = oracle.states(q, qvel, qacc)
-    notes = ("Positions: Newton projection on MuJoCo's equality rows (efc_pos, efc_J, least squares) from the "
-             "previous sample; velocities: efc_J with the input rates imposed; accelerations: the same with the "
-             "drift -Jdot qd from mj_jacDot at both sites of each connect. Bodies from xpos/xmat, mj_jac, "
-             "mj_jacDot; points from their sites.")
+    notes = (
+        "Positions: Newton projection on MuJoCo's equality rows (efc_pos, efc_J, least squares) from the "
+        "previous sample; velocities: efc_J with the input rates imposed; accelerations: the same with the "
+        "drift -Jdot qd from mj_jacDot at both sites of each connect. Bodies from xpos/xmat, mj_jac, "
+        "mj_jacDot; points from their sites."
+    )
     if stand_ins:
-        notes += (f" At {stand_ins} input value(s) a driver's law never passes (a driver held at a reference "
-                  "value its law never reaches), its rate and acceleration are 0.")
+        notes += (
+            f" At {stand_ins} input value(s) a driver's law never passes (a driver held at a reference "
+            "value its law never reaches), its rate and acceleration are 0."
+        )
     trajectory = Trajectory(
-        source=KINEMATIC_MODE, inputs=inputs, input_rates=rates, input_accelerations=accelerations,
-        bodies=bodies, points=points,
-        settings={"samples": samples, "margin": margin, "branch": branch or kinematics.branches[0],
-                  "jacobian": "sparse" if mujoco.mj_isSparse(model) else "dense"},
-        diagnostics={"constraint_violation": residual}, notes=notes)
-    return ModeResult(KINEMATIC_MODE, mech.name, True, "", [trajectory],
-                      differences(kinematics, trajectory, branch))
+        source=KINEMATIC_MODE,
+        inputs=inputs,
+        input_rates=rates,
+        input_accelerations=accelerations,
+        bodies=bodies,
+        points=points,
+        settings={
+            "samples": samples,
+            "margin": margin,
+            "branch": branch or kinematics.branches[0],
+            "jacobian": "sparse" if mujoco.mj_isSparse(model) else "dense",
+        },
+        diagnostics={"constraint_violation": residual},
+        notes=notes,
+    )
+    return ModeResult(KINEMATIC_MODE, mech.name, True, "", [trajectory], differences(kinematics, trajectory, branch))
 
 
 def _simulated_duration(kinematics: Kinematics, branch: str | None, duration: float | None):
@@ -173,10 +190,14 @@ def _simulated_duration(kinematics: Kinematics, branch: str | None, duration: fl
     if window.reason == "feasible range":
         inputs = window.inputs(kinematics, np.array([window.duration]))[0][0]
         where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(kinematics.mechanism.drivers, inputs))
-        return duration, (f"the driven motion leaves the feasible range (2% margin) at t = {window.duration:.6g} s "
-                          f"({where}); {duration:.6g} s were asked for")
-    return duration, (f"expected a duration up to the simulation window ({window.duration:.6g} s, "
-                      f"{window.reason}), found {duration:.6g} s")
+        return duration, (
+            f"the driven motion leaves the feasible range (2% margin) at t = {window.duration:.6g} s "
+            f"({where}); {duration:.6g} s were asked for"
+        )
+    return duration, (
+        f"expected a duration up to the simulation window ({window.duration:.6g} s, "
+        f"{window.reason}), found {duration:.6g} s"
+    )
 
 
 def _outside_range(kinematics: Kinematics, branch: str | None, run: Run, dofs: np.ndarray) -> str:
@@ -187,29 +208,41 @@ def _outside_range(kinematics: Kinematics, branch: str | None, run: Run, dofs: n
         outside = np.flatnonzero([not rng.contains(float(v)) for v in values])
         if outside.size:
             i = int(outside[0])
-            return (f"the input {driver.name} reached {values[i]:.6g} at t = {run.times[i]:.6g} s, outside its "
-                    f"feasible range {rng.low} .. {rng.high}")
+            return (
+                f"the input {driver.name} reached {values[i]:.6g} at t = {run.times[i]:.6g} s, outside its "
+                f"feasible range {rng.low} .. {rng.high}"
+            )
     return ""
 
 
-def _summary_row(kinematics, branch, run: Run, trajectory, oracle_trajectory, violation, tracking,
-                 status: str) -> dict:
+def _summary_row(kinematics, branch, run: Run, trajectory, oracle_trajectory, violation, tracking, status: str) -> dict:
     """One row of the dynamic mode's summary (errors left empty for a failed run,
     the oracle's acceleration error empty where it was not computed)."""
-    row = {"setting": run.settings["setting"], "integrator": run.settings["integrator"],
-           "timestep": run.settings["timestep"], "steps": run.steps, "status": status or "ok",
-           "position_error": np.nan, "angle_error": np.nan, "velocity_error": np.nan,
-           "acceleration_error": np.nan, "acceleration_error_oracle": np.nan, "observed_order": np.nan,
-           "constraint_violation": float(np.max(violation)) if violation.size else np.nan,
-           "input_tracking": float(np.max(tracking)) if tracking.size else np.nan}
+    row = {
+        "setting": run.settings["setting"],
+        "integrator": run.settings["integrator"],
+        "timestep": run.settings["timestep"],
+        "steps": run.steps,
+        "status": status or "ok",
+        "position_error": np.nan,
+        "angle_error": np.nan,
+        "velocity_error": np.nan,
+        "acceleration_error": np.nan,
+        "acceleration_error_oracle": np.nan,
+        "observed_order": np.nan,
+        "constraint_violation": float(np.max(violation)) if violation.size else np.nan,
+        "input_tracking": float(np.max(tracking)) if tracking.size else np.nan,
+    }
     if status:
         return row
 
     table = differences(kinematics, trajectory, branch)
-    row.update(position_error=relative_error(table, "position", absolute=True),
-               angle_error=relative_error(table, "angle", absolute=True),
-               velocity_error=max(relative_error(table, "velocity"), relative_error(table, "omega")),
-               acceleration_error=max(relative_error(table, "acceleration"), relative_error(table, "alpha")))
+    row.update(
+        position_error=relative_error(table, "position", absolute=True),
+        angle_error=relative_error(table, "angle", absolute=True),
+        velocity_error=max(relative_error(table, "velocity"), relative_error(table, "omega")),
+        acceleration_error=max(relative_error(table, "acceleration"), relative_error(table, "alpha")),
+    )
     if oracle_trajectory is not None:
         oracle = differences(kinematics, oracle_trajectory, branch)
         row["acceleration_error_oracle"] = max(relative_error(oracle, "acceleration"), relative_error(oracle, "alpha"))
@@ -238,10 +271,16 @@ def relative_error(table: pd.DataFrame, quantity: str, absolute: bool = False) -
     return error if absolute or scale == 0.0 else error / scale
 
 
-def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int = 101,
-                default_timesteps=(2e-3, 1e-3, 5e-4), tight_timesteps=(1e-3, 5e-4, 2.5e-4, 1.25e-4),
-                duration: float | None = None, violation_bound: float = 0.05,
-                xml: str | None = None) -> ModeResult:
+def run_dynamic(
+    kinematics: Kinematics,
+    branch: str | None = None,
+    samples: int = 101,
+    default_timesteps=(2e-3, 1e-3, 5e-4),
+    tight_timesteps=(1e-3, 5e-4, 2.5e-4, 1.25e-4),
+    duration: float | None = None,
+    violation_bound: float = 0.05,
+    xml: str | None = None,
+) -> ModeResult:
     """MuJoCo simulating the mechanism with its inputs driven by the file's servos.
 
     Every run starts from the exact state at t = 0 (native configuration,
@@ -295,8 +334,12 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
     c0, cd0 = (np.array([float(d.law.at_time(0.0)[i]) for d in mech.drivers]) for i in (0, 1))
     native = kinematics.solve(c0[None], cd0[None], branch=branch)
     if native.status[0] > Status.NEAR_SINGULAR:
-        return ModeResult(DYNAMIC_MODE, mech.name, False,
-                          f"the mechanism has no determined state at t = 0 ({Status(native.status[0]).message})")
+        return ModeResult(
+            DYNAMIC_MODE,
+            mech.name,
+            False,
+            f"the mechanism has no determined state at t = 0 ({Status(native.status[0]).message})",
+        )
     start = oracle.project(joint_coordinates(mech, lay, native.q[0]), c0, c0[None])
     qpos0, qvel0 = start.qpos[0], oracle.velocity(start.qpos[0], cd0)
     dofs = oracle.input_dofs
@@ -314,15 +357,18 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         status = run.failure
         if not status and violation.size and violation.max() > violation_bound * mech.size:
             i = int(np.argmax(violation > violation_bound * mech.size))
-            status = (f"diverged: loop violation {violation[i]:.3g} m > {violation_bound:g} x size at "
-                      f"t = {run.times[i]:.6g} s")
+            status = (
+                f"diverged: loop violation {violation[i]:.3g} m > {violation_bound:g} x size at "
+                f"t = {run.times[i]:.6g} s"
+            )
         status = status or _outside_range(kinematics, branch, run, dofs)
         is_primary = (setting, dt) == primary
         trajectory: Trajectory | None = None
         oracle_trajectory: Trajectory | None = None
         if not status:
-            trajectory, oracle_trajectory = _run_trajectories(oracle, run, setting, duration, violation, tracking,
-                                                              with_oracle=is_primary)
+            trajectory, oracle_trajectory = _run_trajectories(
+                oracle, run, setting, duration, violation, tracking, with_oracle=is_primary
+            )
         rows.append(_summary_row(kinematics, branch, run, trajectory, oracle_trajectory, violation, tracking, status))
         if is_primary and status:
             primary_failure = f"{setting.name} {setting.integrator} dt = {dt:g} s: {status}"
@@ -336,53 +382,83 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, samples: int 
         group = summary[summary.setting == name]
         errors, steps = group.position_error.to_numpy(), group.timestep.to_numpy()
         summary.loc[group.index[1:], "observed_order"] = [
-            observed_order(errors[i - 1], errors[i], steps[i - 1], steps[i]) for i in range(1, len(errors))]
-    study = convergence_study(summary.setting + " " + summary.integrator, summary.timestep, summary.position_error,
-                              summary.status)
+            observed_order(errors[i - 1], errors[i], steps[i - 1], steps[i]) for i in range(1, len(errors))
+        ]
+    study = convergence_study(
+        summary.setting + " " + summary.integrator, summary.timestep, summary.position_error, summary.status
+    )
     if primary_failure:
         return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary, study)
     return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary, study)
 
 
-def _run_trajectories(oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray,
-                      tracking: np.ndarray, with_oracle: bool) -> tuple[Trajectory, Trajectory | None]:
+def _run_trajectories(
+    oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray, tracking: np.ndarray, with_oracle: bool
+) -> tuple[Trajectory, Trajectory | None]:
     """The trajectory of a run (accelerations from qacc) and, if asked, the same
     states with the kinematic oracle's accelerations (else None)."""
     dofs = oracle.input_dofs
     inputs, rates, accelerations = run.qpos[:, dofs], run.qvel[:, dofs], run.qacc[:, dofs]
     series = f"{run.settings['setting']} {run.settings['integrator']}"
-    settings = {**run.settings, "series": series, "accelerations": "qacc", "duration": duration,
-                "samples": len(run.times),
-                "drive": "position servo (ctrl = law value) + velocity servo (ctrl = law rate), zero-order hold"}
+    settings = {
+        **run.settings,
+        "series": series,
+        "accelerations": "qacc",
+        "duration": duration,
+        "samples": len(run.times),
+        "drive": "position servo (ctrl = law value) + velocity servo (ctrl = law rate), zero-order hold",
+    }
     diagnostics = {"constraint_violation": violation, "input_tracking": tracking}
-    drive = (f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
-             "by the file's servos, controls = the laws' value and rate at each step's start; the native solver "
-             "is evaluated at the inputs as MuJoCo realised them (input joints' qpos, qvel, qacc). ")
+    drive = (
+        f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
+        "by the file's servos, controls = the laws' value and rate at each step's start; the native solver "
+        "is evaluated at the inputs as MuJoCo realised them (input joints' qpos, qvel, qacc). "
+    )
     defaults = [name for name, props in mass_properties(oracle.mechanism).items() if props.default]
     if defaults:
-        drive += (f"Default mass properties (none in the model) for {', '.join(defaults)}: {DEFAULT_MASS:g} kg at "
-                  "the centroid of the body's points, a slender bar's inertia plus a small disc term. ")
+        drive += (
+            f"Default mass properties (none in the model) for {', '.join(defaults)}: {DEFAULT_MASS:g} kg at "
+            "the centroid of the body's points, a slender bar's inertia plus a small disc term. "
+        )
     note = carrier_note(oracle.mechanism, layout(oracle.mechanism).topology)
     drive += f"{note} " if note else ""
     bodies, points = oracle.states(run.qpos, run.qvel, run.qacc)
-    trajectory = Trajectory(DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times, settings,
-                            diagnostics, drive + "Accelerations: qacc from mj_forward at each sampled state (what "
-                            "the integrator uses, including MuJoCo's constraint stabilisation); the comparison "
-                            "uses these.")
+    trajectory = Trajectory(
+        DYNAMIC_MODE,
+        inputs,
+        rates,
+        accelerations,
+        bodies,
+        points,
+        run.times,
+        settings,
+        diagnostics,
+        drive + "Accelerations: qacc from mj_forward at each sampled state (what "
+        "the integrator uses, including MuJoCo's constraint stabilisation); the comparison "
+        "uses these.",
+    )
     if not with_oracle:
         return trajectory, None
     qacc = np.array([oracle.acceleration(q, v, a) for q, v, a in zip(run.qpos, run.qvel, accelerations)])
     bodies, points = oracle.states(run.qpos, run.qvel, qacc)
     return trajectory, Trajectory(
-        DYNAMIC_MODE, inputs, rates, accelerations, bodies, points, run.times,
+        DYNAMIC_MODE,
+        inputs,
+        rates,
+        accelerations,
+        bodies,
+        points,
+        run.times,
         {**settings, "series": f"{series}, oracle accelerations", "accelerations": "oracle at simulated state"},
         diagnostics,
         drive + "Accelerations: the kinematic oracle at the simulated states (J qdd = -Jdot qd with the input "
-        "joints' qacc imposed), not qacc; shown beside the comparison, which uses qacc.")
+        "joints' qacc imposed), not qacc; shown beside the comparison, which uses qacc.",
+    )
 
 
-def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
-                     solution=None, xml: str | None = None):
+def inverse_dynamics(
+    kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution=None, xml: str | None = None
+):
     """Joint reactions and input efforts from MuJoCo at the native states of the
     simulation window (see :mod:`.inverse` for how).
 

@@ -59,8 +59,9 @@ class Oracle:
 
     def __init__(self, model: mujoco.MjModel, mechanism: Mechanism, layout: Layout):
         if model.nq != model.nv:
-            raise ValueError(f"expected a model of hinge and slide joints (nq == nv), found nq = {model.nq}, "
-                             f"nv = {model.nv}")
+            raise ValueError(
+                f"expected a model of hinge and slide joints (nq == nv), found nq = {model.nq}, nv = {model.nv}"
+            )
         self.model, self.data = model, mujoco.MjData(model)
         self.mechanism, self.size = mechanism, mechanism.size
         self.nv = model.nv
@@ -68,14 +69,20 @@ class Oracle:
         self.selector = np.zeros((len(self.input_dofs), self.nv))
         self.selector[np.arange(len(self.input_dofs)), self.input_dofs] = 1.0
         # input rows in metres: angles times the mechanism's size
-        self.input_scale = np.array([self.size if model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_HINGE
-                                     else 1.0 for j in self.input_dofs])
+        self.input_scale = np.array(
+            [
+                self.size if model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_HINGE else 1.0
+                for j in self.input_dofs
+            ]
+        )
         self.bodies = [(b.name, model.body(b.name).id) for b in mechanism.moving_bodies]
         owners = mechanism.point_owners
         self.points = [(label, model.site(f"{owners[label]}.{label}").id) for label in owners]
         # (site 1, site 2, weld?) per equality: connects give 3 rows, welds 6 (translation, then rotation)
-        self.equalities = [(model.eq_obj1id[i], model.eq_obj2id[i], model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD)
-                           for i in range(model.neq)]
+        self.equalities = [
+            (model.eq_obj1id[i], model.eq_obj2id[i], model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD)
+            for i in range(model.neq)
+        ]
         self._jacp, self._jacr = np.zeros((3, self.nv)), np.zeros((3, self.nv))
 
     # -- loop closure -------------------------------------------------------
@@ -97,7 +104,7 @@ class Oracle:
             dense = np.zeros((d.nefc, self.nv))
             mujoco.mju_sparse2dense(dense, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
         else:
-            dense = d.efc_J[:d.nefc * self.nv].reshape(d.nefc, self.nv)
+            dense = d.efc_J[: d.nefc * self.nv].reshape(d.nefc, self.nv)
         return d.efc_pos[rows].copy(), dense[rows].copy()
 
     def _system(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -115,8 +122,9 @@ class Oracle:
         residual, _ = self.constraints(qpos)
         return float(np.max(np.abs(residual), initial=0.0))
 
-    def project(self, start: np.ndarray, start_inputs: np.ndarray, inputs: np.ndarray,
-                max_iter: int = 30) -> Projection:
+    def project(
+        self, start: np.ndarray, start_inputs: np.ndarray, inputs: np.ndarray, max_iter: int = 30
+    ) -> Projection:
         """Newton projection along a sweep, each sample from the previous one.
 
         Parameters
@@ -144,7 +152,7 @@ class Oracle:
                 loop, matrix = self._system(q)
                 rows = np.concatenate([loop, q[self.input_dofs] - c])
                 loop_value = float(np.max(np.abs(loop), initial=0.0))
-                value = max(loop_value, float(np.max(np.abs(rows[loop.size:]) * self.input_scale)))
+                value = max(loop_value, float(np.max(np.abs(rows[loop.size :]) * self.input_scale)))
                 if not value < best:  # no longer improving: round-off floor (or divergence)
                     break
                 best_q, best, best_loop = q, value, loop_value
@@ -161,8 +169,12 @@ class Oracle:
     def tangent(self, qpos: np.ndarray) -> np.ndarray:
         """dq/dc at ``qpos``: shape (nv, k)."""
         _, matrix = self._system(qpos)
-        rhs = np.vstack([np.zeros((matrix.shape[0] - self.selector.shape[0], self.selector.shape[0])),
-                         np.eye(self.selector.shape[0])])
+        rhs = np.vstack(
+            [
+                np.zeros((matrix.shape[0] - self.selector.shape[0], self.selector.shape[0])),
+                np.eye(self.selector.shape[0]),
+            ]
+        )
         return self._lstsq(matrix, rhs)
 
     def velocity(self, qpos: np.ndarray, rates: np.ndarray) -> np.ndarray:
@@ -189,8 +201,9 @@ class Oracle:
         return np.concatenate(out) if out else np.zeros(0)
 
     def _point_drift(self, site: int, qvel: np.ndarray) -> np.ndarray:
-        mujoco.mj_jacDot(self.model, self.data, self._jacp, None, self.data.site_xpos[site],
-                         self.model.site_bodyid[site])
+        mujoco.mj_jacDot(
+            self.model, self.data, self._jacp, None, self.data.site_xpos[site], self.model.site_bodyid[site]
+        )
         return self._jacp @ qvel
 
     def acceleration(self, qpos: np.ndarray, qvel: np.ndarray, accelerations: np.ndarray) -> np.ndarray:
@@ -219,12 +232,20 @@ class Oracle:
         m, d = self.model, self.data
         n = qpos.shape[0]
         bodies: dict[str, dict[str, np.ndarray]] = {
-            name: {"position": np.empty((n, 2)), "angle": np.empty(n), "velocity": np.empty((n, 2)),
-                   "omega": np.empty(n), "acceleration": np.empty((n, 2)), "alpha": np.empty(n)}
-            for name, _ in self.bodies}
+            name: {
+                "position": np.empty((n, 2)),
+                "angle": np.empty(n),
+                "velocity": np.empty((n, 2)),
+                "omega": np.empty(n),
+                "acceleration": np.empty((n, 2)),
+                "alpha": np.empty(n),
+            }
+            for name, _ in self.bodies
+        }
         points: dict[str, dict[str, np.ndarray]] = {
             label: {"position": np.empty((n, 2)), "velocity": np.empty((n, 2)), "acceleration": np.empty((n, 2))}
-            for label, _ in self.points}
+            for label, _ in self.points
+        }
         jacp, jacr, dotp, dotr = (np.zeros((3, self.nv)) for _ in range(4))
         for i in range(n):
             d.qpos[:], d.qvel[:] = qpos[i], qvel[i]

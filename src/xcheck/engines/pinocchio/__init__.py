@@ -10,8 +10,14 @@ from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
 
 __all__ = ["Pinocchio"]
 
-_DYNAMIC = Tolerance(CONVERGES, CONVERGES, CONVERGES, CONVERGES, "converges to the exact answer: RK4 over 200, "
-                     "400, 800 steps per window, order 4 in every quantity" + CONVERGENCE_NOTE)
+_DYNAMIC = Tolerance(
+    CONVERGES,
+    CONVERGES,
+    CONVERGES,
+    CONVERGES,
+    "converges to the exact answer: RK4 over 200, "
+    "400, 800 steps per window, order 4 in every quantity" + CONVERGENCE_NOTE,
+)
 
 
 class Pinocchio(Engine):
@@ -24,16 +30,21 @@ class Pinocchio(Engine):
     distributions = ("pin",)
     install = "pip install pin"
     modes = (
-        Mode("pinocchio-kinematic", "kinematic", ROUND_OFF,
-             style=dict(color="tab:orange", lw=0, marker="1", ms=6)),
+        Mode("pinocchio-kinematic", "kinematic", ROUND_OFF, style=dict(color="tab:orange", lw=0, marker="1", ms=6)),
         # RK4: observed orders 3.9 to 4.1 in every category over the models and the test mechanisms
-        Mode("pinocchio-dynamic", "dynamic", _DYNAMIC,
-             orders=dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
-             style=dict(color="tab:orange", lw=1, ls=":")),
+        Mode(
+            "pinocchio-dynamic",
+            "dynamic",
+            _DYNAMIC,
+            orders=dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
+            style=dict(color="tab:orange", lw=1, ls=":"),
+        ),
     )
     force_tolerance = 1e-12
     force_basis = "the multipliers of the loop closures at the native states: round-off (measured at most 1.7e-13)"
     export_format, export_directory = "urdf", "urdf"
     color = "tab:orange"
-    notes = ("A spanning tree of revolute and prismatic joints (URDF) with the loops closed by CONTACT_3D/6D "
-             "constraints, cut at a slider on a carrier body; pin-in-slot through its carrier.")
+    notes = (
+        "A spanning tree of revolute and prismatic joints (URDF) with the loops closed by CONTACT_3D/6D "
+        "constraints, cut at a slider on a carrier body; pin-in-slot through its carrier."
+    )

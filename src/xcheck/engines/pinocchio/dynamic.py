@@ -36,8 +36,11 @@ __all__ = ["run_dynamic", "INTEGRATORS"]
 
 MODE = "pinocchio-dynamic"
 #: integrator name -> (scheme, Baumgarte correction on?)
-INTEGRATORS = {"rk4": ("rk4", False), "semi-implicit-euler": ("euler", False),
-               "semi-implicit-euler-baumgarte": ("euler", True)}
+INTEGRATORS = {
+    "rk4": ("rk4", False),
+    "semi-implicit-euler": ("euler", False),
+    "semi-implicit-euler-baumgarte": ("euler", True),
+}
 #: PD tracking of the inputs: natural frequency in cycles per window.
 TRACKING_CYCLES = 10.0
 #: Baumgarte gains Kp = (BAUMGARTE / dt)^2, Kd = 2 BAUMGARTE / dt: a critically
@@ -105,8 +108,9 @@ class _Driven:
         return self._forward(q, v, s.T @ force).copy(), force
 
 
-def _integrate(driven: _Driven, scheme: str, q0, v0, duration: float, steps: int, every: int, size: float,
-               oracle: Oracle):
+def _integrate(
+    driven: _Driven, scheme: str, q0, v0, duration: float, steps: int, every: int, size: float, oracle: Oracle
+):
     """March ``steps`` steps over ``duration``; record every ``every`` steps.
 
     Returns
@@ -147,8 +151,10 @@ def _integrate(driven: _Driven, scheme: str, q0, v0, duration: float, steps: int
                 return rows, f"diverged at t = {(i + 1) * dt:.4g} s (state not finite)"
             opening = float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0))
             if opening > LOOP_OPENING_LIMIT * size:
-                return rows, (f"failed at t = {(i + 1) * dt:.4g} s: the loops opened by {opening:.3g} m, "
-                              f"more than {LOOP_OPENING_LIMIT:.0%} of the size")
+                return rows, (
+                    f"failed at t = {(i + 1) * dt:.4g} s: the loops opened by {opening:.3g} m, "
+                    f"more than {LOOP_OPENING_LIMIT:.0%} of the size"
+                )
             record(i + 1)
     return rows, None
 
@@ -173,11 +179,18 @@ def _trajectory(pm, oracle, rows, source, settings, notes) -> Trajectory:
     for qi, vi in zip(q, v):
         oracle.loop_residual(qi)
         velocity_loop.append(float(np.max(np.abs(oracle.loop_jacobian(qi) @ vi), initial=0.0)))
-    return Trajectory(source=source, inputs=q @ s.T, input_rates=v @ s.T, input_accelerations=a @ s.T,
-                      bodies=bodies, points=points, times=times, settings=settings,
-                      diagnostics={"constraint_violation": loop, "velocity_violation": np.array(velocity_loop),
-                                   "input_force": force},
-                      notes=notes)
+    return Trajectory(
+        source=source,
+        inputs=q @ s.T,
+        input_rates=v @ s.T,
+        input_accelerations=a @ s.T,
+        bodies=bodies,
+        points=points,
+        times=times,
+        settings=settings,
+        diagnostics={"constraint_violation": loop, "velocity_violation": np.array(velocity_loop), "input_force": force},
+        notes=notes,
+    )
 
 
 def _worst(table: pd.DataFrame, quantities, column: str) -> float:
@@ -188,8 +201,9 @@ def _worst(table: pd.DataFrame, quantities, column: str) -> float:
 def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
     """:func:`~xcheck.compare.observed_order` of each run against the one before,
     NaN for the first run and where either error is not above ``floor`` (round-off)."""
-    return [math.nan] + [observed_order(errors[i - 1], errors[i], dts[i - 1], dts[i], floor)
-                         for i in range(1, len(errors))]
+    return [math.nan] + [
+        observed_order(errors[i - 1], errors[i], dts[i - 1], dts[i], floor) for i in range(1, len(errors))
+    ]
 
 
 def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, baumgarte, branch, defaults):
@@ -203,53 +217,86 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
     driven = None
     try:
         driven = _Driven(pm, laws, window.duration, gains)
-        rows, failure = _integrate(driven, scheme, q0, v0, window.duration, steps, steps // (samples - 1),
-                                   size, oracle)
+        rows, failure = _integrate(driven, scheme, q0, v0, window.duration, steps, steps // (samples - 1), size, oracle)
     except Exception as error:  # noqa: BLE001 - one run failing leaves the others
         rows, failure = [], one_line(error)
-    run = {"integrator": integrator, "dt": dt, "steps": steps, "status": failure or "ok",
-           "seconds": time.perf_counter() - start}
+    run = {
+        "integrator": integrator,
+        "dt": dt,
+        "steps": steps,
+        "status": failure or "ok",
+        "seconds": time.perf_counter() - start,
+    }
     if failure is not None:
         return run, None
     kp, kd = tracking_gains(window.duration)
-    settings = {"integrator": integrator, "series": integrator, "dt": dt, "timestep": dt, "steps": steps,
-                "duration": window.duration,
-                "window": window.reason, "baumgarte_kp": gains[0] if gains else 0.0,
-                "baumgarte_kd": gains[1] if gains else 0.0, "proximal_mu": PROXIMAL_MU,
-                "proximal_accuracy": PROXIMAL_ACCURACY, "tracking_kp": kp, "tracking_kd": kd,
-                "gravity": [float(g) for g in pm.model.gravity.linear], "default_mass_properties": defaults}
-    notes = (f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
-             f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
-             "Inputs driven by a computed torque on the input joints: the torque that makes the input "
-             "acceleration the motion law's plus a critically damped PD correction "
-             f"(kp = {kp:.4g} 1/s^2, kd = {kd:.4g} 1/s) on the tracking error. Accelerations are "
-             "constraintDynamics' own at each recorded state."
-             + (f" Baumgarte correction Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
-             + (f" Loops with no undriven revolute are closed through carriers "
-                f"({', '.join(c.name for c in pm.spec.carriers)}: a prismatic joint along the cut joint's line, "
-                "CONTACT_3D to a pin, CONTACT_6D to a block) whose mass is taken from the bodies they are held "
-                "to, so the mass distribution is the model's." if pm.spec.carriers else "")
-             + (f" Default mass properties (none in the model) for {', '.join(defaults)}: 1 kg at the "
-                "centroid of the body's points, a slender bar's inertia." if defaults else ""))
+    settings = {
+        "integrator": integrator,
+        "series": integrator,
+        "dt": dt,
+        "timestep": dt,
+        "steps": steps,
+        "duration": window.duration,
+        "window": window.reason,
+        "baumgarte_kp": gains[0] if gains else 0.0,
+        "baumgarte_kd": gains[1] if gains else 0.0,
+        "proximal_mu": PROXIMAL_MU,
+        "proximal_accuracy": PROXIMAL_ACCURACY,
+        "tracking_kp": kp,
+        "tracking_kd": kd,
+        "gravity": [float(g) for g in pm.model.gravity.linear],
+        "default_mass_properties": defaults,
+    }
+    notes = (
+        f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
+        f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
+        "Inputs driven by a computed torque on the input joints: the torque that makes the input "
+        "acceleration the motion law's plus a critically damped PD correction "
+        f"(kp = {kp:.4g} 1/s^2, kd = {kd:.4g} 1/s) on the tracking error. Accelerations are "
+        "constraintDynamics' own at each recorded state."
+        + (f" Baumgarte correction Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
+        + (
+            f" Loops with no undriven revolute are closed through carriers "
+            f"({', '.join(c.name for c in pm.spec.carriers)}: a prismatic joint along the cut joint's line, "
+            "CONTACT_3D to a pin, CONTACT_6D to a block) whose mass is taken from the bodies they are held "
+            "to, so the mass distribution is the model's."
+            if pm.spec.carriers
+            else ""
+        )
+        + (
+            f" Default mass properties (none in the model) for {', '.join(defaults)}: 1 kg at the "
+            "centroid of the body's points, a slender bar's inertia."
+            if defaults
+            else ""
+        )
+    )
     trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
     assert trajectory.times is not None and driven is not None  # a run that did not fail
     table = differences(kinematics, trajectory, branch)
     law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
-    run.update({
-        "position_error_m": _worst(table, ["position"], "max_abs"),
-        "angle_error_rad": _worst(table, ["angle"], "max_abs"),
-        "velocity_rel": _worst(table, ["velocity", "omega"], "max_rel"),
-        "acceleration_rel": _worst(table, ["acceleration", "alpha"], "max_rel"),
-        "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
-        "input_error": float(np.max(np.abs(trajectory.inputs - law_inputs))),
-        "evaluations": driven.evaluations,
-        "proximal_iterations_max": driven.proximal_iterations,
-    })
+    run.update(
+        {
+            "position_error_m": _worst(table, ["position"], "max_abs"),
+            "angle_error_rad": _worst(table, ["angle"], "max_abs"),
+            "velocity_rel": _worst(table, ["velocity", "omega"], "max_rel"),
+            "acceleration_rel": _worst(table, ["acceleration", "alpha"], "max_rel"),
+            "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
+            "input_error": float(np.max(np.abs(trajectory.inputs - law_inputs))),
+            "evaluations": driven.evaluations,
+            "proximal_iterations_max": driven.proximal_iterations,
+        }
+    )
     return run, trajectory
 
 
-def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51, branch: str | None = None,
-                integrators=tuple(INTEGRATORS), baumgarte: float = BAUMGARTE) -> ModeResult:
+def run_dynamic(
+    kinematics: Kinematics,
+    steps=(200, 400, 800),
+    samples: int = 51,
+    branch: str | None = None,
+    integrators=tuple(INTEGRATORS),
+    baumgarte: float = BAUMGARTE,
+) -> ModeResult:
     """Simulate the mechanism with its inputs driven over the simulation window.
 
     Parameters
@@ -283,8 +330,7 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
     try:
         steps = sorted(int(n) for n in steps)
         if samples < 2 or any(n % (samples - 1) for n in steps):
-            raise ValueError(f"expected step counts that are multiples of samples - 1 = {samples - 1}, "
-                             f"found {steps}")
+            raise ValueError(f"expected step counts that are multiples of samples - 1 = {samples - 1}, found {steps}")
         unknown = [name for name in integrators if name not in INTEGRATORS]
         if unknown:
             raise ValueError(f"expected integrators among {', '.join(INTEGRATORS)}, found {unknown[0]!r}")
@@ -304,18 +350,25 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
         return ModeResult(MODE, mech.name, False, one_line(error))
 
     defaults = [b.name for b in pm.spec.bodies if b.default]
-    runs = [_run(kinematics, pm, oracle, integrator, n, samples, window, q0, v0, baumgarte, branch, defaults)
-            for integrator in integrators for n in steps]
+    runs = [
+        _run(kinematics, pm, oracle, integrator, n, samples, window, q0, v0, baumgarte, branch, defaults)
+        for integrator in integrators
+        for n in steps
+    ]
     summary = pd.DataFrame([run for run, _ in runs])
-    for column, order in (("position_error_m", "order_position"), ("constraint_violation_m", "order_drift"),
-                          ("input_error", "order_input")):
+    for column, order in (
+        ("position_error_m", "order_position"),
+        ("constraint_violation_m", "order_drift"),
+        ("input_error", "order_input"),
+    ):
         if column not in summary:
             summary[column] = math.nan
         summary[order] = math.nan
         for integrator in integrators:
             rows = summary.integrator == integrator
-            summary.loc[rows, order] = _order(list(summary.loc[rows, column]), list(summary.loc[rows, "dt"]),
-                                              ROUND_OFF * size)
+            summary.loc[rows, order] = _order(
+                list(summary.loc[rows, column]), list(summary.loc[rows, "dt"]), ROUND_OFF * size
+            )
     lead = "rk4" if "rk4" in integrators else integrators[0]
     first = next(i for i, (run, _) in enumerate(runs) if run["integrator"] == lead and run["steps"] == steps[-1])
     ordered = [runs[first]] + [r for i, r in enumerate(runs) if i != first]
@@ -326,6 +379,13 @@ def run_dynamic(kinematics: Kinematics, steps=(200, 400, 800), samples: int = 51
     comparison, _ = runs[first]
     study = convergence_study(summary.integrator, summary.dt, summary.position_error_m, summary.status)
     if comparison["status"] != "ok" or not trajectories:
-        return ModeResult(MODE, mech.name, False, f"{comparison['integrator']} at {comparison['steps']} steps: "
-                          f"{comparison['status']}", trajectories, summary, study)
+        return ModeResult(
+            MODE,
+            mech.name,
+            False,
+            f"{comparison['integrator']} at {comparison['steps']} steps: {comparison['status']}",
+            trajectories,
+            summary,
+            study,
+        )
     return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)

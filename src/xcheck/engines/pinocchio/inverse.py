@@ -40,8 +40,9 @@ def _force(linear_xy, point_xy, torque: float = 0.0) -> pin.Force:
     return pin.Force(linear, np.array([0.0, 0.0, moment]))
 
 
-def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
-                   solution=None) -> Forces:
+def inverse_forces(
+    kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution=None
+) -> Forces:
     """Reactions and efforts from Pinocchio over the native states ``solution``
     (default: :func:`~xcheck.dynamics.window_states` with ``samples`` states).
 
@@ -73,16 +74,18 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
     body_joint = {name: model.frames[fid].parentJoint for name, fid in pm.body_frames.items()}
     point_ids = pm.point_frames
 
-    joints = {j.name: {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(j)}
-              for j in mech.joints}
+    joints = {
+        j.name: {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(j)} for j in mech.joints
+    }
     drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     driven = {d.joint: k for k, d in enumerate(mech.drivers)}
     residual, closure = np.zeros(n), np.zeros(n)
     for i in range(n):
         q, loop, _, converged = oracle.project(joint_coordinates(pm, solution.q[i]), inputs[i], size)
         if not converged:
-            raise ValueError(f"Pinocchio's Newton projection did not close the loops at sample {i} "
-                             f"(violation {loop:.3g} m)")
+            raise ValueError(
+                f"Pinocchio's Newton projection did not close the loops at sample {i} (violation {loop:.3g} m)"
+            )
         closure[i] = loop
         v = oracle.rates(q, rates[i])
         a = oracle.acceleration(q, v, accelerations[i])
@@ -115,7 +118,7 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
 
         cut_forces = []
         for c, cut in enumerate(cuts):
-            f = x[offsets[c]:offsets[c] + 2]
+            f = x[offsets[c] : offsets[c] + 2]
             couple = x[offsets[c] + 2] if isinstance(cut, Prismatic) else 0.0
             if isinstance(cut, Revolute):
                 for body, label, sign in ((cut.body_a, cut.point_a, 1.0), (cut.body_b, cut.point_b, -1.0)):
@@ -125,8 +128,10 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
                     cut_forces.append((body_joint[body], _force(sign * f, at)))
             else:  # anchor 1 on the carrier, anchor 2 on body_b, both at the sliding point
                 cm = pm.constraints[c]
-                for jid, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0),
-                                             (cm.joint2_id, cm.joint2_placement, -1.0)):
+                for jid, placement, sign in (
+                    (cm.joint1_id, cm.joint1_placement, 1.0),
+                    (cm.joint2_id, cm.joint2_placement, -1.0),
+                ):
                     if jid == 0:
                         continue
                     at = (data.oMi[jid] * placement).translation[:2]
@@ -164,9 +169,16 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
             out["normal"][i] = force @ normal
             if isinstance(joint, Prismatic):
                 out["moment"][i] = moment
-    return Forces("pinocchio", inputs, rates, accelerations, joints, drivers,
-                  diagnostics={"residual": residual, "constraint_violation": closure},
-                  settings={"states": n, "gravity": [float(g) for g in model.gravity.linear]},
-                  notes="Pinocchio's kinematic oracle at each native state, then rnea (gravity and the applied "
-                        "loads as external forces); loop-cut forces and input efforts from [J_cut^T S^T] x = rnea; "
-                        "tree joints' reactions from data.f of a second rnea with the cut forces added.")
+    return Forces(
+        "pinocchio",
+        inputs,
+        rates,
+        accelerations,
+        joints,
+        drivers,
+        diagnostics={"residual": residual, "constraint_violation": closure},
+        settings={"states": n, "gravity": [float(g) for g in model.gravity.linear]},
+        notes="Pinocchio's kinematic oracle at each native state, then rnea (gravity and the applied "
+        "loads as external forces); loop-cut forces and input efforts from [J_cut^T S^T] x = rnea; "
+        "tree joints' reactions from data.f of a second rnea with the cut forces added.",
+    )

@@ -49,8 +49,19 @@ from xcheck.kinematics import rotate
 from xcheck.model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
 from xcheck.topology import carrier_share, spanning_tree
 
-__all__ = ["JointSpec", "BodySpec", "DriverCoordinate", "TreeSpec", "PinocchioMechanism",
-           "tree_spec", "build_model", "mass_properties", "joint_coordinates", "carrier_joint", "block_frame"]
+__all__ = [
+    "JointSpec",
+    "BodySpec",
+    "DriverCoordinate",
+    "TreeSpec",
+    "PinocchioMechanism",
+    "tree_spec",
+    "build_model",
+    "mass_properties",
+    "joint_coordinates",
+    "carrier_joint",
+    "block_frame",
+]
 
 
 @dataclass(frozen=True)
@@ -225,7 +236,7 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     for tj in topology.tree:
         j, parent, child = tj.joint, tj.parent, tj.child
         if isinstance(j, Revolute):
-            l_parent, l_child = ((j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b))
+            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
             s_parent = mechanism.body(parent).points[l_parent]
             s_child = mechanism.body(child).points[l_child]
             steps = [("revolute", j.name, s_parent, 0.0, _Z)]
@@ -245,12 +256,16 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
                 slide = j.name
             else:  # pin-in-slot: slide and hinge through a massless carrier
                 if not tj.reversed:
-                    steps = [("prismatic", f"{j.name}.slide", s_line, 0.0, _unit3(d)),
-                             ("revolute", f"{j.name}.turn", np.zeros(2), 0.0, _Z)]
+                    steps = [
+                        ("prismatic", f"{j.name}.slide", s_line, 0.0, _unit3(d)),
+                        ("revolute", f"{j.name}.turn", np.zeros(2), 0.0, _Z),
+                    ]
                     s_parent, s_child = s_line, s_point
                 else:
-                    steps = [("revolute", f"{j.name}.turn", s_point, 0.0, _Z),
-                             ("prismatic", f"{j.name}.slide", np.zeros(2), 0.0, -_unit3(d))]
+                    steps = [
+                        ("revolute", f"{j.name}.turn", s_point, 0.0, _Z),
+                        ("prismatic", f"{j.name}.slide", np.zeros(2), 0.0, -_unit3(d)),
+                    ]
                     s_parent, s_child = s_point, s_line
                 slide = f"{j.name}.slide"
             if tj.driver:
@@ -258,8 +273,11 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
         frame = parent
         for kind, name, origin, angle, axis in steps:
             link = f"{name}.link"
-            joints.append(JointSpec(name, kind, frame, np.array(origin, dtype=float), float(angle),
-                                    axis, link, j.name, (parent, child)))
+            joints.append(
+                JointSpec(
+                    name, kind, frame, np.array(origin, dtype=float), float(angle), axis, link, j.name, (parent, child)
+                )
+            )
             frame = link
         attach[child] = (frame, np.array(s_child, dtype=float))
 
@@ -269,11 +287,28 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
             continue
         line = mechanism.body(cut.body_a).points[cut.line_point]
         name = carrier_joint(cut)
-        joints.append(JointSpec(name, "prismatic", cut.body_a, np.array(line, dtype=float), 0.0,
-                                _unit3(cut.direction), f"{name}.link", cut.name, (cut.body_a, cut.body_a)))
+        joints.append(
+            JointSpec(
+                name,
+                "prismatic",
+                cut.body_a,
+                np.array(line, dtype=float),
+                0.0,
+                _unit3(cut.direction),
+                f"{name}.link",
+                cut.name,
+                (cut.body_a, cut.body_a),
+            )
+        )
         if isinstance(cut, Prismatic):
-            blocks.append((cut.body_b, block_frame(cut),
-                           np.array(mechanism.body(cut.body_b).points[cut.point], dtype=float), -float(cut.angle)))
+            blocks.append(
+                (
+                    cut.body_b,
+                    block_frame(cut),
+                    np.array(mechanism.body(cut.body_b).points[cut.point], dtype=float),
+                    -float(cut.angle),
+                )
+            )
 
     size = mechanism.size
     props = {body.name: mass_properties(body, size) for body in mechanism.moving_bodies}
@@ -294,18 +329,36 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
         link, s_child = attach[body.name]
         mass, com, inertia, default = props[body.name]
         bodies.append(BodySpec(body.name, link, -s_child, mass, com, inertia, default))
-    points = tuple((b.name, label, np.array(xy, dtype=float))
-                   for b in mechanism.bodies for label, xy in b.points.items())
-    spec = TreeSpec(mechanism, tuple(joints), tuple(bodies), points, topology.cuts,
-                    tuple((d.name, *drivers[d.name]) for d in mechanism.drivers), tuple(blocks), tuple(carriers))
-    links = ([GROUND] + [j.link for j in spec.joints] + [b.name for b in spec.bodies]
-             + [point_frame(b, lbl) for b, lbl, _ in spec.points] + [name for _, name, _, _ in spec.blocks])
+    points = tuple(
+        (b.name, label, np.array(xy, dtype=float)) for b in mechanism.bodies for label, xy in b.points.items()
+    )
+    spec = TreeSpec(
+        mechanism,
+        tuple(joints),
+        tuple(bodies),
+        points,
+        topology.cuts,
+        tuple((d.name, *drivers[d.name]) for d in mechanism.drivers),
+        tuple(blocks),
+        tuple(carriers),
+    )
+    links = (
+        [GROUND]
+        + [j.link for j in spec.joints]
+        + [b.name for b in spec.bodies]
+        + [point_frame(b, lbl) for b, lbl, _ in spec.points]
+        + [name for _, name, _, _ in spec.blocks]
+    )
     joint_names = [j.name for j in spec.joints] + [fixed_joint(link) for link in links[1:]]
     for kind, names in (("link", links), ("joint", joint_names)):
         clash = sorted({n for n in names if names.count(n) > 1})
         if clash:
-            raise ModelError(mechanism.path, "bodies", f"body, joint and point names that give distinct "
-                             f"Pinocchio/URDF {kind} names", f"{clash[0]!r} more than once")
+            raise ModelError(
+                mechanism.path,
+                "bodies",
+                f"body, joint and point names that give distinct Pinocchio/URDF {kind} names",
+                f"{clash[0]!r} more than once",
+            )
     return spec
 
 
@@ -422,19 +475,23 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
         parent_frame = 0 if body == GROUND else body_frames[body]
         name = point_frame(body, label)
         point_frames[name] = model.addFrame(
-            pin.Frame(name, jid, parent_frame, placement * _se3(0.0, xy), pin.FrameType.OP_FRAME), False)
+            pin.Frame(name, jid, parent_frame, placement * _se3(0.0, xy), pin.FrameType.OP_FRAME), False
+        )
     block_frames = {}
     for body, name, xy, angle in spec.blocks:
         jid, placement = frame_joint[body]
         parent_frame = 0 if body == GROUND else body_frames[body]
         block_frames[name] = model.addFrame(
-            pin.Frame(name, jid, parent_frame, placement * _se3(angle, xy), pin.FrameType.OP_FRAME), False)
+            pin.Frame(name, jid, parent_frame, placement * _se3(angle, xy), pin.FrameType.OP_FRAME), False
+        )
     constraints = []
     for cut in spec.cuts:
         anchors, kind = [], pin.ContactType.CONTACT_3D
         if isinstance(cut, Revolute):
-            frames = [point_frames[point_frame(cut.body_a, cut.point_a)],
-                      point_frames[point_frame(cut.body_b, cut.point_b)]]
+            frames = [
+                point_frames[point_frame(cut.body_a, cut.point_a)],
+                point_frames[point_frame(cut.body_b, cut.point_b)],
+            ]
         elif isinstance(cut, Prismatic):
             frames = [frame_id[f"{carrier_joint(cut)}.link"], block_frames[block_frame(cut)]]
             kind = pin.ContactType.CONTACT_6D
@@ -473,7 +530,7 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
         if body == GROUND:
             return np.zeros(2), 0.0
         k = 3 * names.index(body)
-        return q_bodies[k:k + 2], float(q_bodies[k + 2])
+        return q_bodies[k : k + 2], float(q_bodies[k + 2])
 
     def where(body, xy):
         r, phi = pose(body)
@@ -489,7 +546,8 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
         else:
             j = mech.joint(js.tree_joint)
             assert not isinstance(j, Revolute)  # a prismatic Pinocchio joint belongs to a line joint
-            gap = (where(j.body_b, mech.body(j.body_b).points[j.point])
-                   - where(j.body_a, mech.body(j.body_a).points[j.line_point]))
+            gap = where(j.body_b, mech.body(j.body_b).points[j.point]) - where(
+                j.body_a, mech.body(j.body_a).points[j.line_point]
+            )
             q[idx] = float(rotate(pose(j.body_a)[1], j.direction) @ gap)
     return q

@@ -91,15 +91,18 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     for i, driver in enumerate(mech.drivers):
         low, high = sweep_span(kinematics, i, branch, RANGE_MARGIN)
         values = np.linspace(low, high, samples)
-        notes.append(f"{driver.name} from {low:.6g} to {high:.6g} (motion.sweep_span: one turn of a crank, else "
-                     f"the feasible range less {RANGE_MARGIN:.0%} at each limit, within what the law reaches)")
+        notes.append(
+            f"{driver.name} from {low:.6g} to {high:.6g} (motion.sweep_span: one turn of a crank, else "
+            f"the feasible range less {RANGE_MARGIN:.0%} at each limit, within what the law reaches)"
+        )
         inputs = np.tile(ref, (samples, 1))
         inputs[:, i] = values
         rates, accelerations, reached = law_states(mech, inputs)
         for j, d in enumerate(mech.drivers):
             if not reached[:, j].all():
-                notes.append(f"{d.name}: its motion law does not pass some of the values used: "
-                             "rate and acceleration 0 there")
+                notes.append(
+                    f"{d.name}: its motion law does not pass some of the values used: rate and acceleration 0 there"
+                )
         starts.append(len(blocks) * samples + int(np.argmin(np.abs(values - ref[i]))))
         blocks.append((inputs, rates, accelerations))
     stacked = tuple(np.concatenate([b[j] for b in blocks]) for j in range(3))
@@ -108,12 +111,21 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
 
 def _empty_states(pm: PinocchioMechanism, n: int) -> tuple[dict, dict]:
     mech = pm.mechanism
-    bodies = {b.name: {"position": np.full((n, 2), np.nan), "angle": np.full(n, np.nan),
-                       "velocity": np.full((n, 2), np.nan), "omega": np.full(n, np.nan),
-                       "acceleration": np.full((n, 2), np.nan), "alpha": np.full(n, np.nan)}
-              for b in mech.moving_bodies}
-    points = {label: {q: np.full((n, 2), np.nan) for q in ("position", "velocity", "acceleration")}
-              for label in mech.point_owners}
+    bodies = {
+        b.name: {
+            "position": np.full((n, 2), np.nan),
+            "angle": np.full(n, np.nan),
+            "velocity": np.full((n, 2), np.nan),
+            "omega": np.full(n, np.nan),
+            "acceleration": np.full((n, 2), np.nan),
+            "alpha": np.full(n, np.nan),
+        }
+        for b in mech.moving_bodies
+    }
+    points = {
+        label: {q: np.full((n, 2), np.nan) for q in ("position", "velocity", "acceleration")}
+        for label in mech.point_owners
+    }
     return bodies, points
 
 
@@ -159,8 +171,12 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         q_ref = joint_coordinates(pm, kinematics.assemble(branch))
         q_ref, _, _, ok = oracle.project(q_ref, c_ref, size)
         if not ok:
-            return ModeResult(KINEMATIC, name, False, "the native assembled configuration does not "
-                              "close Pinocchio's loops (model conversion error)")
+            return ModeResult(
+                KINEMATIC,
+                name,
+                False,
+                "the native assembled configuration does not close Pinocchio's loops (model conversion error)",
+            )
         per_driver = n // len(starts)
 
         scale = kinematics.system.input_scale()
@@ -176,8 +192,9 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
                 guess = q_prev + oracle.rates(q_prev, identity) @ (target - c_prev)
                 q_prev, res, its, converged = oracle.project(guess, target, size)
                 if not converged:
-                    raise _NotConverged(f"Newton did not converge at input {target.tolist()} "
-                                        f"(loop residual {res:.3g} m)")
+                    raise _NotConverged(
+                        f"Newton did not converge at input {target.tolist()} (loop residual {res:.3g} m)"
+                    )
                 c_prev = target
             return q_prev, res, its
 
@@ -197,17 +214,24 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
             q_start = walk(range(start, (d + 1) * per_driver), q_ref, c_ref)
             walk(range(start - 1, d * per_driver - 1, -1), q_start, inputs[start])
         trajectory = Trajectory(
-            source=KINEMATIC, inputs=inputs, input_rates=rates, input_accelerations=accelerations,
-            bodies=bodies, points=points,
-            settings={"samples_per_driver": samples, "branch": kinematics._branch_name(branch),
-                      "newton_tolerance_m": NEWTON_TOLERANCE * size, "loops": len(pm.constraints),
-                      "nq": pm.model.nq},
+            source=KINEMATIC,
+            inputs=inputs,
+            input_rates=rates,
+            input_accelerations=accelerations,
+            bodies=bodies,
+            points=points,
+            settings={
+                "samples_per_driver": samples,
+                "branch": kinematics._branch_name(branch),
+                "newton_tolerance_m": NEWTON_TOLERANCE * size,
+                "loops": len(pm.constraints),
+                "nq": pm.model.nq,
+            },
             diagnostics={"loop_residual": residual, "iterations": iterations},
             notes="Pinocchio forward kinematics; Newton projection onto the loops (getConstraintsJacobian of "
-                  "CONTACT_3D constraints, least squares) from the previous sample with a tangent prediction; "
-                  "velocities from the constraint Jacobian with the input rates imposed; accelerations with the "
-                  "drift from frame classical accelerations at zero joint acceleration. Sweep: "
-                  + "; ".join(sweep_notes),
+            "CONTACT_3D constraints, least squares) from the previous sample with a tangent prediction; "
+            "velocities from the constraint Jacobian with the input rates imposed; accelerations with the "
+            "drift from frame classical accelerations at zero joint acceleration. Sweep: " + "; ".join(sweep_notes),
         )
         summary = differences(kinematics, trajectory, branch)
         return ModeResult(KINEMATIC, name, True, "", [trajectory], summary)
@@ -221,8 +245,7 @@ def export_files(kinematics: Kinematics) -> dict[str, str]:
     return export_texts(tree_spec(kinematics.mechanism))
 
 
-def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None,
-                     solution=None):
+def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution=None):
     """Joint reactions and input efforts from Pinocchio (RNEA with the loop-cut
     forces, see :mod:`.inverse`) at the native states of the
     simulation window.

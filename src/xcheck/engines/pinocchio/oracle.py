@@ -61,9 +61,9 @@ class Oracle:
         out = np.empty(self.n_loop)
         for (start, n), cm, cd in zip(self.rows, self.pm.constraints, self.cds):
             cm.calc(model, data, cd)
-            out[start:start + 3] = cd.oMc1.translation - cd.oMc2.translation
+            out[start : start + 3] = cd.oMc1.translation - cd.oMc2.translation
             if n == 6:
-                out[start + 3:start + 6] = pin.log3(cd.oMc1.rotation @ cd.oMc2.rotation.T)
+                out[start + 3 : start + 6] = pin.log3(cd.oMc1.rotation @ cd.oMc2.rotation.T)
         return out
 
     def loop_jacobian(self, q: np.ndarray) -> np.ndarray:
@@ -97,11 +97,11 @@ class Oracle:
             residual, jac = self.system(q, c)
             worst = float(np.max(np.abs(residual), initial=0.0))
             if worst <= NEWTON_TOLERANCE * size:
-                return q, float(np.max(np.abs(residual[:self.n_loop]), initial=0.0)), iteration, True
+                return q, float(np.max(np.abs(residual[: self.n_loop]), initial=0.0)), iteration, True
             if not np.isfinite(worst) or iteration == _MAX_ITERATIONS:
                 break
             q = q - np.linalg.lstsq(jac, residual, rcond=None)[0]
-        return q, float(np.max(np.abs(residual[:self.n_loop]), initial=np.inf)), iteration, False
+        return q, float(np.max(np.abs(residual[: self.n_loop]), initial=np.inf)), iteration, False
 
     def rates(self, q: np.ndarray, right: np.ndarray) -> np.ndarray:
         """Solve [J_loop; S] x = [0; right] for x (nv,) or (nv, m) at q.
@@ -112,7 +112,7 @@ class Oracle:
         self.loop_residual(q)
         jac = np.vstack([self.loop_jacobian(q), self.selector])
         rhs = np.zeros((jac.shape[0],) + np.shape(right)[1:])
-        rhs[self.n_loop:] = right
+        rhs[self.n_loop :] = right
         return np.linalg.lstsq(jac, rhs, rcond=None)[0]
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -125,9 +125,9 @@ class Oracle:
         for (start, n), cm in zip(self.rows, self.pm.constraints):
             a1 = pin.getFrameClassicalAcceleration(model, data, cm.joint1_id, cm.joint1_placement, LWA)
             a2 = pin.getFrameClassicalAcceleration(model, data, cm.joint2_id, cm.joint2_placement, LWA)
-            out[start:start + 3] = a1.linear - a2.linear
+            out[start : start + 3] = a1.linear - a2.linear
             if n == 6:
-                out[start + 3:start + 6] = a1.angular - a2.angular
+                out[start + 3 : start + 6] = a1.angular - a2.angular
         return out
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, input_accelerations: np.ndarray) -> np.ndarray:
@@ -159,15 +159,22 @@ def frame_states(pm: PinocchioMechanism, data: pin.Data, q, v, a) -> tuple[dict,
         placement = data.oMf[fid]
         vel = pin.getFrameVelocity(model, data, fid, LWA)
         acc = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
-        bodies[name] = {"position": placement.translation[:2].copy(),
-                        "angle": float(np.arctan2(placement.rotation[1, 0], placement.rotation[0, 0])),
-                        "velocity": vel.linear[:2].copy(), "omega": float(vel.angular[2]),
-                        "acceleration": acc.linear[:2].copy(), "alpha": float(acc.angular[2])}
+        bodies[name] = {
+            "position": placement.translation[:2].copy(),
+            "angle": float(np.arctan2(placement.rotation[1, 0], placement.rotation[0, 0])),
+            "velocity": vel.linear[:2].copy(),
+            "omega": float(vel.angular[2]),
+            "acceleration": acc.linear[:2].copy(),
+            "alpha": float(acc.angular[2]),
+        }
     for name, fid in pm.point_frames.items():
         vel = pin.getFrameVelocity(model, data, fid, LWA)
         acc = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
-        points[name] = {"position": data.oMf[fid].translation[:2].copy(), "velocity": vel.linear[:2].copy(),
-                        "acceleration": acc.linear[:2].copy()}
+        points[name] = {
+            "position": data.oMf[fid].translation[:2].copy(),
+            "velocity": vel.linear[:2].copy(),
+            "acceleration": acc.linear[:2].copy(),
+        }
     return bodies, points
 
 

@@ -47,21 +47,25 @@ def _comment(text: str) -> str:
 
 
 def _fixed(lines: list[str], parent: str, child: str, xy, angle: float = 0.0) -> None:
-    lines += [f'  <joint name="{_attr(fixed_joint(child))}" type="fixed">',
-              f'    <parent link="{_attr(parent)}"/>',
-              f'    <child link="{_attr(child)}"/>',
-              f'    <origin xyz="{_vec(xy[0], xy[1], 0.0)}" rpy="{_vec(0.0, 0.0, angle)}"/>',
-              "  </joint>"]
+    lines += [
+        f'  <joint name="{_attr(fixed_joint(child))}" type="fixed">',
+        f'    <parent link="{_attr(parent)}"/>',
+        f'    <child link="{_attr(child)}"/>',
+        f'    <origin xyz="{_vec(xy[0], xy[1], 0.0)}" rpy="{_vec(0.0, 0.0, angle)}"/>',
+        "  </joint>",
+    ]
 
 
 def _inertial(body) -> list[str]:
     izz = body.inertia
-    return ["    <inertial>",
-            f'      <origin xyz="{_vec(body.com[0], body.com[1], 0.0)}" rpy="0.0 0.0 0.0"/>',
-            f'      <mass value="{_num(body.mass)}"/>',
-            f'      <inertia ixx="{_num(0.5 * izz)}" ixy="0.0" ixz="0.0" iyy="{_num(0.5 * izz)}" '
-            f'iyz="0.0" izz="{_num(izz)}"/>',
-            "    </inertial>"]
+    return [
+        "    <inertial>",
+        f'      <origin xyz="{_vec(body.com[0], body.com[1], 0.0)}" rpy="0.0 0.0 0.0"/>',
+        f'      <mass value="{_num(body.mass)}"/>',
+        f'      <inertia ixx="{_num(0.5 * izz)}" ixy="0.0" ixz="0.0" iyy="{_num(0.5 * izz)}" '
+        f'iyz="0.0" izz="{_num(izz)}"/>',
+        "    </inertial>",
+    ]
 
 
 def _blocks(lines: list[str], spec: TreeSpec, body: str) -> None:
@@ -94,18 +98,25 @@ def urdf_text(spec: TreeSpec) -> str:
         "Inertia: Izz about the centre of mass; Ixx = Iyy = Izz / 2 (a lamina; no effect in the plane).",
     ]
     if any(not isinstance(cut, Revolute) for cut in spec.cuts):
-        header += ["A loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J: the prismatic",
-                   "joint 'J.carrier' (a carrier along J's line on its first body) is closed to the pin's point",
-                   "link by a CONTACT_3D, or to the block's link 'J.block' by a CONTACT_6D (x, y and rotation z",
-                   "act), as listed in the loops file. Carrier masses are taken from the bodies they are held to",
-                   "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep",
-                   "its totals; prismatic: half the block): the mass distribution is the mechanism's."]
+        header += [
+            "A loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J: the prismatic",
+            "joint 'J.carrier' (a carrier along J's line on its first body) is closed to the pin's point",
+            "link by a CONTACT_3D, or to the block's link 'J.block' by a CONTACT_6D (x, y and rotation z",
+            "act), as listed in the loops file. Carrier masses are taken from the bodies they are held to",
+            "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep",
+            "its totals; prismatic: half the block): the mass distribution is the mechanism's.",
+        ]
     if defaults:
-        header += ["Default mass properties (the mechanism gives none) for " + ", ".join(defaults) + ":",
-                   "1 kg at the centroid of the body's points, Izz = m L^2 / 12 with L the largest distance",
-                   "between two of its points, at least a tenth of the mechanism's size."]
-    lines = ['<?xml version="1.0"?>', "<!--"] + [f"  {_comment(h)}" for h in header] + ["-->",
-             f'<robot name="{_attr(mech.name)}">', f'  <link name="{GROUND}"/>']
+        header += [
+            "Default mass properties (the mechanism gives none) for " + ", ".join(defaults) + ":",
+            "1 kg at the centroid of the body's points, Izz = m L^2 / 12 with L the largest distance",
+            "between two of its points, at least a tenth of the mechanism's size.",
+        ]
+    lines = (
+        ['<?xml version="1.0"?>', "<!--"]
+        + [f"  {_comment(h)}" for h in header]
+        + ["-->", f'<robot name="{_attr(mech.name)}">', f'  <link name="{GROUND}"/>']
+    )
     size = mech.size
     for label, xy in mech.ground.points.items():
         _fixed(lines, GROUND, point_frame(GROUND, label), xy)
@@ -118,11 +129,13 @@ def urdf_text(spec: TreeSpec) -> str:
         points.setdefault(body_name, []).append((label, xy))
     for js in spec.joints:
         kind = "continuous" if js.kind == "revolute" else "prismatic"
-        lines += [f'  <joint name="{_attr(js.name)}" type="{kind}">',
-                  f'    <parent link="{_attr(js.parent)}"/>',
-                  f'    <child link="{_attr(js.link)}"/>',
-                  f'    <origin xyz="{_vec(js.origin[0], js.origin[1], 0.0)}" rpy="{_vec(0.0, 0.0, js.angle)}"/>',
-                  f'    <axis xyz="{_vec(*js.axis)}"/>']
+        lines += [
+            f'  <joint name="{_attr(js.name)}" type="{kind}">',
+            f'    <parent link="{_attr(js.parent)}"/>',
+            f'    <child link="{_attr(js.link)}"/>',
+            f'    <origin xyz="{_vec(js.origin[0], js.origin[1], 0.0)}" rpy="{_vec(0.0, 0.0, js.angle)}"/>',
+            f'    <axis xyz="{_vec(*js.axis)}"/>',
+        ]
         if kind == "prismatic":
             limit = _num(10.0 * size)
             lines.append(f'    <limit lower="-{limit}" upper="{limit}" effort="0" velocity="0"/>')
@@ -151,18 +164,22 @@ def loops_json(spec: TreeSpec) -> str:
         "mechanism": mech.name,
         "urdf": f"{mech.name}.urdf",
         "about": "Loop closures of the URDF tree: in each loop, the origins of links frame1 and frame2 "
-                 "coincide (a revolute joint cut open). Only the x and y rows act: the mechanism is planar. "
-                 "Inputs: the driven joints; input = sign * joint coordinate (rad or m). Gravity: the "
-                 "mechanism's, in the plane (m/s^2; URDF has no field for it; zero when the model gives none)."
-                 + ("" if all(isinstance(cut, Revolute) for cut in spec.cuts) else
-                    " A loop of kind pin-in-slot or prismatic is a joint of that kind cut open: frame1 is its "
-                    "carrier (a prismatic joint along the line), held to the pin by CONTACT_3D (x, y act) or to "
-                    "the block frame by CONTACT_6D (x, y and rotation z act)."),
+        "coincide (a revolute joint cut open). Only the x and y rows act: the mechanism is planar. "
+        "Inputs: the driven joints; input = sign * joint coordinate (rad or m). Gravity: the "
+        "mechanism's, in the plane (m/s^2; URDF has no field for it; zero when the model gives none)."
+        + (
+            ""
+            if all(isinstance(cut, Revolute) for cut in spec.cuts)
+            else " A loop of kind pin-in-slot or prismatic is a joint of that kind cut open: frame1 is its "
+            "carrier (a prismatic joint along the line), held to the pin by CONTACT_3D (x, y act) or to "
+            "the block frame by CONTACT_6D (x, y and rotation z act)."
+        ),
         "gravity": [float(g) + 0.0 for g in mech.gravity] + [0.0],
         "loops": [_loop(cut) for cut in spec.cuts],
-        "inputs": [{"driver": name, "joint": joint, "sign": int(sign),
-                    "quantity": mech.drivers[k].quantity}
-                   for k, (name, joint, sign) in enumerate(spec.drivers)],
+        "inputs": [
+            {"driver": name, "joint": joint, "sign": int(sign), "quantity": mech.drivers[k].quantity}
+            for k, (name, joint, sign) in enumerate(spec.drivers)
+        ],
     }
     return json.dumps(doc, indent=2) + "\n"
 
@@ -171,14 +188,25 @@ def _loop(cut) -> dict:
     """One loop closure of the JSON: the two links whose frames are held together."""
     if isinstance(cut, Revolute):
         frame2, kind = point_frame(cut.body_b, cut.point_b), "CONTACT_3D"
-        return {"cut": cut.name, "frame1": point_frame(cut.body_a, cut.point_a), "frame2": frame2,
-                "contact_type": kind, "reference_frame": "LOCAL_WORLD_ALIGNED"}
+        return {
+            "cut": cut.name,
+            "frame1": point_frame(cut.body_a, cut.point_a),
+            "frame2": frame2,
+            "contact_type": kind,
+            "reference_frame": "LOCAL_WORLD_ALIGNED",
+        }
     if isinstance(cut, Prismatic):
         frame2, kind = block_frame(cut), "CONTACT_6D"
     else:
         frame2, kind = point_frame(cut.body_b, cut.point), "CONTACT_3D"
-    return {"cut": cut.name, "kind": cut.kind, "frame1": f"{carrier_joint(cut)}.link", "frame2": frame2,
-            "contact_type": kind, "reference_frame": "LOCAL_WORLD_ALIGNED"}
+    return {
+        "cut": cut.name,
+        "kind": cut.kind,
+        "frame1": f"{carrier_joint(cut)}.link",
+        "frame2": frame2,
+        "contact_type": kind,
+        "reference_frame": "LOCAL_WORLD_ALIGNED",
+    }
 
 
 def export_texts(spec: TreeSpec) -> dict[str, str]:

@@ -9,10 +9,15 @@ from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, Tolerance
 
 __all__ = ["Pymunk"]
 
-_DYNAMIC = Tolerance(CONVERGES, CONVERGES, CONVERGES, CONVERGES, "converges to the exact answer: semi-implicit "
-                     "Euler, error_bias 0, 500 iterations, window/2000, /4000, /8000 steps: order 2 in positions "
-                     "and angles, 1 in rates and accelerations (central differences of velocities)"
-                     + CONVERGENCE_NOTE)
+_DYNAMIC = Tolerance(
+    CONVERGES,
+    CONVERGES,
+    CONVERGES,
+    CONVERGES,
+    "converges to the exact answer: semi-implicit "
+    "Euler, error_bias 0, 500 iterations, window/2000, /4000, /8000 steps: order 2 in positions "
+    "and angles, 1 in rates and accelerations (central differences of velocities)" + CONVERGENCE_NOTE,
+)
 
 
 class Pymunk(Engine):
@@ -25,15 +30,22 @@ class Pymunk(Engine):
     distributions = ("pymunk",)
     install = "pip install pymunk"
     modes = (
-        Mode("pymunk-dynamic", "dynamic", _DYNAMIC,
-             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0,
-                     "alpha": 1.0},
-             style=dict(color="tab:green", lw=1, ls="-.")),
+        Mode(
+            "pymunk-dynamic",
+            "dynamic",
+            _DYNAMIC,
+            orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0, "alpha": 1.0},
+            style=dict(color="tab:green", lw=1, ls="-."),
+        ),
     )
     force_tolerance = 7e-2
-    force_basis = ("impulses over a step of the driven simulation, first order in the time step (measured at "
-                   "most 3.2e-2, about half the bound)")
+    force_basis = (
+        "impulses over a step of the driven simulation, first order in the time step (measured at "
+        "most 3.2e-2, about half the bound)"
+    )
     color = "tab:green"
     force_style = {"lw": 0, "marker": ".", "ms": 4}  # impulses scatter step to step
-    notes = ("Pivot, groove and slide joints between 2-D bodies; a prismatic joint as a groove plus a rotary "
-             "lock; pymunk's constraints are soft and iterative.")
+    notes = (
+        "Pivot, groove and slide joints between 2-D bodies; a prismatic joint as a groove plus a rotary "
+        "lock; pymunk's constraints are soft and iterative."
+    )

@@ -24,7 +24,11 @@ def snapshot(scene: Scene) -> dict:
     mech = scene.mechanism
     shot: dict[str, Any] = {
         "bodies": {b.name: {label: scene.world_point(b.name, label) for label in b.points} for b in mech.bodies},
-        "pins": [], "grooves": [], "inputs": scene.inputs()[0], "gap": scene.joint_gaps()[0]}
+        "pins": [],
+        "grooves": [],
+        "inputs": scene.inputs()[0],
+        "gap": scene.joint_gaps()[0],
+    }
     for joint in mech.joints:
         if isinstance(joint, Revolute):
             grounded = GROUND in (joint.body_a, joint.body_b)
@@ -32,9 +36,14 @@ def snapshot(scene: Scene) -> dict:
         else:
             body, start, end = scene.grooves[joint.name]
             ends = [scene.bodies[body].local_to_world(tuple(p)) for p in (start, end)]
-            shot["grooves"].append((np.array([[p.x, p.y] for p in ends]), isinstance(joint, Prismatic),
-                                    scene.world_point(joint.body_b, joint.point),
-                                    scene.bodies[joint.body_b].angle))
+            shot["grooves"].append(
+                (
+                    np.array([[p.x, p.y] for p in ends]),
+                    isinstance(joint, Prismatic),
+                    scene.world_point(joint.body_b, joint.point),
+                    scene.bodies[joint.body_b].angle,
+                )
+            )
     return shot
 
 
@@ -51,8 +60,9 @@ def _draw(ax, mech: Mechanism, shot: dict, colours, scale: float) -> None:
         ax.plot(ends[:, 0], ends[:, 1], color="0.3", lw=0.8, ls="--", zorder=1)
         if prismatic:  # a block riding the line, turned with its body
             xy = point / scale
-            box = Rectangle((xy[0] - block / 2, xy[1] - block / 2), block, block, fill=False, lw=1.2,
-                            ec="0.2", zorder=4)
+            box = Rectangle(
+                (xy[0] - block / 2, xy[1] - block / 2), block, block, fill=False, lw=1.2, ec="0.2", zorder=4
+            )
             box.set_transform(Affine2D().rotate_around(xy[0], xy[1], angle) + ax.transData)
             ax.add_patch(box)
         else:  # a pin riding the slot
@@ -68,10 +78,20 @@ def _draw(ax, mech: Mechanism, shot: dict, colours, scale: float) -> None:
             if hull is not None:
                 ax.add_patch(Polygon(hull, closed=True, fc=colour, ec=colour, alpha=0.3, lw=2, zorder=2))
         if len(pts) >= 2:
-            far = max(((i, j) for i in range(len(pts)) for j in range(len(pts))),
-                      key=lambda ij: np.linalg.norm(pts[ij[0]] - pts[ij[1]]))
-            ax.plot(pts[list(far), 0], pts[list(far), 1], color=colour, lw=3, alpha=0.8, zorder=2,
-                    solid_capstyle="round", label=body.name)
+            far = max(
+                ((i, j) for i in range(len(pts)) for j in range(len(pts))),
+                key=lambda ij: np.linalg.norm(pts[ij[0]] - pts[ij[1]]),
+            )
+            ax.plot(
+                pts[list(far), 0],
+                pts[list(far), 1],
+                color=colour,
+                lw=3,
+                alpha=0.8,
+                zorder=2,
+                solid_capstyle="round",
+                label=body.name,
+            )
         else:
             ax.plot(pts[:, 0], pts[:, 1], "s", color=colour, ms=8, zorder=3, label=body.name)
         for label, xy in shot["bodies"][body.name].items():
@@ -103,17 +123,30 @@ def render_png(mech: Mechanism, shots: list, title: str) -> bytes:
     from matplotlib.figure import Figure
 
     units = mech.units
-    every = np.concatenate([np.array(list(b.values())).reshape(-1, 2) for _, shot in shots
-                            for b in shot["bodies"].values()]
-                           + [g[0] for _, shot in shots for g in shot["grooves"]]) / units.length_factor
+    every = (
+        np.concatenate(
+            [np.array(list(b.values())).reshape(-1, 2) for _, shot in shots for b in shot["bodies"].values()]
+            + [g[0] for _, shot in shots for g in shot["grooves"]]
+        )
+        / units.length_factor
+    )
     low, high = every.min(axis=0), every.max(axis=0)
     pad = 0.08 * max(float(np.max(high - low)), mech.size / units.length_factor)
     aspect = (high[1] - low[1] + 2 * pad) / (high[0] - low[0] + 2 * pad)
     fig = Figure(figsize=(4.2 * len(shots), 1.4 + 4.0 * min(max(aspect, 0.4), 1.5)), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(shots), squeeze=False)[0]
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink",
-               "tab:olive", "tab:cyan"]
+    colours = [
+        "tab:blue",
+        "tab:orange",
+        "tab:green",
+        "tab:red",
+        "tab:purple",
+        "tab:brown",
+        "tab:pink",
+        "tab:olive",
+        "tab:cyan",
+    ]
     for ax, (t, shot) in zip(axes, shots):
         _draw(ax, mech, shot, colours, units.length_factor)
         ax.set_xlim(low[0] - pad, high[0] + pad)

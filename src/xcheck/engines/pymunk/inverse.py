@@ -45,9 +45,14 @@ STEPS_PER_SAMPLE = 100
 ITERATIONS = 500
 
 
-def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: int = SAMPLES,
-                   steps_per_sample: int = STEPS_PER_SAMPLE, iterations: int = ITERATIONS,
-                   error_bias: float | None = 0.0) -> Forces:
+def inverse_forces(
+    kinematics: Kinematics,
+    branch: str | None = None,
+    samples: int = SAMPLES,
+    steps_per_sample: int = STEPS_PER_SAMPLE,
+    iterations: int = ITERATIONS,
+    error_bias: float | None = 0.0,
+) -> Forces:
     """Simulate the mechanism with every input driven by a constraint and read
     the constraints' impulses (see the module notes).
 
@@ -111,13 +116,16 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
             raise ValueError(f"the pymunk scene went non-finite at t = {n * dt:.6g} s")
         if gap > gap_bound:
             skew = scene.skewed_grooves()
-            raise ValueError(f"the pymunk scene came apart at t = {n * dt:.6g} s: joints {gap:.3g} m apart "
-                             f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else ""))
+            raise ValueError(
+                f"the pymunk scene came apart at t = {n * dt:.6g} s: joints {gap:.3g} m apart "
+                f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else "")
+            )
         recorded[n] = (q, qd, impulses, gap)
     inputs = np.array([recorded[int(n)][0] for n in sample_steps]).reshape(samples, k)
     rates = np.array([recorded[int(n)][1] for n in sample_steps]).reshape(samples, k)
-    accelerations = np.array([(recorded[int(n) + 1][1] - recorded[int(n) - 1][1]) / (2.0 * dt)
-                              for n in sample_steps]).reshape(samples, k)
+    accelerations = np.array(
+        [(recorded[int(n) + 1][1] - recorded[int(n) - 1][1]) / (2.0 * dt) for n in sample_steps]
+    ).reshape(samples, k)
     forces = np.array([(recorded[int(n)][2] + recorded[int(n) + 1][2]) / (2.0 * dt) for n in sample_steps])
     gaps = np.array([recorded[int(n)][3] for n in sample_steps])
     joints: dict = {j.name: {} for j in mech.joints}
@@ -125,14 +133,26 @@ def inverse_forces(kinematics: Kinematics, branch: str | None = None, samples: i
     for column, (kind, name, quantity, _) in enumerate(sources):
         (joints if kind == "joint" else drivers)[name][quantity] = forces[:, column]
     return Forces(
-        "pymunk", inputs, rates, accelerations, joints, drivers, times=sample_steps * dt,
-        settings={"engine": f"pymunk {pm.version} (Chipmunk {pm.chipmunk_version})", "time_step": dt,
-                  "steps_per_sample": steps_per_sample, "iterations": iterations,
-                  "error_bias": "pymunk default" if error_bias is None else error_bias,
-                  "drives": ", ".join(f"{mech.drivers[d.driver_index].name}: {d.kind}" for d in scene.drives)},
+        "pymunk",
+        inputs,
+        rates,
+        accelerations,
+        joints,
+        drivers,
+        times=sample_steps * dt,
+        settings={
+            "engine": f"pymunk {pm.version} (Chipmunk {pm.chipmunk_version})",
+            "time_step": dt,
+            "steps_per_sample": steps_per_sample,
+            "iterations": iterations,
+            "error_bias": "pymunk default" if error_bias is None else error_bias,
+            "drives": ", ".join(f"{mech.drivers[d.driver_index].name}: {d.kind}" for d in scene.drives),
+        },
         diagnostics={"joint_gap": gaps},
-        notes=("pymunk simulation with every input driven by a constraint (motor or slide servo), "
-               f"time step {dt:.4g} s, {iterations} iterations. Forces are constraint impulses / time step, "
-               "averaged over the steps either side of each sample; pymunk gives magnitudes only. Input "
-               "accelerations: central differences of the realised input rates over the same steps."),
+        notes=(
+            "pymunk simulation with every input driven by a constraint (motor or slide servo), "
+            f"time step {dt:.4g} s, {iterations} iterations. Forces are constraint impulses / time step, "
+            "averaged over the steps either side of each sample; pymunk gives magnitudes only. Input "
+            "accelerations: central differences of the realised input rates over the same steps."
+        ),
     )

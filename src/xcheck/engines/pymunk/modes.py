@@ -33,8 +33,18 @@ from .figure import render_png, snapshot
 from .inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
 from .scene import DEFAULT_MASS, Scene, build_scene, native_window
 
-__all__ = ["MODE", "DEFAULT_MASS", "DEFAULT_SETTINGS", "Scene", "Setting", "build_scene", "run_dynamic",
-           "scene_figure", "trajectory_errors", "inverse_dynamics"]
+__all__ = [
+    "MODE",
+    "DEFAULT_MASS",
+    "DEFAULT_SETTINGS",
+    "Scene",
+    "Setting",
+    "build_scene",
+    "run_dynamic",
+    "scene_figure",
+    "trajectory_errors",
+    "inverse_dynamics",
+]
 
 #: The mode this module provides.
 MODE = "pymunk-dynamic"
@@ -74,7 +84,9 @@ class Setting:
 #: it needs enough iterations to converge or the scene goes unstable (task-2-6
 #: and the inverted slider-crank needed more than 200: 500 leaves a margin).
 DEFAULT_SETTINGS = (
-    Setting(200, 500), Setting(100, 500), Setting(50, 500),
+    Setting(200, 500),
+    Setting(100, 500),
+    Setting(50, 500),
     Setting(200, 50),
     Setting(200, 10, None),
 )
@@ -91,8 +103,16 @@ class _Run:
     run_time: float = 0.0
 
 
-def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow, samples: int,
-              setting: Setting, fd_steps: int, gap_bound: float, speed_bound: float) -> _Run:
+def _simulate(
+    kinematics: Kinematics,
+    native: Solution,
+    window: SimulationWindow,
+    samples: int,
+    setting: Setting,
+    fd_steps: int,
+    gap_bound: float,
+    speed_bound: float,
+) -> _Run:
     """Step one scene over the window and sample it (see :func:`run_dynamic`)."""
     mech = kinematics.mechanism
     per = setting.steps_per_sample
@@ -139,11 +159,15 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
                 run.failure = f"went non-finite (NaN or infinite state) at t = {n * dt:.6g} s"
             elif gaps[i] > gap_bound:
                 skew = scene.skewed_grooves()
-                run.failure = (f"came apart at t = {n * dt:.6g} s: joints {gaps[i]:.3g} m apart "
-                               f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else ""))
+                run.failure = (
+                    f"came apart at t = {n * dt:.6g} s: joints {gaps[i]:.3g} m apart "
+                    f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else "")
+                )
             elif speed > speed_bound:
-                run.failure = (f"blew up at t = {n * dt:.6g} s: a point moves at {speed:.3g} m/s "
-                               f"(bound {speed_bound:.3g} m/s, 10 times the native top speed)")
+                run.failure = (
+                    f"blew up at t = {n * dt:.6g} s: a point moves at {speed:.3g} m/s "
+                    f"(bound {speed_bound:.3g} m/s, 10 times the native top speed)"
+                )
         if run.failure:
             break
     run.run_time = time.perf_counter() - start
@@ -153,44 +177,72 @@ def _simulate(kinematics: Kinematics, native: Solution, window: SimulationWindow
         return run
     h = m * dt
     times = sample_steps * dt
-    bodies = {name: {"position": pos[:, j], "angle": ang[:, j], "velocity": vel[1, :, j],
-                     "omega": omg[1, :, j], "acceleration": (vel[2, :, j] - vel[0, :, j]) / (2.0 * h),
-                     "alpha": (omg[2, :, j] - omg[0, :, j]) / (2.0 * h)} for j, name in enumerate(moving)}
-    points = {label: {"position": ppos[:, j], "velocity": pvel[1, :, j],
-                      "acceleration": (pvel[2, :, j] - pvel[0, :, j]) / (2.0 * h)}
-              for j, label in enumerate(labels)}
+    bodies = {
+        name: {
+            "position": pos[:, j],
+            "angle": ang[:, j],
+            "velocity": vel[1, :, j],
+            "omega": omg[1, :, j],
+            "acceleration": (vel[2, :, j] - vel[0, :, j]) / (2.0 * h),
+            "alpha": (omg[2, :, j] - omg[0, :, j]) / (2.0 * h),
+        }
+        for j, name in enumerate(moving)
+    }
+    points = {
+        label: {
+            "position": ppos[:, j],
+            "velocity": pvel[1, :, j],
+            "acceleration": (pvel[2, :, j] - pvel[0, :, j]) / (2.0 * h),
+        }
+        for j, label in enumerate(labels)
+    }
     drives = ", ".join(f"{mech.drivers[d.driver_index].name}: {d.kind}" for d in scene.drives)
     defaulted = "; ".join(f"{name}: {', '.join(props)}" for name, props in scene.defaults.items() if props)
     run.trajectory = Trajectory(
-        source=MODE, inputs=q_in, input_rates=qd_in[1], input_accelerations=(qd_in[2] - qd_in[0]) / (2.0 * h),
-        bodies=bodies, points=points, times=times,
-        settings={"engine": f"pymunk {pm.version} (Chipmunk {pm.chipmunk_version})",
-                  "integrator": "semi-implicit Euler, iterative impulse solver", "time_step": dt, "timestep": dt,
-                  "series": _series(setting.correction, setting.iterations),
-                  "iterations": setting.iterations, "steps_per_sample": per,
-                  "error_bias": setting.correction, "drives": drives, "difference_step": h},
-        diagnostics={"joint_gap": gaps, "lock_error": locks,
-                     "input_error": q_in - window.inputs(kinematics, times)[0]},
-        notes=(f"Accelerations are central differences of pymunk's velocities, {h:.6g} s ({m} time "
-               f"step{'s' if m > 1 else ''}) either side of each sample. Inputs are read from the bodies as "
-               f"pymunk realised them ({drives}). Mass properties that took defaults (mass {DEFAULT_MASS:g} kg; "
-               f"centre of mass on the body's groove line or at its pin in a groove, where that keeps pymunk's "
-               f"groove joints exact, else at the mean of its points and groove ends; moment of a slender rod "
-               f"over those): {defaulted or 'none'}."),
+        source=MODE,
+        inputs=q_in,
+        input_rates=qd_in[1],
+        input_accelerations=(qd_in[2] - qd_in[0]) / (2.0 * h),
+        bodies=bodies,
+        points=points,
+        times=times,
+        settings={
+            "engine": f"pymunk {pm.version} (Chipmunk {pm.chipmunk_version})",
+            "integrator": "semi-implicit Euler, iterative impulse solver",
+            "time_step": dt,
+            "timestep": dt,
+            "series": _series(setting.correction, setting.iterations),
+            "iterations": setting.iterations,
+            "steps_per_sample": per,
+            "error_bias": setting.correction,
+            "drives": drives,
+            "difference_step": h,
+        },
+        diagnostics={"joint_gap": gaps, "lock_error": locks, "input_error": q_in - window.inputs(kinematics, times)[0]},
+        notes=(
+            f"Accelerations are central differences of pymunk's velocities, {h:.6g} s ({m} time "
+            f"step{'s' if m > 1 else ''}) either side of each sample. Inputs are read from the bodies as "
+            f"pymunk realised them ({drives}). Mass properties that took defaults (mass {DEFAULT_MASS:g} kg; "
+            f"centre of mass on the body's groove line or at its pin in a groove, where that keeps pymunk's "
+            f"groove joints exact, else at the mean of its points and groove ends; moment of a slender rod "
+            f"over those): {defaulted or 'none'}."
+        ),
     )
     return run
 
 
 #: Column of :func:`trajectory_errors` -> (rows' quantity, kind of error).
 _ERROR_COLUMNS = {
-    "position_error": ("position", "abs"), "angle_error": ("angle", "abs"),
-    "velocity_error": ("velocity", "rel"), "omega_error": ("omega", "rel"),
-    "acceleration_error": ("acceleration", "rel"), "alpha_error": ("alpha", "rel"),
+    "position_error": ("position", "abs"),
+    "angle_error": ("angle", "abs"),
+    "velocity_error": ("velocity", "rel"),
+    "omega_error": ("omega", "rel"),
+    "acceleration_error": ("acceleration", "rel"),
+    "alpha_error": ("alpha", "rel"),
 }
 
 
-def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory,
-                      branch: str | None = None) -> dict[str, float]:
+def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> dict[str, float]:
     """The largest differences of a trajectory from the native solution (on
     ``branch``, by default the model's first), from :func:`xcheck.compare.differences`.
 
@@ -226,8 +278,13 @@ def _summary(kinematics: Kinematics, runs: list[_Run], branch: str | None) -> pd
     mech = kinematics.mechanism
     rows: list[dict] = []
     for run in runs:
-        row = {"setting": len(rows), "error_bias": run.setting.correction, "iterations": run.setting.iterations,
-               "time_step": run.dt, "status": run.failure or "ok"}
+        row = {
+            "setting": len(rows),
+            "error_bias": run.setting.correction,
+            "iterations": run.setting.iterations,
+            "time_step": run.dt,
+            "status": run.failure or "ok",
+        }
         if run.trajectory is not None:
             row.update(trajectory_errors(kinematics, run.trajectory, branch))
             drift = np.max(np.abs(run.trajectory.diagnostics["input_error"]), axis=0)
@@ -240,13 +297,21 @@ def _summary(kinematics: Kinematics, runs: list[_Run], branch: str | None) -> pd
         for _, group in table.groupby(["error_bias", "iterations"]):
             group = group[group["status"] == "ok"].sort_values("time_step")
             for (i, fine), (_, coarse) in zip(group.iterrows(), list(group.iterrows())[1:]):
-                table.loc[i, "order"] = observed_order(coarse["position_error"], fine["position_error"],
-                                                       coarse["time_step"], fine["time_step"])
+                table.loc[i, "order"] = observed_order(
+                    coarse["position_error"], fine["position_error"], coarse["time_step"], fine["time_step"]
+                )
     return table
 
 
-def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: int = 40,
-                fd_steps: int = 1, gap_bound: float | None = None, branch: str | None = None) -> ModeResult:
+def run_dynamic(
+    kinematics: Kinematics,
+    *,
+    settings=DEFAULT_SETTINGS,
+    samples: int = 40,
+    fd_steps: int = 1,
+    gap_bound: float | None = None,
+    branch: str | None = None,
+) -> ModeResult:
     """Simulate the mechanism in pymunk and compare it with the native solution.
 
     The drivers follow their motion laws over
@@ -306,14 +371,23 @@ def run_dynamic(kinematics: Kinematics, *, settings=DEFAULT_SETTINGS, samples: i
             reason = f"{type(err).__name__}: {reason}"
         return ModeResult(MODE, mech.name, False, f"{MODE}: {reason}")
     errors = summary["position_error"] if "position_error" in summary else [math.nan] * len(summary)
-    study = convergence_study([_series(r.setting.correction, r.setting.iterations) for r in runs],
-                              summary.time_step, errors, summary.status)
+    study = convergence_study(
+        [_series(r.setting.correction, r.setting.iterations) for r in runs], summary.time_step, errors, summary.status
+    )
     first = runs[0]
     if first.trajectory is None:
-        return ModeResult(MODE, mech.name, False, f"{MODE}: the scene {first.failure} "
-                          f"(time step {first.dt:.3g} s, {first.setting.iterations} iterations)", [], summary, study)
-    return ModeResult(MODE, mech.name, True, "", [r.trajectory for r in runs if r.trajectory is not None], summary,
-                      study)
+        return ModeResult(
+            MODE,
+            mech.name,
+            False,
+            f"{MODE}: the scene {first.failure} (time step {first.dt:.3g} s, {first.setting.iterations} iterations)",
+            [],
+            summary,
+            study,
+        )
+    return ModeResult(
+        MODE, mech.name, True, "", [r.trajectory for r in runs if r.trajectory is not None], summary, study
+    )
 
 
 def _series(correction: str, iterations: int) -> str:
@@ -321,9 +395,14 @@ def _series(correction: str, iterations: int) -> str:
     return f"{correction}, {iterations} iterations"
 
 
-def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int = SAMPLES,
-                     steps_per_sample: int = STEPS_PER_SAMPLE, iterations: int = ITERATIONS,
-                     error_bias: float | None = 0.0):
+def inverse_dynamics(
+    kinematics: Kinematics,
+    branch: str | None = None,
+    samples: int = SAMPLES,
+    steps_per_sample: int = STEPS_PER_SAMPLE,
+    iterations: int = ITERATIONS,
+    error_bias: float | None = 0.0,
+):
     """Magnitudes of the joint reactions and input efforts in a driven pymunk
     simulation: constraint impulses over the time step (see
     :mod:`.inverse`).
@@ -351,8 +430,16 @@ def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples:
     return inverse_forces(kinematics, branch, samples, steps_per_sample, iterations, error_bias)
 
 
-def scene_figure(kinematics: Kinematics, path, *, times=None, count: int = 4,
-                 setting: Setting = DEFAULT_SETTINGS[0], samples: int = 40, branch: str | None = None) -> None:
+def scene_figure(
+    kinematics: Kinematics,
+    path,
+    *,
+    times=None,
+    count: int = 4,
+    setting: Setting = DEFAULT_SETTINGS[0],
+    samples: int = 40,
+    branch: str | None = None,
+) -> None:
     """A picture of the pymunk scene at a few instants, for the report.
 
     The scene is stepped as in :func:`run_dynamic` with ``setting`` and drawn
@@ -382,8 +469,10 @@ def scene_figure(kinematics: Kinematics, path, *, times=None, count: int = 4,
     window, native = native_window(kinematics, branch)
     times = window.times(count) if times is None else np.asarray(times, dtype=float)
     if times.size == 0 or np.any(times < 0.0) or np.any(times > window.duration):
-        raise ValueError(f"expected times within the simulation window 0 .. {window.duration:.6g} s, "
-                         f"found {np.round(times, 6).tolist()}")
+        raise ValueError(
+            f"expected times within the simulation window 0 .. {window.duration:.6g} s, "
+            f"found {np.round(times, 6).tolist()}"
+        )
     dt = window.duration / (samples * setting.steps_per_sample)
     scene = build_scene(kinematics, native, iterations=setting.iterations, error_bias=setting.error_bias)
     shots, n = [], 0
@@ -393,6 +482,8 @@ def scene_figure(kinematics: Kinematics, path, *, times=None, count: int = 4,
             n += 1
         shots.append((n * dt, snapshot(scene)))
     drives = ", ".join(f"{mech.drivers[d.driver_index].name}: {d.kind}" for d in scene.drives)
-    title = (f"{mech.title or mech.name}: the pymunk scene ({drives}; time step {dt:.3g} s, "
-             f"{setting.iterations} iterations, {setting.correction})")
+    title = (
+        f"{mech.title or mech.name}: the pymunk scene ({drives}; time step {dt:.3g} s, "
+        f"{setting.iterations} iterations, {setting.correction})"
+    )
     write_atomic(path, render_png(mech, shots, title))

@@ -83,8 +83,11 @@ def _groove_free_com(mechanism: Mechanism, name: str, centroid: np.ndarray) -> n
     the body carries), else the centroid's projection on the body's common line.
     """
     lines = [j for j in mechanism.joints if isinstance(j, (Prismatic, PinInSlot)) and j.body_a == name]
-    pins = [mechanism.body(name).points[j.point] for j in mechanism.joints
-            if isinstance(j, (Prismatic, PinInSlot)) and j.body_b == name]
+    pins = [
+        mechanism.body(name).points[j.point]
+        for j in mechanism.joints
+        if isinstance(j, (Prismatic, PinInSlot)) and j.body_b == name
+    ]
     if not lines and not pins:
         return None
     body = mechanism.body(name)
@@ -140,8 +143,10 @@ def _mass_properties(mechanism: Mechanism, name: str, guides=()) -> tuple[float,
         length = max(span, 0.1 * mechanism.size)
         inertia, defaulted = mass * length * length / 12.0, defaulted + ["inertia"]
     if not (math.isfinite(mass) and mass > 0.0 and math.isfinite(inertia) and inertia > 0.0):
-        raise ValueError(f"body {name}: expected a positive finite mass and moment of inertia, "
-                         f"found mass {mass} kg, inertia {inertia} kg m^2")
+        raise ValueError(
+            f"body {name}: expected a positive finite mass and moment of inertia, "
+            f"found mass {mass} kg, inertia {inertia} kg m^2"
+        )
     return float(mass), np.asarray(com, dtype=float), float(inertia), defaulted
 
 
@@ -225,14 +230,17 @@ class Scene:
                 if off > tol:
                     found.append(f"{joint.body_a}'s centre of mass {off:.3g} m off the line of {joint.name!r}")
             if pin_body.body_type == pm.Body.DYNAMIC:
-                off = float(np.linalg.norm(np.array(pin_body.center_of_gravity)
-                                           - mech.body(joint.body_b).points[joint.point]))
+                off = float(
+                    np.linalg.norm(np.array(pin_body.center_of_gravity) - mech.body(joint.body_b).points[joint.point])
+                )
                 if off > tol:
                     found.append(f"{joint.body_b}'s centre of mass {off:.3g} m from its pin {joint.point!r}")
         if not found:
             return ""
-        return ("pymunk's GrooveJoint holds a groove exactly only with the line body's centre of mass on the "
-                "line and the pin body's at the pin; here " + "; ".join(found))
+        return (
+            "pymunk's GrooveJoint holds a groove exactly only with the line body's centre of mass on the "
+            "line and the pin body's at the pin; here " + "; ".join(found)
+        )
 
     def step(self, t: float, dt: float) -> None:
         """Advance the space from t to t + dt (s)."""
@@ -288,8 +296,7 @@ class Scene:
             assert not isinstance(joint, Revolute)  # a slide is on a line joint
             u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
-            v = (self.point_velocity(joint.body_b, joint.point)
-                 - self.point_velocity(joint.body_a, joint.line_point))
+            v = self.point_velocity(joint.body_b, joint.point) - self.point_velocity(joint.body_a, joint.line_point)
             q[k] = u @ r
             qd[k] = u @ v + a.angular_velocity * (u[0] * r[1] - u[1] * r[0])
         return q, qd
@@ -312,17 +319,30 @@ def _slide_extent(mechanism: Mechanism, solution: Solution, joint) -> tuple[floa
     """Smallest and largest slide (m) of a line joint over a native solution."""
     ok = solution.status <= Status.NEAR_SINGULAR
     la = solution.body(joint.body_a)
-    r = (solution.point(joint.point, joint.body_b)["position"]
-         - solution.point(joint.line_point, joint.body_a)["position"])[ok]
+    r = (
+        solution.point(joint.point, joint.body_b)["position"]
+        - solution.point(joint.line_point, joint.body_a)["position"]
+    )[ok]
     phi = la["angle"][ok]
-    u = np.stack([np.cos(phi) * joint.direction[0] - np.sin(phi) * joint.direction[1],
-                  np.sin(phi) * joint.direction[0] + np.cos(phi) * joint.direction[1]], axis=1)
+    u = np.stack(
+        [
+            np.cos(phi) * joint.direction[0] - np.sin(phi) * joint.direction[1],
+            np.sin(phi) * joint.direction[0] + np.cos(phi) * joint.direction[1],
+        ],
+        axis=1,
+    )
     s = np.einsum("ij,ij->i", u, r)
     return float(s.min()), float(s.max())
 
 
-def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 10,
-                error_bias: float | None = None, kinematic_inputs: bool = True) -> Scene:
+def build_scene(
+    kinematics: Kinematics,
+    native: Solution,
+    *,
+    iterations: int = 10,
+    error_bias: float | None = None,
+    kinematic_inputs: bool = True,
+) -> Scene:
     """The mechanism as a pymunk space, at the first sample of ``native``.
 
     Parameters
@@ -364,11 +384,9 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         on_ground = GROUND in (joint.body_a, joint.body_b) and joint.body_a != joint.body_b
         moving = joint.body_b if joint.body_a == GROUND else joint.body_a
         sign = 1.0 if joint.body_a == GROUND else -1.0
-        if (driver.quantity == "angle" and on_ground and driver.law.kind == "constant-rate"
-                and moving not in prescribed):
+        if driver.quantity == "angle" and on_ground and driver.law.kind == "constant-rate" and moving not in prescribed:
             prescribed[moving] = _Drive(k, "kinematic-rate", sign=sign, law=driver.law)
-        elif (driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic)
-              and moving not in prescribed):
+        elif driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic) and moving not in prescribed:
             # the slide grows when body_b moves along the line (line in body_a)
             # or when body_a moves against it (line in the moving body)
             prescribed[moving] = _Drive(k, "kinematic-slide", sign=sign, law=driver.law)
@@ -379,8 +397,11 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
             low, high = _slide_extent(mech, native, joint)
             pad = _GROOVE_MARGIN[0] * (high - low) + _GROOVE_MARGIN[1] * mech.size
             base = mech.body(joint.body_a).points[joint.line_point]
-            grooves[joint.name] = (joint.body_a, base + (low - pad) * joint.direction,
-                                   base + (high + pad) * joint.direction)
+            grooves[joint.name] = (
+                joint.body_a,
+                base + (low - pad) * joint.direction,
+                base + (high + pad) * joint.direction,
+            )
 
     first = 0
     for body in mech.moving_bodies:
@@ -424,12 +445,19 @@ def build_scene(kinematics: Kinematics, native: Solution, *, iterations: int = 1
         made: list[pm.Constraint] = []
         if dynamic(joint.body_a, joint.body_b):
             if isinstance(joint, Revolute):
-                made.append(pm.PivotJoint(a, b, tuple(mech.body(joint.body_a).points[joint.point_a]),
-                                          tuple(mech.body(joint.body_b).points[joint.point_b])))
+                made.append(
+                    pm.PivotJoint(
+                        a,
+                        b,
+                        tuple(mech.body(joint.body_a).points[joint.point_a]),
+                        tuple(mech.body(joint.body_b).points[joint.point_b]),
+                    )
+                )
             else:
                 _, start, end = grooves[joint.name]
-                made.append(pm.GrooveJoint(a, b, tuple(start), tuple(end),
-                                           tuple(mech.body(joint.body_b).points[joint.point])))
+                made.append(
+                    pm.GrooveJoint(a, b, tuple(start), tuple(end), tuple(mech.body(joint.body_b).points[joint.point]))
+                )
                 if isinstance(joint, Prismatic):
                     made.append(pm.GearJoint(a, b, float(joint.angle), 1.0))
         constraints[joint.name] = made
@@ -476,8 +504,9 @@ class _Shifted:
         return q + self.offset, qd, qdd
 
 
-def native_window(kinematics: Kinematics, branch: str | None = None,
-                  count: int = 401) -> tuple[SimulationWindow, Solution]:
+def native_window(
+    kinematics: Kinematics, branch: str | None = None, count: int = 401
+) -> tuple[SimulationWindow, Solution]:
     """The simulation window and the native solution at ``count`` equally
     spaced times over it; ValueError if the native solver does not assemble
     the mechanism all along."""
@@ -486,6 +515,8 @@ def native_window(kinematics: Kinematics, branch: str | None = None,
     native = kinematics.solve(q, qd, qdd, branch=branch)
     if not np.all(native.status <= Status.NEAR_SINGULAR):
         bad = int(np.argmax(native.status > Status.NEAR_SINGULAR))
-        raise ValueError(f"the native solver does not assemble the mechanism at t = "
-                         f"{window.times(count)[bad]:.6g} s of the window ({Status(native.status[bad]).message})")
+        raise ValueError(
+            f"the native solver does not assemble the mechanism at t = "
+            f"{window.times(count)[bad]:.6g} s of the window ({Status(native.status[bad]).message})"
+        )
     return window, native
