@@ -10,6 +10,7 @@ kinds the next write removes. A last run to completion leaves no staging.
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import re
@@ -27,7 +28,7 @@ COMMAND = ["run", "fourbar", "--engines", "formulations", "--samples", "31", "--
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: zero length, type, CRC
 #: hidden staging as tempfile names it: "." + name + "." + 8 characters
-STAGING = re.compile(r"\.(fourbar|fourbar\.old|fourbar\.md|README\.md)\.[a-z0-9_]{8}")
+STAGING = re.compile(r"\.(fourbar|fourbar\.old|fourbar\.md|README\.md|index\.json)\.[a-z0-9_]{8}")
 
 
 def _start(out: Path) -> subprocess.Popen:
@@ -75,7 +76,7 @@ def _check_directory(out: Path) -> list[str]:
     for entry in sorted(out.iterdir()):
         if entry.name.startswith("."):
             assert STAGING.fullmatch(entry.name), f"unexpected hidden entry {entry.name}"
-            if entry.name.split(".")[-2] == "md":
+            if entry.name.split(".")[-2] in ("md", "json"):
                 assert entry.is_file(), entry
             else:
                 assert entry.is_dir(), entry
@@ -84,6 +85,8 @@ def _check_directory(out: Path) -> list[str]:
             _check_report(entry)
         elif entry.name == "README.md":
             _check_index(entry)
+        elif entry.name == "index.json":  # the index's data: whole JSON naming the report
+            assert [e["name"] for e in json.loads(entry.read_text(encoding="utf-8"))["entries"]] == ["fourbar"]
         elif entry.name == "fourbar":
             assert entry.is_dir()
             names = {p.name for p in entry.iterdir()}

@@ -1,6 +1,6 @@
 """xcheck: exact kinematics of planar mechanisms, cross-checked against physics engines."""
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 from .errors import InputError, ModelError, XcheckError  # noqa: E402
 from .kinematics import Kinematics, Solution, Status  # noqa: E402
