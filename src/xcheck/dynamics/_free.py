@@ -238,17 +238,26 @@ class _Joints:
         self.row_is_angle = np.array(
             [False] * (2 * count) + [t.is_angle for t in self.others for _ in range(t.rows)], dtype=bool
         )
+        self._last_key: bytes = b""
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0), np.zeros(0))
 
     def _turned(self, q: np.ndarray):
+        """(q padded with the ground's zeros, A(phi_a) s_a (T, 2), A(phi_b) s_b (T, 2)); the last
+        state's are kept, since the Jacobian, gamma and the residual are asked at one state in turn."""
+        key = q.tobytes()
+        if key == self._last_key:
+            return self._last
         padded = np.concatenate([q, np.zeros(3)])
         c, sn = np.cos(padded[2::3]), np.sin(padded[2::3])
-
-        def turn(index, s):
-            return np.stack(
-                [c[index] * s[:, 0] - sn[index] * s[:, 1], sn[index] * s[:, 0] + c[index] * s[:, 1]], axis=1
-            )
-
-        return padded, turn(self.a, self.s_a), turn(self.b, self.s_b)
+        turned = [padded]
+        for index, s in ((self.a, self.s_a), (self.b, self.s_b)):
+            ci, si = c[index], sn[index]
+            arm = np.empty((len(index), 2))
+            arm[:, 0] = ci * s[:, 0] - si * s[:, 1]
+            arm[:, 1] = si * s[:, 0] + ci * s[:, 1]
+            turned.append(arm)
+        self._last_key, self._last = key, (turned[0], turned[1], turned[2])
+        return self._last
 
     def residual(self, q: np.ndarray) -> np.ndarray:
         padded, ra, rb = self._turned(q)
