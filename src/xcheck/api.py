@@ -58,7 +58,7 @@ def select_modes(chosen: str | Sequence[str] | None = None) -> tuple[str, ...]:
     InputError
         If a name is neither a mode nor a group, or none is given.
     """
-    every, groups = all_modes(), engines.groups()
+    every, groups = all_modes(), engines.groups(engines.DRIVEN_KINDS)
     if chosen is None:
         return every
     text = chosen if isinstance(chosen, str) else ",".join(chosen)

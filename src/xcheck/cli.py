@@ -494,6 +494,27 @@ def _shown_option(option: str, value: Path | None) -> str:
     return "" if value is None else f" {option} {_shown_path(Path(value))}"
 
 
+def _free_modes(text: str | None) -> tuple[str, ...]:
+    """The free-motion modes ``simulate --engines`` names (modes or engines' names; "native": none)."""
+    from .simulation import free_modes
+
+    every, groups = free_modes(), registry.groups(("free",))
+    if text is None:
+        return every
+    chosen: list[str] = []
+    for item in (part.strip() for part in text.split(",") if part.strip()):
+        if item in every:
+            chosen.append(item)
+        elif item in groups:
+            chosen.extend(groups[item])
+        elif item != "native":
+            raise InputError(
+                f"--engines: expected native or free-motion modes or engines among "
+                f"{', '.join(['native', *every, *groups])}, found {item!r}"
+            )
+    return tuple(dict.fromkeys(chosen))
+
+
 @app.command("simulate")
 @_reports_errors
 def simulate_command(
@@ -504,6 +525,15 @@ def simulate_command(
     ] = None,
     branch: Annotated[
         Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")
+    ] = None,
+    engines: Annotated[
+        Optional[str],
+        typer.Option(
+            "--engines",
+            metavar="MODE[,MODE…]",
+            help="Free-motion modes to run besides the native reference (default: all; `native` alone: none), "
+            "or an engine's name.",
+        ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress line.")] = False,
@@ -519,8 +549,9 @@ def simulate_command(
 
     Examples: xcheck simulate iftomm-a02;  xcheck simulate iftomm-a01 --duration 2 --json
     """
-    from .dynamics._free import simulate
+    from .simulation import simulate_all
 
+    modes = _free_modes(engines)
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
     kin = Kinematics(load_mechanism(model_path(name, models_dir(models))))
@@ -528,15 +559,16 @@ def simulate_command(
     stderr = Console(stderr=True)
     show = not quiet and stderr.is_terminal
 
-    def progress(step: float) -> None:
+    def progress(what: str) -> None:
         if show:
-            stderr.print(f"{kin.mechanism.name}: RK4 at step {step:.4g} s ...", highlight=False)
+            stderr.print(f"{kin.mechanism.name}: {what} ...", highlight=False)
 
-    reference = simulate(kin, branch, duration, progress=progress)
+    result = simulate_all(kin, modes, duration, branch, progress=progress)
+    reference = result.reference
     if as_json:
-        typer.echo(json.dumps(simulation_json(reference), indent=2, allow_nan=False, ensure_ascii=False))
+        typer.echo(json.dumps(simulation_json(reference, result), indent=2, allow_nan=False, ensure_ascii=False))
     else:
-        print_simulation(wide_console(), reference)
+        print_simulation(wide_console(), reference, result)
     if not reference.converged:
         typer.echo(
             f"xcheck: the reference did not reach the tolerance ({reference.tolerance:g} of the size)"

@@ -486,10 +486,12 @@ def print_run(console: Console, run) -> None:
         )
 
 
-def simulation_json(reference) -> dict:
+def simulation_json(reference, result=None) -> dict:
     """The JSON document of ``xcheck simulate --json`` (SI units): the native
     reference's final state, its stated error, the singular positions passed,
-    the loop closure and energy balance, and the step ladder."""
+    the loop closure and energy balance, and the step ladder; with ``result``
+    (:class:`xcheck.simulation.SimulationResult`) each free mode's ladder
+    under ``engines`` and the modes that did not run under ``not_applicable``."""
     motion = reference.motion
     mech = motion.kinematics.mechanism
     solution = motion.solution()
@@ -537,12 +539,35 @@ def simulation_json(reference) -> dict:
             "ladder": [{k: _number(v) for k, v in entry.items()} for entry in reference.ladder],
             "cpu_seconds": _number(sum(entry["seconds"] for entry in reference.ladder)),
         },
+        "engines": {}
+        if result is None
+        else {mode: _free_mode_json(outcome) for mode, outcome in result.outcomes.items()},
+        "not_applicable": {} if result is None else dict(result.not_applicable),
     }
 
 
-def print_simulation(console, reference) -> None:
-    """The tables of ``xcheck simulate``: the final state and what backs it."""
-    doc = simulation_json(reference)
+def _free_mode_json(outcome) -> dict:
+    """A free mode's result: ok, reason and its ladder (one row per run, SI)."""
+
+    def cell(value):
+        if isinstance(value, (bool, np.bool_)):
+            return bool(value)
+        if isinstance(value, (int, float, np.integer, np.floating)):
+            return _number(value)
+        return None if value is None else str(value)
+
+    rows = [] if outcome.summary is None else outcome.summary.to_dict("records")
+    return {
+        "ok": outcome.ok,
+        "reason": outcome.reason or None,
+        "ladder": [{str(k): cell(v) for k, v in row.items()} for row in rows],
+    }
+
+
+def print_simulation(console, reference, result=None) -> None:
+    """The tables of ``xcheck simulate``: the final state and what backs it, and
+    each free mode's ladder against the reference."""
+    doc = simulation_json(reference, result)
     native = doc["native"]
     table = Table(
         title=f"{doc['mechanism']}: free motion, native reference at t = {doc['duration']:g} s", header_style="bold"
@@ -564,6 +589,38 @@ def print_simulation(console, reference) -> None:
         f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.",
         highlight=False,
     )
+    columns = (
+        "setting",
+        "integrator",
+        "timestep",
+        "status",
+        "position_error",
+        "final_error",
+        "order",
+        "loop_drift",
+        "energy_drift",
+        "cpu_per_simulated_second",
+    )
+    for mode, entry in doc["engines"].items():
+        failure = "" if entry["ok"] else f"[red]failed[/red]: {escape(entry['reason'] or '')}"
+        console.print(f"[bold]{escape(mode)}[/bold]: {failure}")
+        if not entry["ladder"]:
+            continue
+        table = Table(header_style="bold")
+        shown = [c for c in columns if any(c in row for row in entry["ladder"])]
+        for column in shown:
+            table.add_column(escape(column.replace("_", " ")), overflow="fold")
+        for row in entry["ladder"]:
+            table.add_row(*(escape(_cell(row.get(c))) for c in shown))
+        console.print(table)
+    for mode, reason in doc["not_applicable"].items():
+        console.print(f"{escape(mode)}: not run ({escape(reason)})", highlight=False)
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "—"
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 def _g(value) -> str:

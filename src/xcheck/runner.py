@@ -68,8 +68,9 @@ __all__ = [
 
 def all_modes() -> tuple[str, ...]:
     """Every mode, in the order tables show them: native, then the registry's
-    (:func:`xcheck.engines.modes`: kinematic modes, then dynamic ones)."""
-    return ("native", *(m.name for m in engines.modes()))
+    (:func:`xcheck.engines.modes`: kinematic modes, then dynamic ones; free
+    motion runs in ``xcheck simulate``)."""
+    return ("native", *(m.name for m in engines.modes(engines.DRIVEN_KINDS)))
 
 
 #: quantity categories of the tables; body positions count with point positions

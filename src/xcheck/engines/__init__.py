@@ -17,7 +17,7 @@ entry-point group ``xcheck.engines``.
 
 from __future__ import annotations
 
-from ._contract import KINDS, Engine, Mode, NotApplicable
+from ._contract import DRIVEN_KINDS, KINDS, Engine, Mode, NotApplicable
 from ._registry import (
     ENTRY_POINT_GROUP,
     engine,
@@ -34,6 +34,7 @@ from ._registry import (
 
 __all__ = [
     "KINDS",
+    "DRIVEN_KINDS",
     "Engine",
     "Mode",
     "NotApplicable",

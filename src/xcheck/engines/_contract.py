@@ -23,6 +23,13 @@ Modes
     (:func:`~xcheck.compare.convergence_study`) and the compared trajectory
     ``settings["timestep"]`` (s) and ``settings["series"]`` (what makes runs
     of one ladder).
+``free``
+    Free motion: the engine integrates the mechanism released by its
+    ``[free_motion]`` section (no driver) and is compared with the native
+    reference (:func:`xcheck.dynamics.simulate`) at the reference's output
+    times, through :meth:`Engine.run_free`; its result carries a ladder of
+    settings and time steps in ``summary`` (see :meth:`Engine.run_free`) and
+    ``study``.
 """
 
 from __future__ import annotations
@@ -38,12 +45,15 @@ from xcheck.tolerances import Tolerance
 if TYPE_CHECKING:
     from xcheck.compare import ModeResult
     from xcheck.dynamics import Forces
+    from xcheck.dynamics._free import FreeReference
     from xcheck.kinematics import Kinematics, Solution
 
-__all__ = ["KINDS", "Mode", "Engine", "NotApplicable", "POINT_MASS_INERTIA", "positive_inertia"]
+__all__ = ["KINDS", "DRIVEN_KINDS", "Mode", "Engine", "NotApplicable", "POINT_MASS_INERTIA", "positive_inertia"]
 
 #: what a mode does, in the order tables show them
-KINDS = ("kinematic", "dynamic")
+KINDS = ("kinematic", "dynamic", "free")
+#: the kinds ``xcheck run`` judges (driven motion); ``free`` modes run in ``xcheck simulate``
+DRIVEN_KINDS = ("kinematic", "dynamic")
 
 
 #: An engine that needs a positive moment of inertia (MuJoCo: above mjMINVAL =
@@ -184,6 +194,28 @@ class Engine:
         if kind == "kinematic":
             return function(kinematics, samples=samples, branch=branch)
         return function(kinematics, branch=branch)
+
+    def run_free(
+        self, mode: str, kinematics: Kinematics, reference: FreeReference, branch: str | None = None
+    ) -> ModeResult:
+        """Run a ``free`` mode: the mechanism released as its ``[free_motion]``
+        says, from the reference's initial state, compared with the reference.
+
+        Returns
+        -------
+        ModeResult
+            ``trajectories``: one per run that went through, sampled at (a
+            subset of) ``reference.motion.times``, the most accurate first;
+            ``summary``: one row per run with at least setting, integrator,
+            timestep (s), steps, status ("ok" or why it failed: blew up, NaN,
+            left the branch), cpu_seconds, cpu_per_simulated_second,
+            position_error (m, the largest over the compared outputs and
+            points, :func:`xcheck.simulation.free_errors`), final_error (m),
+            loop_drift (m, the largest constraint violation), energy_drift (J,
+            the largest |E(t) - E(0) - W(t)| where the engine's energy is known);
+            ``study``: :func:`~xcheck.compare.convergence_study` of the ladder.
+        """
+        return self._function("run_free")(kinematics, reference, branch=branch)
 
     def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
         """Reactions and driving efforts at the native states of the simulation

@@ -116,9 +116,10 @@ def engine(name: str) -> Engine:
     return _registered[name]
 
 
-def modes() -> tuple[Mode, ...]:
-    """Every mode of every engine: kinematic modes first, then dynamic, each in engine order."""
-    every = [m for e in engines() for m in e.modes]
+def modes(kinds: tuple[str, ...] = KINDS) -> tuple[Mode, ...]:
+    """Every mode of these kinds (default: all) of every engine, in the order of
+    :data:`KINDS` (kinematic, dynamic, free), each in engine order."""
+    every = [m for e in engines() for m in e.modes if m.kind in kinds]
     return tuple(sorted(every, key=lambda m: KINDS.index(m.kind)))
 
 
@@ -138,11 +139,13 @@ def engine_of(mode_name: str) -> Engine:
     raise ValueError(f"expected an engine mode among {', '.join(m.name for m in modes())}, found {mode_name!r}")
 
 
-def groups() -> dict[str, tuple[str, ...]]:
-    """``--engines`` shortcuts: each engine's name, and each kind, to its modes."""
-    found = {e.name: tuple(m.name for m in e.modes) for e in engines() if e.modes}
-    for kind in KINDS:
-        found.setdefault(kind, tuple(m.name for m in modes() if m.kind == kind))
+def groups(kinds: tuple[str, ...] = KINDS) -> dict[str, tuple[str, ...]]:
+    """``--engines`` shortcuts: each engine's name, and each kind, to its modes
+    of these kinds (default: all)."""
+    found = {e.name: tuple(m.name for m in e.modes if m.kind in kinds) for e in engines()}
+    found = {name: chosen for name, chosen in found.items() if chosen}
+    for kind in kinds:
+        found.setdefault(kind, tuple(m.name for m in modes((kind,))))
     return found
 
 

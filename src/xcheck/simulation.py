@@ -1,0 +1,135 @@
+"""Free motion across engines: the native reference and every ``free`` mode against it.
+
+:func:`simulate_all` integrates the native reference of a mechanism's
+``[free_motion]`` (:func:`xcheck.dynamics.simulate`) and runs each requested
+free mode of the registry (:meth:`xcheck.engines.Engine.run_free`) from the
+same initial state; :func:`free_errors` measures an engine's trajectory
+against the reference. A mode that fails is a result with its reason; the
+others still run.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import engines
+from .compare import ModeResult, Trajectory
+from .dynamics._free import FreeReference, simulate
+from .engines import NotApplicable
+from .kinematics import Kinematics
+
+__all__ = ["SimulationResult", "free_modes", "free_errors", "simulate_all"]
+
+#: output times of an engine's trajectory must match the reference's to this (s)
+TIME_MATCH = 1e-9
+
+
+@dataclass
+class SimulationResult:
+    """The native reference and each free mode's result.
+
+    Attributes
+    ----------
+    reference : FreeReference
+    outcomes : dict of str to ModeResult
+        Per free mode that ran (``ok`` False with the reason when it failed).
+    not_applicable : dict of str to str
+        Modes that do not apply or whose engine is not installed, with the reason.
+    seconds : dict of str to float
+        Wall time of the reference ("native") and of each mode, s.
+    """
+
+    kinematics: Kinematics
+    reference: FreeReference
+    outcomes: dict[str, ModeResult] = field(default_factory=dict)
+    not_applicable: dict[str, str] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def free_modes() -> tuple[str, ...]:
+    """The registry's free-motion modes."""
+    return tuple(m.name for m in engines.modes(("free",)))
+
+
+def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, float]:
+    """An engine's free motion against the native reference.
+
+    ``trajectory.times`` must be output times of the reference (to
+    :data:`TIME_MATCH`). Returns position_error (the largest distance of a
+    named point from the reference's over the compared outputs, m),
+    final_error (at the last compared output, m), angle_error (the largest
+    body angle difference, rad) and compared (the number of outputs).
+
+    Raises
+    ------
+    ValueError
+        If a time is not an output time of the reference.
+    """
+    motion = reference.motion
+    times = np.asarray(trajectory.times, dtype=float)
+    index = np.searchsorted(motion.times, times - TIME_MATCH)
+    index = np.clip(index, 0, len(motion.times) - 1)
+    if not np.all(np.abs(motion.times[index] - times) <= TIME_MATCH):
+        raise ValueError("expected the engine's samples at the reference's output times")
+    native = motion.solution()
+    position = np.zeros(len(times))
+    for label, states in trajectory.points.items():
+        if "position" in states:
+            gap = np.asarray(states["position"]) - native.point(label)["position"][index]
+            position = np.maximum(position, np.hypot(gap[:, 0], gap[:, 1]))
+    angle = np.zeros(len(times))
+    for name, states in trajectory.bodies.items():
+        if "angle" in states:
+            angle = np.maximum(angle, np.abs(np.asarray(states["angle"]) - native.body(name)["angle"][index]))
+    return {
+        "position_error": float(np.max(position)),
+        "final_error": float(position[-1]),
+        "angle_error": float(np.max(angle)),
+        "compared": float(len(times)),
+    }
+
+
+def simulate_all(
+    kinematics: Kinematics, modes=None, duration: float | None = None, branch: str | None = None, progress=None
+) -> SimulationResult:
+    """The native reference of the mechanism's free motion and each free mode against it.
+
+    Parameters
+    ----------
+    modes : sequence of str, optional
+        Free modes to run (default: every registered one); none gives the reference alone.
+    duration : float, optional
+        Simulated time, s (default: the file's).
+    progress : callable, optional
+        Called with a line saying what runs now.
+    """
+    start = time.perf_counter()
+    reference = simulate(
+        kinematics,
+        branch,
+        duration,
+        progress=None if progress is None else (lambda h: progress(f"native: RK4 at {h:.4g} s")),
+    )
+    result = SimulationResult(kinematics, reference, seconds={"native": time.perf_counter() - start})
+    for mode in free_modes() if modes is None else modes:
+        engine = engines.engine_of(mode)
+        missing = engine.available()
+        if missing:
+            result.not_applicable[mode] = missing
+            continue
+        if progress is not None:
+            progress(mode)
+        begin = time.perf_counter()
+        try:
+            result.outcomes[mode] = engine.run_free(mode, kinematics, reference, branch=branch)
+        except NotApplicable as err:
+            result.not_applicable[mode] = err.reason
+        except Exception as err:  # noqa: BLE001 - an engine's failure is its mode's result
+            result.outcomes[mode] = ModeResult(
+                mode, kinematics.mechanism.name, False, f"{type(err).__name__}: {err}".splitlines()[0]
+            )
+        result.seconds[mode] = time.perf_counter() - begin
+    return result
