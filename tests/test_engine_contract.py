@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import MODELS
+from conftest import DATA, MODELS
 from typer.testing import CliRunner
 
 from xcheck import engines
@@ -123,3 +123,41 @@ def test_a_taken_name_is_refused(toys):
         engines.register(Clash)
     with pytest.raises(ValueError, match="already registered"):
         engines.register(Shifted)
+
+
+class FreeToy(engines.Engine):
+    """A free mode that returns the native reference's own motion, every point moved by SHIFT x size."""
+
+    name = "freetoy"
+    modes = (engines.Mode("freetoy-free", "free", Tolerance(1, 1, 1, 1, "benchmark: no verdict")),)
+
+    def run_free(self, mode, kinematics, reference, branch=None):
+        import pandas as pd
+
+        from xcheck.compare import convergence_study
+        from xcheck.simulation import free_errors
+
+        trajectory = trajectory_from_solution(reference.motion.solution(), source=mode)
+        trajectory.times = reference.motion.times
+        shift = np.array([SHIFT * kinematics.system.size, 0.0])
+        for states in trajectory.points.values():
+            states["position"] = states["position"] + shift
+        errors = free_errors(reference, trajectory)
+        summary = pd.DataFrame(
+            [{"setting": "toy", "integrator": "copy", "timestep": 0.01, "steps": 1, "status": "ok", **errors}]
+        )
+        study = convergence_study(["toy"], [0.01], [errors["position_error"]], ["ok"])
+        return ModeResult(mode, kinematics.mechanism.name, True, "", [trajectory], summary, study)
+
+
+def test_a_free_mode_from_a_test_module_runs_in_simulate():
+    engines.register(FreeToy)
+    try:
+        done = _cli("simulate", str(DATA / "spring-block.toml"), "--duration", "0.2", "--engines", "freetoy", "--json")
+        run = _cli("run", "fourbar", "--engines", "freetoy")  # a free mode is not a mode of `run`
+    finally:
+        engines.unregister("freetoy")
+    assert done.exit_code == 0, done.output
+    ladder = json.loads(done.stdout)["engines"]["freetoy-free"]["ladder"]
+    assert ladder[0]["position_error"] == pytest.approx(SHIFT * 1.0, rel=1e-9)  # spring-block's size is 1 m
+    assert run.exit_code == 2 and "found 'freetoy'" in run.stderr
