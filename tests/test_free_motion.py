@@ -160,3 +160,31 @@ def test_bad_free_motion_input_is_one_line(tmp_path, change, field, found):
 def test_simulate_needs_a_free_motion_section():
     done = invoke("simulate", "fourbar", "--models", str(MODELS))
     assert done.returncode == 2 and "free_motion: expected a [free_motion] section" in done.stderr
+
+
+def test_simulate_writes_a_report_and_the_index_keeps_it(tmp_path):
+    done = invoke("simulate", "iftomm-a01", "--duration", "0.5", "--out", str(tmp_path), "-q", "--models", str(MODELS))
+    assert done.returncode == 0, done.stderr
+    report = (tmp_path / "iftomm-a01.md").read_text(encoding="utf-8")
+    for heading in ("## The native reference", "## Engines in free motion", "## Versions"):
+        assert heading in report
+    assert report.rstrip().endswith("`") and "Reproduce: `xcheck simulate iftomm-a01 --duration 0.5" in report
+    for image in ("drawing.png", "energy.png"):
+        assert (tmp_path / "iftomm-a01" / image).read_bytes().startswith(b"\x89PNG")
+    # a later `xcheck run` into the same folder keeps the benchmark's line in the index
+    ran = invoke(
+        "run",
+        "fourbar",
+        "--engines",
+        "formulations",
+        "--samples",
+        "11",
+        "--out",
+        str(tmp_path),
+        "-q",
+        "--models",
+        str(MODELS),
+    )
+    assert ran.returncode == 0, ran.stderr
+    index = (tmp_path / "README.md").read_text(encoding="utf-8")
+    assert "[iftomm-a01](iftomm-a01.md)" in index and "[fourbar](fourbar.md)" in index

@@ -74,6 +74,8 @@ def _home(model_file: Path) -> Path:
     """Where a mechanism file's companions live: beside the ``models/`` directory
     it is in, or beside the file itself when it is elsewhere."""
     folder = Path(model_file).resolve().parent
+    if folder.name == BENCHMARKS and folder.parent.name == "models":
+        return folder.parent.parent
     return folder.parent if folder.name == "models" else folder
 
 
@@ -100,3 +102,14 @@ def comparisons_path(model_file: Path, directory: Path) -> Path | None:
     ``NAME.toml``), or None if there is none."""
     candidate = Path(directory) / f"{Path(model_file).stem}.toml"
     return candidate if candidate.is_file() else None
+
+
+def indexed_names(model_file: Path) -> set[str]:
+    """The mechanisms whose reports the index beside a mechanism file's reports
+    keeps: the models of its folder and their benchmarks (a benchmark's folder
+    is the models folder's ``benchmarks/``)."""
+    folder = Path(model_file).parent
+    if folder.name == BENCHMARKS:
+        folder = folder.parent
+    names = set(model_names(folder)) if folder.is_dir() else set()
+    return names | set(benchmark_names(folder))

@@ -18,7 +18,7 @@ from rich.table import Table
 from . import __version__
 from . import engines as registry
 from .api import printed_answers, select_modes
-from .catalog import model_names, model_path, models_dir, reports_dir
+from .catalog import indexed_names, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -36,7 +36,7 @@ from .output import (
     textbook_json,
     wide_console,
 )
-from .report import index_entry, update_index, write_report
+from .report import index_entry, simulation_entry, update_index, write_report, write_simulation_report
 from .runner import run_mechanism
 from .units import evaluate_expression
 
@@ -439,7 +439,7 @@ def run_command(
                 target = reports_dir(path, out)
                 try:  # a report that cannot be written is reported; the run's results still count
                     write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
-                    entries.append((target, path.parent, index_entry(run)))
+                    entries.append((target, path, index_entry(run)))
                 except OSError as err:
                     failures.append(
                         f"{target}: expected a directory where the report of {label} can be "
@@ -453,8 +453,8 @@ def run_command(
             results.append(run)
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
-        folder = next(f for t, f, _ in entries if t == target)
-        update_index(target, [e for t, _, e in entries if t == target], set(model_names(folder)), command)
+        model_file = next(f for t, f, _ in entries if t == target)
+        update_index(target, [e for t, _, e in entries if t == target], indexed_names(model_file), command)
     if as_json:
         documents = [run_json(r) for r in results]
         if name == "all" or documents:
@@ -536,6 +536,11 @@ def simulate_command(
         ),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
+    out: Annotated[
+        Optional[Path],
+        typer.Option("--out", help="Directory of the Markdown report (default: reports/ beside the models directory)."),
+    ] = None,
+    report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown report.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress line.")] = False,
     models: ModelsOption = None,
 ):
@@ -554,7 +559,8 @@ def simulate_command(
     modes = _free_modes(engines)
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
-    kin = Kinematics(load_mechanism(model_path(name, models_dir(models))))
+    path = model_path(name, models_dir(models))
+    kin = Kinematics(load_mechanism(path))
     kin.assemble(branch)
     stderr = Console(stderr=True)
     show = not quiet and stderr.is_terminal
@@ -565,10 +571,28 @@ def simulate_command(
 
     result = simulate_all(kin, modes, duration, branch, progress=progress)
     reference = result.reference
+    failure = None
+    if report:
+        target = reports_dir(path, out)
+        command = (
+            f"xcheck simulate {_shown_model(name)}"
+            + (f" --duration {duration:g}" if duration else "")
+            + (f" --engines {engines}" if engines else "")
+            + (f" --branch {branch}" if branch else "")
+            + _shown_option("--models", models)
+            + _shown_option("--out", out)
+        )
+        try:  # a report that cannot be written is one line; the results still print
+            write_simulation_report(result, target, command)
+            update_index(target, [simulation_entry(result)], indexed_names(path), command)
+        except OSError as err:
+            failure = f"{target}: expected a directory where the report can be written, found {err.strerror or err}"
     if as_json:
         typer.echo(json.dumps(simulation_json(reference, result), indent=2, allow_nan=False, ensure_ascii=False))
     else:
         print_simulation(wide_console(), reference, result)
+    if failure is not None:
+        raise InputError(failure)
     if not reference.converged:
         typer.echo(
             f"xcheck: the reference did not reach the tolerance ({reference.tolerance:g} of the size)"

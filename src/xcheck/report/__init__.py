@@ -21,7 +21,16 @@ from ..runner import RunResult
 from . import _figures
 from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
 
-__all__ = ["write_report", "write_index", "read_index", "update_index", "index_entry", "INDEX_DATA"]
+__all__ = [
+    "write_report",
+    "write_simulation_report",
+    "write_index",
+    "read_index",
+    "update_index",
+    "index_entry",
+    "simulation_entry",
+    "INDEX_DATA",
+]
 
 
 def write_report(run: RunResult, directory: str | Path, command: str, gif: bool = True) -> Path:
@@ -36,20 +45,9 @@ def write_report(run: RunResult, directory: str | Path, command: str, gif: bool 
 
 
 def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> Path:
-    directory.mkdir(parents=True, exist_ok=True)
     name = run.mechanism.name
-    if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
-        raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
-    existing = directory / name
-    if existing.exists() and not (existing.is_dir() and (existing / "drawing.png").is_file()):
-        raise FileExistsError(
-            f"{existing} exists and is not a report's image folder: xcheck replaces only folders it wrote"
-        )
-    staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(staging, 0o777 & ~umask)
-    try:
+
+    def render(staging: Path) -> str:
         images = {"drawing": "drawing.png", "quantities": "quantities.png", "errors": "differences.png"}
         (staging / "drawing.png").write_bytes(_figures.drawing(run))
         (staging / "quantities.png").write_bytes(_figures.quantities(run))
@@ -65,7 +63,29 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> P
         if gif:
             (staging / "motion.gif").write_bytes(_figures.motion_gif(run))
             images["gif"] = "motion.gif"
-        text = report_markdown(run, {k: f"{name}/{v}" for k, v in images.items()}, command)
+        return report_markdown(run, {k: f"{name}/{v}" for k, v in images.items()}, command)
+
+    return _replace_report(directory, name, render)
+
+
+def _replace_report(directory: Path, name: str, render) -> Path:
+    """Write reports/NAME/ (the images ``render(staging)`` puts in a staging
+    folder, swapped in whole; it must write drawing.png, the mark of a report
+    folder) and then reports/NAME.md (the text ``render`` returns, atomically)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
+        raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
+    existing = directory / name
+    if existing.exists() and not (existing.is_dir() and (existing / "drawing.png").is_file()):
+        raise FileExistsError(
+            f"{existing} exists and is not a report's image folder: xcheck replaces only folders it wrote"
+        )
+    staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(staging, 0o777 & ~umask)
+    try:
+        text = render(staging)
         target = directory / name
         retired = None
         if target.exists():
@@ -82,6 +102,25 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> P
     return markdown
 
 
+def write_simulation_report(result, directory: str | Path, command: str) -> Path:
+    """Write reports/NAME.md and reports/NAME/*.png for a free-motion run
+    (:class:`xcheck.simulation.SimulationResult`); returns the Markdown path."""
+    from . import _simulation
+
+    name = result.kinematics.mechanism.name
+
+    def render(staging: Path) -> str:
+        images = {}
+        for key, data in _simulation.figures(result).items():
+            (staging / f"{key}.png").write_bytes(data)
+            images[key] = f"{name}/{key}.png"
+        return _simulation.markdown(result, images, command)
+
+    with directory_lock(directory):
+        remove_stale_staging(directory)
+        return _replace_report(Path(directory), name, render)
+
+
 def index_entry(run: RunResult) -> dict:
     """The line of reports/README.md for one run."""
     return {
@@ -95,6 +134,19 @@ def index_entry(run: RunResult) -> dict:
 
 #: the index's data beside its Markdown: the entries README.md is built from
 INDEX_DATA = "index.json"
+
+
+def simulation_entry(result) -> dict:
+    """The line of reports/README.md for a free-motion run."""
+    reference = result.reference
+    ran = ", ".join(result.outcomes) or "native only"
+    return {
+        "name": result.kinematics.mechanism.name,
+        "title": result.kinematics.mechanism.title,
+        "passed": bool(reference.converged),
+        "worst": f"free motion: reference error {reference.relative:.2g} of the size ({ran})",
+        "textbook": "—",
+    }
 
 
 def write_index(entries: list[dict], directory: str | Path, command: str) -> Path:

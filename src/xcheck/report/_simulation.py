@@ -1,0 +1,230 @@
+"""The report of a free-motion run: the native reference and each engine's ladder.
+
+Figures: ``drawing`` (the mechanism at release and the paths of its points),
+``errors`` (each free mode's best run: position error against time, log
+scale, singular passes marked), ``energy`` (the reference's energy balance
+and loop closure) and ``work-precision`` (error against CPU time, one line per
+engine and setting). SI units throughout.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .. import engines  # noqa: E402
+from ..runner import versions  # noqa: E402
+from ..simulation import SimulationResult  # noqa: E402
+from ._markdown import _g, _table  # noqa: E402
+
+__all__ = ["figures", "markdown"]
+
+
+def _png(figure) -> bytes:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=110, metadata={"Software": None})
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def _passes(ax, result: SimulationResult) -> None:
+    for t in result.reference.motion.singular_passes:
+        ax.axvline(t, color="0.8", lw=0.8, zorder=0)
+
+
+def figures(result: SimulationResult) -> dict[str, bytes]:
+    """The report's PNG figures by key (see the module's docstring)."""
+    motion = result.reference.motion
+    solution = motion.solution()
+    mech = result.kinematics.mechanism
+    out = {}
+
+    figure, ax = plt.subplots(figsize=(5.5, 4.5))
+    for label, owner in mech.point_owners.items():
+        path = solution.point(label)["position"]
+        if owner == mech.ground.name:
+            ax.plot(path[0, 0], path[0, 1], "k^", ms=6)
+            continue
+        ax.plot(path[:, 0], path[:, 1], lw=0.8, alpha=0.7)
+        ax.annotate(label, path[0], fontsize=8)
+    for body in mech.moving_bodies:
+        labels = [lbl for lbl in body.points]
+        start = np.array([solution.point(lbl)["position"][0] for lbl in labels])
+        ax.plot(start[:, 0], start[:, 1], "k-o", lw=2, ms=3)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{mech.name}: at release (black) and the paths of its points", fontsize=9)
+    ax.grid(alpha=0.3)
+    out["drawing"] = _png(figure)
+
+    figure, (ax_energy, ax_loop) = plt.subplots(1, 2, figsize=(10, 3.6))
+    ax_energy.semilogy(motion.times, np.maximum(np.abs(motion.energy_error), 1e-18), lw=1)
+    ax_energy.set_ylabel("|E(t) - E(0) - W(t)| [J]")
+    ax_loop.semilogy(motion.times[1:], np.maximum(motion.residual[1:], 1e-18), lw=1)
+    ax_loop.set_ylabel("loop closure before each projection [m]")
+    for ax in (ax_energy, ax_loop):
+        ax.set_xlabel("t [s]")
+        ax.grid(alpha=0.3, which="both")
+        _passes(ax, result)
+    figure.suptitle(f"{mech.name}: the native reference (grey lines: singular positions passed)", fontsize=10)
+    figure.tight_layout()
+    out["energy"] = _png(figure)
+
+    runs = [(m, o) for m, o in result.outcomes.items() if o.ok and o.trajectories]
+    if runs:
+        figure, ax = plt.subplots(figsize=(7, 4))
+        for mode, outcome in runs:
+            best = outcome.trajectories[0]
+            native = motion.solution()
+            index = np.searchsorted(motion.times, np.asarray(best.times) - 1e-9)
+            gap = np.zeros(len(index))
+            for label, states in best.points.items():
+                delta = np.asarray(states["position"]) - native.point(label)["position"][index]
+                gap = np.maximum(gap, np.hypot(delta[:, 0], delta[:, 1]))
+            style = dict(engines.mode(mode).style)
+            ax.semilogy(
+                best.times, np.maximum(gap, 1e-18), label=f"{mode} ({_setting(best)})", color=style.get("color"), lw=1
+            )
+        _passes(ax, result)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("largest point position error [m]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+        ax.set_title(f"{mech.name}: each engine's most accurate run against the reference", fontsize=9)
+        figure.tight_layout()
+        out["errors"] = _png(figure)
+
+        figure, ax = plt.subplots(figsize=(7, 4.5))
+        for mode, outcome in result.outcomes.items():
+            summary = outcome.summary
+            if summary is None or summary.empty or "cpu_seconds" not in summary:
+                continue
+            color = engines.mode(mode).style.get("color")
+            keys = [k for k in ("setting", "integrator") if k in summary]
+            for series, part in summary.groupby(keys, sort=False) if keys else [("", summary)]:
+                part = part[part["status"] == "ok"]
+                if part.empty:
+                    continue
+                name = " ".join(str(s) for s in (series if isinstance(series, tuple) else (series,)))
+                ax.loglog(
+                    part["cpu_seconds"],
+                    part["position_error"],
+                    "o-",
+                    ms=4,
+                    lw=1,
+                    color=color,
+                    label=f"{mode}: {name}",
+                    alpha=0.8,
+                )
+        ax.loglog(
+            [result.reference.ladder[-1]["seconds"]],
+            [max(result.reference.estimate.max(), 1e-18)],
+            "k*",
+            ms=10,
+            label="native reference (its stated error)",
+        )
+        ax.set_xlabel("CPU time [s]")
+        ax.set_ylabel("largest point position error [m]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=6)
+        ax.set_title(f"{mech.name}: work-precision (one line per engine and setting, step falling)", fontsize=9)
+        figure.tight_layout()
+        out["work-precision"] = _png(figure)
+    return out
+
+
+def _setting(trajectory) -> str:
+    settings = trajectory.settings
+    parts = [str(settings[k]) for k in ("setting", "integrator") if k in settings]
+    if "timestep" in settings:
+        parts.append(f"dt = {float(settings['timestep']):.3g} s")
+    return ", ".join(parts)
+
+
+def markdown(result: SimulationResult, images: dict[str, str], command: str) -> str:
+    """The report's Markdown; ``images`` maps figure keys to paths relative to it."""
+    mech = result.kinematics.mechanism
+    reference = result.reference
+    motion = reference.motion
+    spec = mech.free_motion
+    passes = ", ".join(f"{t:.4g}" for t in motion.singular_passes) or "none"
+    lines = [
+        f"# {mech.name}: {mech.title} — free motion",
+        f"Source: {mech.source or '—'}. Released for {motion.times[-1]:g} s"
+        + (f" (outputs every {spec.output_step:g} s)" if spec is not None else "")
+        + ".",
+        mech.notes.strip(),
+        f"![the mechanism]({images['drawing']})",
+        "## The native reference",
+        (
+            f"RK4 on the index-1 equations (accelerations by Gauss's principle), positions and velocities "
+            f"projected onto the constraints after every step, at halving steps until two runs agree to "
+            f"{reference.tolerance:g} of the size. Finest step {motion.step:g} s; stated error "
+            f"{_g(float(reference.estimate.max()), 3)} m ({_g(reference.relative, 3)} of the size; "
+            f"{'converged' if reference.converged else '**not converged**'}). Singular positions passed at "
+            f"{passes} s. Loop closure before each projection at most {_g(float(motion.residual.max()), 2)} m; "
+            f"energy balance at most {_g(float(np.abs(motion.energy_error).max()), 2)} J."
+        ),
+        _table(
+            ["step [s]", "steps", "CPU [s]", "difference from the previous run [m]"],
+            [
+                [_g(e["step"], 4), f"{int(e['steps'])}", _g(e["seconds"], 3), _g(e["difference"], 3)]
+                for e in reference.ladder
+            ],
+            "rrrr",
+        ),
+        f"![energy balance and loop closure]({images['energy']})",
+        "## Engines in free motion",
+    ]
+    if "errors" in images:
+        lines.append(f"![error against time]({images['errors']})\n\n![work-precision]({images['work-precision']})")
+    columns = (
+        "setting",
+        "integrator",
+        "timestep",
+        "status",
+        "position_error",
+        "final_error",
+        "loop_drift",
+        "energy_drift",
+        "cpu_per_simulated_second",
+    )
+    for mode, outcome in result.outcomes.items():
+        head = f"**`{mode}`**" + ("" if outcome.ok else f" — failed: {outcome.reason}")
+        lines.append(head)
+        summary = outcome.summary
+        if summary is not None and not summary.empty:
+            shown = [c for c in columns if c in summary]
+            rows = [[_cell(row[c]) for c in shown] for _, row in summary.iterrows()]
+            lines.append(_table([c.replace("_", " ") for c in shown], rows))
+        if outcome.study is not None and not outcome.study.empty:
+            orders = outcome.study.dropna(subset=["order"])
+            if not orders.empty:
+                lines.append(
+                    "Observed orders (position error between consecutive steps of a series): "
+                    + "; ".join(f"{r.series} {r.order:.2f} at {r.timestep:g} s" for r in orders.itertuples())
+                    + "."
+                )
+    for mode, reason in result.not_applicable.items():
+        lines.append(f"`{mode}`: not run ({reason}).")
+    if not result.outcomes and not result.not_applicable:
+        lines.append("No free-motion mode ran (none registered, or `--engines native`).")
+    lines += [
+        "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),
+        f"Reproduce: `{command}`",
+    ]
+    return "\n\n".join(line for line in lines if line) + "\n"
+
+
+def _cell(value) -> str:
+    if isinstance(value, float):
+        return "—" if not math.isfinite(value) else f"{value:.3g}"
+    return str(value)
