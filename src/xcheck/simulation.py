@@ -61,7 +61,8 @@ def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, f
     :data:`TIME_MATCH`). Returns position_error (the largest distance of a
     named point from the reference's over the compared outputs, m),
     final_error (at the last compared output, m), angle_error (the largest
-    body angle difference, rad) and compared (the number of outputs).
+    body angle difference, rad), compared (the number of outputs) and
+    worst_time (s, where the position error is largest).
 
     Raises
     ------
@@ -84,11 +85,13 @@ def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, f
     for name, states in trajectory.bodies.items():
         if "angle" in states:
             angle = np.maximum(angle, np.abs(np.asarray(states["angle"]) - native.body(name)["angle"][index]))
+    worst = int(np.argmax(position))
     return {
-        "position_error": float(np.max(position)),
+        "position_error": float(position[worst]),
         "final_error": float(position[-1]),
         "angle_error": float(np.max(angle)),
         "compared": float(len(times)),
+        "worst_time": float(times[worst]),
     }
 
 

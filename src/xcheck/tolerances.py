@@ -122,3 +122,13 @@ def convergence_round_off(category: str) -> float:
     falls (pymunk's accelerations on an all-sliding wedge: 4.4e-11 at h = 2.5
     ms, 5.3e-10 at 1.25 ms)."""
     return ROUND_OFF.limit(category)
+
+
+#: a free-motion mode: a benchmark against the native reference, no verdict
+FREE_MOTION = Tolerance(
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    "benchmark: no verdict; the ladder against the native reference is the result",
+)

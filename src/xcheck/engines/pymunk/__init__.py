@@ -5,7 +5,7 @@ with its inputs driven (:mod:`.modes`), its impulses as reactions
 from __future__ import annotations
 
 from xcheck.engines._contract import Engine, Mode
-from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, Tolerance
+from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, Tolerance
 
 __all__ = ["Pymunk"]
 
@@ -37,6 +37,7 @@ class Pymunk(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0, "alpha": 1.0},
             style=dict(color="tab:green", lw=1, ls="-."),
         ),
+        Mode("pymunk-free", "free", FREE_MOTION, style=dict(color="tab:green", lw=1, ls="-.")),
     )
     force_tolerance = 7e-2
     force_basis = (

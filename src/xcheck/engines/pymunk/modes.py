@@ -30,6 +30,7 @@ from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
 
 from .figure import render_png, snapshot
+from .free import run_free  # noqa: F401 - the mode "pymunk-free" lives there
 from .inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
 from .scene import DEFAULT_MASS, Scene, build_scene, native_window
 

@@ -342,6 +342,7 @@ def build_scene(
     iterations: int = 10,
     error_bias: float | None = None,
     kinematic_inputs: bool = True,
+    free: bool = False,
 ) -> Scene:
     """The mechanism as a pymunk space, at the first sample of ``native``.
 
@@ -361,6 +362,8 @@ def build_scene(
     kinematic_inputs : bool
         Prescribe the bodies whose input allows it (see the module notes);
         False drives every input by a motor or a slide servo.
+    free : bool
+        No driver at all: the mechanism moves freely (free motion).
 
     Returns
     -------
@@ -379,7 +382,7 @@ def build_scene(
     # prescribed bodies: a constant-rate angle on a revolute to the ground, a
     # slide on a prismatic joint to the ground
     prescribed: dict[str, _Drive] = {}
-    for k, driver in enumerate(mech.drivers if kinematic_inputs else ()):
+    for k, driver in enumerate(mech.drivers if kinematic_inputs and not free else ()):
         joint = mech.joint(driver.joint)
         on_ground = GROUND in (joint.body_a, joint.body_b) and joint.body_a != joint.body_b
         moving = joint.body_b if joint.body_a == GROUND else joint.body_a
@@ -462,7 +465,7 @@ def build_scene(
                     made.append(pm.GearJoint(a, b, float(joint.angle), 1.0))
         constraints[joint.name] = made
 
-    for k, driver in enumerate(mech.drivers):
+    for k, driver in enumerate(() if free else mech.drivers):
         joint = mech.joint(driver.joint)
         if any(d.driver_index == k for d in drives):
             continue
