@@ -18,7 +18,7 @@ from rich.table import Table
 from . import __version__
 from . import engines as registry
 from .api import printed_answers, select_modes
-from .catalog import indexed_names, model_names, model_path, models_dir, reports_dir
+from .catalog import benchmark_names, indexed_names, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -118,6 +118,7 @@ def list_command(
     else:
         directory = models_dir(chosen)
         paths = [directory / f"{name}.toml" for name in model_names(directory)]
+    benchmarks = [] if chosen is not None and chosen.suffix == ".toml" else benchmark_names(directory)
     rows: list[dict[str, Any]] = []
     failures: list[str] = []
     for path in paths:  # one bad file is reported at the end; the others are listed
@@ -162,6 +163,10 @@ def list_command(
             + ". `xcheck engines` says more.",
             highlight=False,
         )
+        if benchmarks:
+            console.print(
+                f"Free-motion benchmarks (xcheck simulate NAME): {escape(', '.join(benchmarks))}.", highlight=False
+            )
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
