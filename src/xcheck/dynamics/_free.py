@@ -336,6 +336,10 @@ class _Dynamics:
         self.scale_coordinates = self.system.coordinate_scale()
         self.mass_scale = max(float(self.bodies.mass.sum()), 1e-300)
         self.measure = 0.0  # the singularity measure of the last projection (0: not yet known)
+        d, r = self.scale_coordinates, self.scale_rows  # scaled units of _constrained, precomputed
+        self.jac_factor = r[:, None] / d[None, :]
+        self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
+        self.load_factor = 1.0 / (d * self.mass_scale)
         first = 3 * np.arange(len(self.bodies.mass))[:, None, None]
         self.block_rows = first + np.arange(3)[None, :, None]
         self.block_columns = first + np.arange(3)[None, None, :]
@@ -447,12 +451,14 @@ class _Dynamics:
         while the last one measured exceeds :data:`LEAST_SQUARES_BELOW` the
         multipliers come from a plain solve. Shapes (n,), n coordinates.
         """
-        d, r = self.scale_coordinates, self.scale_rows
-        scaled_jac = r[:, None] * jac / d[None, :]
-        augmented = mass / d[:, None] / d[None, :] / self.mass_scale + scaled_jac.T @ scaled_jac
-        scaled_gap = r * gap
-        scaled_load = load / d / self.mass_scale + scaled_jac.T @ scaled_gap
-        solved = np.linalg.solve(augmented, np.column_stack([scaled_load, scaled_jac.T]))
+        d = self.scale_coordinates
+        scaled_jac = jac * self.jac_factor
+        augmented = mass * self.mass_factor + scaled_jac.T @ scaled_jac
+        scaled_gap = self.scale_rows * gap
+        rhs_columns = np.empty((len(d), 1 + scaled_jac.shape[0]))
+        rhs_columns[:, 0] = load * self.load_factor + scaled_jac.T @ scaled_gap
+        rhs_columns[:, 1:] = scaled_jac.T
+        solved = np.linalg.solve(augmented, rhs_columns)
         free, mj = solved[:, 0], solved[:, 1:]
         schur, rhs = scaled_jac @ mj, scaled_gap - scaled_jac @ free
         if not measure and self.measure > LEAST_SQUARES_BELOW:
