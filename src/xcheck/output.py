@@ -197,7 +197,7 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
             f"ay [{u.acceleration}]",
             f"α [{alpha_unit}]",
         ):
-            bodies.add_column(header, justify="right" if header != "body" else "left", no_wrap=True)
+            bodies.add_column(escape(header), justify="right" if header != "body" else "left", no_wrap=True)
         for b in mech.moving_bodies:
             s = solution.body(b.name)
             bodies.add_row(
@@ -227,7 +227,7 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
             f"ay [{u.acceleration}]",
             f"|a| [{u.acceleration}]",
         ):
-            points.add_column(header, justify="left" if header in ("point", "body") else "right", no_wrap=True)
+            points.add_column(escape(header), justify="left" if header in ("point", "body") else "right", no_wrap=True)
         for label, owner in mech.point_owners.items():
             p = solution.point(label)
             v, a = p["velocity"][i], p["acceleration"][i]
@@ -255,7 +255,7 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
     reactions = Table(box=None, pad_edge=False, header_style="bold")
     for header in ("joint", "type", "force of → on", "Fx [N]", "Fy [N]", "|F| [N]", "normal [N]", "moment [N·m]"):
         reactions.add_column(
-            header, justify="left" if header in ("joint", "type", "force of → on") else "right", no_wrap=True
+            escape(header), justify="left" if header in ("joint", "type", "force of → on") else "right", no_wrap=True
         )
     for joint in mech.joints:
         values = forces.joints[joint.name]
@@ -273,7 +273,9 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
     console.print(reactions)
     efforts = Table(box=None, pad_edge=False, header_style="bold")
     for header in ("driver", "joint", "effort", "unit", "power [W]"):
-        efforts.add_column(header, justify="left" if header in ("driver", "joint", "unit") else "right", no_wrap=True)
+        efforts.add_column(
+            escape(header), justify="left" if header in ("driver", "joint", "unit") else "right", no_wrap=True
+        )
     for k, driver in enumerate(mech.drivers):
         effort = forces.drivers[driver.name]["effort"][i]
         efforts.add_row(
@@ -317,7 +319,9 @@ def print_textbook(console: Console, results: list[dict], document: str = "") ->
     headers += ["printed", "computed", "unit", "deviation %", "last digits", "verdict", "note"]
     for header in headers:
         numeric = header in ("printed", "computed", "deviation %", "last digits")
-        table.add_column(header, justify="right" if numeric else "left", no_wrap=header != "note", overflow="fold")
+        table.add_column(
+            escape(header), justify="right" if numeric else "left", no_wrap=header != "note", overflow="fold"
+        )
     for r in results:
         digits = max(6, sum(c.isdigit() for c in r["printed_text"].lstrip("-0,.")) + 2)
         percent = "—" if r["deviation_percent"] is None else f"{r['deviation_percent']:+.3g}"
