@@ -269,6 +269,14 @@ def solve_command(
         Optional[str], typer.Option("--branch", help="Assembly branch (default: the model file's first).")
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
+    textbook_too: Annotated[
+        bool,
+        typer.Option(
+            "--textbook",
+            help="With --at: check the printed answers too (without --at they are always checked: they are "
+            "at the file's instants).",
+        ),
+    ] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
 ):
@@ -319,8 +327,9 @@ def solve_command(
         except XcheckError as err:
             forces_error = err
     textbook, textbook_error, document = None, None, ""
-    try:
-        textbook, document = printed_answers(kin, comparisons)
+    try:  # printed answers are at the book's instants: with --at only on request
+        if at is None or textbook_too:
+            textbook, document = printed_answers(kin, comparisons)
     except XcheckError as err:
         textbook_error = err
     if as_json:
