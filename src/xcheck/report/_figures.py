@@ -24,6 +24,8 @@ from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
 
 _NATIVE_STYLE = dict(color="black", lw=1.6, ls="-")
+#: an observed order below this is shown as "not converging" (the error does not fall with the step)
+NOT_CONVERGING = 0.5
 
 
 def _style(mode: str) -> dict:
@@ -276,8 +278,9 @@ def convergence_plot(run: RunResult) -> bytes | None:
             (line,) = ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=series)
             orders = part.order.dropna()
             if len(orders):
+                order = float(orders.iloc[-1])
                 ax.annotate(
-                    f"order {orders.iloc[-1]:.2f}",
+                    f"order {order:.2f}" if order >= NOT_CONVERGING else f"not converging (order {order:.2f})",
                     (ok.timestep.iloc[-1], ok.position_error.iloc[-1]),
                     xytext=(4, -10),
                     textcoords="offset points",
