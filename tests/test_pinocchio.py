@@ -466,7 +466,7 @@ def test_bad_options_fail_in_one_line():
 
 def test_modes_and_exporter_are_registered():
     pinocchio = engines.engine("pinocchio")
-    assert [m.name for m in pinocchio.modes] == ["pinocchio-kinematic", "pinocchio-dynamic"]
+    assert [m.name for m in pinocchio.modes] == ["pinocchio-kinematic", "pinocchio-dynamic", "pinocchio-free"]
     assert engines.engine_of("pinocchio-dynamic") is pinocchio
     assert engines.exporters()["urdf"] is pinocchio and pinocchio.export_directory == "urdf"
     assert pinocchio.export_files(_kin("fourbar")) == export_files(_kin("fourbar"))

@@ -1,9 +1,11 @@
 """Pinocchio: the mechanism as a kinematic tree with loop constraints
 (:mod:`.model`, written as URDF by :mod:`.urdf`), Pinocchio as a kinematic
-oracle (:mod:`.oracle`), in driven dynamics (:mod:`.dynamic`) and inverse
-dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
+oracle (:mod:`.oracle`), in driven dynamics (:mod:`.dynamic`), in free motion
+(:mod:`.free`) and inverse dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
 
 from __future__ import annotations
+
+import math
 
 from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
@@ -17,6 +19,13 @@ _DYNAMIC = Tolerance(
     CONVERGES,
     "converges to the exact answer: RK4 over 200, "
     "400, 800 steps per window, order 4 in every quantity" + CONVERGENCE_NOTE,
+)
+FREE_TOLERANCE = Tolerance(
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    "benchmark: no verdict; the ladder against the native reference is the result",
 )
 
 
@@ -39,6 +48,7 @@ class Pinocchio(Engine):
             orders=dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
             style=dict(color="tab:orange", lw=1, ls=":"),
         ),
+        Mode("pinocchio-free", "free", FREE_TOLERANCE, style=dict(color="tab:orange", lw=1, ls="-.")),
     )
     force_tolerance = 1e-12
     force_basis = "the multipliers of the loop closures at the native states: round-off (measured at most 1.7e-13)"

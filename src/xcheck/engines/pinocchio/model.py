@@ -61,6 +61,7 @@ __all__ = [
     "joint_coordinates",
     "carrier_joint",
     "block_frame",
+    "depth_first",
 ]
 
 
@@ -441,6 +442,32 @@ class PinocchioMechanism:
         return selector
 
 
+def depth_first(spec: TreeSpec) -> list[JointSpec]:
+    """The joints in depth-first order (each joint's subtree right after it, siblings
+    in ``spec.joints`` order). Pinocchio numbers the velocity coordinates in the
+    order joints are added, and its sparse Cholesky of ``constraintDynamics``
+    takes each subtree's coordinates to be contiguous (``model.check()``): in
+    breadth-first order (``spec.joints``) a tree with two branches gets wrong
+    constrained accelerations (measured on the double four-bar: J a 1.4 m/s^2
+    off the loops)."""
+    hung = {b.link: b.name for b in spec.bodies}
+    owner = {}  # frame name (link or hung body) -> index of the joint that carries it
+    for i, js in enumerate(spec.joints):
+        owner[js.link] = i
+        if js.link in hung:
+            owner[hung[js.link]] = i
+    children: dict[int, list[int]] = {}
+    for i, js in enumerate(spec.joints):
+        children.setdefault(owner.get(js.parent, -1), []).append(i)
+    order: list[int] = []
+    stack = list(reversed(children.get(-1, [])))
+    while stack:
+        i = stack.pop()
+        order.append(i)
+        stack.extend(reversed(children.get(i, [])))
+    return [spec.joints[i] for i in order]
+
+
 def build_model(spec: TreeSpec) -> PinocchioMechanism:
     """Build the Pinocchio model of a :class:`TreeSpec` through the API
     (``addJoint``, ``appendBodyToJoint``, ``addBodyFrame``, ``addFrame``)."""
@@ -453,7 +480,7 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
     frame_id = {GROUND: 0}  # ... -> id of the Pinocchio frame standing for it
     hung = {b.link: b for b in spec.bodies}
     body_frames, point_frames = {}, {}
-    for js in spec.joints:
+    for js in depth_first(spec):
         parent_joint, parent_placement = frame_joint[js.parent]
         if js.kind == "revolute":
             joint_model = pin.JointModelRZ()

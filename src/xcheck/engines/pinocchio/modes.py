@@ -11,6 +11,10 @@ Modes
     ``constraintDynamics`` with the inputs driven by a computed torque, integrated
     with RK4 and with semi-implicit Euler (with and without Baumgarte
     correction) at several time steps.
+``pinocchio-free`` (:func:`run_free`)
+    Free motion (no driver) with ``constraintDynamics`` from the native
+    reference's initial state: a ladder of integrators and time steps
+    against the reference.
 
 Model files
 -----------
@@ -32,12 +36,13 @@ from xcheck.kinematics import Kinematics
 from xcheck.motion import law_states, sweep_span
 
 from .dynamic import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
+from .free import run_free  # noqa: F401 - the mode "pinocchio-free" lives here
 from .inverse import inverse_forces
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
 from .oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
 from .urdf import export_texts
 
-__all__ = ["run_kinematic", "run_dynamic", "export_files", "build", "sweep_inputs", "inverse_dynamics"]
+__all__ = ["run_kinematic", "run_dynamic", "run_free", "export_files", "build", "sweep_inputs", "inverse_dynamics"]
 
 KINEMATIC = "pinocchio-kinematic"
 #: Fraction of a bounded input's feasible range kept clear of each limit

@@ -1,0 +1,424 @@
+"""Free motion in Pinocchio: the mechanism released, integrated with
+``constraintDynamics`` and compared with the native reference.
+
+The tree and its loop closures are :mod:`.model`'s (CONTACT_3D/6D
+``RigidConstraintModel`` s). No driver acts (tau = 0 on every joint): the
+drivers only placed the mechanism. Gravity is the model's (``model.gravity``);
+the file's constant loads and its springs enter as generalised forces
+J^T f through the Jacobians of the body and point frames. The start is the
+reference's initial native state, mapped to Pinocchio's q (Newton
+projection onto the loops at the native inputs) and v (the constraint
+Jacobian with the native input rates).
+
+The ladder (:data:`SETTINGS` x time steps): RK4 without and with Baumgarte
+correction and semi-implicit Euler with it, the integrator code of
+:mod:`.dynamic`'s driven mode. A run that stops is a row with its status:
+``NaN at t = ... s`` (state not finite), ``loops opened ...`` or ``left the
+branch at t ~ ... s`` (a point farther than :data:`BRANCH_LIMIT` x size from
+the reference's).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pandas as pd
+import pinocchio as pin
+
+from xcheck.compare import ModeResult, convergence_study
+from xcheck.kinematics import Kinematics
+
+from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER, _trajectory
+from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
+from .oracle import LWA, Oracle, one_line
+
+__all__ = ["run_free", "SETTINGS", "TIMESTEPS"]
+
+MODE = "pinocchio-free"
+#: setting -> (scheme, Baumgarte correction on?)
+SETTINGS = {
+    "rk4": ("rk4", False),
+    "rk4-baumgarte": ("rk4", True),
+    "semi-implicit-euler-baumgarte": ("euler", True),
+}
+#: default time steps of the ladder, s
+TIMESTEPS = (1e-3, 5e-4, 2.5e-4)
+#: Proximal mu of constraintDynamics in free motion (a planar loop's z row is
+#: zero: the Delassus matrix is singular and needs mu > 0): 1e-12, the engine
+#: notes' setting; see run_free's notes for mu 1e-8 on the IFToMM double four-bar.
+FREE_MU = 1e-12
+#: a run whose point is farther than this fraction of the size from the
+#: reference's has left the branch (or lost the phase): it stops there
+BRANCH_LIMIT = 0.1
+#: a run whose loops open wider than this fraction of the size stops
+LOOP_OPENING_LIMIT = 0.1
+#: about this many compared samples per run (every k-th reference output)
+SAMPLES = 200
+
+
+def _jacobian(model, data, fid: int) -> np.ndarray:
+    """A frame's Jacobian, LOCAL_WORLD_ALIGNED, shape (6, nv) (Pinocchio returns (6,) when nv = 1)."""
+    return np.reshape(pin.getFrameJacobian(model, data, fid, LWA), (6, model.nv))
+
+
+class _Free:
+    """q'' = f(q, v) of the released mechanism: constraintDynamics with the applied forces."""
+
+    def __init__(self, pm: PinocchioMechanism, mu: float, baumgarte: tuple[float, float] | None):
+        self.pm, self.model = pm, pm.model
+        self.data = pm.model.createData()
+        self.cms = [pin.RigidConstraintModel(cm) for cm in pm.constraints]  # copies: gains are per run
+        if baumgarte is not None:
+            for cm in self.cms:
+                cm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(*baumgarte))
+        self.cds = [cm.createData() for cm in self.cms]
+        pin.initConstraintDynamics(self.model, self.data, self.cms, self.cds)
+        self.settings = pin.ProximalSettings(PROXIMAL_ACCURACY, mu, PROXIMAL_MAX_ITER)
+        self.work_data = pm.model.createData()
+        mech = pm.mechanism
+        self.loads = [
+            (pm.body_frames[load.body], np.asarray(load.point, float), np.asarray(load.force, float), load.torque)
+            for load in mech.loads
+            if load.body in pm.body_frames
+        ]
+        owners = mech.point_owners
+        self.springs = [
+            (
+                pm.point_frames[point_frame(owners[s.points[0]], s.points[0])],
+                pm.point_frames[point_frame(owners[s.points[1]], s.points[1])],
+                s.stiffness,
+                s.rest_length,
+                s.damping,
+            )
+            for s in mech.springs
+        ]
+        self._angles: dict[int, float] = {}
+        self.evaluations = 0
+        self.proximal_iterations = 0
+
+    def applied(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Generalised force of the loads and springs (nv,), N or N m."""
+        tau = np.zeros(self.model.nv)
+        if not self.loads and not self.springs:
+            return tau
+        model, data = self.model, self.work_data
+        pin.forwardKinematics(model, data, q, v)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        for fid, point, force, torque in self.loads:
+            jac = _jacobian(model, data, fid)
+            arm = data.oMf[fid].rotation[:2, :2] @ point
+            moment = arm[0] * force[1] - arm[1] * force[0] + torque
+            tau += jac[:2].T @ force + jac[5] * moment
+        for first, second, stiffness, rest, damping in self.springs:
+            d = data.oMf[second].translation[:2] - data.oMf[first].translation[:2]
+            length = float(np.hypot(d[0], d[1]))
+            unit = d / length if length > 0.0 else np.zeros(2)
+            rel = (
+                pin.getFrameVelocity(model, data, second, LWA).linear[:2]
+                - pin.getFrameVelocity(model, data, first, LWA).linear[:2]
+            )
+            tension = stiffness * (length - rest) + damping * float(unit @ rel)
+            for fid, force in ((first, tension * unit), (second, -tension * unit)):
+                tau += _jacobian(model, data, fid)[:2].T @ force
+        return tau
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> float:
+        """Kinetic + gravitational + spring energy minus the constant loads' potential, J
+        (a constant force f at a point r has potential -f . r, a couple T on angle phi -T phi;
+        the angle is kept continuous from one call to the next: call it in time order)."""
+        model, data = self.model, self.work_data
+        total = pin.computeKineticEnergy(model, data, q, v) + pin.computePotentialEnergy(model, data, q)
+        pin.updateFramePlacements(model, data)
+        for i, (fid, point, force, torque) in enumerate(self.loads):
+            placement = data.oMf[fid]
+            r = placement.translation[:2] + placement.rotation[:2, :2] @ point
+            phi = math.atan2(placement.rotation[1, 0], placement.rotation[0, 0])
+            if i in self._angles:  # continuous from the previous call (a turn below pi between calls)
+                phi += 2.0 * math.pi * round((self._angles[i] - phi) / (2.0 * math.pi))
+            self._angles[i] = phi
+            total -= float(force @ r) + torque * phi
+        for first, second, stiffness, rest, _ in self.springs:
+            length = float(np.linalg.norm(data.oMf[second].translation - data.oMf[first].translation))
+            total += 0.5 * stiffness * (length - rest) ** 2
+        return float(total)
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """q'' (nv,) at (q, v)."""
+        self.evaluations += 1
+        a = pin.constraintDynamics(
+            self.model, self.data, q, v, self.applied(q, v), self.cms, self.cds, self.settings
+        ).copy()
+        self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
+        return a
+
+
+def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, reference) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio's (q0, v0) of the reference's initial native state.
+
+    q0: :func:`.model.joint_coordinates` of the native body coordinates,
+    projected onto the loops at its own input values; v0: the joint rates
+    whose body-frame velocities (x', y', phi' of every moving body, LOCAL_WORLD_ALIGNED
+    frame Jacobians) are the native ones, in the least-squares sense (exact
+    when the native state closes the loops).
+
+    Raises
+    ------
+    ValueError
+        If the native state does not close Pinocchio's loops.
+    """
+    size = kinematics.system.size
+    q_native, qd_native = reference.motion.q[0], reference.motion.qd[0]
+    guess = joint_coordinates(pm, q_native)
+    q0, residual, _, converged = oracle.project(guess, oracle.selector @ guess, size)
+    if not converged:
+        raise ValueError(f"the reference's initial state does not close Pinocchio's loops (residual {residual:.3g} m)")
+    model, data = pm.model, oracle.data
+    pin.computeJointJacobians(model, data, q0)
+    pin.updateFramePlacements(model, data)
+    names = [b.name for b in pm.mechanism.moving_bodies]
+    rows = np.vstack([_jacobian(model, data, pm.body_frames[name])[[0, 1, 5]] for name in names])
+    v0 = np.linalg.lstsq(rows, qd_native, rcond=None)[0]
+    miss = float(np.max(np.abs(rows @ v0 - qd_native), initial=0.0))
+    if miss > 1e-9 * max(float(np.max(np.abs(qd_native), initial=0.0)), 1.0):
+        raise ValueError(f"the reference's initial velocity is not one of Pinocchio's tree (off by {miss:.3g})")
+    return q0, v0
+
+
+def _point_positions(pm: PinocchioMechanism, data, q: np.ndarray) -> dict[str, np.ndarray]:
+    pin.forwardKinematics(pm.model, data, q)
+    pin.updateFramePlacements(pm.model, data)
+    return {
+        label: np.array(data.oMf[pm.point_frames[point_frame(owner, label)]].translation[:2])
+        for label, owner in pm.mechanism.point_owners.items()
+    }
+
+
+def _integrate(free: _Free, scheme, q0, v0, dt, steps_per_sample, samples, native_points, size, oracle):
+    """March ``samples - 1`` samples of ``steps_per_sample`` steps of ``dt`` s.
+
+    Returns
+    -------
+    rows : list of (t, q, v, a, force (0,))
+        At the samples reached.
+    failure : str or None
+    drift : float
+        Largest loop residual at the samples reached, m.
+    energy : list of float
+        Energy at the samples reached, J.
+    """
+    q, v = q0.copy(), v0.copy()
+    rows, energy, drift = [], [], 0.0
+    check = free.pm.model.createData()
+
+    def record(t):
+        rows.append((t, q.copy(), v.copy(), free.acceleration(q, v), np.zeros(0)))
+        energy.append(free.energy(q, v))
+
+    record(0.0)
+    step = 0
+    for sample in range(1, samples):
+        for _ in range(steps_per_sample):
+            if scheme == "rk4":
+                k1v = free.acceleration(q, v)
+                k2v = free.acceleration(q + dt / 2 * v, v + dt / 2 * k1v)
+                k2q = v + dt / 2 * k1v
+                k3v = free.acceleration(q + dt / 2 * k2q, v + dt / 2 * k2v)
+                k3q = v + dt / 2 * k2v
+                k4v = free.acceleration(q + dt * k3q, v + dt * k3v)
+                k4q = v + dt * k3v
+                q = q + dt / 6 * (v + 2 * k2q + 2 * k3q + k4q)
+                v = v + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+            else:  # semi-implicit Euler: velocity first, then position with the new velocity
+                v = v + dt * free.acceleration(q, v)
+                q = q + dt * v
+            step += 1
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+                return rows, f"NaN at t = {step * dt:.4g} s", drift, energy
+        t = step * dt
+        opening = float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0))
+        drift = max(drift, opening)
+        if opening > LOOP_OPENING_LIMIT * size:
+            return rows, f"loops opened by {opening:.3g} m at t = {t:.4g} s", drift, energy
+        positions = _point_positions(free.pm, check, q)
+        gap = max(float(np.hypot(*(positions[label] - xy[sample]))) for label, xy in native_points.items())
+        record(t)
+        if gap > BRANCH_LIMIT * size:
+            why = f"left the branch at t ≈ {t:.3g} s: position error above {BRANCH_LIMIT:g} of the size"
+            return rows, why, drift, energy
+    return rows, None, drift, energy
+
+
+def _unwrap(trajectory, native, index) -> None:
+    """Make the trajectory's body angles continuous and equal to the native ones at t = 0 (mod 2 pi)."""
+    for name, states in trajectory.bodies.items():
+        angle = np.unwrap(np.asarray(states["angle"], dtype=float))
+        start = float(native.body(name)["angle"][index[0]])
+        states["angle"] = angle + 2.0 * math.pi * round((start - angle[0]) / (2.0 * math.pi))
+
+
+def _run(kinematics, pm, oracle, reference, native, setting, dt, stride, q0, v0, mu, baumgarte):
+    """One simulation: (summary row, Trajectory or None)."""
+    from xcheck.simulation import free_errors
+
+    scheme, corrected = SETTINGS[setting]
+    motion = reference.motion
+    size = kinematics.system.size
+    per_output = round(float(motion.times[1] - motion.times[0]) / dt)
+    index = np.arange(0, len(motion.times), stride)
+    native_points = {label: native.point(label)["position"][index] for label in pm.mechanism.point_owners}
+    gains = ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt) if corrected else None
+    row = {
+        "setting": setting,
+        "integrator": scheme,
+        "timestep": dt,
+        "steps": int(per_output * stride * (len(index) - 1)),
+        "status": "ok",
+        "proximal_mu": mu,
+        "baumgarte_kp": gains[0] if gains else 0.0,
+        "baumgarte_kd": gains[1] if gains else 0.0,
+    }
+    begin = time.process_time()
+    free = None
+    try:
+        free = _Free(pm, mu, gains)
+        rows, failure, drift, energy = _integrate(
+            free, scheme, q0, v0, dt, per_output * stride, len(index), native_points, size, oracle
+        )
+    except Exception as error:  # noqa: BLE001 - one run failing leaves the others
+        rows, failure, drift, energy = [], one_line(error), math.nan, []
+    cpu = time.process_time() - begin
+    simulated = rows[-1][0] if rows else 0.0
+    row.update(
+        {
+            "status": failure or "ok",
+            "cpu_seconds": cpu,
+            "cpu_per_simulated_second": cpu / simulated if simulated > 0 else math.nan,
+            "simulated": simulated,
+            "loop_drift": drift,
+            "position_error": math.nan,
+            "final_error": math.nan,
+            "angle_error": math.nan,
+            "energy_drift": math.nan,
+            "evaluations": free.evaluations if free else 0,
+            "proximal_iterations_max": free.proximal_iterations if free else 0,
+        }
+    )
+    if len(rows) < 2:
+        return row, None
+    settings = {
+        "setting": setting,
+        "series": setting,
+        "integrator": scheme,
+        "timestep": dt,
+        "dt": dt,
+        "steps": row["steps"],
+        "duration": float(motion.times[-1]),
+        "proximal_mu": mu,
+        "proximal_accuracy": PROXIMAL_ACCURACY,
+        "baumgarte_kp": row["baumgarte_kp"],
+        "baumgarte_kd": row["baumgarte_kd"],
+        "gravity": [float(g) for g in pm.model.gravity.linear],
+    }
+    notes = (
+        f"Pinocchio constraintDynamics (loop closures CONTACT_3D/6D, proximal mu {mu:g}), free motion "
+        f"(tau = 0: no driver), {setting} at dt = {dt:.4g} s, from the reference's initial state."
+        + (f" Baumgarte Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
+    )
+    trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
+    _unwrap(trajectory, native, index)
+    # the samples reached are reference outputs: compare them
+    errors = free_errors(reference, trajectory)
+    row.update({k: errors[k] for k in ("position_error", "final_error", "angle_error")})
+    if not pm.mechanism.springs or all(s.damping == 0.0 for s in pm.mechanism.springs):
+        row["energy_drift"] = float(np.max(np.abs(np.array(energy) - energy[0])))
+    return row, trajectory if failure is None else None
+
+
+def run_free(
+    kinematics: Kinematics,
+    reference,
+    branch: str | None = None,
+    timesteps=TIMESTEPS,
+    settings=tuple(SETTINGS),
+    mu: float = FREE_MU,
+    baumgarte: float = BAUMGARTE,
+    samples: int = SAMPLES,
+) -> ModeResult:
+    """Integrate the released mechanism over the reference's duration at every
+    setting and time step, and compare each run with the reference.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    reference : FreeReference
+        The native reference (:func:`xcheck.dynamics.simulate`).
+    branch : str, optional
+        Unused: the start is the reference's state.
+    timesteps : sequence of float
+        Time steps, s; each divides the reference's output step.
+    settings : sequence of str
+        Keys of :data:`SETTINGS`.
+    mu : float
+        Proximal mu of constraintDynamics (:data:`FREE_MU`).
+    baumgarte : float
+        Baumgarte gains per step: Kp = (baumgarte / dt)^2, Kd = 2 baumgarte / dt.
+    samples : int
+        About this many compared outputs per run (every k-th reference output).
+
+    Returns
+    -------
+    ModeResult
+        See :meth:`xcheck.engines.Engine.run_free`; ``summary`` also has
+        angle_error (rad), simulated (s reached), proximal_mu, Baumgarte
+        gains, evaluations. A run that stopped (NaN, loops opened, left the
+        branch) keeps the errors of the samples it reached; the study gets
+        NaN there.
+
+    Notes
+    -----
+    Measured on the IFToMM double four-bar (A02) over 10 s (singular passes at
+    0.71, 1.23, 2.66, 3.17 s, ...), default ladder 9.9 s CPU: RK4 without
+    Baumgarte stops with NaN at the 3rd or 4th singular pass (dt 1e-3: NaN at
+    3.174 s, 9.4e-6 m until then; 2.5e-4: NaN at 2.658 s), its loops drifting
+    (6.6e-7 m at 1e-3); with Baumgarte it runs through, 1.7e-9 m at every step
+    (the reference's own error), loops closed to 2e-13 m; semi-implicit Euler
+    with Baumgarte 2.9e-5, 7.3e-6, 1.8e-6 m (order 2.0). With mu 1e-8 RK4
+    without Baumgarte also stops (NaN at 3.174 s at dt 1e-3, leaves the branch
+    at 4.2 s at 5e-4).
+    """
+    mech = kinematics.mechanism
+    try:
+        unknown = [s for s in settings if s not in SETTINGS]
+        if unknown:
+            raise ValueError(f"expected settings among {', '.join(SETTINGS)}, found {unknown[0]!r}")
+        pm = build_model(tree_spec(mech))
+        oracle = Oracle(pm)
+        q0, v0 = _start(kinematics, pm, oracle, reference)
+        native = reference.motion.solution()
+        out_step = float(reference.motion.times[1] - reference.motion.times[0])
+        for dt in timesteps:
+            per_output = round(out_step / dt)
+            if per_output < 1 or abs(per_output * dt - out_step) > 1e-9 * out_step:
+                raise ValueError(f"expected time steps that divide the output step {out_step:g} s, found {dt:g} s")
+    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
+        return ModeResult(MODE, mech.name, False, one_line(error))
+    outputs = len(reference.motion.times)
+    stride = max(1, math.ceil((outputs - 1) / samples))
+    while (outputs - 1) % stride:  # end at the last output
+        stride -= 1
+    runs = [
+        _run(kinematics, pm, oracle, reference, native, s, float(dt), stride, q0, v0, mu, baumgarte)
+        for s in settings
+        for dt in sorted(timesteps, reverse=True)
+    ]
+    summary = pd.DataFrame([row for row, _ in runs])
+    errors = summary.position_error.where(summary.status == "ok")
+    study = convergence_study(summary.setting, summary.timestep, errors, summary.status, 1e-13 * kinematics.system.size)
+    ranked = sorted((r for r in runs if r[1] is not None), key=lambda r: r[0]["position_error"])
+    trajectories = [t for _, t in ranked if t is not None]
+    if not trajectories:
+        return ModeResult(MODE, mech.name, False, f"no run went through: {summary.status.iloc[0]}", [], summary, study)
+    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)
