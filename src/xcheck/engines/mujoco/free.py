@@ -5,8 +5,10 @@ The MJCF file is the writer's (:func:`.mjcf.mjcf_text`); its servos are
 switched off (actuation disabled, gains and biases zeroed, controls 0), so the
 drivers play no part. Gravity is the file's; each linear spring of the
 mechanism becomes a spatial tendon between its two sites (MuJoCo's tendon
-stiffness, spring length and damping: the same force law). Applied loads are
-not represented (the mode does not apply to a file with loads).
+stiffness, spring length and damping: the same force law). The constant
+``[[loads]]`` are applied at every evaluation of the dynamics (each RK4 stage)
+through MuJoCo's passive-force callback (``mjcb_passive``, ``mj_applyFT`` at the
+load's point, the force fixed in the global frame), set for the run only.
 
 A ladder of settings as a user would run them: the file's constraint softness
 (MuJoCo's defaults) and stiff loops (:data:`.dynamic.TIGHT`'s: solref = 2 dt,
@@ -15,7 +17,7 @@ time steps. A run that blows up is a row with its status, never an exception.
 Loop drift is MuJoCo's own measure (the largest ``efc_pos`` of the loop
 equalities at the sampled states); energy drift is the largest |E(t) - E(0)|
 of MuJoCo's energy (``mjENBL_ENERGY``: kinetic, gravity and tendon springs),
-empty where dampers do work.
+empty where loads or dampers do work.
 """
 
 from __future__ import annotations
@@ -180,12 +182,16 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
         return row, None
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos0, qvel0
+    loads = _loads(mech, model)
+    passive = mujoco.get_mjcb_passive()
     n = len(index)
     qpos, qvel, qacc = (np.full((n, model.nv), np.nan) for _ in range(3))
     energy = np.full(n, np.nan)
     warnings: list[str] = []
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(warnings.append)  # an unstable simulation is the run's status
+    if loads is not None:
+        mujoco.set_mjcb_passive(loads)
     failure, s = "", 0
     begin = time.process_time()
     try:
@@ -205,6 +211,7 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
             s = n
     finally:
         mujoco.set_mju_user_warning(previous)
+        mujoco.set_mjcb_passive(passive)
     cpu = time.process_time() - begin
     row["cpu_seconds"] = cpu
     row["cpu_per_simulated_second"] = cpu / max(float(times[max(s - 1, 0)] - times[0]), duration * 1e-9, 1e-300)
@@ -216,7 +223,7 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     drift = np.array([oracle.violation(q) for q in qpos[good]])
     trajectory.diagnostics = {"constraint_violation": drift, "energy": energy[good]}
     row["loop_drift"] = float(drift.max())
-    if not any(spring.damping for spring in mech.springs):  # no loads and no dampers: E is conserved
+    if not mech.loads and not any(spring.damping for spring in mech.springs):  # E is conserved
         row["energy_drift"] = float(np.max(np.abs(energy[good] - energy[0])))
     if failure:
         row["status"] = failure
@@ -234,6 +241,28 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
         )
         return row, None
     return row, trajectory
+
+
+def _loads(mechanism: Mechanism, model: mujoco.MjModel):
+    """The passive-force callback applying the mechanism's constant loads, or None without loads."""
+    if not mechanism.loads:
+        return None
+    terms = [
+        (
+            model.body(load.body).id,
+            np.array([*load.point, 0.0]),
+            np.array([*load.force, 0.0]),
+            np.array([0.0, 0.0, float(load.torque)]),
+        )
+        for load in mechanism.loads
+    ]
+
+    def apply(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        for body, point, force, torque in terms:
+            at = d.xpos[body] + d.xmat[body].reshape(3, 3) @ point
+            mujoco.mj_applyFT(m, d, force, torque, at, body, d.qfrc_passive)
+
+    return apply
 
 
 def _path_distance(reference, trajectory: Trajectory) -> np.ndarray:
@@ -309,13 +338,7 @@ def run_free(
         angle_error (rad) and observed_order (of position_error against the
         previous step of the same setting and integrator).
     """
-    from xcheck.engines import NotApplicable
-
     mech = kinematics.mechanism
-    if mech.loads:
-        raise NotApplicable(
-            f"applied loads ({', '.join(load.name for load in mech.loads)}) are not represented in free motion"
-        )
     try:
         model, lay = free_model(kinematics)
     except XcheckError as error:
