@@ -1,6 +1,7 @@
 """MuJoCo: the mechanism as an MJCF file (:mod:`.mjcf`), MuJoCo as a kinematic
-oracle (:mod:`.oracle`) and as a simulator (:mod:`.dynamic`), its inverse
-dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
+oracle (:mod:`.oracle`), as a simulator (:mod:`.dynamic`) and in free motion
+(:mod:`.free`), its inverse dynamics (:mod:`.inverse`); :mod:`.modes` runs them
+and compares."""
 
 from __future__ import annotations
 
@@ -60,5 +61,6 @@ class MuJoCo(Engine):
     color = "tab:blue"
     notes = (
         "Revolute, prismatic and pin-in-slot joints; a loop is closed by an equality (connect or weld) on "
-        "a carrier body where it is cut at a slider; inputs driven by position and velocity servos."
+        "a carrier body where it is cut at a slider; inputs driven by position and velocity servos. Free motion: "
+        "the servos off, springs as spatial tendons, constant loads through the passive-force callback."
     )
