@@ -1,8 +1,11 @@
 """MuJoCo: the mechanism as an MJCF file (:mod:`.mjcf`), MuJoCo as a kinematic
-oracle (:mod:`.oracle`) and as a simulator (:mod:`.dynamic`), its inverse
-dynamics (:mod:`.inverse`); :mod:`.modes` runs them and compares."""
+oracle (:mod:`.oracle`), as a simulator (:mod:`.dynamic`) and in free motion
+(:mod:`.free`), its inverse dynamics (:mod:`.inverse`); :mod:`.modes` runs them
+and compares."""
 
 from __future__ import annotations
+
+import math
 
 from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
@@ -21,8 +24,17 @@ _DYNAMIC = Tolerance(
 )
 
 
+_FREE = Tolerance(
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    "benchmark: no verdict; the ladder against the native reference is the result",
+)
+
+
 class MuJoCo(Engine):
-    """MuJoCo through its MJCF file: kinematic oracle and driven dynamics."""
+    """MuJoCo through its MJCF file: kinematic oracle, driven dynamics and free motion."""
 
     name = "mujoco"
     title = "MuJoCo"
@@ -41,6 +53,7 @@ class MuJoCo(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:blue", lw=1, ls="--"),
         ),
+        Mode("mujoco-free", "free", _FREE, style=dict(color="tab:blue", lw=1, ls=":")),
     )
     force_tolerance = 1e-12
     force_basis = "mj_inverse at the native states: round-off (measured at most 1.7e-13)"
@@ -48,5 +61,6 @@ class MuJoCo(Engine):
     color = "tab:blue"
     notes = (
         "Revolute, prismatic and pin-in-slot joints; a loop is closed by an equality (connect or weld) on "
-        "a carrier body where it is cut at a slider; inputs driven by position and velocity servos."
+        "a carrier body where it is cut at a slider; inputs driven by position and velocity servos. Free motion: "
+        "the servos off, springs as spatial tendons, constant loads through the passive-force callback."
     )

@@ -21,6 +21,7 @@ from xcheck.model import Mechanism
 from xcheck.motion import law_states, simulation_window, sweep_span
 
 from .dynamic import DEFAULT, TIGHT, Run, simulate
+from .free import run_free  # noqa: F401
 from .inverse import inverse_forces
 from .mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
 from .oracle import Oracle
