@@ -6,7 +6,8 @@ default solver (10 iterations) 5.1e-3, 2.6e-3, 1.3e-3 m at dt = 1, 0.5, 0.25 ms;
 error_bias 0 and 100 iterations 2.25e-3, 1.12e-3, 5.6e-4 m (first order), loop
 drift 9.8e-6 .. 6.1e-7 m. On A02 the default solver is first order too (7.4e-2,
 3.7e-2, 1.9e-2 m) while the best setting is 3.4e-4 m at 1 ms, 3.6e-3 m at 0.5 ms
-and leaves the parallelogram branch at 0.25 ms (2 m off).
+and leaves the parallelogram branch at 0.25 ms (at t = 1.34 s, 0.25 m from every
+configuration the reference passes through; 2 m off at the end).
 """
 
 from __future__ import annotations
@@ -51,10 +52,12 @@ def test_double_fourbar_runs_that_leave_the_branch_say_so():
     kin, reference = _reference("iftomm-a02", 2.0)
     result = run_free(kin, reference)
     assert len(result.summary) == 6
-    for row in result.summary.itertuples():
-        off = row.position_error > APART * kin.system.size
-        assert row.status.startswith("left the reference's branch") == off, row
-        assert off or row.status == "ok", row
+    for row in result.summary.itertuples():  # leaving the branch is far from the reference's whole path
+        left = row.status.startswith("left the branch")
+        assert left or row.status == "ok", row
+        assert not left or row.position_error > APART * kin.system.size, row
+    best = result.summary[(result.summary["setting"] == "best") & (result.summary["timestep"] == 2.5e-4)].iloc[0]
+    assert best["status"].startswith("left the branch")  # measured with pymunk 7.3: at 1.34 s, 0.248 m off the path
     default = result.summary[result.summary["setting"] == "default"].sort_values("timestep", ascending=False)
     errors = list(default["position_error"])  # measured 7.4e-2, 3.7e-2, 1.9e-2 m
     assert all(0.8 <= math.log2(errors[i] / errors[i + 1]) <= 1.2 for i in range(2)), errors

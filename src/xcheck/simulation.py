@@ -21,7 +21,7 @@ from .dynamics._free import FreeReference, simulate
 from .engines import NotApplicable
 from .kinematics import Kinematics
 
-__all__ = ["SimulationResult", "free_modes", "free_errors", "simulate_all"]
+__all__ = ["SimulationResult", "free_modes", "free_errors", "path_distance", "simulate_all"]
 
 #: output times of an engine's trajectory must match the reference's to this (s)
 TIME_MATCH = 1e-9
@@ -93,6 +93,24 @@ def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, f
         "compared": float(len(times)),
         "worst_time": float(times[worst]),
     }
+
+
+def path_distance(reference, trajectory: Trajectory) -> np.ndarray:
+    """How far each sample is from the reference's path, m (N,): the least, over
+    every reference output, of the largest named-point distance.
+
+    A run out of phase with the reference but on its branch stays near its path
+    (within the points' travel between outputs); one that left the branch does not.
+    """
+    native = reference.motion.solution()
+    labels = list(trajectory.points)
+    path = np.stack([native.point(label)["position"] for label in labels], axis=1)  # (M, P, 2)
+    states = np.stack([trajectory.points[label]["position"] for label in labels], axis=1)  # (N, P, 2)
+    out = np.empty(len(states))
+    for i, state in enumerate(states):
+        gap = path - state[None]
+        out[i] = float(np.min(np.max(np.hypot(gap[..., 0], gap[..., 1]), axis=1)))
+    return out
 
 
 def simulate_all(

@@ -42,7 +42,7 @@ from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
-from xcheck.simulation import free_errors
+from xcheck.simulation import free_errors, path_distance
 
 from .dynamic import Setting
 from .mjcf import Layout, joint_coordinates, layout, mjcf_text
@@ -239,7 +239,7 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     row.update(
         position_error=errors["position_error"], final_error=errors["final_error"], angle_error=errors["angle_error"]
     )
-    away = _path_distance(reference, trajectory)
+    away = path_distance(reference, trajectory)
     off = np.flatnonzero(away > LEFT_BRANCH * mech.size)
     if off.size:  # the errors stay in the row: what the run did until then
         row["status"] = (
@@ -270,24 +270,6 @@ def _loads(mechanism: Mechanism, model: mujoco.MjModel):
             mujoco.mj_applyFT(m, d, force, torque, at, body, d.qfrc_passive)
 
     return apply
-
-
-def _path_distance(reference, trajectory: Trajectory) -> np.ndarray:
-    """How far each sample is from the reference's path, m (N,): the least, over
-    every reference output, of the largest named-point distance.
-
-    A run out of phase with the reference but on its branch stays near its path
-    (within the points' travel between outputs); one that left the branch does not.
-    """
-    native = reference.motion.solution()
-    labels = list(trajectory.points)
-    path = np.stack([native.point(label)["position"] for label in labels], axis=1)  # (M, P, 2)
-    states = np.stack([trajectory.points[label]["position"] for label in labels], axis=1)  # (N, P, 2)
-    out = np.empty(len(states))
-    for i, state in enumerate(states):
-        gap = path - state[None]
-        out[i] = float(np.min(np.max(np.hypot(gap[..., 0], gap[..., 1]), axis=1)))
-    return out
 
 
 def _trajectory(kinematics, oracle: Oracle, reference, settings: dict, qpos, qvel, qacc, times) -> Trajectory:
