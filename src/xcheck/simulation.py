@@ -21,7 +21,7 @@ from .dynamics._free import FreeReference, simulate
 from .engines import NotApplicable
 from .kinematics import Kinematics
 
-__all__ = ["SimulationResult", "free_modes", "free_errors", "path_distance", "simulate_all"]
+__all__ = ["SimulationResult", "free_modes", "free_errors", "ladder_steps", "path_distance", "simulate_all"]
 
 #: output times of an engine's trajectory must match the reference's to this (s)
 TIME_MATCH = 1e-9
@@ -111,6 +111,17 @@ def path_distance(reference, trajectory: Trajectory) -> np.ndarray:
         gap = path - state[None]
         out[i] = float(np.min(np.max(np.hypot(gap[..., 0], gap[..., 1]), axis=1)))
     return out
+
+
+def ladder_steps(reference: FreeReference, steps) -> tuple[float, ...]:
+    """An engine's time steps (s, coarsest first) for this reference: as given
+    where the coarsest is at most the output step, else all scaled down by the
+    same factor so that the coarsest is a tenth of it (a 0.03 s squeeze with
+    outputs every 0.1 ms gets 10, 5, 2.5 us instead of 1, 0.5, 0.25 ms)."""
+    times = reference.motion.times
+    output = float(times[1] - times[0]) if len(times) > 1 else float(times[-1])
+    factor = 1.0 if float(steps[0]) <= output else output / (10.0 * float(steps[0]))
+    return tuple(float(s) * factor for s in steps)
 
 
 def simulate_all(

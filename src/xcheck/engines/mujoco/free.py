@@ -42,7 +42,7 @@ from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
-from xcheck.simulation import free_errors, path_distance
+from xcheck.simulation import free_errors, ladder_steps, path_distance
 
 from .dynamic import Setting
 from .mjcf import Layout, joint_coordinates, layout, mjcf_text
@@ -349,7 +349,7 @@ def run_free(
         )
     rows, trajectories = [], []
     for setting in settings:
-        for dt in timesteps:
+        for dt in ladder_steps(reference, timesteps):
             row, trajectory = _run(kinematics, model, lay, oracle, reference, setting, float(dt), qpos0, qvel0)
             rows.append(row)
             if trajectory is not None:

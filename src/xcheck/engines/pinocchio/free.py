@@ -29,6 +29,7 @@ import pinocchio as pin
 
 from xcheck.compare import ModeResult, convergence_study
 from xcheck.kinematics import Kinematics
+from xcheck.simulation import ladder_steps
 
 from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER, _trajectory
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
@@ -399,7 +400,7 @@ def run_free(
         q0, v0 = _start(kinematics, pm, oracle, reference)
         native = reference.motion.solution()
         out_step = float(reference.motion.times[1] - reference.motion.times[0])
-        for dt in timesteps:
+        for dt in ladder_steps(reference, timesteps):
             per_output = round(out_step / dt)
             if per_output < 1 or abs(per_output * dt - out_step) > 1e-9 * out_step:
                 raise ValueError(f"expected time steps that divide the output step {out_step:g} s, found {dt:g} s")

@@ -22,7 +22,7 @@ from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics
-from xcheck.simulation import free_errors, path_distance
+from xcheck.simulation import free_errors, ladder_steps, path_distance
 
 from .scene import build_scene
 
@@ -68,7 +68,7 @@ def run_free(
     start = motion.solution()
     rows, trajectories = [], []
     for setting in settings:
-        for dt in steps:
+        for dt in ladder_steps(reference, steps):
             row, trajectory = _run(kinematics, reference, start, index, setting, dt)
             rows.append(row)
             if trajectory is not None:
