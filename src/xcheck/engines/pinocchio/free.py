@@ -400,7 +400,8 @@ def run_free(
         q0, v0 = _start(kinematics, pm, oracle, reference)
         native = reference.motion.solution()
         out_step = float(reference.motion.times[1] - reference.motion.times[0])
-        for dt in ladder_steps(reference, timesteps):
+        timesteps = ladder_steps(reference, timesteps)
+        for dt in timesteps:
             per_output = round(out_step / dt)
             if per_output < 1 or abs(per_output * dt - out_step) > 1e-9 * out_step:
                 raise ValueError(f"expected time steps that divide the output step {out_step:g} s, found {dt:g} s")
