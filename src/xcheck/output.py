@@ -593,18 +593,8 @@ def print_simulation(console, reference, result=None) -> None:
         f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.",
         highlight=False,
     )
-    columns = (
-        "setting",
-        "integrator",
-        "timestep",
-        "status",
-        "position_error",
-        "final_error",
-        "order",
-        "loop_drift",
-        "energy_drift",
-        "cpu_per_simulated_second",
-    )
+    from .simulation import LADDER_COLUMNS as columns
+
     for mode, entry in doc["engines"].items():
         failure = "" if entry["ok"] else f"[red]failed[/red]: {escape(entry['reason'] or '')}"
         console.print(f"[bold]{escape(mode)}[/bold]: {failure}")

@@ -21,8 +21,29 @@ from .dynamics._free import FreeReference, simulate
 from .engines import NotApplicable
 from .kinematics import Kinematics
 
-__all__ = ["SimulationResult", "free_modes", "free_errors", "ladder_steps", "path_distance", "simulate_all"]
+__all__ = [
+    "SimulationResult",
+    "free_modes",
+    "free_errors",
+    "LADDER_COLUMNS",
+    "ladder_steps",
+    "path_distance",
+    "simulate_all",
+]
 
+#: the columns of a free mode's ladder that tables show, in order
+LADDER_COLUMNS = (
+    "setting",
+    "integrator",
+    "timestep",
+    "status",
+    "position_error",
+    "final_error",
+    "order",
+    "loop_drift",
+    "energy_drift",
+    "cpu_per_simulated_second",
+)
 #: output times of an engine's trajectory must match the reference's to this (s)
 TIME_MATCH = 1e-9
 

@@ -21,7 +21,7 @@ import numpy as np  # noqa: E402
 
 from .. import engines  # noqa: E402
 from ..runner import versions  # noqa: E402
-from ..simulation import SimulationResult  # noqa: E402
+from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
 from ._markdown import _g, _table  # noqa: E402
 
 __all__ = ["figures", "markdown"]
@@ -186,17 +186,7 @@ def markdown(result: SimulationResult, images: dict[str, str], command: str) -> 
     ]
     if "errors" in images:
         lines.append(f"![error against time]({images['errors']})\n\n![work-precision]({images['work-precision']})")
-    columns = (
-        "setting",
-        "integrator",
-        "timestep",
-        "status",
-        "position_error",
-        "final_error",
-        "loop_drift",
-        "energy_drift",
-        "cpu_per_simulated_second",
-    )
+    columns = [c for c in LADDER_COLUMNS if c != "order"]  # the orders follow the table
     for mode, outcome in result.outcomes.items():
         head = f"**`{mode}`**" + ("" if outcome.ok else f" — failed: {outcome.reason}")
         lines.append(head)
