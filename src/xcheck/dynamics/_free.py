@@ -605,7 +605,8 @@ def free_reference(
     step = first_step or min(output_step / 4.0, duration / 1000.0)
     ladder: list[dict] = []
     coarse = None
-    for _ in range(max_halvings + 1):
+    estimate, relative = np.full(1, math.inf), math.inf  # no estimate before two runs
+    for _ in range(max(max_halvings, 1) + 1):
         if progress is not None:
             progress(step)
         motion = simulate_free(kinematics, start, duration, output_step, step)
