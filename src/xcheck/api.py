@@ -22,7 +22,7 @@ from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
 from .errors import InputError
 from .kinematics import Kinematics
 from .model import load_mechanism
-from .runner import RunResult, all_modes, run_mechanism
+from .runner import RunResult, run_mechanism
 from .textbook import check_printed, load_comparisons
 
 __all__ = ["load", "select_modes", "printed_answers", "compare"]
@@ -43,7 +43,9 @@ def load(name: str | Path, models: str | Path | None = None, branch: str | None 
     return kinematics
 
 
-def select_modes(chosen: str | Sequence[str] | None = None) -> tuple[str, ...]:
+def select_modes(
+    chosen: str | Sequence[str] | None = None, kinds: tuple[str, ...] = engines.DRIVEN_KINDS
+) -> tuple[str, ...]:
     """The modes a selection names, "native" first.
 
     Parameters
@@ -52,13 +54,17 @@ def select_modes(chosen: str | Sequence[str] | None = None) -> tuple[str, ...]:
         Modes or groups (an engine's name such as ``"mujoco"``, or a kind:
         ``"kinematic"``, ``"dynamic"``; :func:`xcheck.engines.groups`), as a
         comma-separated string (``--engines``) or a sequence; None: every mode.
+    kinds : tuple of str
+        The kinds of mode to choose from: the driven ones (``xcheck run``,
+        default) or ``("free",)`` (``xcheck simulate``).
 
     Raises
     ------
     InputError
         If a name is neither a mode nor a group, or none is given.
     """
-    every, groups = all_modes(), engines.groups(engines.DRIVEN_KINDS)
+    every = ("native", *(m.name for m in engines.modes(kinds)))
+    groups = engines.groups(kinds)
     if chosen is None:
         return every
     text = chosen if isinstance(chosen, str) else ",".join(chosen)

@@ -508,27 +508,6 @@ def _shown_option(option: str, value: Path | None) -> str:
     return "" if value is None else f" {option} {_shown_path(Path(value))}"
 
 
-def _free_modes(text: str | None) -> tuple[str, ...]:
-    """The free-motion modes ``simulate --engines`` names (modes or engines' names; "native": none)."""
-    from .simulation import free_modes
-
-    every, groups = free_modes(), registry.groups(("free",))
-    if text is None:
-        return every
-    chosen: list[str] = []
-    for item in (part.strip() for part in text.split(",") if part.strip()):
-        if item in every:
-            chosen.append(item)
-        elif item in groups:
-            chosen.extend(groups[item])
-        elif item != "native":
-            raise InputError(
-                f"--engines: expected native or free-motion modes or engines among "
-                f"{', '.join(['native', *every, *groups])}, found {item!r}"
-            )
-    return tuple(dict.fromkeys(chosen))
-
-
 @app.command("simulate")
 @_reports_errors
 def simulate_command(
@@ -570,7 +549,7 @@ def simulate_command(
     """
     from .simulation import simulate_all
 
-    modes = _free_modes(engines)
+    modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
     path = model_path(name, models_dir(models))

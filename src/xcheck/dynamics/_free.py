@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import null_space
 
-from ..kinematics import Kinematics, Solution, Status
+from ..kinematics import Kinematics, Solution, Status, rotate
 
 __all__ = [
     "FreeState",
@@ -179,11 +179,14 @@ def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
     has, with a = A(phi) s, the block [[m, 0, -m a_y], [0, m, m a_x], [-m a_y,
     m a_x, I + m |s|^2]] (:func:`_mass_blocks`).
     """
-    blocks = _mass_blocks(_Bodies(kinematics), q)
-    n = blocks.shape[0] * 3
-    out = np.zeros((n, n))
-    for i, block in enumerate(blocks):
-        out[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = block
+    return _block_diagonal(_mass_blocks(_Bodies(kinematics), q))
+
+
+def _block_diagonal(blocks: np.ndarray) -> np.ndarray:
+    """The (3B, 3B) matrix with the (B, 3, 3) blocks on its diagonal."""
+    first = 3 * np.arange(len(blocks))[:, None, None]
+    out = np.zeros((3 * len(blocks), 3 * len(blocks)))
+    out[first + np.arange(3)[None, :, None], first + np.arange(3)[None, None, :]] = blocks
     return out
 
 
@@ -340,9 +343,6 @@ class _Dynamics:
         self.jac_factor = r[:, None] / d[None, :]
         self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
         self.load_factor = 1.0 / (d * self.mass_scale)
-        first = 3 * np.arange(len(self.bodies.mass))[:, None, None]
-        self.block_rows = first + np.arange(3)[None, :, None]
-        self.block_columns = first + np.arange(3)[None, None, :]
 
     def _anchor(self, body: str, label: str) -> tuple[int | None, np.ndarray]:
         """(coordinate offset of the body or None for the ground, the point in its frame or global)."""
@@ -355,9 +355,8 @@ class _Dynamics:
         k, s = anchor
         if k is None:
             return s, np.zeros(2), np.zeros(2)
-        c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
-        arm = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
-        return q[k : k + 2] + arm, qd[k : k + 2] + w * np.array([-arm[1], arm[0]]), arm
+        arm = rotate(q[k + 2], s)
+        return q[k : k + 2] + arm, qd[k : k + 2] + qd[k + 2] * np.array([-arm[1], arm[0]]), arm
 
     def _spring_states(self, q: np.ndarray, qd: np.ndarray):
         """Per spring: (length l, rate dl/dt, unit vector from the first end to the second, the
@@ -377,9 +376,7 @@ class _Dynamics:
 
     def _mass(self, q: np.ndarray) -> np.ndarray:
         """M(q), (n, n)."""
-        out = np.zeros((self.system.n, self.system.n))
-        out[self.block_rows, self.block_columns] = _mass_blocks(self.bodies, q)
-        return out
+        return _block_diagonal(_mass_blocks(self.bodies, q))
 
     def forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """Q: gravity, the applied loads and the velocity terms of M's offset centres of mass (n,)."""
@@ -391,8 +388,7 @@ class _Dynamics:
         out[1::3] = weight[:, 1] + m * w * w * a[:, 1]
         out[2::3] = a[:, 0] * weight[:, 1] - a[:, 1] * weight[:, 0]
         for k, p, f, torque in self.loads:
-            c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
-            arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
+            arm = self._point((k, p), q, qd)[2]
             out[k : k + 2] += f
             out[k + 2] += arm[0] * f[1] - arm[1] * f[0] + torque
         for length, rate, unit, (first, arm_p), (second, arm_r), stiffness, rest, damping in self._spring_states(q, qd):
@@ -408,10 +404,8 @@ class _Dynamics:
         in the potential energy), W."""
         total = 0.0
         for k, p, f, torque in self.loads:
-            c, sn, w = math.cos(q[k + 2]), math.sin(q[k + 2]), qd[k + 2]
-            arm = np.array([c * p[0] - sn * p[1], sn * p[0] + c * p[1]])
-            velocity = qd[k : k + 2] + w * np.array([-arm[1], arm[0]])
-            total += float(f @ velocity) + torque * w
+            velocity = self._point((k, p), q, qd)[1]
+            total += float(f @ velocity) + torque * qd[k + 2]
         for _, rate, *_, damping in self._spring_states(q, qd):
             total -= damping * rate * rate
         return total
@@ -668,9 +662,7 @@ def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeStat
                 f"{spec.point!r} on the ground",
             )
         k = 3 * system.body_index[body]
-        s = np.asarray(mech.body(body).points[spec.point], dtype=float)
-        c, sn = math.cos(q[k + 2]), math.sin(q[k + 2])
-        arm = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+        arm = rotate(q[k + 2], np.asarray(mech.body(body).points[spec.point], dtype=float))
         rows = np.zeros((2, system.n))
         rows[0, k], rows[1, k + 1] = 1.0, 1.0
         rows[:, k + 2] = [-arm[1], arm[0]]
