@@ -43,9 +43,10 @@ def _is_dynamic(mode: str) -> bool:
     return mode != "native" and engines.mode(mode).kind == "dynamic"
 
 
-def _png(figure) -> bytes:
+def _png(figure, dpi: int = 90, **options) -> bytes:
+    """The figure as PNG bytes (``options`` go to ``savefig``); the figure is closed."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=90)
+    figure.savefig(buffer, format="png", dpi=dpi, **options)
     plt.close(figure)
     return buffer.getvalue()
 

@@ -9,7 +9,6 @@ engine and setting). SI units throughout.
 
 from __future__ import annotations
 
-import io
 import math
 
 import matplotlib
@@ -22,16 +21,14 @@ import numpy as np  # noqa: E402
 from .. import engines  # noqa: E402
 from ..runner import versions  # noqa: E402
 from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
+from . import _figures  # noqa: E402
 from ._markdown import _g, _table  # noqa: E402
 
 __all__ = ["figures", "markdown"]
 
 
 def _png(figure) -> bytes:
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=110, metadata={"Software": None})
-    plt.close(figure)
-    return buffer.getvalue()
+    return _figures._png(figure, dpi=110, metadata={"Software": None})
 
 
 def _passes(ax, result: SimulationResult) -> None:
