@@ -1,0 +1,596 @@
+"""The free-motion integrator of :mod:`._free`, compiled with numba.
+
+The same equations, the same steps and the same order of operations as the
+NumPy implementation in :mod:`._free` (which stays the readable reference
+and is tested against this one output by output): RK4 on the index-1 form,
+the accelerations by Gauss's principle, an M-weighted projection of the
+positions and velocities after every step. The model is packed into flat
+arrays by :class:`Packed`; :func:`integrate` runs one whole integration in
+compiled code (a plain-Python step costs about 1.3 ms on the double
+four-bar, most of it interpreter overhead around 3 x 3 and 15 x 15 algebra).
+
+Constraint terms (rows in this order): point coincidences (2 rows each,
+metres), then in the system's order points on lines (1 row, metres) and
+relative angles (1 row, radians). Body index -1 is the ground.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ._free import (
+    LEAST_SQUARES_BELOW,
+    PROJECTION_CUTOFF,
+    PROJECTION_ITERATIONS,
+    PROJECTION_TOLERANCE,
+    RANK_CUTOFF,
+    SINGULAR_THRESHOLD,
+)
+
+__all__ = ["Packed", "integrate", "KIND_LINE", "KIND_ANGLE"]
+
+KIND_LINE = 1
+KIND_ANGLE = 2
+
+
+class Packed:
+    """The free mechanism as the arrays :func:`integrate` reads (SI units).
+
+    Built from a ``_Dynamics`` of :mod:`._free` (so both read the same model).
+    """
+
+    def __init__(self, dyn) -> None:
+        joints, bodies = dyn.joints, dyn.bodies
+        ground = joints.n // 3
+        self.mass, self.inertia, self.com = bodies.mass, bodies.inertia, np.ascontiguousarray(bodies.com)
+        self.c_a = np.where(joints.a == ground, -1, joints.a).astype(np.int64)
+        self.c_b = np.where(joints.b == ground, -1, joints.b).astype(np.int64)
+        self.c_sa, self.c_sb = np.ascontiguousarray(joints.s_a), np.ascontiguousarray(joints.s_b)
+        others = joints.others
+        self.o_kind = np.array([KIND_ANGLE if t.is_angle else KIND_LINE for t in others], dtype=np.int64)
+        self.o_a = np.array([t.a for t in others], dtype=np.int64)
+        self.o_b = np.array([t.b for t in others], dtype=np.int64)
+        zero = np.zeros(2)
+        self.o_sq = np.array([getattr(t, "s_q", zero) for t in others], dtype=float).reshape(-1, 2)
+        self.o_w = np.array([getattr(t, "w", zero) for t in others], dtype=float).reshape(-1, 2)
+        self.o_sp = np.array([getattr(t, "s_p", zero) for t in others], dtype=float).reshape(-1, 2)
+        self.o_offset = np.array([getattr(t, "offset", 0.0) for t in others], dtype=float)
+        self.gravity = np.asarray(dyn.gravity, dtype=float)
+        self.l_body = np.array([k // 3 for k, _, _, _ in dyn.loads], dtype=np.int64)
+        self.l_point = np.array([p for _, p, _, _ in dyn.loads], dtype=float).reshape(-1, 2)
+        self.l_force = np.array([f for _, _, f, _ in dyn.loads], dtype=float).reshape(-1, 2)
+        self.l_torque = np.array([t for _, _, _, t in dyn.loads], dtype=float)
+        ends = [(first, second) for first, second, *_ in dyn.springs]
+        self.s_body = np.array([[-1 if k is None else k // 3 for k, _ in pair] for pair in ends], dtype=np.int64)
+        self.s_body = self.s_body.reshape(-1, 2)
+        self.s_point = np.array([[p for _, p in pair] for pair in ends], dtype=float).reshape(-1, 2, 2)
+        self.s_law = np.array([[k, rest, c] for _, _, k, rest, c in dyn.springs], dtype=float).reshape(-1, 3)
+        self.row_is_angle = joints.row_is_angle.astype(np.bool_)
+        self.scale_rows = np.asarray(dyn.scale_rows, dtype=float)
+        self.scale_coordinates = np.asarray(dyn.scale_coordinates, dtype=float)
+        self.mass_scale = float(dyn.mass_scale)
+        self.size = float(dyn.size)
+
+    def arrays(self) -> tuple:
+        """The arrays in :func:`integrate`'s argument order."""
+        return (
+            self.mass,
+            self.inertia,
+            self.com,
+            self.c_a,
+            self.c_sa,
+            self.c_b,
+            self.c_sb,
+            self.o_kind,
+            self.o_a,
+            self.o_sq,
+            self.o_w,
+            self.o_b,
+            self.o_sp,
+            self.o_offset,
+            self.gravity,
+            self.l_body,
+            self.l_point,
+            self.l_force,
+            self.l_torque,
+            self.s_body,
+            self.s_point,
+            self.s_law,
+            self.row_is_angle,
+            self.scale_rows,
+            self.scale_coordinates,
+            self.mass_scale,
+            self.size,
+        )
+
+
+# -- the pieces, at one state -------------------------------------------------
+
+
+@njit(cache=True)
+def _frame(q, body):
+    """(x, y, cos phi, sin phi) of a body (the ground: 0, 0, 1, 0)."""
+    if body < 0:
+        return 0.0, 0.0, 1.0, 0.0
+    phi = q[3 * body + 2]
+    return q[3 * body], q[3 * body + 1], math.cos(phi), math.sin(phi)
+
+
+@njit(cache=True)
+def _rate(qd, body):
+    """(xd, yd, omega) of a body (the ground: zeros)."""
+    if body < 0:
+        return 0.0, 0.0, 0.0
+    return qd[3 * body], qd[3 * body + 1], qd[3 * body + 2]
+
+
+@njit(cache=True)
+def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, out):
+    row = 0
+    for t in range(len(c_a)):
+        xa, ya, ca, sa = _frame(q, c_a[t])
+        xb, yb, cb, sb = _frame(q, c_b[t])
+        out[row] = xa + (ca * c_sa[t, 0] - sa * c_sa[t, 1]) - xb - (cb * c_sb[t, 0] - sb * c_sb[t, 1])
+        out[row + 1] = ya + (sa * c_sa[t, 0] + ca * c_sa[t, 1]) - yb - (sb * c_sb[t, 0] + cb * c_sb[t, 1])
+        row += 2
+    for t in range(len(o_kind)):
+        a, b = o_a[t], o_b[t]
+        if o_kind[t] == KIND_ANGLE:
+            phi_a = q[3 * a + 2] if a >= 0 else 0.0
+            phi_b = q[3 * b + 2] if b >= 0 else 0.0
+            out[row] = phi_b - phi_a - o_offset[t]
+        else:
+            xa, ya, ca, sa = _frame(q, a)
+            xb, yb, cb, sb = _frame(q, b)
+            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
+            dx = xb + (cb * o_sp[t, 0] - sb * o_sp[t, 1]) - xa - (ca * o_sq[t, 0] - sa * o_sq[t, 1])
+            dy = yb + (sb * o_sp[t, 0] + cb * o_sp[t, 1]) - ya - (sa * o_sq[t, 0] + ca * o_sq[t, 1])
+            out[row] = wx * dx + wy * dy
+        row += 1
+
+
+@njit(cache=True)
+def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
+    out[:, :] = 0.0
+    row = 0
+    for t in range(len(c_a)):
+        for body, s0, s1, sign in ((c_a[t], c_sa[t, 0], c_sa[t, 1], 1.0), (c_b[t], c_sb[t, 0], c_sb[t, 1], -1.0)):
+            if body < 0:
+                continue
+            _, _, c, s = _frame(q, body)
+            k = 3 * body
+            out[row, k] = sign
+            out[row + 1, k + 1] = sign
+            out[row, k + 2] = -sign * (s * s0 + c * s1)
+            out[row + 1, k + 2] = sign * (c * s0 - s * s1)
+        row += 2
+    for t in range(len(o_kind)):
+        a, b = o_a[t], o_b[t]
+        if o_kind[t] == KIND_ANGLE:
+            if b >= 0:
+                out[row, 3 * b + 2] = 1.0
+            if a >= 0:
+                out[row, 3 * a + 2] = -1.0
+        else:
+            xa, ya, ca, sa = _frame(q, a)
+            xb, yb, cb, sb = _frame(q, b)
+            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
+            qx, qy = ca * o_sq[t, 0] - sa * o_sq[t, 1], sa * o_sq[t, 0] + ca * o_sq[t, 1]
+            px, py = cb * o_sp[t, 0] - sb * o_sp[t, 1], sb * o_sp[t, 0] + cb * o_sp[t, 1]
+            dx, dy = xb + px - xa - qx, yb + py - ya - qy
+            if b >= 0:
+                k = 3 * b
+                out[row, k], out[row, k + 1] = wx, wy
+                out[row, k + 2] = wx * -py + wy * px
+            if a >= 0:
+                k = 3 * a
+                out[row, k], out[row, k + 1] = -wx, -wy
+                out[row, k + 2] = (-wy * dx + wx * dy) - (wx * -qy + wy * qx)
+        row += 1
+
+
+@njit(cache=True)
+def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
+    row = 0
+    for t in range(len(c_a)):
+        _, _, ca, sa = _frame(q, c_a[t])
+        _, _, cb, sb = _frame(q, c_b[t])
+        wa, wb = _rate(qd, c_a[t])[2], _rate(qd, c_b[t])[2]
+        ax, ay = ca * c_sa[t, 0] - sa * c_sa[t, 1], sa * c_sa[t, 0] + ca * c_sa[t, 1]
+        bx, by = cb * c_sb[t, 0] - sb * c_sb[t, 1], sb * c_sb[t, 0] + cb * c_sb[t, 1]
+        out[row] = ax * wa**2 - bx * wb**2
+        out[row + 1] = ay * wa**2 - by * wb**2
+        row += 2
+    for t in range(len(o_kind)):
+        if o_kind[t] == KIND_ANGLE:
+            out[row] = 0.0
+        else:
+            a, b = o_a[t], o_b[t]
+            xa, ya, ca, sa = _frame(q, a)
+            xb, yb, cb, sb = _frame(q, b)
+            xda, yda, wa = _rate(qd, a)
+            xdb, ydb, wb = _rate(qd, b)
+            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
+            qx, qy = ca * o_sq[t, 0] - sa * o_sq[t, 1], sa * o_sq[t, 0] + ca * o_sq[t, 1]
+            px, py = cb * o_sp[t, 0] - sb * o_sp[t, 1], sb * o_sp[t, 0] + cb * o_sp[t, 1]
+            dx, dy = xb + px - xa - qx, yb + py - ya - qy
+            ddx = xdb + wb * -py - xda - wa * -qy
+            ddy = ydb + wb * px - yda - wa * qx
+            quadratic = (
+                -(wa**2) * (wx * dx + wy * dy)
+                + 2.0 * wa * (-wy * ddx + wx * ddy)
+                - wb**2 * (wx * px + wy * py)
+                + wa**2 * (wx * qx + wy * qy)
+            )
+            out[row] = -quadratic
+        row += 1
+
+
+@njit(cache=True)
+def _mass(q, mass, inertia, com, out):
+    out[:, :] = 0.0
+    for i in range(len(mass)):
+        k = 3 * i
+        c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
+        ax, ay = c * com[i, 0] - s * com[i, 1], s * com[i, 0] + c * com[i, 1]
+        m = mass[i]
+        out[k, k] = out[k + 1, k + 1] = m
+        out[k, k + 2] = out[k + 2, k] = -m * ay
+        out[k + 1, k + 2] = out[k + 2, k + 1] = m * ax
+        out[k + 2, k + 2] = inertia[i] + m * (com[i, 0] * com[i, 0] + com[i, 1] * com[i, 1])
+
+
+@njit(cache=True)
+def _point(q, qd, body, s0, s1):
+    """(x, y, vx, vy, arm x, arm y) of a point fixed in a body (or the ground)."""
+    x, y, c, s = _frame(q, body)
+    xd, yd, w = _rate(qd, body)
+    ax, ay = c * s0 - s * s1, s * s0 + c * s1
+    if body < 0:
+        return s0, s1, 0.0, 0.0, 0.0, 0.0
+    return x + ax, y + ay, xd - w * ay, yd + w * ax, ax, ay
+
+
+@njit(cache=True)
+def _spring(q, qd, s_body, s_point, i):
+    """(length, rate, unit x, unit y, first end's arm x, y, second end's arm x, y)."""
+    px, py, vpx, vpy, apx, apy = _point(q, qd, s_body[i, 0], s_point[i, 0, 0], s_point[i, 0, 1])
+    rx, ry, vrx, vry, arx, ary = _point(q, qd, s_body[i, 1], s_point[i, 1, 0], s_point[i, 1, 1])
+    dx, dy = rx - px, ry - py
+    length = math.hypot(dx, dy)
+    ux, uy = (dx / length, dy / length) if length > 0.0 else (0.0, 0.0)
+    return length, ux * (vrx - vpx) + uy * (vry - vpy), ux, uy, apx, apy, arx, ary
+
+
+@njit(cache=True)
+def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, out):
+    out[:] = 0.0
+    for i in range(len(mass)):
+        k = 3 * i
+        c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
+        ax, ay = c * com[i, 0] - s * com[i, 1], s * com[i, 0] + c * com[i, 1]
+        m, w = mass[i], qd[k + 2]
+        gx, gy = m * gravity[0], m * gravity[1]
+        out[k] = gx + m * w * w * ax
+        out[k + 1] = gy + m * w * w * ay
+        out[k + 2] = ax * gy - ay * gx
+    for j in range(len(l_body)):
+        k = 3 * l_body[j]
+        c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
+        ax, ay = c * l_point[j, 0] - s * l_point[j, 1], s * l_point[j, 0] + c * l_point[j, 1]
+        fx, fy = l_force[j, 0], l_force[j, 1]
+        out[k] += fx
+        out[k + 1] += fy
+        out[k + 2] += ax * fy - ay * fx + l_torque[j]
+    for j in range(len(s_body)):
+        length, rate, ux, uy, apx, apy, arx, ary = _spring(q, qd, s_body, s_point, j)
+        tension = s_law[j, 0] * (length - s_law[j, 1]) + s_law[j, 2] * rate
+        for body, ax, ay, sign in ((s_body[j, 0], apx, apy, 1.0), (s_body[j, 1], arx, ary, -1.0)):
+            if body >= 0:
+                k = 3 * body
+                fx, fy = sign * tension * ux, sign * tension * uy
+                out[k] += fx
+                out[k + 1] += fy
+                out[k + 2] += ax * fy - ay * fx
+
+
+@njit(cache=True)
+def _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law):
+    total = 0.0
+    for j in range(len(l_body)):
+        _, _, vx, vy, _, _ = _point(q, qd, l_body[j], l_point[j, 0], l_point[j, 1])
+        total += l_force[j, 0] * vx + l_force[j, 1] * vy + l_torque[j] * qd[3 * l_body[j] + 2]
+    for j in range(len(s_body)):
+        rate = _spring(q, qd, s_body, s_point, j)[1]
+        total -= s_law[j, 2] * rate * rate
+    return total
+
+
+@njit(cache=True)
+def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law):
+    kinetic, potential = 0.0, 0.0
+    for i in range(len(mass)):
+        k = 3 * i
+        c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
+        ax, ay = c * com[i, 0] - s * com[i, 1], s * com[i, 0] + c * com[i, 1]
+        m = mass[i]
+        xd, yd, w = qd[k], qd[k + 1], qd[k + 2]
+        rotational = inertia[i] + m * (com[i, 0] * com[i, 0] + com[i, 1] * com[i, 1])
+        kinetic += 0.5 * (m * (xd * xd + yd * yd) + 2.0 * w * (-m * ay * xd + m * ax * yd) + rotational * w * w)
+        potential -= m * ((q[k] + ax) * gravity[0] + (q[k + 1] + ay) * gravity[1])
+    still = np.zeros_like(qd)
+    for j in range(len(s_body)):
+        length = _spring(q, still, s_body, s_point, j)[0]
+        potential += 0.5 * s_law[j, 0] * (length - s_law[j, 1]) ** 2
+    return kinetic + potential
+
+
+@njit(cache=True)
+def _cholesky(matrix, lower):
+    """Write the lower Cholesky factor of the symmetric ``matrix`` (n, n) into
+    ``lower``; False where it is not positive definite."""
+    n = len(matrix)
+    for j in range(n):
+        total = matrix[j, j]
+        for k in range(j):
+            total -= lower[j, k] * lower[j, k]
+        if not total > 0.0:
+            return False
+        lower[j, j] = math.sqrt(total)
+        for i in range(j + 1, n):
+            total = matrix[i, j]
+            for k in range(j):
+                total -= lower[i, k] * lower[j, k]
+            lower[i, j] = total / lower[j, j]
+        for i in range(j):
+            lower[i, j] = 0.0
+    return True
+
+
+@njit(cache=True)
+def _cholesky_solve(lower, x):
+    """Overwrite the columns of ``x`` (n, k) with the solutions of L L^T X = x."""
+    n, k = x.shape
+    for c in range(k):
+        for i in range(n):
+            total = x[i, c]
+            for j in range(i):
+                total -= lower[i, j] * x[j, c]
+            x[i, c] = total / lower[i, i]
+        for i in range(n - 1, -1, -1):
+            total = x[i, c]
+            for j in range(i + 1, n):
+                total -= lower[j, i] * x[j, c]
+            x[i, c] = total / lower[i, i]
+
+
+@njit(cache=True)
+def _least_squares(matrix, rhs, cutoff):
+    """(the minimum-norm least-squares solution of matrix x = rhs, singular values
+    at most ``cutoff`` x the largest dropped, as LAPACK's gelsd; the singular values)."""
+    u, singular, vt = np.linalg.svd(matrix)
+    m = len(singular)
+    projected = np.zeros(m)
+    for i in range(m):
+        if singular[i] > cutoff * singular[0]:
+            total = 0.0
+            for r in range(m):
+                total += u[r, i] * rhs[r]
+            projected[i] = total / singular[i]
+    x = np.zeros(m)
+    for j in range(m):
+        total = 0.0
+        for i in range(m):
+            total += vt[i, j] * projected[i]
+        x[j] = total
+    return x, singular
+
+
+@njit(cache=True)
+def _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale):
+    """As ``_Dynamics._constrained``: (x, singularity measure or NaN). The
+    symmetric positive definite solves by Cholesky (plain loops, which at these
+    sizes beat LAPACK's call overhead), the measure from the eigenvalues of
+    J Mbar^-1 J^T, the least-squares solve by SVD only below
+    :data:`LEAST_SQUARES_BELOW` (above it, it drops nothing and equals the plain solve)."""
+    m, n = jac.shape
+    sj = np.empty((m, n))
+    for r in range(m):
+        for j in range(n):
+            sj[r, j] = jac[r, j] * scale_rows[r] / d[j]
+    scaled_gap = scale_rows * gap
+    augmented = np.empty((n, n))
+    columns = np.empty((n, 1 + m))  # the right-hand side (load, then J^T), then the solution
+    for i in range(n):
+        for j in range(n):
+            total = mass[i, j] / (d[i] * d[j] * mass_scale)
+            for r in range(m):
+                total += sj[r, i] * sj[r, j]
+            augmented[i, j] = total
+        total = load[i] / (d[i] * mass_scale)
+        for r in range(m):
+            total += sj[r, i] * scaled_gap[r]
+            columns[i, 1 + r] = sj[r, i]
+        columns[i, 0] = total
+    lower = np.empty((n, n))
+    if not _cholesky(augmented, lower):  # non-finite q, or a direction with no mass and no constraint
+        return np.full(n, np.nan), math.nan
+    _cholesky_solve(lower, columns)
+    schur = np.empty((m, m))
+    rhs = np.empty(m)
+    for r in range(m):
+        for c in range(m):
+            total = 0.0
+            for j in range(n):
+                total += sj[r, j] * columns[j, 1 + c]
+            schur[r, c] = total
+        total = scaled_gap[r]
+        for j in range(n):
+            total -= sj[r, j] * columns[j, 0]
+        rhs[r] = total
+    singularity = math.nan
+    plain = last_measure > LEAST_SQUARES_BELOW
+    if measure:  # sqrt(smallest / largest eigenvalue) of the symmetric positive semi-definite schur
+        values = np.linalg.eigvalsh(0.5 * (schur + schur.T))
+        singularity = math.sqrt(max(values[0], 0.0) / values[-1]) if values[-1] > 0.0 else 0.0
+        plain = singularity > LEAST_SQUARES_BELOW
+    multipliers = np.empty(m)
+    lower = np.empty((m, m))
+    if plain and _cholesky(schur, lower):  # away from singular configurations a plain solve does
+        column = rhs.reshape(m, 1)
+        _cholesky_solve(lower, column)
+        multipliers[:] = column[:, 0]
+    else:
+        multipliers, singular = _least_squares(schur, rhs, cutoff)
+        if measure:
+            singularity = math.sqrt(singular[-1] / singular[0])
+    x = np.empty(n)
+    for j in range(n):
+        total = columns[j, 0]
+        for r in range(m):
+            total += columns[j, 1 + r] * multipliers[r]
+        x[j] = total / d[j]
+    return x, singularity
+
+
+@njit(cache=True)
+def _times(matrix, vector):
+    """matrix @ vector, (m, n) by (n,)."""
+    out = np.zeros(matrix.shape[0])
+    for i in range(matrix.shape[0]):
+        for j in range(matrix.shape[1]):
+            out[i] += matrix[i, j] * vector[j]
+    return out
+
+
+@njit(cache=True)
+def _acceleration(model, buffers, last_measure, q, qd):
+    """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
+    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _) = model  # fmt: skip
+    m_buf, j_buf, _, g_buf, f_buf = buffers
+    _mass(q, mass, inertia, com, m_buf)
+    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
+    _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, f_buf)
+    _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, g_buf)
+    return _constrained(m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale)[0]
+
+
+@njit(cache=True)
+def _residual_metres(model, buffers, q):
+    """The largest loop-closure violation, m (angles times the size)."""
+    (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
+     _, _, _, _, _, _, _, row_is_angle, _, _, _, size) = model  # fmt: skip
+    r_buf = buffers[2]
+    _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
+    largest = 0.0
+    for i in range(len(r_buf)):
+        largest = max(largest, abs(r_buf[i]) * (size if row_is_angle[i] else 1.0))
+    return largest
+
+
+@njit(cache=True)
+def _project(model, buffers, q, qd):
+    """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
+    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
+     _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size) = model  # fmt: skip
+    m_buf, j_buf, r_buf, _, _ = buffers
+    zero = np.zeros(len(q))
+    before = _residual_metres(model, buffers, q)
+    gap, tolerance = before, PROJECTION_TOLERANCE * size
+    for _ in range(PROJECTION_ITERATIONS):
+        if gap <= tolerance:
+            break
+        _mass(q, mass, inertia, com, m_buf)
+        _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
+        _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
+        step = _constrained(m_buf, j_buf, zero, -r_buf, True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale)[0]
+        q = q + step
+        gap = _residual_metres(model, buffers, q)
+    _mass(q, mass, inertia, com, m_buf)
+    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
+    correction, singular = _constrained(
+        m_buf, j_buf, zero, -_times(j_buf, qd), True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale
+    )
+    return q, qd + correction, before, singular
+
+
+@njit(cache=True)
+def _energy_and_power(model, q, qd):
+    """(T + V, J; power of the loads and dampers, W)."""
+    (mass, inertia, com, _, _, _, _, _, _, _, _, _, _, _, gravity,
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _) = model  # fmt: skip
+    energy = _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law)
+    return energy, _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law)
+
+
+@njit(cache=True)
+def _power_of(model, q, qd):
+    (_, _, _, _, _, _, _, _, _, _, _, _, _, _, _,
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _) = model  # fmt: skip
+    return _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law)
+
+
+@njit(cache=True)
+def integrate(model, q0, qd0, h, per_output, outputs, output_step):
+    """One integration (see ``_free.simulate_free``).
+
+    Parameters
+    ----------
+    model : tuple
+        :meth:`Packed.arrays`.
+    q0, qd0 : (n,)
+        The consistent initial state.
+    h : float
+        The step, s; ``per_output`` steps per output, ``outputs`` outputs
+        ``output_step`` (s) apart.
+
+    Returns
+    -------
+    q_out, qd_out, qdd_out : (outputs + 1, n); residual, energy, work : (outputs + 1,);
+    passes : (P,) times of singular passes, s; failed : the output index at
+    which the state went non-finite, or -1.
+    """
+    n, rows = len(q0), len(model[23])
+    buffers = (np.empty((n, n)), np.empty((rows, n)), np.empty(rows), np.empty(rows), np.empty(n))
+    q_out, qd_out, qdd_out = np.empty((outputs + 1, n)), np.empty((outputs + 1, n)), np.empty((outputs + 1, n))
+    residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)
+    found, count = np.empty(16), 0
+    q, qd = q0.copy(), qd0.copy()
+    w = 0.0
+    q, qd, _, measure = _project(model, buffers, q, qd)
+    sigma0 = sigma1 = measure
+    q, qd = q0.copy(), qd0.copy()  # as the NumPy integrator: the start is used as given
+    q_out[0], qd_out[0] = q, qd
+    qdd_out[0] = _acceleration(model, buffers, measure, q, qd)
+    energy[0] = _energy_and_power(model, q, qd)[0]
+    for i in range(1, outputs + 1):
+        drift = 0.0
+        for j in range(per_output):
+            a1, p1 = _acceleration(model, buffers, measure, q, qd), _power_of(model, q, qd)
+            q2, qd2 = q + 0.5 * h * qd, qd + 0.5 * h * a1
+            a2, p2 = _acceleration(model, buffers, measure, q2, qd2), _power_of(model, q2, qd2)
+            q3, qd3 = q + 0.5 * h * qd2, qd + 0.5 * h * a2
+            a3, p3 = _acceleration(model, buffers, measure, q3, qd3), _power_of(model, q3, qd3)
+            q4, qd4 = q + h * qd3, qd + h * a3
+            a4, p4 = _acceleration(model, buffers, measure, q4, qd4), _power_of(model, q4, qd4)
+            q = q + h / 6.0 * (qd + 2.0 * qd2 + 2.0 * qd3 + qd4)
+            qd = qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            w += h / 6.0 * (p1 + 2.0 * p2 + 2.0 * p3 + p4)
+            q, qd, before, measure = _project(model, buffers, q, qd)
+            drift = max(drift, before)
+            if sigma1 < SINGULAR_THRESHOLD and sigma1 <= sigma0 and sigma1 < measure:
+                if count == len(found):
+                    found = np.concatenate((found, np.empty(len(found))))
+                found[count] = (i - 1) * output_step + j * h  # the previous step was the closest
+                count += 1
+            sigma0, sigma1 = sigma1, measure
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+            return q_out, qd_out, qdd_out, residual, energy, work, found[:count], i
+        q_out[i], qd_out[i] = q, qd
+        qdd_out[i] = _acceleration(model, buffers, measure, q, qd)
+        residual[i], energy[i], work[i] = drift, _energy_and_power(model, q, qd)[0], w
+    return q_out, qd_out, qdd_out, residual, energy, work, found[:count], -1
