@@ -20,7 +20,6 @@ import pandas as pd
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._free import FreeReference
-from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics
 from xcheck.simulation import free_errors, ladder_steps, path_distance
 
@@ -60,8 +59,6 @@ def run_free(
     """pymunk's free motion against the reference (see the module's docstring and
     :meth:`xcheck.engines.Engine.run_free`)."""
     mech = kinematics.mechanism
-    if mech.springs:
-        raise NotApplicable("springs are not represented in the pymunk scene yet")
     motion = reference.motion
     every = max(1, (len(motion.times) - 1) // COMPARED)
     index = np.arange(0, len(motion.times), every)

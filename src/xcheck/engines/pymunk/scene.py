@@ -491,8 +491,32 @@ def build_scene(
             if error_bias is not None and not (isinstance(c, pm.PinJoint) and c.error_bias == 0.0):
                 c.error_bias = float(error_bias)
             space.add(c)
+    if free:
+        _add_springs(mech, space, bodies)
     drives.sort(key=lambda d: d.driver_index)
     return Scene(mech, space, bodies, constraints, grooves, drives, defaults)
+
+
+def _add_springs(mech: Mechanism, space: pm.Space, bodies: dict) -> None:
+    """The file's linear spring-dampers as pymunk ``DampedSpring`` s (the same law,
+    tension k (l - l0) + c dl/dt, with pymunk's implicit damping); a spring with both
+    ends on one body (or both on the ground) exerts no net force and is left out."""
+    owners = mech.point_owners
+    for spring in mech.springs:
+        (first, p), (second, r) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
+        if first == second:
+            continue
+        damped = pm.DampedSpring(
+            bodies[first],
+            bodies[second],
+            (float(p[0]), float(p[1])),
+            (float(r[0]), float(r[1])),
+            float(spring.rest_length),
+            float(spring.stiffness),
+            float(spring.damping),
+        )
+        damped.collide_bodies = False
+        space.add(damped)
 
 
 @dataclass(frozen=True)
