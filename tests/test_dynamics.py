@@ -72,7 +72,14 @@ torque = 0.5
 # The reversed slider's centre of mass is on its line (at L): with it 0.04 m off
 # the line pymunk's groove joint came apart within 3 ms at any time step (pymunk
 # keeps only the groove-normal part of the pin's impulse; see _pymunk_scene).
+# sprung: tests/data/free-mixed.toml driven (crank 60 deg/s, slide 0.05 m/s): a
+# spring-damper from a ground point to the crank pin and one between the rocker
+# and the block sliding along it, with gravity, a force and a torque.
+SPRUNG = (DATA / "free-mixed.toml").read_text().replace("rate = 0\n", "rate = 60\n", 1).replace(
+    "rate = 0\n", "rate = 0.05\n", 1
+)
 EXTRA = {
+    "sprung": SPRUNG,
     "inverted": with_mass(INVERTED, LINKAGE, ARM_LOAD),
     "block-driven": with_mass(BLOCK_DRIVEN, LINKAGE, ARM_LOAD),
     "slider-driven": SLIDER_DRIVEN + "\n[dynamics]\ngravity = [1, -9.81]\n",
@@ -225,6 +232,19 @@ rate = 0
 [assembly.branches.right]
 B = [0.3, 0]
 """
+
+
+@pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])
+@pytest.mark.parametrize(("x", "rate"), [(0.15, 0.0), (0.15, 0.2), (0.07, -0.5)])
+def test_spring_and_damper_load_the_driver(form, x, rate):
+    """tests/data/spring-block.toml, the block held on its guide at x moving at
+    ``rate``: the slide's effort balances the spring-damper's pull, k (x - l0) + c x'
+    (k = 200 N/m, l0 = 0.1 m, c = 4 N s/m; 10 N, 10.8 N, -8 N), and the guide carries
+    nothing (no gravity)."""
+    kin = Kinematics(load_mechanism(DATA / "spring-block.toml"))
+    forces = form(kin.solve(np.array([[x]]), np.array([[rate]]), np.zeros((1, 1))))
+    assert forces.drivers["slide"]["effort"][0] == pytest.approx(200.0 * (x - 0.1) + 4.0 * rate, rel=1e-13)
+    assert forces.joints["guide"]["reaction"][0] == pytest.approx([0.0, 0.0], abs=1e-12)
 
 
 @pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])

@@ -23,9 +23,11 @@ from ._compare import (
 )
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data
-from ._inverse import body_dynamics, inverse_dynamics, newton_euler
+from ._inverse import AppliedLoad, applied_loads, body_dynamics, inverse_dynamics, newton_euler
 
 __all__ = [
+    "AppliedLoad",
+    "applied_loads",
     "DRIVER_QUANTITIES",
     "force_engines",
     "JOINT_QUANTITIES",

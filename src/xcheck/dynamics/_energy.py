@@ -4,7 +4,8 @@ kinetic and potential energy, less what the applied loads put in.
     sum_k effort_k c'_k + P_loads = dT/dt + dV/dt
 
 with T = sum (m |v_G|^2 + I_G omega^2) / 2, V = -sum m g . r_G and P_loads
-= sum F . v_P + torque omega. Ideal joints do no work, so the balance holds
+= sum F . v_P + torque omega over the applied loads and the springs' and
+dampers' pulls (:func:`~xcheck.dynamics._inverse.applied_loads`). Ideal joints do no work, so the balance holds
 exactly for the exact reactions and efforts: its residual measures how well
 the efforts were computed (and, integrated over time, how consistent the
 kinematic solution's velocities and accelerations are).
@@ -17,7 +18,7 @@ import pandas as pd
 
 from ..kinematics import Solution
 from ._forces import Forces
-from ._inverse import _perp, _rot, body_dynamics
+from ._inverse import _perp, _rot, applied_loads, body_dynamics
 
 __all__ = ["energy_balance", "mechanical_energy"]
 
@@ -67,11 +68,11 @@ def energy_balance(solution: Solution, forces: Forces) -> pd.DataFrame:
             b["mass"] * np.sum(b["velocity"] * b["acceleration"], axis=1) + b["inertia"] * b["omega"] * b["alpha"]
         )
         potential_rate -= b["mass"] * (b["velocity"] @ mech.gravity)
-    for load in mech.loads:
+    for load in applied_loads(solution):
         state = solution.body(load.body)
         arm = _rot(state["angle"], load.point)
         v = state["velocity"] + state["omega"][:, None] * _perp(arm)
-        loads += v @ load.force + load.torque * state["omega"]
+        loads += np.einsum("ij,ij->i", v, load.force) + load.torque * state["omega"]
     return pd.DataFrame(
         {
             "drive": drive,

@@ -32,6 +32,8 @@ States that did not assemble with determined velocities give NaN rows (their
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..kinematics import Solution, Status
@@ -67,8 +69,9 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
         Per body name: ``mass`` (kg), ``inertia`` (kg m^2 about G), ``com``
         (N, 2) position of G, m; ``arm`` (N, 2) G minus the frame origin;
         ``velocity``, ``acceleration`` (N, 2) of G; ``angle``, ``omega``,
-        ``alpha`` (N,); ``force`` (N, 2), N: gravity plus applied forces;
-        ``moment`` (N,), N m: their moment about G plus applied torques.
+        ``alpha`` (N,); ``force`` (N, 2), N: gravity plus the
+        :func:`applied_loads` (loads, springs' and dampers' pulls); ``moment``
+        (N,), N m: their moment about G plus applied torques.
 
     Raises
     ------
@@ -77,6 +80,7 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
     """
     mech = solution.mechanism
     require_mass_data(mech)
+    loads = applied_loads(solution)
     out = {}
     for body in mech.moving_bodies:
         assert body.mass is not None and body.inertia is not None  # require_mass_data
@@ -88,12 +92,12 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
         position = state["position"] + arm
         force = np.broadcast_to(body.mass * mech.gravity, arm.shape).copy()
         moment = np.zeros(phi.shape)
-        for load in mech.loads:
+        for load in loads:
             if load.body != body.name:
                 continue
             at = state["position"] + _rot(phi, load.point)
             force += load.force
-            moment += _cross(at - position, np.broadcast_to(load.force, at.shape)) + load.torque
+            moment += _cross(at - position, load.force) + load.torque
         out[body.name] = {
             "mass": float(body.mass),
             "inertia": float(body.inertia),
@@ -107,6 +111,65 @@ def body_dynamics(solution: Solution) -> dict[str, dict[str, np.ndarray]]:
             "force": force,
             "moment": moment,
         }
+    return out
+
+
+@dataclass(frozen=True)
+class AppliedLoad:
+    """A force at a point of a moving body and a torque on the body, per state.
+
+    Attributes
+    ----------
+    name : str
+        The load's name, or ``"SPRING@LABEL"`` for a spring-damper's end.
+    body : str
+    point : ndarray, shape (2,)
+        Where the force acts, in the body frame, m.
+    force : ndarray, shape (N, 2)
+        Global frame, N.
+    torque : ndarray, shape (N,)
+        N m, counter-clockwise.
+    """
+
+    name: str
+    body: str
+    point: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+
+
+def applied_loads(solution: Solution) -> list[AppliedLoad]:
+    """Everything applied to the moving bodies besides gravity, over the states
+    of ``solution``: the file's constant ``[[loads]]``, then each spring-damper's
+    pull on each end that lies on a moving body (the tension k (l - l0) + c dl/dt
+    pulls each end towards the other; at zero length it has no direction and
+    pulls nowhere)."""
+    mech = solution.mechanism
+    n = solution.q.shape[0]
+    out = [
+        AppliedLoad(
+            load.name,
+            load.body,
+            np.asarray(load.point, dtype=float),
+            np.broadcast_to(np.asarray(load.force, dtype=float), (n, 2)),
+            np.full(n, float(load.torque)),
+        )
+        for load in mech.loads
+    ]
+    owners = mech.point_owners
+    for spring in mech.springs:
+        ends = [solution.point(label) for label in spring.points]
+        d = ends[1]["position"] - ends[0]["position"]
+        length = np.hypot(d[:, 0], d[:, 1])
+        unit = np.divide(d, length[:, None], out=np.zeros_like(d), where=length[:, None] > 0.0)
+        rate = np.einsum("ij,ij->i", unit, ends[1]["velocity"] - ends[0]["velocity"])
+        tension = spring.stiffness * (length - spring.rest_length) + spring.damping * rate
+        for label, sign in zip(spring.points, (1.0, -1.0)):
+            body = owners[label]
+            if body != GROUND:
+                point = np.asarray(mech.body(body).points[label], dtype=float)
+                pull = sign * tension[:, None] * unit
+                out.append(AppliedLoad(f"{spring.name}@{label}", body, point, pull, np.zeros(n)))
     return out
 
 

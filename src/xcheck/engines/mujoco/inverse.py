@@ -31,7 +31,7 @@ import copy
 import mujoco
 import numpy as np
 
-from xcheck.dynamics import Forces, determined_states, joint_quantities
+from xcheck.dynamics import Forces, applied_loads, determined_states, joint_quantities
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
 
@@ -94,7 +94,7 @@ def inverse_forces(
         cut_sites.append((dyn.site(carrier_name(c)).id, dyn.site(other).id, isinstance(c, Prismatic)))
     carriers = any(not isinstance(c, Revolute) for c in cuts)
     unknowns = sum(3 if moment else 2 for _, _, moment in cut_sites)
-    loads = [(load, dyn.body(load.body).id) for load in mech.loads]
+    loads = [(load, dyn.body(load.body).id) for load in applied_loads(solution)]  # springs' pulls included
     body_ids = {b.name: dyn.body(b.name).id for b in mech.moving_bodies}
     joints, drivers = {}, {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     for joint in mech.joints:
@@ -122,7 +122,7 @@ def inverse_forces(
         load_wrenches = []
         for load, body in loads:
             at = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([*load.point, 0.0])
-            force, torque = np.array([*load.force, 0.0]), np.array([0.0, 0.0, load.torque])
+            force, torque = np.array([*load.force[i], 0.0]), np.array([0.0, 0.0, load.torque[i]])
             mujoco.mj_applyFT(dyn, data, force, torque, at, body, applied)
             load_wrenches.append((body, force, torque, at))
         columns = []

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from xcheck.dynamics import Forces, determined_states, joint_quantities
+from xcheck.dynamics import Forces, applied_loads, determined_states, joint_quantities
 from xcheck.kinematics import Kinematics
 from xcheck.model import GROUND, Prismatic, Revolute
 
@@ -80,6 +80,7 @@ def inverse_forces(
     drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     driven = {d.joint: k for k, d in enumerate(mech.drivers)}
     residual, closure = np.zeros(n), np.zeros(n)
+    loads = applied_loads(solution)  # the file's loads and the springs' pulls, per state
     for i in range(n):
         q, loop, _, converged = oracle.project(joint_coordinates(pm, solution.q[i]), inputs[i], size)
         if not converged:
@@ -102,10 +103,10 @@ def inverse_forces(
             return fext
 
         applied = []
-        for load in mech.loads:
+        for load in loads:
             frame = data.oMf[pm.body_frames[load.body]]
             at = frame.act(np.array([*load.point, 0.0]))[:2]
-            applied.append((body_joint[load.body], _force(load.force, at, load.torque)))
+            applied.append((body_joint[load.body], _force(load.force[i], at, load.torque[i])))
         tau = pin.rnea(model, data, q, v, a, external(applied)).copy()
         oracle.loop_residual(q)
         loop_jacobian = oracle.loop_jacobian(q)

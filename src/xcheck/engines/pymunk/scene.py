@@ -491,8 +491,7 @@ def build_scene(
             if error_bias is not None and not (isinstance(c, pm.PinJoint) and c.error_bias == 0.0):
                 c.error_bias = float(error_bias)
             space.add(c)
-    if free:
-        _add_springs(mech, space, bodies)
+    _add_springs(mech, space, bodies)
     drives.sort(key=lambda d: d.driver_index)
     return Scene(mech, space, bodies, constraints, grooves, drives, defaults)
 
@@ -500,11 +499,13 @@ def build_scene(
 def _add_springs(mech: Mechanism, space: pm.Space, bodies: dict) -> None:
     """The file's linear spring-dampers as pymunk ``DampedSpring`` s (the same law,
     tension k (l - l0) + c dl/dt, with pymunk's implicit damping); a spring with both
-    ends on one body (or both on the ground) exerts no net force and is left out."""
+    ends on one body, or on bodies whose motion is prescribed or fixed, moves nothing
+    and is left out."""
     owners = mech.point_owners
     for spring in mech.springs:
         (first, p), (second, r) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
-        if first == second:
+        ends = (bodies[first], bodies[second])
+        if first == second or all(b.body_type != pm.Body.DYNAMIC for b in ends):
             continue
         damped = pm.DampedSpring(
             bodies[first],
