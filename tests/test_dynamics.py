@@ -75,8 +75,11 @@ torque = 0.5
 # sprung: tests/data/free-mixed.toml driven (crank 60 deg/s, slide 0.05 m/s): a
 # spring-damper from a ground point to the crank pin and one between the rocker
 # and the block sliding along it, with gravity, a force and a torque.
-SPRUNG = (DATA / "free-mixed.toml").read_text().replace("rate = 0\n", "rate = 60\n", 1).replace(
-    "rate = 0\n", "rate = 0.05\n", 1
+SPRUNG = (
+    (DATA / "free-mixed.toml")
+    .read_text()
+    .replace("rate = 0\n", "rate = 60\n", 1)
+    .replace("rate = 0\n", "rate = 0.05\n", 1)
 )
 EXTRA = {
     "sprung": SPRUNG,
