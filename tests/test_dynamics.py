@@ -251,6 +251,21 @@ def test_spring_and_damper_load_the_driver(form, x, rate):
 
 
 @pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])
+@pytest.mark.parametrize(("angle", "rate"), [(10.0, 0.0), (10.0, 3.0), (-50.0, -1.0)])
+def test_rotational_spring_loads_the_driver(form, angle, rate):
+    """tests/data/torsion-pendulum.toml held by its driver at ``angle`` (deg) turning
+    at ``rate`` (rad/s): the effort balances the rotational spring-damper,
+    k (theta - rest) + c theta' (k = 2 N m/rad, rest -20 deg, c = 0.04 N m s/rad),
+    and the pin carries the weight (1.5 kg x 9.81)."""
+    kin = Kinematics(load_mechanism(DATA / "torsion-pendulum.toml"))
+    theta = math.radians(angle)
+    forces = form(kin.solve(np.array([[theta]]), np.array([[rate]]), np.zeros((1, 1))))
+    expected = 2.0 * (theta - math.radians(-20)) + 0.04 * rate
+    assert forces.drivers["turn"]["effort"][0] == pytest.approx(expected, rel=1e-13)
+    assert forces.joints["O"]["reaction"][0] == pytest.approx([0.0, 1.5 * 9.81], rel=1e-13, abs=1e-12)
+
+
+@pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])
 def test_slider_crank_at_rest_with_a_force_on_the_slider(form):
     """Centred slider-crank at rest, crank at 90 deg, F = 200 N pushing the slider
     towards the crank, no gravity. The rod is a two-force member along A->B:

@@ -333,6 +333,10 @@ class _Dynamics:
             )
             for s in mech.springs
         ]
+        self.rotational = [
+            (self._offset(s.body_a), self._offset(s.body_b), s.stiffness, s.rest_angle, s.damping)
+            for s in mech.rotational_springs
+        ]
         size = self.system.size
         self.size = size
         self.scale_rows = np.where(self.joints.row_is_angle, 1.0, 1.0 / size)
@@ -343,6 +347,18 @@ class _Dynamics:
         self.jac_factor = r[:, None] / d[None, :]
         self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
         self.load_factor = 1.0 / (d * self.mass_scale)
+
+    def _offset(self, body: str) -> int | None:
+        """The body's coordinate offset, None for the ground."""
+        return 3 * self.index[body] if body in self.index else None
+
+    def _twists(self, q: np.ndarray, qd: np.ndarray):
+        """Per rotational spring: (its bodies' offsets, the angle phi_b - phi_a - rest (rad)
+        and its rate, stiffness, damping)."""
+        for a, b, stiffness, rest, damping in self.rotational:
+            angle = (0.0 if b is None else q[b + 2]) - (0.0 if a is None else q[a + 2]) - rest
+            rate = (0.0 if b is None else qd[b + 2]) - (0.0 if a is None else qd[a + 2])
+            yield a, b, angle, rate, stiffness, damping
 
     def _anchor(self, body: str, label: str) -> tuple[int | None, np.ndarray]:
         """(coordinate offset of the body or None for the ground, the point in its frame or global)."""
@@ -379,7 +395,8 @@ class _Dynamics:
         return _block_diagonal(_mass_blocks(self.bodies, q))
 
     def forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Q: gravity, the applied loads and the velocity terms of M's offset centres of mass (n,)."""
+        """Q: gravity, the applied loads, the springs and dampers (linear and rotational) and the
+        velocity terms of M's offset centres of mass (n,)."""
         a = self.bodies.arms(q)
         m, w = self.bodies.mass, qd[2::3]
         out = np.zeros(self.system.n)
@@ -397,21 +414,29 @@ class _Dynamics:
                 if k is not None:
                     out[k : k + 2] += force
                     out[k + 2] += arm[0] * force[1] - arm[1] * force[0]
+        for a, b, angle, rate, stiffness, damping in self._twists(q, qd):
+            torque = -stiffness * angle - damping * rate  # on body b; body a gets its opposite
+            if b is not None:
+                out[b + 2] += torque
+            if a is not None:
+                out[a + 2] -= torque
         return out
 
     def power(self, q: np.ndarray, qd: np.ndarray) -> float:
-        """Power of the applied loads and the dampers (gravity and springs are
-        in the potential energy), W."""
+        """Power of the applied loads and the dampers, linear and rotational
+        (gravity and springs are in the potential energy), W."""
         total = 0.0
         for k, p, f, torque in self.loads:
             velocity = self._point((k, p), q, qd)[1]
             total += float(f @ velocity) + torque * qd[k + 2]
         for _, rate, *_, damping in self._spring_states(q, qd):
             total -= damping * rate * rate
+        for *_, rate, _, damping in self._twists(q, qd):
+            total -= damping * rate * rate
         return total
 
     def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
-        """T + V, J (V of gravity, zero at the origin, and of the springs)."""
+        """T + V, J (V of gravity, zero at the origin, and of the linear and rotational springs)."""
         blocks = _mass_blocks(self.bodies, q)
         rates = qd.reshape(-1, 3)
         kinetic = 0.5 * float(np.einsum("bi,bij,bj->", rates, blocks, rates))
@@ -420,6 +445,7 @@ class _Dynamics:
             0.5 * stiffness * (length - rest) ** 2
             for length, _, _, _, _, stiffness, rest, _ in self._spring_states(q, np.zeros_like(q))
         )
+        springs += sum(0.5 * stiffness * angle**2 for _, _, angle, _, stiffness, _ in self._twists(q, qd))
         return kinetic - float(self.bodies.mass @ (centres @ self.gravity)) + springs
 
     def _constrained(

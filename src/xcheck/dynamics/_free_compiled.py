@@ -68,6 +68,10 @@ class Packed:
         self.s_body = self.s_body.reshape(-1, 2)
         self.s_point = np.array([[p for _, p in pair] for pair in ends], dtype=float).reshape(-1, 2, 2)
         self.s_law = np.array([[k, rest, c] for _, _, k, rest, c in dyn.springs], dtype=float).reshape(-1, 3)
+        twists = [(a, b) for a, b, *_ in dyn.rotational]
+        self.r_body = np.array([[-1 if k is None else k // 3 for k in pair] for pair in twists], dtype=np.int64)
+        self.r_body = self.r_body.reshape(-1, 2)
+        self.r_law = np.array([[k, rest, c] for _, _, k, rest, c in dyn.rotational], dtype=float).reshape(-1, 3)
         self.row_is_angle = joints.row_is_angle.astype(np.bool_)
         self.scale_rows = np.asarray(dyn.scale_rows, dtype=float)
         self.scale_coordinates = np.asarray(dyn.scale_coordinates, dtype=float)
@@ -104,6 +108,8 @@ class Packed:
             self.scale_coordinates,
             self.mass_scale,
             self.size,
+            self.r_body,
+            self.r_law,
         )
 
 
@@ -266,7 +272,16 @@ def _spring(q, qd, s_body, s_point, i):
 
 
 @njit(cache=True)
-def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, out):
+def _twist(q, qd, r_body, r_law, i):
+    """(phi_b - phi_a - rest, its rate) of rotational spring i, rad and rad/s."""
+    a, b = r_body[i, 0], r_body[i, 1]
+    angle = (q[3 * b + 2] if b >= 0 else 0.0) - (q[3 * a + 2] if a >= 0 else 0.0) - r_law[i, 1]
+    rate = (qd[3 * b + 2] if b >= 0 else 0.0) - (qd[3 * a + 2] if a >= 0 else 0.0)
+    return angle, rate
+
+
+@njit(cache=True)
+def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law, out):
     out[:] = 0.0
     for i in range(len(mass)):
         k = 3 * i
@@ -295,10 +310,17 @@ def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_bod
                 out[k] += fx
                 out[k + 1] += fy
                 out[k + 2] += ax * fy - ay * fx
+    for j in range(len(r_body)):
+        angle, rate = _twist(q, qd, r_body, r_law, j)
+        torque = -r_law[j, 0] * angle - r_law[j, 2] * rate  # on body b; body a gets its opposite
+        if r_body[j, 1] >= 0:
+            out[3 * r_body[j, 1] + 2] += torque
+        if r_body[j, 0] >= 0:
+            out[3 * r_body[j, 0] + 2] -= torque
 
 
 @njit(cache=True)
-def _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law):
+def _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law):
     total = 0.0
     for j in range(len(l_body)):
         _, _, vx, vy, _, _ = _point(q, qd, l_body[j], l_point[j, 0], l_point[j, 1])
@@ -306,11 +328,14 @@ def _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law):
     for j in range(len(s_body)):
         rate = _spring(q, qd, s_body, s_point, j)[1]
         total -= s_law[j, 2] * rate * rate
+    for j in range(len(r_body)):
+        rate = _twist(q, qd, r_body, r_law, j)[1]
+        total -= r_law[j, 2] * rate * rate
     return total
 
 
 @njit(cache=True)
-def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law):
+def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law):
     kinetic, potential = 0.0, 0.0
     for i in range(len(mass)):
         k = 3 * i
@@ -325,6 +350,8 @@ def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law):
     for j in range(len(s_body)):
         length = _spring(q, still, s_body, s_point, j)[0]
         potential += 0.5 * s_law[j, 0] * (length - s_law[j, 1]) ** 2
+    for j in range(len(r_body)):
+        potential += 0.5 * r_law[j, 0] * _twist(q, qd, r_body, r_law, j)[0] ** 2
     return kinetic + potential
 
 
@@ -470,11 +497,12 @@ def _times(matrix, vector):
 def _acceleration(model, buffers, last_measure, q, qd):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
-     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _) = model  # fmt: skip
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _,
+     r_body, r_law) = model  # fmt: skip
     m_buf, j_buf, _, g_buf, f_buf = buffers
     _mass(q, mass, inertia, com, m_buf)
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
-    _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, f_buf)
+    _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law, f_buf)
     _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, g_buf)
     return _constrained(m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale)[0]
 
@@ -483,7 +511,7 @@ def _acceleration(model, buffers, last_measure, q, qd):
 def _residual_metres(model, buffers, q):
     """The largest loop-closure violation, m (angles times the size)."""
     (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
-     _, _, _, _, _, _, _, row_is_angle, _, _, _, size) = model  # fmt: skip
+     _, _, _, _, _, _, _, row_is_angle, _, _, _, size, _, _) = model  # fmt: skip
     r_buf = buffers[2]
     _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
     largest = 0.0
@@ -496,7 +524,7 @@ def _residual_metres(model, buffers, q):
 def _project(model, buffers, q, qd):
     """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
-     _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size) = model  # fmt: skip
+     _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size, _, _) = model  # fmt: skip
     m_buf, j_buf, r_buf, _, _ = buffers
     zero = np.zeros(len(q))
     before = _residual_metres(model, buffers, q)
@@ -522,16 +550,16 @@ def _project(model, buffers, q, qd):
 def _energy_and_power(model, q, qd):
     """(T + V, J; power of the loads and dampers, W)."""
     (mass, inertia, com, _, _, _, _, _, _, _, _, _, _, _, gravity,
-     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _) = model  # fmt: skip
-    energy = _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law)
-    return energy, _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law)
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law) = model  # fmt: skip
+    energy = _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law)
+    return energy, _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law)
 
 
 @njit(cache=True)
 def _power_of(model, q, qd):
     (_, _, _, _, _, _, _, _, _, _, _, _, _, _, _,
-     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _) = model  # fmt: skip
-    return _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law)
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law) = model  # fmt: skip
+    return _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law)
 
 
 @njit(cache=True)

@@ -143,7 +143,9 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
     of ``solution``: the file's constant ``[[loads]]``, then each spring-damper's
     pull on each end that lies on a moving body (the tension k (l - l0) + c dl/dt
     pulls each end towards the other; at zero length it has no direction and
-    pulls nowhere)."""
+    pulls nowhere), then each rotational spring-damper's torque on its joint's
+    moving bodies (-k (phi_b - phi_a - rest) - c (omega_b - omega_a) on body b,
+    the opposite on body a)."""
     mech = solution.mechanism
     n = solution.q.shape[0]
     out = [
@@ -170,6 +172,17 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
                 point = np.asarray(mech.body(body).points[label], dtype=float)
                 pull = sign * tension[:, None] * unit
                 out.append(AppliedLoad(f"{spring.name}@{label}", body, point, pull, np.zeros(n)))
+    zero = np.zeros(2)
+    for twist in mech.rotational_springs:
+        a, b = (
+            solution.body(name) if name != GROUND else {"angle": np.zeros(n), "omega": np.zeros(n)}
+            for name in (twist.body_a, twist.body_b)
+        )
+        angle = b["angle"] - a["angle"] - twist.rest_angle
+        torque = -twist.stiffness * angle - twist.damping * (b["omega"] - a["omega"])  # on body b
+        for body, sign in ((twist.body_b, 1.0), (twist.body_a, -1.0)):
+            if body != GROUND:
+                out.append(AppliedLoad(f"{twist.name}@{body}", body, zero, np.zeros((n, 2)), sign * torque))
     return out
 
 

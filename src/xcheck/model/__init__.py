@@ -1,6 +1,6 @@
 """The canonical mechanism model and its file format."""
 
-from ._free_motion import FreeMotionSpec, Spring
+from ._free_motion import FreeMotionSpec, RotationalSpring, Spring
 from ._load import MAX_BODIES, MAX_FILE_BYTES, MAX_INSTANTS, load_mechanism, parse_mechanism
 from ._mechanism import (
     GROUND,
@@ -20,6 +20,7 @@ from ._mechanism import (
 __all__ = [
     "GROUND",
     "FreeMotionSpec",
+    "RotationalSpring",
     "Spring",
     "MAX_BODIES",
     "MAX_FILE_BYTES",

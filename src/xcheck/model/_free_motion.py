@@ -16,7 +16,14 @@ if TYPE_CHECKING:
     from ._load import _Reader
     from ._mechanism import Body, Driver
 
-__all__ = ["Spring", "FreeMotionSpec", "read_springs", "read_free_motion"]
+__all__ = [
+    "Spring",
+    "RotationalSpring",
+    "FreeMotionSpec",
+    "read_springs",
+    "read_rotational_springs",
+    "read_free_motion",
+]
 
 
 @dataclass(frozen=True)
@@ -38,6 +45,32 @@ class Spring:
     points: tuple[str, str]
     stiffness: float
     rest_length: float
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class RotationalSpring:
+    """A rotational spring and damper across a revolute or pin-in-slot joint.
+
+    Attributes
+    ----------
+    name : str
+    joint : str
+    body_a, body_b : str
+        The joint's bodies; the spring's angle is phi_b - phi_a (continuous).
+    stiffness : float, N m/rad
+    rest_angle : float, rad
+    damping : float, N m s/rad
+        The torque on ``body_b`` is -k (phi_b - phi_a - rest_angle) - c (omega_b -
+        omega_a); ``body_a`` gets its opposite.
+    """
+
+    name: str
+    joint: str
+    body_a: str
+    body_b: str
+    stiffness: float
+    rest_angle: float
     damping: float = 0.0
 
 
@@ -101,6 +134,41 @@ def read_springs(reader: _Reader, value: Any, bodies: list[Body], units: Units) 
         if any(s.name == name for s in springs):
             reader.fail(f"{where}.name", "a name no other spring has", repr(name))
         springs.append(Spring(name, (ends[0], ends[1]), stiffness, rest, damping))
+    return springs
+
+
+def read_rotational_springs(reader: _Reader, value: Any, joints: list, units: Units) -> list[RotationalSpring]:
+    """``[[rotational_springs]]``: name, joint (a revolute or pin-in-slot joint),
+    stiffness (N m/rad), rest_angle (angle unit, default 0), damping (N m s/rad, default 0)."""
+    from ._mechanism import Prismatic
+
+    if not isinstance(value, list):
+        reader.fail("rotational_springs", "a list of [[rotational_springs]]", _describe(value))
+    by_name = {j.name: j for j in joints}
+    turning = [j.name for j in joints if not isinstance(j, Prismatic)]
+    springs: list[RotationalSpring] = []
+    for i, spec in enumerate(value):
+        where = f"rotational_springs[{i}]"
+        spec = reader.table(spec, where, ("name", "joint", "stiffness", "rest_angle", "damping"))
+        joint = spec.get("joint")
+        if not isinstance(joint, str) or joint not in by_name or isinstance(by_name[joint], Prismatic):
+            reader.fail(
+                f"{where}.joint",
+                f"a revolute or pin-in-slot joint ({', '.join(turning) or 'none'})",
+                _describe(joint) + (" (a prismatic joint does not turn)" if joint in by_name else ""),
+            )
+        stiffness = reader.number(spec.get("stiffness"), f"{where}.stiffness")
+        if stiffness < 0.0:
+            reader.fail(f"{where}.stiffness", "a stiffness of at least 0 N m/rad", repr(spec.get("stiffness")))
+        rest = reader.number(spec.get("rest_angle", 0.0), f"{where}.rest_angle", units.angle_factor)
+        damping = reader.number(spec.get("damping", 0.0), f"{where}.damping")
+        if damping < 0.0:
+            reader.fail(f"{where}.damping", "a damping of at least 0 N m s/rad", repr(spec.get("damping")))
+        name = reader.text(spec.get("name", f"rotational spring {i + 1}"), f"{where}.name")
+        if any(s.name == name for s in springs):
+            reader.fail(f"{where}.name", "a name no other rotational spring has", repr(name))
+        j = by_name[joint]
+        springs.append(RotationalSpring(name, joint, j.body_a, j.body_b, stiffness, rest, damping))
     return springs
 
 

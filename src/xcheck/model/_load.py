@@ -26,7 +26,7 @@ from ..units import (
     Units,
     evaluate_expression,
 )
-from ._free_motion import read_free_motion, read_springs
+from ._free_motion import read_free_motion, read_rotational_springs, read_springs
 from ._mechanism import (
     GROUND,
     Assembly,
@@ -55,6 +55,7 @@ _TOP_KEYS = (
     "dynamics",
     "loads",
     "springs",
+    "rotational_springs",
     "free_motion",
 )
 _JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
@@ -270,6 +271,7 @@ class _Reader:
         gravity = self.dynamics(data.get("dynamics", {}))
         loads = self.loads(data.get("loads", []), by_name, units)
         springs = read_springs(self, data.get("springs", []), bodies, units)
+        rotational_springs = read_rotational_springs(self, data.get("rotational_springs", []), joints, units)
         free_motion = (
             read_free_motion(self, data["free_motion"], drivers, bodies, units, dict(assembly.at))
             if "free_motion" in data
@@ -290,6 +292,7 @@ class _Reader:
             gravity=gravity,
             loads=tuple(loads),
             springs=tuple(springs),
+            rotational_springs=tuple(rotational_springs),
             free_motion=free_motion,
         )
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..units import Units
-from ._free_motion import FreeMotionSpec, Spring
+from ._free_motion import FreeMotionSpec, RotationalSpring, Spring
 
 __all__ = [
     "GROUND",
@@ -364,7 +364,9 @@ class Mechanism:
     loads : tuple of Load
         Constant applied forces and torques (dynamics only).
     springs : tuple of Spring
-        Linear spring-dampers between two points (free motion only).
+        Linear spring-dampers between two points.
+    rotational_springs : tuple of RotationalSpring
+        Rotational spring-dampers across revolute and pin-in-slot joints.
     free_motion : FreeMotionSpec or None
         How the mechanism is released to move freely (``[free_motion]``), if it is.
     """
@@ -383,6 +385,7 @@ class Mechanism:
     gravity: np.ndarray = field(default_factory=lambda: np.zeros(2))
     loads: tuple[Load, ...] = field(default=())
     springs: tuple[Spring, ...] = field(default=())
+    rotational_springs: tuple[RotationalSpring, ...] = field(default=())
     free_motion: FreeMotionSpec | None = None
 
     def __post_init__(self):

@@ -498,9 +498,9 @@ def build_scene(
 
 def _add_springs(mech: Mechanism, space: pm.Space, bodies: dict) -> None:
     """The file's linear spring-dampers as pymunk ``DampedSpring`` s (the same law,
-    tension k (l - l0) + c dl/dt, with pymunk's implicit damping); a spring with both
-    ends on one body, or on bodies whose motion is prescribed or fixed, moves nothing
-    and is left out."""
+    tension k (l - l0) + c dl/dt, with pymunk's implicit damping) and its rotational
+    ones as ``DampedRotarySpring`` s; a spring with both ends on one body, or on
+    bodies whose motion is prescribed or fixed, moves nothing and is left out."""
     owners = mech.point_owners
     for spring in mech.springs:
         (first, p), (second, r) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
@@ -518,6 +518,15 @@ def _add_springs(mech: Mechanism, space: pm.Space, bodies: dict) -> None:
         )
         damped.collide_bodies = False
         space.add(damped)
+    for twist in mech.rotational_springs:
+        a, b = bodies[twist.body_a], bodies[twist.body_b]
+        if a.body_type != pm.Body.DYNAMIC and b.body_type != pm.Body.DYNAMIC:
+            continue
+        # Chipmunk's relative angle is angle_a - angle_b and its torque on b is k (relative - rest):
+        # with rest = -rest_angle that is the file's -k (angle_b - angle_a - rest_angle)
+        rotary = pm.DampedRotarySpring(a, b, -float(twist.rest_angle), float(twist.stiffness), float(twist.damping))
+        rotary.collide_bodies = False
+        space.add(rotary)
 
 
 @dataclass(frozen=True)
