@@ -39,7 +39,6 @@ import numpy as np
 import pandas as pd
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study
-from xcheck.engines._contract import NotApplicable
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
@@ -190,7 +189,7 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
         return row, None
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos0, qvel0
-    loads = _loads(mech, model)
+    loads = _loads(mech, model, reference.motion.q[0])
     passive = mujoco.get_mjcb_passive()
     n = len(index)
     qpos, qvel, qacc = (np.full((n, model.nv), np.nan) for _ in range(3))
@@ -231,7 +230,7 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     drift = np.array([oracle.violation(q) for q in qpos[good]])
     trajectory.diagnostics = {"constraint_violation": drift, "energy": energy[good]}
     row["loop_drift"] = float(drift.max())
-    if not mech.loads and not any(spring.damping for spring in mech.springs):  # E is conserved
+    if not (mech.loads or mech.rotational_springs or any(spring.damping for spring in mech.springs)):  # E conserved
         row["energy_drift"] = float(np.max(np.abs(energy[good] - energy[0])))
     if failure:
         row["status"] = failure
@@ -251,9 +250,16 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     return row, trajectory
 
 
-def _loads(mechanism: Mechanism, model: mujoco.MjModel):
-    """The passive-force callback applying the mechanism's constant loads, or None without loads."""
-    if not mechanism.loads:
+def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
+    """The passive-force callback applying the mechanism's constant loads and its
+    rotational spring-dampers, or None without either.
+
+    A rotational spring's angle phi_b - phi_a is kept continuous from its value
+    at the native initial state ``q0`` (body coordinates), to the nearest turn
+    from one call to the next (MuJoCo's body orientations are quaternions);
+    its rate is the difference of the bodies' angular velocities (``cvel``).
+    """
+    if not mechanism.loads and not mechanism.rotational_springs:
         return None
     terms = [
         (
@@ -264,11 +270,40 @@ def _loads(mechanism: Mechanism, model: mujoco.MjModel):
         )
         for load in mechanism.loads
     ]
+    index = {b.name: i for i, b in enumerate(mechanism.moving_bodies)}
+
+    def start_angle(name: str) -> float:
+        return float(q0[3 * index[name] + 2]) if name in index else 0.0
+
+    twists = [
+        (
+            model.body(t.body_a).id if t.body_a != GROUND else 0,
+            model.body(t.body_b).id if t.body_b != GROUND else 0,
+            t.stiffness,
+            t.rest_angle,
+            t.damping,
+        )
+        for t in mechanism.rotational_springs
+    ]
+    last = [start_angle(t.body_b) - start_angle(t.body_a) for t in mechanism.rotational_springs]
+    origin = np.zeros(3)
+
+    def angle(d: mujoco.MjData, body: int) -> float:
+        return math.atan2(d.xmat[body][3], d.xmat[body][0]) if body else 0.0
 
     def apply(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         for body, point, force, torque in terms:
             at = d.xpos[body] + d.xmat[body].reshape(3, 3) @ point
             mujoco.mj_applyFT(m, d, force, torque, at, body, d.qfrc_passive)
+        for k, (a, b, stiffness, rest, damping) in enumerate(twists):
+            twist = angle(d, b) - angle(d, a)
+            twist += 2.0 * math.pi * round((last[k] - twist) / (2.0 * math.pi))
+            last[k] = twist
+            rate = float(d.cvel[b][2] - d.cvel[a][2])
+            torque_b = np.array([0.0, 0.0, -stiffness * (twist - rest) - damping * rate])
+            for body, moment in ((b, torque_b), (a, -torque_b)):
+                if body:
+                    mujoco.mj_applyFT(m, d, origin, moment, d.xpos[body], body, d.qfrc_passive)
 
     return apply
 
@@ -329,8 +364,6 @@ def run_free(
         previous step of the same setting and integrator).
     """
     mech = kinematics.mechanism
-    if mech.rotational_springs:
-        raise NotApplicable("rotational springs are not carried into the MJCF yet")
     try:
         model, lay = free_model(kinematics)
     except XcheckError as error:

@@ -28,7 +28,6 @@ import pandas as pd
 import pinocchio as pin
 
 from xcheck.compare import ModeResult, convergence_study
-from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics
 from xcheck.simulation import ladder_steps
 
@@ -68,7 +67,7 @@ def _jacobian(model, data, fid: int) -> np.ndarray:
 class _Free:
     """q'' = f(q, v) of the released mechanism: constraintDynamics with the applied forces."""
 
-    def __init__(self, pm: PinocchioMechanism, mu: float, baumgarte: tuple[float, float] | None):
+    def __init__(self, pm: PinocchioMechanism, mu: float, baumgarte: tuple[float, float] | None, q0_native: np.ndarray):
         self.pm, self.model = pm, pm.model
         self.data = pm.model.createData()
         self.cms = [pin.RigidConstraintModel(cm) for cm in pm.constraints]  # copies: gains are per run
@@ -96,6 +95,15 @@ class _Free:
             )
             for s in mech.springs
         ]
+        index = {b.name: i for i, b in enumerate(mech.moving_bodies)}
+        self.twists = [
+            (pm.body_frames.get(t.body_a), pm.body_frames.get(t.body_b), t.stiffness, t.rest_angle, t.damping)
+            for t in mech.rotational_springs
+        ]
+        # each rotational spring's angle phi_b - phi_a, continuous from the native initial state
+        start = {name: float(q0_native[3 * i + 2]) for name, i in index.items()}  # the ground's is 0
+        self._twist = [start.get(t.body_b, 0.0) - start.get(t.body_a, 0.0) for t in mech.rotational_springs]
+        self._twist_energy = list(self._twist)
         self._angles: dict[int, float] = {}
         self.evaluations = 0
         self.proximal_iterations = 0
@@ -103,7 +111,7 @@ class _Free:
     def applied(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Generalised force of the loads and springs (nv,), N or N m."""
         tau = np.zeros(self.model.nv)
-        if not self.loads and not self.springs:
+        if not self.loads and not self.springs and not self.twists:
             return tau
         model, data = self.model, self.work_data
         pin.forwardKinematics(model, data, q, v)
@@ -125,10 +133,34 @@ class _Free:
             tension = stiffness * (length - rest) + damping * float(unit @ rel)
             for fid, force in ((first, tension * unit), (second, -tension * unit)):
                 tau += _jacobian(model, data, fid)[:2].T @ force
+        for k, (first, second, stiffness, rest, damping) in enumerate(self.twists):
+            twist = self._turned(k, self._twist, first, second)
+            rate = sum(
+                sign * pin.getFrameVelocity(model, data, fid, LWA).angular[2]
+                for fid, sign in ((second, 1.0), (first, -1.0))
+                if fid is not None
+            )
+            torque = -stiffness * (twist - rest) - damping * rate  # on the second body
+            for fid, sign in ((second, 1.0), (first, -1.0)):
+                if fid is not None:
+                    tau += _jacobian(model, data, fid)[5] * sign * torque
         return tau
 
+    def _turned(self, k: int, last: list[float], first, second) -> float:
+        """Rotational spring k's angle phi_b - phi_a from the frames (``work_data``'s placements),
+        to the nearest turn from ``last[k]``, which it updates."""
+        data = self.work_data
+        twist = 0.0
+        for fid, sign in ((second, 1.0), (first, -1.0)):
+            if fid is not None:
+                rotation = data.oMf[fid].rotation
+                twist += sign * math.atan2(rotation[1, 0], rotation[0, 0])
+        twist += 2.0 * math.pi * round((last[k] - twist) / (2.0 * math.pi))
+        last[k] = twist
+        return twist
+
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic + gravitational + spring energy minus the constant loads' potential, J
+        """Kinetic + gravitational + spring energy (linear and rotational) minus the constant loads' potential, J
         (a constant force f at a point r has potential -f . r, a couple T on angle phi -T phi;
         the angle is kept continuous from one call to the next: call it in time order)."""
         model, data = self.model, self.work_data
@@ -145,6 +177,8 @@ class _Free:
         for first, second, stiffness, rest, _ in self.springs:
             length = float(np.linalg.norm(data.oMf[second].translation - data.oMf[first].translation))
             total += 0.5 * stiffness * (length - rest) ** 2
+        for k, (first, second, stiffness, rest, _) in enumerate(self.twists):
+            total += 0.5 * stiffness * (self._turned(k, self._twist_energy, first, second) - rest) ** 2
         return float(total)
 
     def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -285,7 +319,7 @@ def _run(kinematics, pm, oracle, reference, native, setting, dt, stride, q0, v0,
     begin = time.process_time()
     free = None
     try:
-        free = _Free(pm, mu, gains)
+        free = _Free(pm, mu, gains, motion.q[0])
         rows, failure, drift, energy = _integrate(
             free, scheme, q0, v0, dt, per_output * stride, len(index), native_points, size, oracle
         )
@@ -334,7 +368,8 @@ def _run(kinematics, pm, oracle, reference, native, setting, dt, stride, q0, v0,
     # the samples reached are reference outputs: compare them
     errors = free_errors(reference, trajectory)
     row.update({k: errors[k] for k in ("position_error", "final_error", "angle_error")})
-    if not pm.mechanism.springs or all(s.damping == 0.0 for s in pm.mechanism.springs):
+    mech = pm.mechanism
+    if all(s.damping == 0.0 for s in (*mech.springs, *mech.rotational_springs)):  # E is conserved
         row["energy_drift"] = float(np.max(np.abs(np.array(energy) - energy[0])))
     return row, trajectory if failure is None else None
 
@@ -392,8 +427,6 @@ def run_free(
     at 4.2 s at 5e-4).
     """
     mech = kinematics.mechanism
-    if mech.rotational_springs:
-        raise NotApplicable("rotational springs are not carried into the Pinocchio model yet")
     try:
         unknown = [s for s in settings if s not in SETTINGS]
         if unknown:
