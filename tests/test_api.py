@@ -122,3 +122,14 @@ def test_compare_returns_one_row_per_mode():
     assert list(table.columns) == list(api.SUMMARY_COLUMNS)
     assert table["mode"].tolist() == ["native", "formulation-I", "formulation-II"]
     assert (table.verdict == "pass").all() and (table.error <= table.tolerance).all()
+
+
+def test_solve_warns_about_a_limit_position_before_the_numbers():
+    from conftest import invoke
+
+    result = invoke("solve", "fourbar", "--at", "129.0227", "--models", str(MODELS))
+    assert result.returncode == 0
+    lines = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(lines) == 1 and "crank = 129.0227 deg is near a limit" in lines[0]
+    quiet = invoke("solve", "fourbar", "--at", "60", "--models", str(MODELS))
+    assert quiet.returncode == 0 and "warning" not in quiet.stderr
