@@ -73,17 +73,19 @@ def guide_extents(solution: Solution) -> dict[str, tuple[float, float]]:
     """Per line joint, the range of its slide (m along the line from its line
     point) over every determined sample of a solution: how long to draw the
     guides and slots so that they hold the blocks and pins at every pose."""
-    good = np.flatnonzero(solution.status <= 1)
+    good = solution.status <= 1
     extents = {}
     for joint in _line_joints(solution.mechanism):
-        slides = []
-        for i in good:
-            pose = Pose.of(solution, int(i))
-            d = pose.direction(joint.body_a, joint.direction)
-            gap = pose.point(joint.body_b, joint.point) - pose.point(joint.body_a, joint.line_point)
-            slides.append(float(d @ gap))
-        if slides:
-            extents[joint.name] = (min(slides), max(slides))
+        if not good.any():
+            break
+        phi = solution.body(joint.body_a)["angle"][good]
+        d = rotate(phi, joint.direction)
+        gap = (
+            solution.point(joint.point, joint.body_b)["position"][good]
+            - solution.point(joint.line_point, joint.body_a)["position"][good]
+        )
+        slides = np.einsum("ij,ij->i", d, gap)
+        extents[joint.name] = (float(slides.min()), float(slides.max()))
     return extents
 
 
