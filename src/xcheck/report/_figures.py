@@ -235,6 +235,11 @@ def quantities(run: RunResult) -> bytes:
     """Each quantity of the tracked point and body, all modes overlaid: against
     the first input over the runner's sweep, and (several inputs) the dynamic
     modes against time with the native solution at their states (PNG)."""
+    return _png(quantities_figure(run))
+
+
+def quantities_figure(run: RunResult):
+    """The figure of :func:`quantities` (open: the caller closes it)."""
     mech, units = run.mechanism, run.mechanism.units
     point, body = tracked(run)
     scales = {
@@ -283,7 +288,7 @@ def quantities(run: RunResult) -> bytes:
         axes[0, 1].set_title(title, fontsize=9)
     figure.suptitle(f"{mech.name}: quantities (native: line; engines: markers and dashes)", fontsize=10)
     figure.tight_layout()
-    return _png(figure)
+    return figure
 
 
 def _relative_scale(run: RunResult, outcome, category: str) -> float:
@@ -303,6 +308,11 @@ def error_plots(run: RunResult) -> bytes:
     """Each mode's largest difference over all bodies and points, relative as
     the verdict takes it, against the input (or time), log scale, with each
     mode's tolerance as a dotted line of its colour (PNG)."""
+    return _png(error_figure(run))
+
+
+def error_figure(run: RunResult):
+    """The figure of :func:`error_plots` (open: the caller closes it)."""
     blocks = _blocks(run)
     figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
     for b, (title, axis, series) in enumerate(blocks):
@@ -336,7 +346,7 @@ def error_plots(run: RunResult) -> bytes:
         fontsize=10,
     )
     figure.tight_layout()
-    return _png(figure)
+    return figure
 
 
 #: the orders whose slopes the convergence plots draw for reference
@@ -390,6 +400,12 @@ def _step_ticks(ax) -> None:
 
 def convergence_plot(run: RunResult) -> bytes | None:
     """Each dynamic mode's position error against time step, log-log (PNG); None if none ran."""
+    figure = convergence_figure(run)
+    return None if figure is None else _png(figure)
+
+
+def convergence_figure(run: RunResult):
+    """The figure of :func:`convergence_plot` (open: the caller closes it), or None."""
     dynamic = [(m, o) for m, o in run.outcomes.items() if _is_dynamic(m) and o.result is not None]
     tables = [(m, convergence_table(o)) for m, o in dynamic]
     tables = [(m, t) for m, t in tables if not t.empty]
@@ -424,7 +440,7 @@ def convergence_plot(run: RunResult) -> bytes | None:
         f"{run.mechanism.name}: error against time step (observed order between the two smallest steps)", fontsize=10
     )
     figure.tight_layout()
-    return _png(figure)
+    return figure
 
 
 def forces_plot(run: RunResult) -> bytes | None:
