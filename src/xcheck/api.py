@@ -595,11 +595,16 @@ def summary(result: "RunResult") -> pd.DataFrame:
     or does not apply."""
     rows = []
     for mode, outcome in result.outcomes.items():
-        worst = None
-        for row in outcome.categories.itertuples():
-            ratio = row.relative / row.tolerance if row.tolerance > 0 else math.inf
+        worst: tuple[float, str, float, float] | None = None  # (ratio, category, relative, tolerance)
+        for category, relative, limit in zip(
+            outcome.categories.get("category", []),
+            outcome.categories.get("relative", []),
+            outcome.categories.get("tolerance", []),
+        ):
+            relative, limit = float(relative), float(limit)
+            ratio = relative / limit if limit > 0 else math.inf
             if worst is None or not ratio <= worst[0]:
-                worst = (ratio, row)
+                worst = (ratio, str(category), relative, limit)
         verdict = "failed" if not outcome.ok else ("pass" if outcome.passed else "fail")
         rows.append(
             {
@@ -607,9 +612,9 @@ def summary(result: "RunResult") -> pd.DataFrame:
                 "mode": mode,
                 "kind": "native" if mode == "native" else engines.mode(mode).kind,
                 "verdict": verdict,
-                "category": worst[1].category if worst else None,
-                "error": float(worst[1].relative) if worst else math.nan,
-                "tolerance": float(worst[1].tolerance) if worst else math.nan,
+                "category": worst[1] if worst else None,
+                "error": worst[2] if worst else math.nan,
+                "tolerance": worst[3] if worst else math.nan,
                 "reason": outcome.reason or None,
             }
         )

@@ -297,7 +297,7 @@ def draw_pose(
                 ax.annotate(label, p, xytext=(5, 5), textcoords="offset points", fontsize=9, zorder=7)
     # the inputs
     for driver in mech.drivers if arrows is not None else ():
-        sign = 1.0 if arrows.get(driver.name, 1.0) >= 0.0 else -1.0
+        sign = 1.0 if (arrows or {}).get(driver.name, 1.0) >= 0.0 else -1.0
         joint = mech.joint(driver.joint)
         if isinstance(joint, Revolute):
             centre = w(pose.point(joint.body_a, joint.point_a))

@@ -276,8 +276,9 @@ def quantities_figure(run: RunResult):
                     continue
                 x, _ = _abscissa(run, axis, raw_x[mask])
                 values = values[mask]
-                if category == "angle" and reference[category] is not None:  # the native angle's turn, per sample
-                    there = np.interp(x, native_x, reference[category])
+                native_angle = reference[category]
+                if category == "angle" and native_angle is not None:  # the native angle's turn, per sample
+                    there = np.interp(x, native_x, native_angle)
                     values = values - 2 * np.pi * np.round((values - there) / (2 * np.pi))
                 order = np.argsort(x, kind="stable")
                 ax.plot(x[order], values[order] / factor, label=mode, **_style(mode))
@@ -394,7 +395,7 @@ def _step_ticks(ax) -> None:
     subs = (1.0, 2.0, 5.0) if math.log10(high / low) <= 2.0 else (1.0,)
     ax.xaxis.set_major_locator(ticker.LogLocator(base=10.0, subs=subs, numticks=12))
     ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:.0e}"))
-    ax.xaxis.set_minor_locator(ticker.LogLocator(base=10.0, subs=np.arange(1, 10), numticks=12))
+    ax.xaxis.set_minor_locator(ticker.LogLocator(base=10.0, subs=[float(k) for k in range(1, 10)], numticks=12))
     ax.xaxis.set_minor_formatter(ticker.NullFormatter())
 
 
