@@ -131,14 +131,18 @@ def _hatched_strip(ax, start: np.ndarray, end: np.ndarray, side: np.ndarray, dep
     ax.add_patch(patches.Polygon(corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z))
 
 
-def _block(ax, centre: np.ndarray, along: np.ndarray, length: float, height: float, color: str, z: float) -> None:
+def _block(
+    ax, centre: np.ndarray, along: np.ndarray, length: float, height: float, color: str, z: float, alpha: float = 1.0
+) -> None:
     """A slide block centred at ``centre``, its long side along ``along``."""
     u = along / np.hypot(*along)
     n = np.array([-u[1], u[0]])
     corners = np.array(
         [centre + sx * 0.5 * length * u + sy * 0.5 * height * n for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
     )
-    ax.add_patch(patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85, lw=1, zorder=z))
+    ax.add_patch(
+        patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z)
+    )
 
 
 def draw_pose(
@@ -263,7 +267,7 @@ def draw_pose(
             centre = pose.point(joint.body_b, joint.point)
             d = pose.direction(joint.body_a, joint.direction)
             owner = joint.body_b if joint.body_b != gname else joint.body_a
-            _block(ax, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4)
+            _block(ax, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4, alpha)
     # ground pivots: a triangle over hatching
     if ground:
         for joint in mech.joints:

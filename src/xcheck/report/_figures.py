@@ -114,7 +114,11 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
     extents = guide_extents(native)
     middle = len(chosen) // 2
     for n in [*(n for n in range(len(chosen)) if n != middle), middle]:  # the labelled pose on top
-        _draw_pose(ax, run, chosen[n], alpha=1.0 if n == middle else 0.2, labels=n == middle, extents=extents)
+        # guides and slots over their whole travel with the labelled pose; the ghosts' around their pins
+        ghost = n != middle
+        _draw_pose(
+            ax, run, chosen[n], alpha=0.2 if ghost else 1.0, labels=not ghost, extents=None if ghost else extents
+        )
     values, label = _input_axis(run, native.inputs[chosen, 0])
     title = (
         f"{mech.name}: {label.split(' [')[0]} = "
