@@ -133,3 +133,11 @@ def test_solve_warns_about_a_limit_position_before_the_numbers():
     assert len(lines) == 1 and "crank = 129.0227 deg is near a limit" in lines[0]
     quiet = invoke("solve", "fourbar", "--at", "60", "--models", str(MODELS))
     assert quiet.returncode == 0 and "warning" not in quiet.stderr
+
+
+def test_animate_gives_an_animation_that_saves(tmp_path):
+    mech = xcheck.load("slider-crank", models=MODELS)
+    movie = mech.animate(frames=6)
+    target = tmp_path / "motion.gif"
+    movie.save(target, writer="pillow")
+    assert target.read_bytes()[:6] == b"GIF89a"

@@ -18,7 +18,8 @@ True
 :func:`compare` runs the comparison of ``xcheck run`` and returns one row per
 mode; :func:`run` returns the whole :class:`~xcheck.runner.RunResult` (the
 command line only adds printing, the reports and exit codes).
-:func:`simulate` integrates a mechanism's free motion (``xcheck simulate``).
+:func:`simulate` integrates a mechanism's free motion (``xcheck simulate``);
+``mech.draw(at=...)`` and ``mech.animate()`` picture it (no engine runs).
 
 Rates: an input given without rates moves as its driver's motion law in the
 file says (``motion``, ``rate``, ...: the rule of ``xcheck solve --at`` and of
@@ -436,6 +437,52 @@ class Assembled:
         for line in lines:
             warnings.warn(line, stacklevel=3)
         return Result(sol, labels, lines)
+
+    def animate(self, frames: int = 48, interval: float = 80.0):
+        """The mechanism moving over its sweep (:meth:`sweep` with ``frames``
+        samples) as a :class:`matplotlib.animation.FuncAnimation`: in a notebook
+        ``IPython.display.HTML(animation.to_jshtml())``; in a script
+        ``animation.save("motion.gif", writer="pillow")``.
+
+        Parameters
+        ----------
+        frames : int
+            Poses, evenly over the sweep.
+        interval : float
+            Milliseconds per frame.
+        """
+        from matplotlib.animation import FuncAnimation
+        from matplotlib.figure import Figure
+
+        from .drawing import Pose, draw_pose, guide_extents
+
+        sol = self.sweep(samples=frames).solution
+        good = np.flatnonzero(sol.status <= Status.NEAR_SINGULAR)
+        if not good.size:
+            raise InputError(f"{self.mechanism.path}: expected a sweep with assembled states to animate, found none")
+        scale = self.mechanism.units.length_factor
+        extents = guide_extents(sol)
+        figure = Figure(figsize=(5.5, 4.5))
+        ax = figure.add_subplot()
+        # the view of every pose at once, fixed over the frames
+        for i in good:
+            draw_pose(ax, Pose.of(sol, int(i)), extents, scale=scale, labels=False)
+        limits = ax.get_xlim(), ax.get_ylim()
+
+        def pose(n: int):
+            ax.clear()
+            i = int(good[n])
+            rates = {d.name: float(sol.input_rates[i, k]) for k, d in enumerate(self.mechanism.drivers)}
+            draw_pose(ax, Pose.of(sol, i), extents, scale=scale, arrows=rates)
+            ax.set_xlim(*limits[0])
+            ax.set_ylim(*limits[1])
+            ax.set_aspect("equal", adjustable="box")
+            driver = self.mechanism.drivers[0]
+            shown = self.mechanism.units.show_input(driver.quantity, float(sol.inputs[i, 0]), digits=4)
+            ax.set_title(f"{self.name}: {driver.name} = {shown}", fontsize=9)
+            return []
+
+        return FuncAnimation(figure, pose, frames=len(good), interval=interval)
 
     def draw(self, at=None, si: bool = False) -> "Figure":
         """A drawing of the mechanism at an input (default: the file's

@@ -1,4 +1,4 @@
-"""The command line: ``xcheck list``, ``solve``, ``run`` and ``export``."""
+"""The command line: ``xcheck list``, ``solve``, ``run``, ``draw`` and ``export``."""
 
 from __future__ import annotations
 
