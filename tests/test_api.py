@@ -7,7 +7,7 @@ import math
 import warnings
 
 import pytest
-from conftest import MODELS
+from conftest import MODEL_NAMES, MODELS
 
 import xcheck
 from xcheck import api
@@ -141,3 +141,15 @@ def test_animate_gives_an_animation_that_saves(tmp_path):
     target = tmp_path / "motion.gif"
     movie.save(target, writer="pillow")
     assert target.read_bytes()[:6] == b"GIF89a"
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_no_warning_on_the_bundled_instants_and_sweeps(name):
+    """The thresholds of limit_warnings are loose enough that the runner's
+    sweep (1 % clear of a limit) and the books' instants are never flagged."""
+    mech = xcheck.load(name, models=MODELS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert mech.sweep(samples=181).warnings == []
+        if mech.mechanism.instants:
+            assert mech.solve().warnings == []
