@@ -45,3 +45,13 @@ def test_draw_refuses_a_bad_input_in_one_line(at, expected, tmp_path):
 def test_draw_refuses_an_output_that_is_not_a_png(tmp_path):
     result = invoke("draw", "fourbar", "--models", str(MODELS), "-o", str(tmp_path / "x.txt"))
     assert result.returncode == 2 and result.stderr.startswith("xcheck: error: -o ")
+
+
+def test_draw_takes_every_drivers_value_and_a_branch(tmp_path):
+    arm = invoke("draw", "two-body-arm", "--at", "30:45", "--models", str(MODELS), "-o", str(tmp_path / "arm.png"))
+    assert arm.returncode == 0, arm.stderr
+    lower = invoke("draw", "fourbar", "--branch", "lower", "--models", str(MODELS), "-o", str(tmp_path / "low.png"))
+    assert lower.returncode == 0, lower.stderr
+    upper = invoke("draw", "fourbar", "--models", str(MODELS), "-o", str(tmp_path / "up.png"))
+    assert (tmp_path / "low.png").read_bytes() != (tmp_path / "up.png").read_bytes()
+    assert upper.returncode == 0
