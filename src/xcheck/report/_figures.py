@@ -434,6 +434,8 @@ def convergence_figure(run: RunResult):
                     fontsize=7,
                     color=line.get_color(),
                 )
+        ax.margins(x=0.06, y=0.12)  # room for the order labels under the smallest step's point
+        ax.autoscale_view()
         _reference_slopes(ax)
         _step_ticks(ax)
         ax.set_title(mode, fontsize=9)
