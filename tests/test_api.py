@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import doctest
+import math
+import warnings
 
 import pytest
-from conftest import MODELS
+from conftest import MODEL_NAMES, MODELS
 
 import xcheck
 from xcheck import api
@@ -35,8 +37,119 @@ def test_select_modes_takes_groups_and_sequences():
         xcheck.select_modes("nosuch")
 
 
-def test_compare_is_the_run_without_printing():
-    run = api.compare("fourbar", engines="formulations", samples=21, models=MODELS)
+def test_run_is_the_run_without_printing():
+    run = api.run("fourbar", engines="formulations", samples=21, models=MODELS)
     assert run.passed
     assert set(run.outcomes) == {"native", "formulation-I", "formulation-II"}
     assert len(run.textbook) == 96  # comparisons/fourbar.toml, found beside models/
+
+
+def test_import_xcheck_stays_light():
+    """``import xcheck`` loads neither the runner, pandas, matplotlib nor an engine."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, xcheck; heavy = [m for m in ('xcheck.runner', 'xcheck.api', 'pandas', 'matplotlib', "
+        "'mujoco', 'pinocchio', 'pymunk') if m in sys.modules]; print(heavy)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    assert callable(xcheck.compare_engines) and xcheck.compare_engines is api.compare
+
+
+def test_rates_default_to_the_drivers_laws_not_to_zero():
+    mech = xcheck.load("fourbar", models=MODELS)
+    declared = mech.solve(at=[30, 60]).solution
+    assert declared.input_rates[:, 0].tolist() == [1.0, 1.0]  # rate = 1.0 rad/s in models/fourbar.toml
+    assert abs(declared.qd).max() > 0.1
+    static = mech.solve(at=[30, 60], rates=0).solution
+    assert abs(static.qd).max() == 0.0
+    doubled = mech.solve(at=60, rates=2).solution
+    assert abs(doubled.qd[0] - 2 * declared.qd[1]).max() < 1e-12
+    si = mech.solve(at=math.radians(60), si=True).solution
+    assert abs(si.q[0] - declared.q[1]).max() < 1e-12
+    with pytest.raises(xcheck.InputError, match="accelerations alone"):
+        mech.solve(at=60, accelerations=1)
+
+
+def test_instants_are_the_default_states():
+    mech = xcheck.load("fourbar", models=MODELS)
+    result = mech.solve()
+    assert result.labels == [inst.label for inst in mech.mechanism.instants]
+
+
+def test_to_frame_is_tidy_and_in_si():
+    mech = xcheck.load("task-2-2", models=MODELS)
+    result = mech.sweep(samples=11)
+    frame = result.to_frame()
+    points, bodies = len(mech.mechanism.point_owners), len(mech.mechanism.moving_bodies)
+    assert len(frame) == 11 * (points + bodies)
+    assert {"sample", "kind", "name", "x_m", "vx_m_s", "ax_m_s2", "angle_rad", "omega_rad_s", "r_y_m"} <= set(
+        frame.columns
+    )
+    # a point's row is the solution's own numbers, in metres
+    a = frame[(frame.kind == "point") & (frame.name == "A")].sort_values("sample")
+    assert abs(a.y_m.to_numpy() - result.solution.point("A")["position"][:, 1]).max() == 0.0
+    assert frame.groupby("sample").size().eq(points + bodies).all()
+    assert frame[frame.kind == "point"].angle_rad.isna().all()
+
+
+def test_a_limit_position_is_warned_about_with_its_input():
+    mech = xcheck.load("fourbar", models=MODELS)
+    with pytest.warns(UserWarning, match=r"crank = 129\.0227 deg is near a limit"):
+        result = mech.solve(at=129.0227)
+    assert len(result.warnings) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert mech.solve(at=90).warnings == []
+        assert mech.sweep(samples=21).warnings == []  # the runner's sweep keeps 1 % clear
+
+
+def test_plot_and_draw_return_figures():
+    from matplotlib.figure import Figure
+
+    mech = xcheck.load("slider-crank", models=MODELS)
+    assert isinstance(mech.sweep(samples=9).plot(), Figure)
+    figure = mech.draw(at=30)
+    assert isinstance(figure, Figure) and figure.axes[0].get_title() == "slider-crank: crank = 30 deg"
+    with pytest.raises(xcheck.InputError, match="expected finite values|expected inputs"):
+        mech.solve(at=[[1, 2]])
+
+
+def test_compare_returns_one_row_per_mode():
+    table = api.compare("fourbar", engines="formulations", samples=21, models=MODELS)
+    assert list(table.columns) == list(api.SUMMARY_COLUMNS)
+    assert table["mode"].tolist() == ["native", "formulation-I", "formulation-II"]
+    assert (table.verdict == "pass").all() and (table.error <= table.tolerance).all()
+
+
+def test_solve_warns_about_a_limit_position_before_the_numbers():
+    from conftest import invoke
+
+    result = invoke("solve", "fourbar", "--at", "129.0227", "--models", str(MODELS))
+    assert result.returncode == 0
+    lines = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(lines) == 1 and "crank = 129.0227 deg is near a limit" in lines[0]
+    quiet = invoke("solve", "fourbar", "--at", "60", "--models", str(MODELS))
+    assert quiet.returncode == 0 and "warning" not in quiet.stderr
+
+
+def test_animate_gives_an_animation_that_saves(tmp_path):
+    mech = xcheck.load("slider-crank", models=MODELS)
+    movie = mech.animate(frames=6)
+    target = tmp_path / "motion.gif"
+    movie.save(target, writer="pillow")
+    assert target.read_bytes()[:6] == b"GIF89a"
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_no_warning_on_the_bundled_instants_and_sweeps(name):
+    """The thresholds of limit_warnings are loose enough that the runner's
+    sweep (1 % clear of a limit) and the books' instants are never flagged."""
+    mech = xcheck.load(name, models=MODELS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert mech.sweep(samples=181).warnings == []
+        if mech.mechanism.instants:
+            assert mech.solve().warnings == []

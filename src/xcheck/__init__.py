@@ -15,13 +15,24 @@ __all__ = [
     "Status",
     "XcheckError",
     "__version__",
+    "compare_engines",
     "load",
     "load_mechanism",
     "printed_answers",
     "select_modes",
+    "simulate",
 ]
 
-_API = ("load", "printed_answers", "select_modes")
+#: the functions of xcheck.api offered here, by their name here
+_API = {
+    "load": "load",
+    "printed_answers": "printed_answers",
+    "select_modes": "select_modes",
+    "simulate": "simulate",
+    # ``xcheck.compare`` is the module of the comparison's arithmetic (imported
+    # by the runner): the function that compares engines is offered under this name
+    "compare_engines": "compare",
+}
 
 
 def __getattr__(name: str):
@@ -30,5 +41,5 @@ def __getattr__(name: str):
     if name in _API:
         from . import api
 
-        return getattr(api, name)
+        return getattr(api, _API[name])
     raise AttributeError(f"module 'xcheck' has no attribute {name!r}")

@@ -1,34 +1,518 @@
 """The Python interface: what the command line does, as functions for scripts and notebooks.
 
 >>> import xcheck
->>> kin = xcheck.load("fourbar")
->>> kin.mechanism.name
-'fourbar'
+>>> mech = xcheck.load("fourbar")          # a bundled name, or a path to a .toml file
+>>> mech.name, mech.drivers
+('fourbar', ('crank',))
+>>> state = mech.solve(at=45)              # display units of the file: degrees here
+>>> frame = state.to_frame()               # one row per sample and point or body, SI
+>>> row = frame[(frame.kind == "point") & (frame.name == "C")].iloc[0]
+>>> print(f"{row.x_m:.6f} {row.vx_m_s:.6f}")   # m, m/s: xcheck solve fourbar --at 45 prints 737.864 mm
+0.737864 -0.219406
+>>> sweep = mech.sweep(samples=37)         # the feasible range, as ``xcheck run`` sweeps it
+>>> len(sweep.to_frame()) == 37 * (len(mech.mechanism.point_owners) + 3)
+True
 >>> xcheck.select_modes("formulations")
 ('native', 'formulation-I', 'formulation-II')
 
-:func:`compare` runs the comparison of ``xcheck run`` and returns its
-:class:`~xcheck.runner.RunResult`; the command line only adds printing, the
-reports and exit codes.
+:func:`compare` runs the comparison of ``xcheck run`` and returns one row per
+mode; :func:`run` returns the whole :class:`~xcheck.runner.RunResult` (the
+command line only adds printing, the reports and exit codes).
+:func:`simulate` integrates a mechanism's free motion (``xcheck simulate``);
+``mech.draw(at=...)`` and ``mech.animate()`` picture it (no engine runs).
+
+Rates: an input given without rates moves as its driver's motion law in the
+file says (``motion``, ``rate``, ...: the rule of ``xcheck solve --at`` and of
+the sweeps); a driver whose law stands still gives a static position. Give
+``rates`` to choose them yourself (then accelerations default to zero).
 """
 
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
 
 from . import engines
 from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
 from .errors import InputError
-from .kinematics import Kinematics
-from .model import load_mechanism
-from .runner import RunResult, run_mechanism
+from .kinematics import Kinematics, Solution, Status
+from .model import Mechanism, load_mechanism
+from .motion import law_states
 from .textbook import check_printed, load_comparisons
 
-__all__ = ["load", "select_modes", "printed_answers", "compare"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .runner import RunResult
+
+__all__ = [
+    "Assembled",
+    "Result",
+    "load",
+    "select_modes",
+    "printed_answers",
+    "compare",
+    "run",
+    "simulate",
+    "limit_warnings",
+    "LIMIT_FRACTION",
+    "LIMIT_CONDITIONING",
+]
+
+#: an input closer to a limit position than this fraction of its feasible range
+#: is warned about: the runner's sweeps keep 1e-2 clear (where rates are finite
+#: and every method agrees to round-off); at 1e-3 velocities are already about
+#: three and accelerations about thirty times those at 1e-2, growing without bound
+LIMIT_FRACTION = 1e-3
+#: below this inverse condition number of the scaled constraint Jacobian a state
+#: is warned about as near a singular position (any number of inputs). Measured:
+#: the runner's sweeps and the files' instants of every bundled mechanism stay
+#: above 6.4e-3 (task-2-1); fourbar reaches 1e-3 about 1e-5 of its range from a limit
+LIMIT_CONDITIONING = 1e-3
 
 
-def load(name: str | Path, models: str | Path | None = None, branch: str | None = None) -> Kinematics:
+def limit_warnings(solution: Solution, branch: str | None = None) -> list[str]:
+    """One line per solution that passes near a limit or singular position,
+    naming the input value nearest it; empty when none does.
+
+    A sample is near when it is within :data:`LIMIT_FRACTION` of a one-input
+    mechanism's feasible range from a limit, when the inverse condition number
+    of its constraint Jacobian is below :data:`LIMIT_CONDITIONING`, or when the
+    solver flagged it near-singular or singular.
+    """
+    kin, mech = solution.kinematics, solution.mechanism
+    n = len(solution.status)
+    closeness = np.full(n, np.inf)  # smaller: nearer
+    why = [""] * n
+    good = solution.status <= Status.SINGULAR
+    for i in np.flatnonzero(good & (solution.singularity < LIMIT_CONDITIONING)):
+        closeness[i] = solution.singularity[i] / LIMIT_CONDITIONING
+        why[i] = f"conditioning {solution.singularity[i]:.2g}"
+    if len(mech.drivers) == 1:
+        rng = kin.input_range(0, branch)
+        if rng.low is not None and rng.high is not None and rng.high > rng.low:
+            width = rng.high - rng.low
+            for i in np.flatnonzero(good):
+                value = solution.inputs[i, 0]
+                limit = min((rng.low, rng.high), key=lambda v: abs(v - value))
+                fraction = abs(value - limit) / width
+                if fraction < LIMIT_FRACTION and fraction / LIMIT_FRACTION < closeness[i]:
+                    closeness[i] = fraction / LIMIT_FRACTION
+                    distance = mech.units.show_input(mech.drivers[0].quantity, abs(value - limit), digits=3)
+                    shown = mech.units.show_input(mech.drivers[0].quantity, limit, digits=10)
+                    why[i] = (
+                        f"{distance} from the limit position at {shown}, conditioning {solution.singularity[i]:.2g}"
+                    )
+    near = np.flatnonzero(np.isfinite(closeness))
+    if not near.size:
+        return []
+    worst = int(near[np.argmin(closeness[near])])
+    where = ", ".join(
+        f"{d.name} = {mech.units.show_input(d.quantity, float(solution.inputs[worst, k]), digits=10)}"
+        for k, d in enumerate(mech.drivers)
+    )
+    more = f" ({near.size} samples near it)" if near.size > 1 else ""
+    return [
+        f"{mech.name}: {where} is near a limit or singular position ({why[worst]}){more}: velocities, "
+        "accelerations and forces grow without bound there"
+    ]
+
+
+@dataclass
+class Result:
+    """Positions, velocities and accelerations of a mechanism at N states.
+
+    Attributes
+    ----------
+    solution : Solution
+        The native solver's arrays (SI; see :class:`xcheck.kinematics.Solution`).
+    labels : list of str
+        A label per state.
+    warnings : list of str
+        :func:`limit_warnings` and the states that did not solve (also issued
+        with :func:`warnings.warn` when the result is made).
+    """
+
+    solution: Solution
+    labels: list[str]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def mechanism(self) -> Mechanism:
+        return self.solution.mechanism
+
+    def to_frame(self) -> pd.DataFrame:
+        """A tidy table: one row per state and named point or moving body, SI units.
+
+        Columns: ``sample``, ``label``, per driver its value and rate
+        (``crank_rad``, ``crank_rate_rad_s``; a slide's in ``_m``, ``_rate_m_s``),
+        ``kind`` ("point" or "body"), ``name``, ``body`` (the point's body),
+        ``x_m``, ``y_m``, ``vx_m_s``, ``vy_m_s``, ``ax_m_s2``, ``ay_m_s2``
+        (a body's: its frame origin), ``angle_rad``, ``omega_rad_s``,
+        ``alpha_rad_s2`` (bodies only; NaN for points), ``status``.
+        Rows of states that did not solve hold NaN; ``status`` says why.
+        """
+        sol, mech = self.solution, self.mechanism
+        n = len(sol.status)
+        common: dict[str, object] = {"sample": np.arange(n), "label": list(self.labels)}
+        for k, driver in enumerate(mech.drivers):
+            unit = "rad" if driver.quantity == "angle" else "m"
+            common[f"{driver.name}_{unit}"] = sol.inputs[:, k]
+            common[f"{driver.name}_rate_{unit}_s"] = sol.input_rates[:, k]
+        status = [Status(int(c)).label for c in sol.status]
+        parts = []
+        nan = np.full(n, np.nan)
+        for label, owner in mech.point_owners.items():
+            p = sol.point(label, owner)
+            parts.append(
+                pd.DataFrame(
+                    {
+                        **common,
+                        "kind": "point",
+                        "name": label,
+                        "body": owner,
+                        "x_m": p["position"][:, 0],
+                        "y_m": p["position"][:, 1],
+                        "vx_m_s": p["velocity"][:, 0],
+                        "vy_m_s": p["velocity"][:, 1],
+                        "ax_m_s2": p["acceleration"][:, 0],
+                        "ay_m_s2": p["acceleration"][:, 1],
+                        "angle_rad": nan,
+                        "omega_rad_s": nan,
+                        "alpha_rad_s2": nan,
+                        "status": status,
+                    }
+                )
+            )
+        for body in mech.moving_bodies:
+            b = sol.body(body.name)
+            parts.append(
+                pd.DataFrame(
+                    {
+                        **common,
+                        "kind": "body",
+                        "name": body.name,
+                        "body": body.name,
+                        "x_m": b["position"][:, 0],
+                        "y_m": b["position"][:, 1],
+                        "vx_m_s": b["velocity"][:, 0],
+                        "vy_m_s": b["velocity"][:, 1],
+                        "ax_m_s2": b["acceleration"][:, 0],
+                        "ay_m_s2": b["acceleration"][:, 1],
+                        "angle_rad": b["angle"],
+                        "omega_rad_s": b["omega"],
+                        "alpha_rad_s2": b["alpha"],
+                        "status": status,
+                    }
+                )
+            )
+        return pd.concat(parts, ignore_index=True).sort_values(["sample", "kind"], kind="stable", ignore_index=True)
+
+    def plot(self, point: str | None = None, body: str | None = None) -> "Figure":
+        """A figure of a point's x, |v|, |a| and a body's angle, omega, alpha
+        against the input that varies (display units of the file).
+
+        Parameters
+        ----------
+        point, body : str, optional
+            Default: the fastest moving named point and the body with the
+            largest range of angular velocity that no driver turns directly.
+        """
+        from matplotlib.figure import Figure
+
+        sol, mech, units = self.solution, self.mechanism, self.mechanism.units
+        point = point or _fastest_point(sol)
+        body = body or _output_body(sol)
+        k = int(np.argmax(np.ptp(sol.inputs, axis=0))) if len(sol.status) > 1 else 0
+        driver = mech.drivers[k]
+        factor = units.angle_factor if driver.quantity == "angle" else units.length_factor
+        x = sol.inputs[:, k] / factor
+        xlabel = f"{driver.name} [{units.angle if driver.quantity == 'angle' else units.length}]"
+        p, b = sol.point(point), sol.body(body)
+        panels = [
+            (p["position"][:, 0] / units.length_factor, f"x of {point} [{units.length}]"),
+            (np.linalg.norm(p["velocity"], axis=1) / units.velocity_factor, f"|v| of {point} [{units.velocity}]"),
+            (
+                np.linalg.norm(p["acceleration"], axis=1) / units.acceleration_factor,
+                f"|a| of {point} [{units.acceleration}]",
+            ),
+            (b["angle"] / units.angle_factor, f"angle of {body} [{units.angle}]"),
+            (b["omega"] / units.angular_rate_factor, f"ω of {body} [{units.angular_rate}]"),
+            (b["alpha"] / units.angular_rate_factor, f"α of {body} [{units.angular_acceleration}]"),
+        ]
+        figure = Figure(figsize=(12, 6.5))
+        axes = figure.subplots(2, 3)
+        style = {"marker": "o", "ms": 3} if len(x) < 30 else {}
+        for ax, (values, label) in zip(axes.flat, panels):
+            ax.plot(x, values, color="black", lw=1.4, **style)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+        figure.suptitle(f"{mech.name}: native solution ({len(x)} states)", fontsize=10)
+        figure.tight_layout()
+        return figure
+
+    def draw(self, i: int = 0) -> "Figure":
+        """The mechanism at state ``i`` (:func:`xcheck.drawing.figure_of`)."""
+        from .drawing import figure_of
+
+        return figure_of(self.solution, i)
+
+
+def _fastest_point(sol: Solution) -> str:
+    """The named moving point with the largest speed over the states."""
+    mech = sol.mechanism
+    speeds = {
+        label: np.nanmax(np.linalg.norm(sol.point(label)["velocity"], axis=1), initial=0.0)
+        for label in mech.point_owners
+        if label not in mech.ground.points
+    }
+    return max(speeds, key=lambda label: speeds[label])
+
+
+def _output_body(sol: Solution) -> str:
+    """The body with the largest range of angular velocity that no driver turns directly."""
+    mech = sol.mechanism
+    driven = {mech.joint(d.joint).body_b for d in mech.drivers}
+    spans = {b.name: float(np.nan_to_num(np.ptp(sol.body(b.name)["omega"]))) for b in mech.moving_bodies}
+    candidates = {k: v for k, v in spans.items() if k not in driven} or spans
+    return max(candidates, key=lambda name: candidates[name])
+
+
+@dataclass
+class Assembled:
+    """A mechanism loaded from its file and assembled on a branch (:func:`load`).
+
+    Attributes
+    ----------
+    kinematics : Kinematics
+        The native solver.
+    branch : str
+        The assembly branch every solve keeps to.
+    """
+
+    kinematics: Kinematics
+    branch: str
+
+    @property
+    def mechanism(self) -> Mechanism:
+        return self.kinematics.mechanism
+
+    @property
+    def name(self) -> str:
+        return self.mechanism.name
+
+    @property
+    def drivers(self) -> tuple[str, ...]:
+        """The inputs' names, in the order ``at`` and ``rates`` take them."""
+        return tuple(d.name for d in self.mechanism.drivers)
+
+    def _si(self, values, per_second: bool) -> np.ndarray:
+        """Display-unit inputs (or rates) as SI, shape (N, k)."""
+        units = self.mechanism.units
+        arr = self.kinematics.input_array(values)
+        factors = [
+            (units.angular_rate_factor if per_second else units.angle_factor)
+            if d.quantity == "angle"
+            else units.length_factor
+            for d in self.mechanism.drivers
+        ]
+        return arr * np.array(factors)
+
+    def solve(self, at=None, rates=None, accelerations=None, si: bool = False) -> Result:
+        """Positions, velocities and accelerations at given inputs.
+
+        Parameters
+        ----------
+        at : float or array_like, optional
+            The inputs: shape (N,) for N states of a one-input mechanism,
+            (k,) for one state of a k-input one, or (N, k); in the file's
+            display units (``[units]``: degrees for angles unless it says
+            otherwise, its length unit for slides) unless ``si``. Default:
+            the file's ``[[instants]]``, with their own rates.
+        rates : float or array_like, optional
+            The drivers' rates, same shape as ``at`` (``angular_rate`` of
+            ``[units]`` for angles, length unit per second for slides). Not
+            given: the drivers' motion laws of the file at those inputs (the
+            rule of ``xcheck solve --at``; a law that stands still gives a
+            static position); an input its law never reaches is an error.
+        accelerations : float or array_like, optional
+            With ``rates``: the drivers' accelerations (rate unit per second),
+            default zero. Without ``rates``: the laws' (and this must be None).
+        si : bool
+            ``at``, ``rates`` and ``accelerations`` in SI (rad, m, per s) instead.
+
+        Returns
+        -------
+        Result
+
+        Raises
+        ------
+        InputError
+            If a value has the wrong shape, is not finite, or (rates not
+            given) is one the driver's motion never reaches.
+
+        Examples
+        --------
+        >>> import xcheck
+        >>> mech = xcheck.load("fourbar")
+        >>> given = mech.solve(at=45, rates=2.0)      # 45 deg at 2 rad/s, accelerating at 0
+        >>> declared = mech.solve(at=45)              # the file's crank: 1 rad/s
+        >>> float(given.solution.qd[0, 2] / declared.solution.qd[0, 2])
+        2.0
+        """
+        mech = self.mechanism
+        path = mech.path
+        if at is None:
+            if rates is not None or accelerations is not None:
+                raise InputError(f"{path}: rates: expected them with at (the instants carry their own), found no at")
+            if not mech.instants:
+                raise InputError(f"{path}: instants: expected [[instants]] to solve (or give at), found none")
+            states = np.array([inst.states(mech) for inst in mech.instants])  # (N, k, 3)
+            labels = [inst.label for inst in mech.instants]
+            return self._result(states[:, :, 0], states[:, :, 1], states[:, :, 2], labels)
+        if accelerations is not None and rates is None:
+            raise InputError(f"{path}: accelerations: expected them with rates, found accelerations alone")
+        try:
+            inputs = self.kinematics.input_array(at) * 1.0 if si else self._si(at, False)
+            if rates is None:
+                qd, qdd, reached = law_states(mech, inputs)
+                for k, driver in enumerate(mech.drivers):
+                    if not reached[:, k].all():
+                        value = float(inputs[np.argmin(reached[:, k]), k])
+                        raise InputError(
+                            f"{path}: at {driver.name}: expected a value that the driver's {driver.law.kind} "
+                            f"motion reaches (or give rates), found "
+                            f"{mech.units.show_input(driver.quantity, value, digits=12)}, which it never does"
+                        )
+            else:
+                qd = self.kinematics.input_array(rates) * 1.0 if si else self._si(rates, True)
+                qd = np.broadcast_to(qd, inputs.shape).copy()
+                qdd = np.zeros_like(inputs)
+                if accelerations is not None:
+                    qdd = self.kinematics.input_array(accelerations) * 1.0 if si else self._si(accelerations, True)
+                    qdd = np.broadcast_to(qdd, inputs.shape).copy()
+        except ValueError as err:
+            raise InputError(f"{path}: at/rates: {err}") from None
+        if not (np.isfinite(inputs).all() and np.isfinite(qd).all() and np.isfinite(qdd).all()):
+            raise InputError(f"{path}: at/rates: expected finite values, found {at!r}, {rates!r}")
+        labels = [
+            ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, row))
+            for row in inputs
+        ]
+        return self._result(inputs, qd, qdd, labels)
+
+    def sweep(self, samples: int = 181) -> Result:
+        """The sweep of ``xcheck run``: the first input over its feasible range
+        (one turn of a crank, else the range less 1 % at each limit position),
+        other inputs at the file's ``assembly.at``, rates and accelerations
+        from the drivers' motion laws (:func:`xcheck.runner.sweep_inputs`).
+
+        >>> import xcheck
+        >>> result = xcheck.load("slider-crank").sweep(samples=5)
+        >>> [round(float(v), 4) for v in result.solution.inputs[:, 0]]
+        [0.0, 1.5708, 3.1416, 4.7124, 6.2832]
+        """
+        from .runner import sweep_inputs
+
+        if not 2 <= samples <= 100_000:
+            raise InputError(f"samples: expected a whole number from 2 to 100000, found {samples}")
+        inputs, rates, accelerations = sweep_inputs(self.kinematics, samples, self.branch)
+        labels = [f"sample {i}" for i in range(samples)]
+        return self._result(inputs, rates, accelerations, labels)
+
+    def _result(self, inputs, rates, accelerations, labels) -> Result:
+        sol = self.kinematics.solve(inputs, rates, accelerations, branch=self.branch)
+        lines = limit_warnings(sol, self.branch)
+        for i, code in enumerate(sol.status):
+            if code > Status.SINGULAR:
+                lines.append(f"{self.name}: {labels[i]}: {Status(int(code)).label} ({Status(int(code)).message})")
+        for line in lines:
+            warnings.warn(line, stacklevel=3)
+        return Result(sol, labels, lines)
+
+    def animate(self, frames: int = 48, interval: float = 80.0):
+        """The mechanism moving over its sweep (:meth:`sweep` with ``frames``
+        samples) as a :class:`matplotlib.animation.FuncAnimation`: in a notebook
+        ``IPython.display.HTML(animation.to_jshtml())``; in a script
+        ``animation.save("motion.gif", writer="pillow")``.
+
+        Parameters
+        ----------
+        frames : int
+            Poses, evenly over the sweep.
+        interval : float
+            Milliseconds per frame.
+        """
+        from matplotlib.animation import FuncAnimation
+        from matplotlib.figure import Figure
+
+        from .drawing import Pose, draw_pose, guide_extents
+
+        sol = self.sweep(samples=frames).solution
+        good = np.flatnonzero(sol.status <= Status.NEAR_SINGULAR)
+        if not good.size:
+            raise InputError(f"{self.mechanism.path}: expected a sweep with assembled states to animate, found none")
+        scale = self.mechanism.units.length_factor
+        extents = guide_extents(sol)
+        figure = Figure(figsize=(5.5, 4.5))
+        ax = figure.add_subplot()
+        # the view of every pose at once, fixed over the frames
+        for i in good:
+            draw_pose(ax, Pose.of(sol, int(i)), extents, scale=scale, labels=False)
+        limits = ax.get_xlim(), ax.get_ylim()
+
+        def pose(n: int):
+            ax.clear()
+            i = int(good[n])
+            rates = {d.name: float(sol.input_rates[i, k]) for k, d in enumerate(self.mechanism.drivers)}
+            draw_pose(ax, Pose.of(sol, i), extents, scale=scale, arrows=rates)
+            ax.set_xlim(*limits[0])
+            ax.set_ylim(*limits[1])
+            ax.set_aspect("equal", adjustable="box")
+            driver = self.mechanism.drivers[0]
+            shown = self.mechanism.units.show_input(driver.quantity, float(sol.inputs[i, 0]), digits=4)
+            ax.set_title(f"{self.name}: {driver.name} = {shown}", fontsize=9)
+            return []
+
+        return FuncAnimation(figure, pose, frames=len(good), interval=interval)
+
+    def draw(self, at=None, si: bool = False) -> "Figure":
+        """A drawing of the mechanism at an input (default: the file's
+        ``assembly.at``), with the inputs' arrows; display units unless ``si``.
+
+        >>> import xcheck
+        >>> figure = xcheck.load("task-2-1").draw(at=40)
+        >>> figure.axes[0].get_title()
+        'task-2-1: crank = 40 deg'
+        """
+        from .drawing import figure_of
+
+        c = self.kinematics.reference_inputs()[None] if at is None else None
+        if c is None:
+            c = self.kinematics.input_array(at) * 1.0 if si else self._si(at, False)
+        rates, _, _ = law_states(self.mechanism, c)
+        sol = self.kinematics.solve(c, rates, branch=self.branch)
+        if sol.status[0] > Status.SINGULAR:
+            shown = ", ".join(
+                f"{d.name} = {self.mechanism.units.show_input(d.quantity, v)}"
+                for d, v in zip(self.mechanism.drivers, c[0])
+            )
+            raise InputError(
+                f"{self.mechanism.path}: at: expected an input where the mechanism assembles, found {shown} "
+                f"({Status(int(sol.status[0])).message})"
+            )
+        return figure_of(sol, 0)
+
+
+def load(name: str | Path, models: str | Path | None = None, branch: str | None = None) -> Assembled:
     """A mechanism, assembled: by name from the models directory (``models``,
     else $XCHECK_MODELS, else ./models, else the bundled ones) or by path.
 
@@ -40,7 +524,7 @@ def load(name: str | Path, models: str | Path | None = None, branch: str | None 
     """
     kinematics = Kinematics(load_mechanism(model_path(str(name), models_dir(models))))
     kinematics.assemble(branch)
-    return kinematics
+    return Assembled(kinematics, kinematics._branch_name(branch))
 
 
 def select_modes(
@@ -104,21 +588,21 @@ def printed_answers(kinematics: Kinematics, comparisons: str | Path | None = Non
     return check_printed(kinematics, printed), printed.document
 
 
-def compare(
-    name: str | Path | Kinematics,
+def run(
+    name: str | Path | Kinematics | Assembled,
     engines: str | Sequence[str] | None = None,
     samples: int = 181,
     branch: str | None = None,
     models: str | Path | None = None,
     comparisons: str | Path | None = None,
     progress=None,
-) -> RunResult:
+) -> "RunResult":
     """Every requested mode on one mechanism against the exact native solution
     (``xcheck run`` without printing or reports).
 
     Parameters
     ----------
-    name : str, Path or Kinematics
+    name : str, Path, Kinematics or Assembled
         A mechanism name, a file, or a loaded mechanism.
     engines : str or sequence of str, optional
         As :func:`select_modes` (default: every mode).
@@ -133,6 +617,154 @@ def compare(
         ``passed`` says whether every mode met its tolerance; ``outcomes`` has
         each mode's table of differences by category.
     """
-    kinematics = name if isinstance(name, Kinematics) else load(name, models, branch)
+    from .runner import run_mechanism
+
+    if isinstance(name, Assembled):
+        kinematics, branch = name.kinematics, branch or name.branch
+    elif isinstance(name, Kinematics):
+        kinematics = name
+    else:
+        kinematics = load(name, models, branch).kinematics
     textbook, _ = printed_answers(kinematics, comparisons)
     return run_mechanism(kinematics, select_modes(engines), samples, branch, textbook, progress=progress)
+
+
+#: the columns of :func:`compare`'s table
+SUMMARY_COLUMNS = ("engine", "mode", "kind", "verdict", "category", "error", "tolerance", "reason")
+
+
+def summary(result: "RunResult") -> pd.DataFrame:
+    """One row per mode of a run: engine, mode, kind (native, kinematic,
+    dynamic), verdict ("pass", "fail", "failed": it did not run through, "not
+    applicable"), the category whose relative error is largest against its
+    tolerance, that error and tolerance (relative: see
+    :class:`xcheck.runner.ModeOutcome`), and the reason of a mode that failed
+    or does not apply."""
+    rows = []
+    for mode, outcome in result.outcomes.items():
+        worst: tuple[float, str, float, float] | None = None  # (ratio, category, relative, tolerance)
+        for category, relative, limit in zip(
+            outcome.categories.get("category", []),
+            outcome.categories.get("relative", []),
+            outcome.categories.get("tolerance", []),
+        ):
+            relative, limit = float(relative), float(limit)
+            ratio = relative / limit if limit > 0 else math.inf
+            if worst is None or not ratio <= worst[0]:
+                worst = (ratio, str(category), relative, limit)
+        verdict = "failed" if not outcome.ok else ("pass" if outcome.passed else "fail")
+        rows.append(
+            {
+                "engine": "xcheck" if mode == "native" else engines.engine_of(mode).name,
+                "mode": mode,
+                "kind": "native" if mode == "native" else engines.mode(mode).kind,
+                "verdict": verdict,
+                "category": worst[1] if worst else None,
+                "error": worst[2] if worst else math.nan,
+                "tolerance": worst[3] if worst else math.nan,
+                "reason": outcome.reason or None,
+            }
+        )
+    for mode, reason in result.not_applicable.items():
+        rows.append(
+            {
+                "engine": engines.engine_of(mode).name,
+                "mode": mode,
+                "kind": engines.mode(mode).kind,
+                "verdict": "not applicable",
+                "category": None,
+                "error": math.nan,
+                "tolerance": math.nan,
+                "reason": reason,
+            }
+        )
+    return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+
+
+def compare(
+    name: str | Path | Kinematics | Assembled,
+    engines: str | Sequence[str] | None = None,
+    samples: int = 181,
+    branch: str | None = None,
+    models: str | Path | None = None,
+    comparisons: str | Path | None = None,
+    progress=None,
+) -> pd.DataFrame:
+    """Run the requested modes against the native solution (:func:`run`) and
+    return its :func:`summary`: one row per mode.
+
+    ``xcheck.compare`` is the module of the comparison's arithmetic; this
+    function is ``xcheck.api.compare`` or, at the top level,
+    ``xcheck.compare_engines``.
+
+    >>> import xcheck
+    >>> table = xcheck.compare_engines("fourbar", engines="formulations", samples=21)
+    >>> print(table[["mode", "kind", "verdict"]].to_string(index=False))
+              mode      kind verdict
+            native    native    pass
+     formulation-I kinematic    pass
+    formulation-II kinematic    pass
+    >>> bool((table.error <= table.tolerance).all())
+    True
+    """
+    return summary(run(name, engines, samples, branch, models, comparisons, progress))
+
+
+def simulate(
+    name: str | Path | Assembled,
+    duration: float | None = None,
+    branch: str | None = None,
+    models: str | Path | None = None,
+) -> pd.DataFrame:
+    """The native reference of a mechanism's free motion (``[free_motion]`` of
+    its file; ``xcheck simulate`` without the engines): one row per output
+    time and moving body, SI units.
+
+    Columns: ``time_s``, ``body``, ``x_m``, ``y_m``, ``angle_rad`` (the body
+    frame), ``vx_m_s``, ``vy_m_s``, ``omega_rad_s``, ``error_bound_m`` (the
+    reference's stated error at that time: the largest difference so far
+    between its two finest runs). ``attrs`` holds ``converged`` (bool) and
+    ``relative_error`` (the bound per mechanism size).
+
+    Parameters
+    ----------
+    duration : float, optional
+        Simulated time, s (default: the file's).
+
+    >>> import xcheck
+    >>> motion = xcheck.simulate("iftomm-a01", duration=0.05)
+    >>> sorted(motion.columns)[:4], bool(motion.attrs["converged"])
+    (['angle_rad', 'body', 'error_bound_m', 'omega_rad_s'], True)
+    """
+    from .dynamics._free import simulate as free_simulate
+
+    loaded = name if isinstance(name, Assembled) else load(name, models, branch)
+    mech = loaded.mechanism
+    if mech.free_motion is None:
+        raise InputError(f"{mech.path}: free_motion: expected a [free_motion] section to simulate, found none")
+    if duration is not None and not 0.0 < duration <= 1e6:
+        raise InputError(f"duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
+    reference = free_simulate(loaded.kinematics, loaded.branch, duration)
+    motion = reference.motion
+    index = loaded.kinematics.system.body_index
+    parts = []
+    for body in mech.moving_bodies:
+        k = 3 * index[body.name]
+        parts.append(
+            pd.DataFrame(
+                {
+                    "time_s": motion.times,
+                    "body": body.name,
+                    "x_m": motion.q[:, k],
+                    "y_m": motion.q[:, k + 1],
+                    "angle_rad": motion.q[:, k + 2],
+                    "vx_m_s": motion.qd[:, k],
+                    "vy_m_s": motion.qd[:, k + 1],
+                    "omega_rad_s": motion.qd[:, k + 2],
+                    "error_bound_m": reference.estimate,
+                }
+            )
+        )
+    frame = pd.concat(parts, ignore_index=True).sort_values(["time_s"], kind="stable", ignore_index=True)
+    frame.attrs = {"converged": bool(reference.converged), "relative_error": float(reference.relative)}
+    return frame

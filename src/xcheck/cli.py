@@ -1,8 +1,9 @@
-"""The command line: ``xcheck list``, ``solve``, ``run`` and ``export``."""
+"""The command line: ``xcheck list``, ``solve``, ``run``, ``draw`` and ``export``."""
 
 from __future__ import annotations
 
 import functools
+import io
 import json
 import math
 from pathlib import Path
@@ -17,7 +18,7 @@ from rich.table import Table
 
 from . import __version__
 from . import engines as registry
-from .api import printed_answers, select_modes
+from .api import limit_warnings, printed_answers, select_modes
 from .catalog import benchmark_names, indexed_names, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
@@ -316,6 +317,8 @@ def solve_command(
     values = np.array(states)  # (N, k, 3)
     solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
     _check_statuses(kin, solution, labels, fields)
+    for line in limit_warnings(solution, branch):  # before the numbers that explode there
+        typer.echo(f"xcheck: warning: {line}", err=True)
     # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
     # after the solution, which still prints
     # reactions and efforts when the file gives mass data; missing data on some
@@ -346,6 +349,66 @@ def solve_command(
         raise forces_error
     if textbook_error is not None:
         raise textbook_error
+
+
+@app.command("draw")
+@_reports_errors
+def draw_command(
+    name: Annotated[str, typer.Argument(help="Mechanism name (see `xcheck list`) or path to a .toml file.")],
+    at: Annotated[
+        Optional[str],
+        typer.Option(
+            "--at",
+            metavar="V[:V…]",
+            help="The input in display units (degrees for angles, the model's length unit for slides; "
+            "several drivers' values separated by colons). Default: the file's assembly.at.",
+        ),
+    ] = None,
+    output: Annotated[
+        Optional[Path], typer.Option("-o", "--output", help="The PNG to write (default: NAME.png here).")
+    ] = None,
+    branch: Annotated[
+        Optional[str], typer.Option("--branch", help="Assembly branch (default: the model file's first).")
+    ] = None,
+    models: ModelsOption = None,
+):
+    """Draw the mechanism at an input as a PNG, without running any engine.
+
+    Bodies are drawn as links between their joints, blocks on prismatic joints,
+    pins in their slots, the ground hatched, the points labelled and the inputs'
+    directions as arrows (from the drivers' motion laws).
+
+    Examples: xcheck draw fourbar;  xcheck draw task-2-1 --at 40 -o task.png
+    """
+    from .api import Assembled
+
+    path = model_path(name, models_dir(models))
+    mech = load_mechanism(path)
+    kin = Kinematics(mech)
+    kin.assemble(branch)
+    target = output if output is not None else Path(f"{mech.name}.png")
+    if target.suffix.lower() != ".png":
+        raise InputError(f"-o {target}: expected a file name ending in .png, found {target.suffix or 'none'}")
+    if at is not None:
+        if "," in at:
+            raise InputError(
+                f"{mech.path}: --at: expected one state (values of several drivers separated by colons), found {at!r}"
+            )
+        u = mech.units
+        inputs = _parse_values(
+            at, mech, "--at", lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor
+        )[0]
+        if not all(math.isfinite(v) for v in inputs):
+            raise InputError(f"{mech.path}: --at: expected finite values, found {at!r}")
+        _check_ranges(kin, [[(v, 0.0, 0.0) for v in inputs]], branch, None)
+    figure = Assembled(kin, kin._branch_name(branch)).draw(None if at is None else inputs, si=True)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100)
+    try:
+        write_atomic(target, buffer.getvalue())
+    except OSError as err:
+        raise InputError(f"-o {target}: expected a file that can be written, found {err.strerror or err}") from None
+    typer.echo(str(target))
 
 
 #: Most samples of a sweep: a sweep's cost grows with them (every engine mode

@@ -14,11 +14,12 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import animation  # noqa: E402
-from scipy.spatial import ConvexHull, QhullError  # noqa: E402
+from matplotlib import animation, ticker  # noqa: E402
 
 from .. import engines  # noqa: E402
-from ..model import PinInSlot, Prismatic  # noqa: E402
+from ..compare import native_at  # noqa: E402
+from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
+from ..kinematics import Solution  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
@@ -81,36 +82,21 @@ def tracked(run: RunResult) -> tuple[str, str]:
     return point, max(candidates, key=lambda name: candidates[name])
 
 
-def _body_outline(points: np.ndarray):
-    """Vertices of a body's outline (convex hull, or the segment through collinear points)."""
-    if len(points) >= 3:
-        try:
-            hull = ConvexHull(points)
-            return points[np.append(hull.vertices, hull.vertices[0])]
-        except QhullError:
-            pass
-    if len(points) >= 2:
-        direction = points[-1] - points[0]
-        order = np.argsort(points @ direction)
-        return points[[order[0], order[-1]]]
-    return points
-
-
-def _draw_pose(ax, run: RunResult, i: int, alpha: float, labels: bool) -> None:
-    mech, native, scale = run.mechanism, run.native, run.mechanism.units.length_factor
-    colors = plt.cm.tab10(np.linspace(0, 1, 10))
-    for n, body in enumerate(mech.moving_bodies):
-        pts = np.array([native.point(label, body.name)["position"][i] for label in body.points]) / scale
-        outline = _body_outline(pts)
-        ax.plot(outline[:, 0], outline[:, 1], "-", color=colors[n % 10], lw=2.5, alpha=alpha, solid_capstyle="round")
-        if len(outline) > 3:
-            ax.fill(outline[:, 0], outline[:, 1], color=colors[n % 10], alpha=0.12 * alpha)
-    for label in mech.point_owners:
-        xy = native.point(label)["position"][i] / scale
-        on_ground = label in mech.ground.points
-        ax.plot(*xy, "^" if on_ground else "o", color="black", ms=7 if on_ground else 4, alpha=alpha)
-        if labels:
-            ax.annotate(label, xy, xytext=(4, 4), textcoords="offset points", fontsize=9)
+def _draw_pose(ax, run: RunResult, i: int, alpha: float, labels: bool, extents=None) -> None:
+    """Sample ``i`` of the native sweep (:func:`xcheck.drawing.draw_pose`): the
+    ground, labels and the inputs' arrows with the opaque pose only."""
+    native = run.native
+    arrows = {d.name: float(native.input_rates[i, k]) for k, d in enumerate(run.mechanism.drivers)} if labels else None
+    draw_pose(
+        ax,
+        Pose.of(native, i),
+        extents,
+        scale=run.mechanism.units.length_factor,
+        alpha=alpha,
+        labels=labels,
+        arrows=arrows,
+        ground=labels,
+    )
 
 
 def drawing(run: RunResult, poses: int = 5) -> bytes:
@@ -124,13 +110,15 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
             continue
         path = native.point(label)["position"][good] / scale
         ax.plot(path[:, 0], path[:, 1], lw=0.8, color="tab:gray", alpha=0.7)
-    for joint in mech.joints:
-        if isinstance(joint, (Prismatic, PinInSlot)) and joint.body_a == "ground":
-            slide = native.point(joint.point, joint.body_b)["position"][good] / scale
-            ax.plot(slide[:, 0], slide[:, 1], "--", color="black", lw=0.8)
     chosen = good[np.linspace(0, len(good) - 1, poses).round().astype(int)]
-    for n, i in enumerate(chosen):
-        _draw_pose(ax, run, i, alpha=0.25 + 0.75 * (n == len(chosen) // 2), labels=n == len(chosen) // 2)
+    extents = guide_extents(native)
+    middle = len(chosen) // 2
+    for n in [*(n for n in range(len(chosen)) if n != middle), middle]:  # the labelled pose on top
+        # guides and slots over their whole travel with the labelled pose; the ghosts' around their pins
+        ghost = n != middle
+        _draw_pose(
+            ax, run, chosen[n], alpha=0.2 if ghost else 1.0, labels=not ghost, extents=None if ghost else extents
+        )
     values, label = _input_axis(run, native.inputs[chosen, 0])
     title = (
         f"{mech.name}: {label.split(' [')[0]} = "
@@ -155,6 +143,7 @@ def motion_gif(run: RunResult, frames: int = 24) -> bytes:
     xy = np.concatenate([native.point(label)["position"][good] / scale for label in every])
     pad = 0.05 * np.ptp(xy, axis=0).max()
     figure, ax = plt.subplots(figsize=(4.5, 3.6), dpi=70)
+    extents = guide_extents(native)
 
     def draw(n):
         ax.clear()
@@ -162,7 +151,7 @@ def motion_gif(run: RunResult, frames: int = 24) -> bytes:
         ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
         ax.set_aspect("equal")
         ax.set_axis_off()
-        _draw_pose(ax, run, good[int(round(n * (len(good) - 1) / (frames - 1)))], alpha=1.0, labels=True)
+        _draw_pose(ax, run, good[int(round(n * (len(good) - 1) / (frames - 1)))], 1.0, True, extents)
 
     movie = animation.FuncAnimation(figure, draw, frames=frames)
     with tempfile.TemporaryDirectory() as tmp:
@@ -172,27 +161,89 @@ def motion_gif(run: RunResult, frames: int = 24) -> bytes:
         return target.read_bytes()
 
 
-def _series(run: RunResult, mode: str, point: str, body: str):
-    """Per category: (inputs (N,), values (N,)) of the tracked point and body in a mode."""
-    if mode == "native":
-        sol = run.native
-        p, b, inputs = sol.point(point), sol.body(body), sol.inputs[:, 0]
+def _values(source, point: str, body: str) -> dict[str, np.ndarray | None]:
+    """Per category, the tracked point's and body's values in a Solution or a
+    Trajectory (None where the source does not give the quantity), SI."""
+    if isinstance(source, Solution):
+        p, b = source.point(point), source.body(body)
     else:
-        t = run.outcomes[mode].trajectory
-        assert t is not None  # only modes that produced a trajectory are plotted
-        p, b, inputs = t.points.get(point, {}), t.bodies.get(body, {}), t.inputs[:, 0]
+        p, b = source.points.get(point, {}), source.bodies.get(body, {})
     return {
-        "position": (inputs, p["position"][:, 0]) if "position" in p else None,
-        "velocity": (inputs, np.linalg.norm(p["velocity"], axis=1)) if "velocity" in p else None,
-        "acceleration": (inputs, np.linalg.norm(p["acceleration"], axis=1)) if "acceleration" in p else None,
-        "angle": (inputs, np.unwrap(b["angle"])) if "angle" in b else None,
-        "omega": (inputs, b["omega"]) if "omega" in b else None,
-        "alpha": (inputs, b["alpha"]) if "alpha" in b else None,
+        "position": p["position"][:, 0] if "position" in p else None,
+        "velocity": np.linalg.norm(p["velocity"], axis=1) if "velocity" in p else None,
+        "acceleration": np.linalg.norm(p["acceleration"], axis=1) if "acceleration" in p else None,
+        "angle": np.unwrap(b["angle"]) if "angle" in b else None,
+        "omega": b["omega"] if "omega" in b else None,
+        "alpha": b["alpha"] if "alpha" in b else None,
     }
 
 
+def _on_the_sweep(run: RunResult, inputs: np.ndarray) -> np.ndarray:
+    """The samples of a kinematic mode's trajectory that lie on the runner's
+    sweep: the first input within the native sweep's span (the runner keeps
+    1 % of the range clear of a limit; the engines' own sweeps may go nearer)
+    and the other inputs at the values the native sweep holds them at."""
+    native = run.native.inputs
+    low, high = native[:, 0].min(), native[:, 0].max()
+    slack = 1e-9 * max(1.0, high - low)
+    keep = (inputs[:, 0] >= low - slack) & (inputs[:, 0] <= high + slack)
+    if native.shape[1] > 1:
+        keep &= np.all(np.abs(inputs[:, 1:] - native[0, 1:]) <= 1e-9 * np.maximum(1.0, np.abs(native[0, 1:])), axis=1)
+    return keep
+
+
+def _blocks(run: RunResult):
+    """The panels' blocks of :func:`quantities` and :func:`error_plots`, each
+    with one abscissa for every series in it.
+
+    Returns
+    -------
+    list of (title, axis, series)
+        ``axis`` is "input" (the first driver, the runner's sweep) or "time"
+        (s); ``series`` lists (mode, x (SI), mask) with mask the samples shown.
+        Kinematic modes go on the input, only their samples on the runner's
+        sweep; dynamic modes of a one-input mechanism too (over their window),
+        of a mechanism with several inputs against time, where every input moves.
+    """
+    several = len(run.mechanism.drivers) > 1
+    sweep, timed = [], []
+    for mode, outcome in run.outcomes.items():
+        t = outcome.trajectory
+        if mode == "native" or t is None:
+            continue
+        if not _is_dynamic(mode):
+            sweep.append((mode, t.inputs[:, 0], _on_the_sweep(run, t.inputs)))
+        elif several and t.times is not None:
+            timed.append((mode, t.times, np.ones(len(t.times), dtype=bool)))
+        else:
+            sweep.append((mode, t.inputs[:, 0], np.ones(len(t.inputs), dtype=bool)))
+    driver = run.mechanism.drivers[0].name
+    held = ", ".join(d.name for d in run.mechanism.drivers[1:])
+    blocks = [
+        (
+            f"the runner's sweep of {driver}" + (f" ({held} held at the assembly)" if several else ""),
+            "input",
+            sweep,
+        )
+    ]
+    if timed:
+        blocks.append(("the dynamic modes' simulated window (every input moves)", "time", timed))
+    return blocks
+
+
+def _abscissa(run: RunResult, axis: str, x: np.ndarray) -> tuple[np.ndarray, str]:
+    return _input_axis(run, x) if axis == "input" else (x, "time [s]")
+
+
 def quantities(run: RunResult) -> bytes:
-    """Each quantity of the tracked point and body against the input, all modes overlaid (PNG)."""
+    """Each quantity of the tracked point and body, all modes overlaid: against
+    the first input over the runner's sweep, and (several inputs) the dynamic
+    modes against time with the native solution at their states (PNG)."""
+    return _png(quantities_figure(run))
+
+
+def quantities_figure(run: RunResult):
+    """The figure of :func:`quantities` (open: the caller closes it)."""
     mech, units = run.mechanism, run.mechanism.units
     point, body = tracked(run)
     scales = {
@@ -203,68 +254,163 @@ def quantities(run: RunResult) -> bytes:
         "omega": (units.angular_rate_factor, f"ω of {body} [{units.angular_rate}]"),
         "alpha": (units.angular_rate_factor, f"α of {body} [{units.angular_acceleration}]"),
     }
-    figure, axes = plt.subplots(2, 3, figsize=(13, 7))
-    modes = ["native"] + [m for m, o in run.outcomes.items() if m != "native" and o.trajectory is not None]
-    for ax, category in zip(axes.flat, CATEGORIES):
-        factor, ylabel = scales[category]
-        reference = _series(run, "native", point, body)[category]
-        for mode in modes:
-            data = _series(run, mode, point, body)[category]
-            if data is None:
-                continue
-            x, _ = _input_axis(run, data[0])
-            values = data[1]
-            if category == "angle":  # same turn as the native angle at the first sample
-                native_there = np.interp(data[0][0], reference[0], reference[1])
-                values = values - 2 * np.pi * np.round((values[0] - native_there) / (2 * np.pi))
-            order = np.argsort(x, kind="stable") if mode != "native" else slice(None)
-            ax.plot(x[order], values[order] / factor, label=mode, **_style(mode))
-        ax.set_ylabel(ylabel)
-        ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
-        ax.grid(alpha=0.3)
-    axes.flat[0].legend(fontsize=7, loc="best")
-    figure.suptitle(
-        f"{mech.name}: quantities against the input (native: line; engines: markers and dashes)", fontsize=10
-    )
+    blocks = _blocks(run)
+    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
+    for b, (title, axis, series) in enumerate(blocks):
+        axes = grid[2 * b : 2 * b + 2]
+        if axis == "input":
+            reference_x, reference = run.native.inputs[:, 0], _values(run.native, point, body)
+            label = "native"
+        else:  # the native solution at the first dynamic mode's own states
+            trajectory = run.outcomes[series[0][0]].trajectory
+            assert trajectory is not None
+            reference_x = series[0][1]
+            reference = _values(native_at(run.kinematics, trajectory, run.branch), point, body)
+            label = f"native at {series[0][0]}'s states"
+        for ax, category in zip(axes.flat, CATEGORIES):
+            factor, ylabel = scales[category]
+            native_x, xlabel = _abscissa(run, axis, reference_x)
+            if reference[category] is not None:
+                ax.plot(native_x, reference[category] / factor, label=label, **_style("native"))
+            for mode, raw_x, mask in series:
+                trajectory = run.outcomes[mode].trajectory
+                assert trajectory is not None
+                values = _values(trajectory, point, body)[category]
+                if values is None or not mask.any():
+                    continue
+                x, _ = _abscissa(run, axis, raw_x[mask])
+                values = values[mask]
+                native_angle = reference[category]
+                if category == "angle" and native_angle is not None:  # the native angle's turn, per sample
+                    there = np.interp(x, native_x, native_angle)
+                    values = values - 2 * np.pi * np.round((values - there) / (2 * np.pi))
+                order = np.argsort(x, kind="stable")
+                ax.plot(x[order], values[order] / factor, label=mode, **_style(mode))
+            ax.set_ylabel(ylabel)
+            ax.set_xlabel(xlabel)
+            ax.grid(alpha=0.3)
+        axes[0, 0].legend(fontsize=7, loc="best")
+        axes[0, 1].set_title(title, fontsize=9)
+    figure.suptitle(f"{mech.name}: quantities (native: line; engines: markers and dashes)", fontsize=10)
     figure.tight_layout()
-    return _png(figure)
+    return figure
+
+
+def _relative_scale(run: RunResult, outcome, category: str) -> float:
+    """The scale that makes a category's difference relative, as the verdict
+    does (:func:`xcheck.runner._categorise`): the mechanism's size for
+    positions, 1 rad for angles, else the largest magnitude of the quantity
+    over all bodies and points (at least its physical floor)."""
+    if category == "position":
+        return run.kinematics.system.size
+    if category == "angle":
+        return 1.0
+    part = outcome.details[outcome.details.quantity == category] if not outcome.details.empty else None
+    return float(part.scale.max()) if part is not None and not part.empty else math.nan
 
 
 def error_plots(run: RunResult) -> bytes:
-    """Each mode's largest error over all bodies and points against the input, log scale (PNG)."""
-    figure, axes = plt.subplots(2, 3, figsize=(13, 7))
-    units = {
-        "position": "m",
-        "velocity": "m/s",
-        "acceleration": "m/s²",
-        "angle": "rad",
-        "omega": "rad/s",
-        "alpha": "rad/s²",
-    }
-    for ax, category in zip(axes.flat, CATEGORIES):
-        for mode, outcome in run.outcomes.items():
-            errors = outcome.errors.get(category)
-            if errors is None or outcome.trajectory is None:
-                continue
-            x, _ = _input_axis(run, outcome.trajectory.inputs[:, 0])
-            order = np.argsort(x, kind="stable")
-            floor = np.where(errors[order] > 0, errors[order], 1e-18)  # exact zeros drawn at the floor
-            ax.semilogy(x[order], floor, label=mode, lw=1, **_line_style(mode))
-        ax.set_ylabel(f"largest {category} error [{units[category]}]")
-        ax.set_xlabel(_input_axis(run, np.zeros(1))[1])
-        ax.grid(alpha=0.3, which="both")
-    axes.flat[0].legend(fontsize=7, loc="best")
+    """Each mode's largest difference over all bodies and points, relative as
+    the verdict takes it, against the input (or time), log scale, with each
+    mode's tolerance as a dotted line of its colour (PNG)."""
+    return _png(error_figure(run))
+
+
+def error_figure(run: RunResult):
+    """The figure of :func:`error_plots` (open: the caller closes it)."""
+    blocks = _blocks(run)
+    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
+    for b, (title, axis, series) in enumerate(blocks):
+        axes = grid[2 * b : 2 * b + 2]
+        xlabel = _abscissa(run, axis, np.zeros(1))[1]
+        for ax, category in zip(axes.flat, CATEGORIES):
+            for mode, raw_x, mask in series:
+                outcome = run.outcomes[mode]
+                errors = outcome.errors.get(category)
+                if errors is None or not mask.any():
+                    continue
+                relative = errors[mask] / _relative_scale(run, outcome, category)
+                x, _ = _abscissa(run, axis, raw_x[mask])
+                order = np.argsort(x, kind="stable")
+                floor = np.fmax(relative[order], 1e-18)  # exact zeros (and below) drawn at the floor
+                style = _line_style(mode)
+                ax.semilogy(x[order], floor, label=mode, lw=1, **style)
+                row = outcome.categories[outcome.categories.category == category]
+                if not row.empty and np.isfinite(row.tolerance.iloc[0]) and row.tolerance.iloc[0] > 0:
+                    ax.axhline(float(row.tolerance.iloc[0]), color=style["color"], ls=":", lw=1.2)
+            ax.set_ylabel(f"relative {category} difference")
+            ax.set_xlabel(xlabel)
+            ax.grid(alpha=0.3, which="both")
+        axes[0, 0].plot([], [], color="gray", ls=":", lw=1.2, label="tolerance (mode's colour)")
+        axes[0, 0].legend(fontsize=7, loc="best")
+        axes[0, 1].set_title(title, fontsize=9)
     figure.suptitle(
-        f"{run.mechanism.name}: difference from the native solution (largest over all bodies "
-        "and points; 1e-18 marks an exact zero)",
+        f"{run.mechanism.name}: difference from the native solution, relative as judged (position per size, "
+        "angle in rad, others per their largest magnitude)\ndotted: each mode's tolerance; 1e-18: an exact zero "
+        "or less",
         fontsize=10,
     )
     figure.tight_layout()
-    return _png(figure)
+    return figure
+
+
+#: the orders whose slopes the convergence plots draw for reference
+REFERENCE_ORDERS = (1, 2, 4)
+
+
+def _reference_slopes(ax) -> None:
+    """Grey lines of error proportional to h^p for p in :data:`REFERENCE_ORDERS`,
+    through the lower left of the data, inside the axes' present limits; a
+    series parallel to one converges at that order."""
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    lines = [line for line in ax.get_lines() if len(line.get_xdata())]
+    if not lines:
+        return
+    xs = np.concatenate([np.asarray(line.get_xdata(), dtype=float) for line in lines])
+    ys = np.concatenate([np.asarray(line.get_ydata(), dtype=float) for line in lines])
+    h_low, h_high = xs.min(), xs.max()
+    if not h_high > h_low:  # one step: no slope to compare with
+        return
+    at_smallest = ys[(xs == h_low) & np.isfinite(ys) & (ys > 0)]
+    anchor = float(at_smallest.min()) if at_smallest.size else y0
+    for order, style in zip(REFERENCE_ORDERS, (":", "--", "-.")):
+        h = np.geomspace(h_low, h_high, 20)
+        e = anchor * (h / h_low) ** order
+        ax.loglog(h, e, color="0.55", lw=0.9, ls=style, zorder=0)
+        inside = e <= y1
+        end = int(np.flatnonzero(inside)[-1]) if inside.any() else 0
+        ax.annotate(
+            f"$h^{order}$" if order != 1 else "$h$",
+            (h[end], e[end]),
+            xytext=(2, 0),
+            textcoords="offset points",
+            fontsize=7,
+            color="0.4",
+        )
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+
+
+def _step_ticks(ax) -> None:
+    """Time-step ticks that do not overlap: short labels ("2e-04") at 1, 2 and 5
+    times the powers of ten over at most two decades, else at the powers alone;
+    the other minor ticks unlabelled."""
+    low, high = ax.get_xlim()
+    subs = (1.0, 2.0, 5.0) if math.log10(high / low) <= 2.0 else (1.0,)
+    ax.xaxis.set_major_locator(ticker.LogLocator(base=10.0, subs=subs, numticks=12))
+    ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:.0e}"))
+    ax.xaxis.set_minor_locator(ticker.LogLocator(base=10.0, subs=[float(k) for k in range(1, 10)], numticks=12))
+    ax.xaxis.set_minor_formatter(ticker.NullFormatter())
 
 
 def convergence_plot(run: RunResult) -> bytes | None:
     """Each dynamic mode's position error against time step, log-log (PNG); None if none ran."""
+    figure = convergence_figure(run)
+    return None if figure is None else _png(figure)
+
+
+def convergence_figure(run: RunResult):
+    """The figure of :func:`convergence_plot` (open: the caller closes it), or None."""
     dynamic = [(m, o) for m, o in run.outcomes.items() if _is_dynamic(m) and o.result is not None]
     tables = [(m, convergence_table(o)) for m, o in dynamic]
     tables = [(m, t) for m, t in tables if not t.empty]
@@ -288,6 +434,10 @@ def convergence_plot(run: RunResult) -> bytes | None:
                     fontsize=7,
                     color=line.get_color(),
                 )
+        ax.margins(x=0.06, y=0.12)  # room for the order labels under the smallest step's point
+        ax.autoscale_view()
+        _reference_slopes(ax)
+        _step_ticks(ax)
         ax.set_title(mode, fontsize=9)
         ax.set_xlabel("time step [s]")
         ax.set_ylabel("largest position error [m]")
@@ -297,7 +447,7 @@ def convergence_plot(run: RunResult) -> bytes | None:
         f"{run.mechanism.name}: error against time step (observed order between the two smallest steps)", fontsize=10
     )
     figure.tight_layout()
-    return _png(figure)
+    return figure
 
 
 def forces_plot(run: RunResult) -> bytes | None:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import engines
+from ..api import limit_warnings
 from ..kinematics import Status
 from ..output import range_text
 from ..runner import CATEGORIES, RunResult, convergence_table, tolerance, versions
@@ -272,6 +273,7 @@ def report_markdown(run: RunResult, images: dict[str, str], command: str) -> str
     sections = [
         f"# {mech.name}: {mech.title}",
         f"Source: {mech.source or '—'}. Result: {verdict}.",
+        "\n".join(f"> **Warning:** {line}." for line in limit_warnings(run.native, run.branch)),
         mech.notes.strip(),
         f"![the mechanism]({images['drawing']})" + (f"  ![motion]({images['gif']})" if "gif" in images else ""),
         "## Printed answers\n\n" + _textbook_section(run),

@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .. import engines  # noqa: E402
+from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
 from ..runner import versions  # noqa: E402
 from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
 from . import _figures  # noqa: E402
@@ -45,20 +46,15 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
 
     figure, ax = plt.subplots(figsize=(5.5, 4.5))
     for label, owner in mech.point_owners.items():
-        path = solution.point(label)["position"]
-        if owner == mech.ground.name:
-            ax.plot(path[0, 0], path[0, 1], "k^", ms=6)
-            continue
-        ax.plot(path[:, 0], path[:, 1], lw=0.8, alpha=0.7)
-        ax.annotate(label, path[0], fontsize=8)
-    for body in mech.moving_bodies:
-        labels = [lbl for lbl in body.points]
-        start = np.array([solution.point(lbl)["position"][0] for lbl in labels])
-        ax.plot(start[:, 0], start[:, 1], "k-o", lw=2, ms=3)
+        if owner != mech.ground.name:
+            path = solution.point(label)["position"]
+            ax.plot(path[:, 0], path[:, 1], lw=0.8, alpha=0.7)
+    # at release: links between the joints, blocks, slots, hatched ground, labels
+    draw_pose(ax, Pose.of(solution, 0), guide_extents(solution), scale=1.0)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{mech.name}: at release (black) and the paths of its points", fontsize=9)
+    ax.set_title(f"{mech.name}: at release and the paths of its points", fontsize=9)
     ax.grid(alpha=0.3)
     out["drawing"] = _png(figure)
 

@@ -1,0 +1,359 @@
+"""Drawings of a mechanism in one position: bodies as links between their
+joints, blocks on sliders and swivels, pins in their slots, hatched ground,
+labelled points and the inputs' arrows.
+
+Matplotlib is used through :class:`matplotlib.figure.Figure` only (no pyplot,
+no backend is chosen), so that the figures work in scripts, notebooks and the
+reports alike.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib import patches
+from matplotlib.figure import Figure
+
+from .kinematics import Solution, rotate
+from .model import Mechanism, PinInSlot, Prismatic, Revolute
+
+__all__ = ["Pose", "draw_pose", "figure_of", "guide_extents"]
+
+#: body colours (matplotlib's tab10, ground black)
+COLORS = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+)
+
+
+@dataclass
+class Pose:
+    """One position of a mechanism: each body's frame (origin (2,) m, angle rad).
+
+    Build it with :meth:`of` from a :class:`~xcheck.kinematics.Solution`.
+    """
+
+    mechanism: Mechanism
+    frames: dict[str, tuple[np.ndarray, float]]
+
+    @classmethod
+    def of(cls, solution: Solution, i: int) -> "Pose":
+        """Sample ``i`` of a solution."""
+        frames = {solution.mechanism.ground.name: (np.zeros(2), 0.0)}
+        for body in solution.mechanism.moving_bodies:
+            state = solution.body(body.name)
+            frames[body.name] = (state["position"][i], float(state["angle"][i]))
+        return cls(solution.mechanism, frames)
+
+    def point(self, body: str, label: str) -> np.ndarray:
+        """World position of a body's named point, (2,) m."""
+        r, phi = self.frames[body]
+        return r + rotate(np.array([phi]), self.mechanism.body(body).points[label])[0]
+
+    def direction(self, body: str, local: np.ndarray) -> np.ndarray:
+        """A direction fixed in a body, in world axes, (2,)."""
+        return rotate(np.array([self.frames[body][1]]), local)[0]
+
+
+def _line_joints(mech: Mechanism):
+    return [j for j in mech.joints if isinstance(j, (Prismatic, PinInSlot))]
+
+
+def guide_extents(solution: Solution) -> dict[str, tuple[float, float]]:
+    """Per line joint, the range of its slide (m along the line from its line
+    point) over every determined sample of a solution: how long to draw the
+    guides and slots so that they hold the blocks and pins at every pose."""
+    good = solution.status <= 1
+    extents = {}
+    for joint in _line_joints(solution.mechanism):
+        if not good.any():
+            break
+        phi = solution.body(joint.body_a)["angle"][good]
+        d = rotate(phi, joint.direction)
+        gap = (
+            solution.point(joint.point, joint.body_b)["position"][good]
+            - solution.point(joint.line_point, joint.body_a)["position"][good]
+        )
+        slides = np.einsum("ij,ij->i", d, gap)
+        extents[joint.name] = (float(slides.min()), float(slides.max()))
+    return extents
+
+
+def _joint_labels(mech: Mechanism) -> dict[str, list[str]]:
+    """Per body, the labels of its points that joints use (in joint order)."""
+    used: dict[str, list[str]] = {b.name: [] for b in (mech.ground, *mech.moving_bodies)}
+    for joint in mech.joints:
+        if isinstance(joint, Revolute):
+            pairs = [(joint.body_a, joint.point_a), (joint.body_b, joint.point_b)]
+        else:
+            pairs = [(joint.body_a, joint.line_point), (joint.body_b, joint.point)]
+        for body, label in pairs:
+            if label not in used[body]:
+                used[body].append(label)
+    return used
+
+
+def _nearest_on_segments(p: np.ndarray, segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """The point of a set of segments nearest p, (2,)."""
+    best, best_d = None, math.inf
+    for a, b in segments:
+        ab = b - a
+        t = 0.0 if not ab.any() else float(np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0))
+        q = a + t * ab
+        d = float(np.hypot(*(p - q)))
+        if d < best_d:
+            best, best_d = q, d
+    assert best is not None
+    return best
+
+
+def _hull_order(points: np.ndarray) -> np.ndarray:
+    """Indices of points in counter-clockwise order around their centre."""
+    centre = points.mean(axis=0)
+    return np.argsort(np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0]))
+
+
+def _hatched_strip(ax, start: np.ndarray, end: np.ndarray, side: np.ndarray, depth: float, z: float) -> None:
+    """Ground hatching: a line from start to end with a hatched strip of
+    ``depth`` on the side ``side`` (unit vector)."""
+    ax.plot([start[0], end[0]], [start[1], end[1]], color="black", lw=1.2, zorder=z)
+    corners = np.array([start, end, end + depth * side, start + depth * side])
+    ax.add_patch(patches.Polygon(corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z))
+
+
+def _block(
+    ax, centre: np.ndarray, along: np.ndarray, length: float, height: float, color: str, z: float, alpha: float = 1.0
+) -> None:
+    """A slide block centred at ``centre``, its long side along ``along``."""
+    u = along / np.hypot(*along)
+    n = np.array([-u[1], u[0]])
+    corners = np.array(
+        [centre + sx * 0.5 * length * u + sy * 0.5 * height * n for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    )
+    ax.add_patch(
+        patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z)
+    )
+
+
+def draw_pose(
+    ax,
+    pose: Pose,
+    extents: dict[str, tuple[float, float]] | None = None,
+    scale: float = 1.0,
+    alpha: float = 1.0,
+    labels: bool = True,
+    arrows: dict[str, float] | None = None,
+    ground: bool = True,
+) -> None:
+    """Draw one position of the mechanism on a matplotlib axes.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    pose : Pose
+    extents : dict, optional
+        Per line joint, the slide range to draw its guide or slot over
+        (:func:`guide_extents`); default: around the present position.
+    scale : float
+        Metres per drawing unit (the model's length unit: ``units.length_factor``).
+    alpha : float
+        Opacity of the bodies (ghost poses < 1).
+    labels : bool
+        Write the points' labels.
+    arrows : dict of str to float, optional
+        Per driver's name, the sign of its rate: an arrow shows the input
+        (a curved one around a driven pin, a straight one along a slide).
+    ground : bool
+        Draw the ground's pivots, guides and hatching.
+    """
+    mech = pose.mechanism
+    gname = mech.ground.name
+    every = [pose.point(b.name, lbl) for b in (mech.ground, *mech.moving_bodies) for lbl in b.points]
+    span = np.ptp(np.array(every), axis=0).max() if len(every) > 1 else 1.0
+    size = max(span, 1e-12)  # metres
+    pin_r = 0.012 * size / scale
+    block_l, block_h = 0.09 * size, 0.05 * size
+    used = _joint_labels(mech)
+    extents = extents or {}
+    colors = {b.name: COLORS[n % len(COLORS)] for n, b in enumerate(mech.moving_bodies)}
+    colors[gname] = "black"
+
+    def w(xy):  # metres to drawing units
+        return np.asarray(xy) / scale
+
+    # guides and slots: the line of a line joint, drawn on its body_a (slots on
+    # one line, like two pins in one guide, are one slot)
+    segments: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {b.name: [] for b in mech.moving_bodies}
+    stubs: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {b.name: [] for b in mech.moving_bodies}
+    lines: dict[tuple, list] = {}
+    for joint in _line_joints(mech):
+        origin = pose.point(joint.body_a, joint.line_point)
+        d = pose.direction(joint.body_a, joint.direction)
+        now = float(d @ (pose.point(joint.body_b, joint.point) - origin))
+        low, high = extents.get(joint.name, (now, now))
+        key = (joint.body_a, joint.line_point, *np.round(joint.direction, 12), type(joint).__name__)
+        if key in lines:
+            entry = lines[key]
+            entry[3], entry[4] = min(entry[3], low, now), max(entry[4], high, now)
+        else:
+            lines[key] = [joint, origin, d, min(low, now, 0.0), max(high, now, 0.0)]
+    for joint, origin, d, low, high in lines.values():
+        start, end = origin + (low - 0.5 * block_l) * d, origin + (high + 0.5 * block_l) * d
+        if joint.body_a == gname:
+            if ground:
+                normal = np.array([-d[1], d[0]])
+                offset = 0.5 * block_h * normal
+                _hatched_strip(ax, w(start - offset), w(end - offset), -normal, 0.35 * block_h / scale, 1)
+        elif isinstance(joint, PinInSlot):
+            normal = np.array([-d[1], d[0]])
+            for side in (-1, 1):
+                a, b = w(start + side * 1.6 * pin_r * scale * normal), w(end + side * 1.6 * pin_r * scale * normal)
+                ax.plot([a[0], b[0]], [a[1], b[1]], color=colors[joint.body_a], lw=1.4, alpha=alpha, zorder=2)
+            for cap, turn in ((start, 1.0), (end, -1.0)):
+                angle = math.degrees(math.atan2(d[1], d[0])) + 90.0 * turn
+                ax.add_patch(
+                    patches.Arc(
+                        w(cap),
+                        3.2 * pin_r,
+                        3.2 * pin_r,
+                        theta1=angle,
+                        theta2=angle + 180.0,
+                        ec=colors[joint.body_a],
+                        lw=1.4,
+                        alpha=alpha,
+                        zorder=2,
+                    )
+                )
+            stubs[joint.body_a].append((start, end))
+        else:  # a rod fixed in body_a along which body_b's block slides
+            segments[joint.body_a].append((start, end))
+
+    # bodies: links between their joints, plates for three or more, other points on stubs
+    for body in mech.moving_bodies:
+        color = colors[body.name]
+        nodes = [pose.point(body.name, lbl) for lbl in used[body.name]]
+        if len(nodes) == 2:
+            segments[body.name].append((nodes[0], nodes[1]))
+        elif len(nodes) >= 3:
+            ring = np.array(nodes)[_hull_order(np.array(nodes))]
+            ax.add_patch(patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
+        for label in body.points:
+            if label in used[body.name]:
+                continue
+            p = pose.point(body.name, label)
+            if segments[body.name] or stubs[body.name]:
+                q = _nearest_on_segments(p, segments[body.name] + stubs[body.name])
+                if np.hypot(*(p - q)) > 1e-9 * size:
+                    segments[body.name].append((q, p))
+            elif nodes:
+                segments[body.name].append((nodes[0], p))
+        for a, b in segments[body.name]:
+            a, b = w(a), w(b)
+            ax.plot([a[0], b[0]], [a[1], b[1]], color=color, lw=3.0, alpha=alpha, zorder=3, solid_capstyle="round")
+    # blocks: on every prismatic joint, the block of body_b along the line
+    for joint in mech.joints:
+        if isinstance(joint, Prismatic):
+            centre = pose.point(joint.body_b, joint.point)
+            d = pose.direction(joint.body_a, joint.direction)
+            owner = joint.body_b if joint.body_b != gname else joint.body_a
+            _block(ax, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4, alpha)
+    # ground pivots: a triangle over hatching
+    if ground:
+        for joint in mech.joints:
+            if isinstance(joint, Revolute) and gname in (joint.body_a, joint.body_b):
+                label = joint.point_a if joint.body_a == gname else joint.point_b
+                p = w(pose.point(gname, label))
+                h = 3.2 * pin_r
+                tri = np.array([p, p + [-0.8 * h, -1.4 * h], p + [0.8 * h, -1.4 * h]])
+                ax.add_patch(patches.Polygon(tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1))
+                _hatched_strip(ax, p + [-1.3 * h, -1.4 * h], p + [1.3 * h, -1.4 * h], np.array([0.0, -1.0]), 0.6 * h, 1)
+    # pins: revolute and pin-in-slot joints
+    for joint in mech.joints:
+        if isinstance(joint, Revolute):
+            p = w(pose.point(joint.body_a, joint.point_a))
+        elif isinstance(joint, PinInSlot):
+            p = w(pose.point(joint.body_b, joint.point))
+        else:
+            continue
+        ax.add_patch(patches.Circle(p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5))
+    # points and their labels
+    shown: set[str] = set()
+    for body in (mech.ground, *mech.moving_bodies):
+        for label in body.points:
+            if label in shown:
+                continue
+            shown.add(label)
+            p = w(pose.point(body.name, label))
+            if label not in used[body.name]:
+                ax.plot(*p, "o", color="black", ms=3, alpha=alpha, zorder=6)
+            if labels:
+                ax.annotate(label, p, xytext=(5, 5), textcoords="offset points", fontsize=9, zorder=7)
+    # the inputs
+    for driver in mech.drivers if arrows is not None else ():
+        sign = 1.0 if (arrows or {}).get(driver.name, 1.0) >= 0.0 else -1.0
+        joint = mech.joint(driver.joint)
+        if isinstance(joint, Revolute):
+            centre = w(pose.point(joint.body_a, joint.point_a))
+            radius = 0.09 * size / scale
+            start_angle = pose.frames[joint.body_b][1] - sign * 0.9
+            a = centre + radius * np.array([math.cos(start_angle), math.sin(start_angle)])
+            b = centre + radius * np.array([math.cos(start_angle + sign * 1.8), math.sin(start_angle + sign * 1.8)])
+            arrow = patches.FancyArrowPatch(
+                a,
+                b,
+                connectionstyle=f"arc3,rad={0.45 * sign}",
+                arrowstyle="-|>",
+                mutation_scale=12,
+                color="crimson",
+                lw=1.5,
+                zorder=8,
+            )
+            ax.add_patch(arrow)
+            ax.annotate(driver.name, b, xytext=(4, -10), textcoords="offset points", color="crimson", fontsize=8)
+        else:
+            p = pose.point(joint.body_b, joint.point)
+            d = pose.direction(joint.body_a, joint.direction) * sign
+            n = np.array([-d[1], d[0]])
+            a = w(p + 0.9 * block_h * n - 0.5 * block_l * d)
+            b = w(p + 0.9 * block_h * n + 0.9 * block_l * d)
+            ax.add_patch(
+                patches.FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8)
+            )
+            ax.annotate(driver.name, b, xytext=(4, 2), textcoords="offset points", color="crimson", fontsize=8)
+
+
+def figure_of(solution: Solution, i: int = 0, title: str | None = None, extents=None) -> Figure:
+    """A figure of sample ``i`` of a solution, in the model's length unit, with
+    the inputs' arrows (direction of the rates at that sample)."""
+    mech = solution.mechanism
+    units = mech.units
+    figure = Figure(figsize=(6.4, 5.2))
+    ax = figure.add_subplot()
+    pose = Pose.of(solution, i)
+    rates = {d.name: float(solution.input_rates[i, k]) for k, d in enumerate(mech.drivers)}
+    draw_pose(ax, pose, extents, scale=units.length_factor, arrows=rates)
+    if title is None:
+        title = f"{mech.name}: " + ", ".join(
+            f"{d.name} = {units.show_input(d.quantity, float(solution.inputs[i, k]))}"
+            for k, d in enumerate(mech.drivers)
+        )
+    ax.set_title(title, fontsize=10)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.margins(0.08)
+    ax.set_xlabel(f"x [{units.length}]")
+    ax.set_ylabel(f"y [{units.length}]")
+    ax.grid(alpha=0.25)
+    figure.tight_layout()
+    return figure

@@ -1,0 +1,95 @@
+"""What the drawings show (issue 16): blocks on prismatic joints, pins inside
+their slots, bodies as links between their joints, hatched ground, labelled
+points and the inputs' arrows."""
+
+from __future__ import annotations
+
+import numpy as np
+from conftest import MODELS
+from matplotlib import patches
+
+import xcheck
+from xcheck.drawing import COLORS, Pose
+
+
+def _drawn(name: str, at=None):
+    mech = xcheck.load(name, models=MODELS)
+    figure = mech.draw(at=at)
+    ax = figure.axes[0]
+    c = mech.kinematics.reference_inputs()[None] if at is None else mech._si(at, False)
+    solved = Pose.of(mech.kinematics.solve(c, branch=mech.branch), 0)
+    scale = mech.mechanism.units.length_factor  # drawings are in the file's length unit
+
+    def point(body: str, label: str) -> np.ndarray:
+        return solved.point(body, label) / scale
+
+    color = {b.name: COLORS[n % len(COLORS)] for n, b in enumerate(mech.mechanism.moving_bodies)}
+    return mech, ax, point, color
+
+
+def _segments(ax, color: str, width: float):
+    return [
+        np.column_stack(line.get_data()).astype(float)
+        for line in ax.get_lines()
+        if line.get_color() == color and line.get_linewidth() == width
+    ]
+
+
+def test_a_block_sits_on_the_swivel_of_task_2_1():
+    mech, ax, point, color = _drawn("task-2-1", at=40)
+    e = point("block", "E")
+    blocks = [
+        p
+        for p in ax.patches
+        if isinstance(p, patches.Polygon)
+        and p.get_facecolor()[:3] == patches.Polygon([[0, 0]], facecolor=color["block"]).get_facecolor()[:3]
+    ]
+    assert blocks, "no block drawn"
+    corners = blocks[0].get_xy()[:4]
+    assert np.allclose(corners.mean(axis=0), e, atol=1e-12)
+    # its long side along link 5, which slides through it
+    along = corners[1] - corners[0]
+    axis = point("link5", "M") - point("link5", "B")
+    assert abs(along[0] * axis[1] - along[1] * axis[0]) <= 1e-9 * np.hypot(*along) * np.hypot(*axis)
+
+
+def test_the_pins_of_task_2_2_sit_inside_their_slot():
+    mech, ax, point, color = _drawn("task-2-2", at=0.5)
+    sides = _segments(ax, color["lever"], 1.4)
+    assert len(sides) == 2  # one slot for both pins (two joints on one line)
+    for label, body in (("B", "slider"), ("E", "link6")):
+        pin = point(body, label)
+        signs = []
+        for side in sides:
+            a, b = side
+            cross = (b[0] - a[0]) * (pin[1] - a[1]) - (b[1] - a[1]) * (pin[0] - a[0])
+            signs.append(np.sign(cross))
+            t = np.dot(pin - a, b - a) / np.dot(b - a, b - a)
+            assert 0.0 < t < 1.0, f"pin {label} past the end of its slot"
+        assert signs[0] == -signs[1], f"pin {label} outside its slot"
+        circles = [p for p in ax.patches if isinstance(p, patches.Circle) and np.allclose(p.center, pin, atol=1e-12)]
+        assert circles, f"no pin drawn at {label}"
+
+
+def test_bodies_are_links_between_their_joints_not_hulls():
+    mech, ax, point, color = _drawn("fourbar", at=60)
+    drawn = {frozenset(tuple(np.round(p, 9)) for p in segment) for segment in _segments(ax, color["coupler"], 3.0)}
+    b, c = point("coupler", "B"), point("coupler", "C")
+    k, f = point("coupler", "K"), point("coupler", "F")
+
+    def edge(p, q):
+        return frozenset({tuple(np.round(p, 9)), tuple(np.round(q, 9))})
+
+    assert edge(b, c) in drawn
+    assert edge(k, f) in drawn  # F on its stub from K (its foot on BC), not a hull's corner
+    assert edge(b, f) not in drawn and edge(c, f) not in drawn
+
+
+def test_ground_is_hatched_points_labelled_and_the_input_has_an_arrow():
+    mech, ax, point, color = _drawn("slider-crank", at=30)
+    hatched = [p for p in ax.patches if p.get_hatch()]
+    assert len(hatched) >= 2  # the pivot O and the slider's guide
+    texts = {t.get_text() for t in ax.texts}
+    assert set(mech.mechanism.point_owners) <= texts
+    arrows = [p for p in ax.patches if isinstance(p, patches.FancyArrowPatch)]
+    assert len(arrows) == 1 and "crank" in texts

@@ -1,0 +1,113 @@
+"""The run report's figures (issue 16): one sweep and one abscissa per block,
+relative differences against each mode's tolerance, convergence slopes and
+ticks that do not overlap."""
+
+from __future__ import annotations
+
+import itertools
+from types import SimpleNamespace
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from conftest import MODELS  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from xcheck import api  # noqa: E402
+from xcheck.report import _figures  # noqa: E402
+
+
+def test_kinematic_samples_off_the_runners_sweep_are_left_out():
+    native = np.column_stack([np.linspace(0.1, 1.0, 5), np.full(5, 0.5)])
+    run = SimpleNamespace(native=SimpleNamespace(inputs=native))
+    engine = np.array(
+        [
+            [0.1, 0.5],  # on the sweep
+            [1.0, 0.5],  # its end
+            [1.0 + 1e-3, 0.5],  # past the runner's margin: the engine's own sweep goes nearer the limit
+            [0.5, 0.2],  # the second driver's sweep
+        ]
+    )
+    assert _figures._on_the_sweep(run, engine).tolist() == [True, True, False, False]
+
+
+def test_reference_slopes_are_orders_one_two_and_four():
+    figure = Figure()
+    ax = figure.add_subplot()
+    ax.loglog([1e-4, 1e-3], [1e-9, 1e-6], "o-")
+    limits = ax.get_xlim(), ax.get_ylim()
+    _figures._reference_slopes(ax)
+    slopes = sorted(
+        round(float(np.polyfit(np.log(line.get_xdata()), np.log(line.get_ydata()), 1)[0]), 9)
+        for line in ax.get_lines()
+        if line.get_color() == "0.55"
+    )
+    assert slopes == [1.0, 2.0, 4.0]
+    assert (ax.get_xlim(), ax.get_ylim()) == limits  # the data's view is kept
+
+
+@pytest.mark.parametrize("span", [(1.5e-4, 2.1e-3), (2e-3, 8e-3), (1e-6, 1e-2)])
+def test_time_step_tick_labels_do_not_overlap(span):
+    figure = Figure(figsize=(4.6, 4))
+    ax = figure.add_subplot()
+    ax.loglog(span, [1e-9, 1e-6], "o-")
+    _figures._step_ticks(ax)
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    boxes = [
+        label.get_window_extent(renderer)
+        for label in ax.get_xticklabels(which="both")
+        if label.get_visible() and label.get_text() and ax.get_xlim()[0] <= label.get_position()[0] <= ax.get_xlim()[1]
+    ]
+    assert len(boxes) >= 2  # labelled, even on less than a decade
+    assert not any(a.overlaps(b) for a, b in itertools.combinations(boxes, 2))
+
+
+@pytest.fixture(scope="module")
+def two_input_run():
+    return api.run("two-body-arm", engines="formulations,mujoco", samples=21, models=MODELS)
+
+
+def test_two_inputs_the_sweep_against_the_input_and_the_dynamic_modes_against_time(two_input_run):
+    run = two_input_run
+    figure = _figures.quantities_figure(run)
+    axes = np.array(figure.axes).reshape(4, 3)
+    assert {ax.get_xlabel() for ax in axes[:2].flat} == {"theta1 [deg]"}
+    assert {ax.get_xlabel() for ax in axes[2:].flat} == {"time [s]"}
+    low, high = np.degrees(run.native.inputs[:, 0].min()), np.degrees(run.native.inputs[:, 0].max())
+    for ax in axes[:2].flat:
+        labels = {line.get_label() for line in ax.get_lines()}
+        assert "mujoco-dynamic" not in labels
+        for line in ax.get_lines():
+            x = np.asarray(line.get_xdata())
+            assert x.min() >= low - 1e-9 and x.max() <= high + 1e-9, line.get_label()
+            assert np.ptp(x) > 0.9 * (high - low), line.get_label()  # no stack of samples at one input
+    assert {line.get_label() for line in axes[2, 0].get_lines()} == {
+        "native at mujoco-dynamic's states",
+        "mujoco-dynamic",
+    }
+
+
+def test_differences_are_relative_with_each_modes_tolerance(two_input_run):
+    run = two_input_run
+    figure = _figures.error_figure(run)
+    position = figure.axes[0]
+    outcome = run.outcomes["mujoco-kinematic"]
+    (line,) = [line for line in position.get_lines() if line.get_label() == "mujoco-kinematic"]
+    keep = _figures._on_the_sweep(run, outcome.trajectory.inputs)
+    expected = np.fmax(outcome.errors["position"][keep] / run.kinematics.system.size, 1e-18)
+    x = np.degrees(outcome.trajectory.inputs[keep, 0])
+    assert np.array_equal(np.asarray(line.get_ydata()), expected[np.argsort(x, kind="stable")])
+    tolerance = float(outcome.categories.set_index("category").tolerance["position"])
+    flat = [
+        float(line.get_ydata()[0])
+        for line in position.get_lines()
+        if line.get_linestyle() == ":" and len(line.get_ydata()) and np.ptp(line.get_ydata()) == 0
+    ]
+    assert tolerance in flat
+    assert position.get_yscale() == "log"
