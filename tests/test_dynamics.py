@@ -266,6 +266,25 @@ def test_rotational_spring_loads_the_driver(form, angle, rate):
 
 
 @pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])
+def test_torque_across_a_joint_by_virtual_work(form):
+    """models/slider-crank.toml with a torque T = 3 N m across the crank-rod pin A
+    (on the rod, its opposite on the crank), at rest with the working load and
+    the crank at 50 deg: by virtual work the crank's effort is
+    200 N x dx_B/dtheta (the working load pushes at -x) - T (dphi_rod/dtheta - 1),
+    the rates taken from the solver's velocity solution at unit crank rate."""
+    text = (MODELS / "slider-crank.toml").read_text(encoding="utf-8")
+    kin = Kinematics(parse_mechanism(text + '\n[[loads]]\nname = "pin motor"\njoint = "A"\ntorque = 3\n', "x"))
+    theta = np.array([[math.radians(50)]])
+    unit = kin.solve(theta, np.ones((1, 1)), np.zeros((1, 1)))
+    dx_b, dphi_rod = unit.point("B")["velocity"][0, 0], unit.body("rod")["omega"][0]
+    forces = form(kin.solve(theta, np.zeros((1, 1)), np.zeros((1, 1))))
+    expected = 200.0 * dx_b - 3.0 * (dphi_rod - 1.0)
+    assert forces.drivers["crank"]["effort"][0] == pytest.approx(expected, rel=1e-12)
+    names = [load.name for load in kin.mechanism.loads]
+    assert names == ["working load", "pin motor", "pin motor (reaction)"]
+
+
+@pytest.mark.parametrize("form", [inverse_dynamics, newton_euler])
 def test_slider_crank_at_rest_with_a_force_on_the_slider(form):
     """Centred slider-crank at rest, crank at 90 deg, F = 200 N pushing the slider
     towards the crank, no gravity. The rod is a two-force member along A->B:

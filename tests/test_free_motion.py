@@ -145,6 +145,47 @@ def test_rotational_spring_and_damper_follow_the_damped_oscillator():
         assert rows and all(r["position_error"] <= 3e-11 for r in rows)
 
 
+def test_torque_across_a_joint_shifts_the_oscillation(tmp_path):
+    """The torsion pendulum with a constant torque of 0.5 N m across its pin
+    ([[loads]] joint = "O"): the twist oscillates about u_eq = T / k = 0.25 rad,
+    u = u_eq + (u0 - u_eq) exp(-zeta w0 t) (cos(wd t) + zeta w0 / wd sin(wd t));
+    the energy balance counts the torque's work."""
+    path = tmp_path / "driven-disc.toml"
+    text = (DATA / "torsion-pendulum.toml").read_text(encoding="utf-8")
+    path.write_text(text + '\n[[loads]]\njoint = "O"\ntorque = 0.5\n', encoding="utf-8")
+    done = invoke("simulate", str(path), "--json", "--engines", "native")
+    assert done.returncode == 0, done.stderr
+    native = json.loads(done.stdout)["native"]
+    t, w0, zeta, u0, u_eq = 2.0, 10.0, 0.1, math.pi / 6, 0.25
+    wd = w0 * math.sqrt(1.0 - zeta**2)
+    exact = (
+        math.radians(-20)
+        + u_eq
+        + (u0 - u_eq) * math.exp(-zeta * w0 * t) * (math.cos(wd * t) + zeta * w0 / wd * math.sin(wd * t))
+    )
+    found = native["final"]["bodies"]["disc"]["angle"]
+    assert abs(found - exact) <= native["error_estimate"]["final"] <= 1e-11
+    assert native["energy_balance"]["largest"] <= 1e-11
+
+
+@pytest.mark.parametrize(
+    "extra,field,found",
+    [
+        ('joint = "O"\ntorque = 1\nforce = [1, 0]\n', "loads[0].force", "'force' as well"),
+        ('joint = "Q"\ntorque = 1\n', "loads[0].joint", "'Q'"),
+        ('joint = "O"\n', "loads[0].torque", "none"),
+    ],
+)
+def test_bad_joint_torque_is_one_line(tmp_path, extra, field, found):
+    path = tmp_path / "bad.toml"
+    text = (DATA / "torsion-pendulum.toml").read_text(encoding="utf-8")
+    path.write_text(text + "\n[[loads]]\n" + extra, encoding="utf-8")
+    done = invoke("simulate", str(path))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{path}: {field}: expected " in lines[0] and found in lines[0], lines
+
+
 def test_engines_converge_on_every_joint_and_force_kind():
     """tests/data/free-mixed.toml over 0.2 s (a slot, a prismatic joint on a moving
     body, springs to the ground and between bodies, a rotational spring-damper, forces,

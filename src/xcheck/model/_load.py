@@ -33,6 +33,7 @@ from ._mechanism import (
     Body,
     Driver,
     Instant,
+    Joint,
     Load,
     Mechanism,
     MotionLaw,
@@ -269,7 +270,7 @@ class _Reader:
         assembly = self.assembly(data.get("assembly", {}), drivers, by_name, units, sketches)
         instants = self.instants(data.get("instants", []), drivers, units)
         gravity = self.dynamics(data.get("dynamics", {}))
-        loads = self.loads(data.get("loads", []), by_name, units)
+        loads = self.loads(data.get("loads", []), by_name, units, joints)
         springs = read_springs(self, data.get("springs", []), bodies, units)
         rotational_springs = read_rotational_springs(self, data.get("rotational_springs", []), joints, units)
         free_motion = (
@@ -749,9 +750,11 @@ class _Reader:
         spec = self.table(value, "dynamics", ("gravity",))
         return self.vector(spec.get("gravity", [0.0, 0.0]), "dynamics.gravity", 1.0)
 
-    def loads(self, value: Any, bodies: dict[str, Body], units: Units) -> list[Load]:
+    def loads(self, value: Any, bodies: dict[str, Body], units: Units, joints: list[Joint]) -> list[Load]:
         """Constant loads: a force (N, global frame) at a point of a moving body
-        (a label, or [x, y] in the body frame in the length unit) and/or a torque (N m)."""
+        (a label, or [x, y] in the body frame in the length unit) and/or a torque (N m);
+        or a torque across a revolute or pin-in-slot joint (an actuator between its
+        bodies: the torque on its second body, the opposite on its first)."""
         if not isinstance(value, list):
             self.fail("loads", "a list of [[loads]]", _describe(value))
         loads: list[Load] = []
@@ -759,7 +762,14 @@ class _Reader:
         moving = [name for name in bodies if name != GROUND]
         for i, spec in enumerate(value):
             field = f"loads[{i}]"
-            spec = self.table(spec, field, ("name", "body", "point", "force", "torque"))
+            spec = self.table(spec, field, ("name", "body", "joint", "point", "force", "torque"))
+            if "joint" in spec:
+                for pair in self.joint_torque(spec, field, joints, i):
+                    if pair.name in names:
+                        self.fail(f"{field}.name", "a name no other load has", repr(pair.name))
+                    names.add(pair.name)
+                    loads.append(pair)
+                continue
             body_name = spec.get("body")
             if not isinstance(body_name, str) or body_name not in bodies or body_name == GROUND:
                 self.fail(f"{field}.body", f"a moving body ({', '.join(moving)})", _describe(body_name))
@@ -795,6 +805,33 @@ class _Reader:
             names.add(name)
             loads.append(Load(name, body_name, point, force, torque, label))
         return loads
+
+    def joint_torque(self, spec: dict, field: str, joints: list[Joint], i: int) -> list[Load]:
+        """A ``[[loads]]`` entry with ``joint``: the torque on the joint's second body and
+        its opposite (named "NAME (reaction)") on the first, each where it is a moving body."""
+        extra = [key for key in ("body", "point", "force") if key in spec]
+        if extra:
+            self.fail(
+                f"{field}.{extra[0]}",
+                "only a 'torque' with 'joint' (an actuator between the joint's bodies)",
+                f"'{extra[0]}' as well",
+            )
+        by_name = {j.name: j for j in joints}
+        turning = [j.name for j in joints if not isinstance(j, Prismatic)]
+        joint = spec.get("joint")
+        if not isinstance(joint, str) or joint not in by_name or isinstance(by_name[joint], Prismatic):
+            self.fail(
+                f"{field}.joint",
+                f"a revolute or pin-in-slot joint ({', '.join(turning) or 'none'})",
+                _describe(joint) + (" (a prismatic joint does not turn)" if joint in by_name else ""),
+            )
+        if "torque" not in spec:
+            self.fail(f"{field}.torque", "a torque (N m) across the joint", "none")
+        torque = self.number(spec["torque"], f"{field}.torque")
+        name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
+        j = by_name[joint]
+        pairs = [(j.body_b, name, torque), (j.body_a, f"{name} (reaction)", -torque)]
+        return [Load(label, body, np.zeros(2), np.zeros(2), value) for body, label, value in pairs if body != GROUND]
 
 
 class _UnionFind:
