@@ -481,6 +481,10 @@ def print_run(console: Console, run) -> None:
         console.print(
             f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] of {e['scale']:.3g} W"
         )
+    elif run.no_forces and (
+        mech.loads or mech.springs or mech.rotational_springs or len(mech.without_mass) < len(mech.moving_bodies)
+    ):  # a file that asks for dynamics hears why there are no reactions; a kinematics-only one does not
+        console.print(f"  joint reactions and driving effort: not computed ({escape(run.no_forces)})")
     if run.textbook:
         counts = {v: sum(r["verdict"] == v for r in run.textbook) for v in ("agrees", "rounding", "disagrees")}
         console.print(

@@ -37,6 +37,7 @@ from .dynamics import (
     energy_summary,
     force_summary,
     inverse_dynamics,
+    require_constant_loads,
     require_mass_data,
     window_states,
 )
@@ -519,6 +520,7 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     kinematics = run.kinematics
     try:
         require_mass_data(kinematics.mechanism)
+        require_constant_loads(kinematics.mechanism)
     except XcheckError as err:
         run.no_forces = str(err)
         return

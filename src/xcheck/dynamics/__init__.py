@@ -22,7 +22,15 @@ from ._compare import (
     window_states,
 )
 from ._energy import energy_balance, mechanical_energy
-from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, joint_quantities, quantity_unit, require_mass_data
+from ._forces import (
+    DRIVER_QUANTITIES,
+    JOINT_QUANTITIES,
+    Forces,
+    joint_quantities,
+    quantity_unit,
+    require_constant_loads,
+    require_mass_data,
+)
 from ._inverse import AppliedLoad, applied_loads, body_dynamics, inverse_dynamics, newton_euler
 
 __all__ = [
@@ -48,6 +56,7 @@ __all__ = [
     "mechanical_energy",
     "newton_euler",
     "quantity_unit",
+    "require_constant_loads",
     "require_mass_data",
     "window_states",
 ]

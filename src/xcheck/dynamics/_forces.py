@@ -30,7 +30,15 @@ import numpy as np
 from ..errors import ModelError
 from ..model import Mechanism, PinInSlot, Prismatic, Revolute
 
-__all__ = ["JOINT_QUANTITIES", "DRIVER_QUANTITIES", "Forces", "require_mass_data", "joint_quantities", "quantity_unit"]
+__all__ = [
+    "JOINT_QUANTITIES",
+    "DRIVER_QUANTITIES",
+    "Forces",
+    "require_constant_loads",
+    "require_mass_data",
+    "joint_quantities",
+    "quantity_unit",
+]
 
 #: per joint: quantity -> shape suffix (2: a vector in the global frame)
 JOINT_QUANTITIES = {"reaction": 2, "normal": 0, "moment": 0}
@@ -114,3 +122,16 @@ def require_mass_data(mechanism: Mechanism) -> None:
             "mass and inertia on every moving body for dynamics",
             f"none on {', '.join(missing)} (add mass = kg, inertia = kg m^2 and com to {some})",
         )
+
+
+def require_constant_loads(mechanism: Mechanism) -> None:
+    """Raise :class:`ModelError` (one line) if a load has a time law: the states of a
+    driven motion (solve, run) carry no time, so only free motion applies time laws."""
+    for load in mechanism.loads:
+        if load.law is not None:
+            raise ModelError(
+                mechanism.path,
+                "loads",
+                "constant loads for the inverse dynamics of a driven motion (time laws act in free motion)",
+                f"{load.name!r} with a {load.law.describe()}",
+            )

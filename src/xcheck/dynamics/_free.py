@@ -317,6 +317,7 @@ class _Dynamics:
                 np.asarray(load.point, dtype=float),
                 np.asarray(load.force, dtype=float),
                 float(load.torque),
+                load.law,
             )
             for load in mech.loads
             if load.body in self.index
@@ -394,9 +395,18 @@ class _Dynamics:
         """M(q), (n, n)."""
         return _block_diagonal(_mass_blocks(self.bodies, q))
 
-    def forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Q: gravity, the applied loads, the springs and dampers (linear and rotational) and the
-        velocity terms of M's offset centres of mass (n,)."""
+    def _loads_at(self, t: float):
+        """Per load: (coordinate offset, point (body frame), force (N), torque (N m)) at time t (s)."""
+        for k, p, f, torque, law in self.loads:
+            if law is None:
+                yield k, p, f, torque
+            else:
+                s = float(law.factor(t))
+                yield k, p, s * f, s * torque
+
+    def forces(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Q at time t (s): gravity, the applied loads, the springs and dampers (linear and
+        rotational) and the velocity terms of M's offset centres of mass (n,)."""
         a = self.bodies.arms(q)
         m, w = self.bodies.mass, qd[2::3]
         out = np.zeros(self.system.n)
@@ -404,7 +414,7 @@ class _Dynamics:
         out[0::3] = weight[:, 0] + m * w * w * a[:, 0]
         out[1::3] = weight[:, 1] + m * w * w * a[:, 1]
         out[2::3] = a[:, 0] * weight[:, 1] - a[:, 1] * weight[:, 0]
-        for k, p, f, torque in self.loads:
+        for k, p, f, torque in self._loads_at(t):
             arm = self._point((k, p), q, qd)[2]
             out[k : k + 2] += f
             out[k + 2] += arm[0] * f[1] - arm[1] * f[0] + torque
@@ -422,11 +432,11 @@ class _Dynamics:
                 out[a + 2] -= torque
         return out
 
-    def power(self, q: np.ndarray, qd: np.ndarray) -> float:
-        """Power of the applied loads and the dampers, linear and rotational
-        (gravity and springs are in the potential energy), W."""
+    def power(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> float:
+        """Power of the applied loads at time t (s) and of the dampers, linear and
+        rotational (gravity and springs are in the potential energy), W."""
         total = 0.0
-        for k, p, f, torque in self.loads:
+        for k, p, f, torque in self._loads_at(t):
             velocity = self._point((k, p), q, qd)[1]
             total += float(f @ velocity) + torque * qd[k + 2]
         for _, rate, *_, damping in self._spring_states(q, qd):
@@ -489,12 +499,11 @@ class _Dynamics:
         multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
         return (free + mj @ multipliers) / d, math.sqrt(float(singular[-1] / singular[0]))
 
-    def acceleration(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """q'' by Gauss's principle: M q'' - Q as small as the constraints
+    def acceleration(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """q'' at time t (s) by Gauss's principle: M q'' - Q as small as the constraints
         J q'' = gamma allow (M-weighted)."""
-        return self._constrained(self._mass(q), self.joints.jacobian(q), self.forces(q, qd), self.joints.gamma(q, qd))[
-            0
-        ]
+        load = self.forces(q, qd, t)
+        return self._constrained(self._mass(q), self.joints.jacobian(q), load, self.joints.gamma(q, qd))[0]
 
     def project(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
         """(q, qd) moved onto Phi = 0 and Phi_q qd = 0 by the M-weighted
@@ -565,17 +574,18 @@ def simulate_free(
     passes: list[float] = []
     sigma = [dyn.project(q, qd)[3]] * 2
 
-    def derivative(q, qd):
-        return qd, dyn.acceleration(q, qd), dyn.power(q, qd)
+    def derivative(q, qd, t):
+        return qd, dyn.acceleration(q, qd, t), dyn.power(q, qd, t)
 
-    q_out[0], qd_out[0], qdd_out[0], energy[0] = q, qd, dyn.acceleration(q, qd), dyn.energy(q, qd)
+    q_out[0], qd_out[0], qdd_out[0], energy[0] = q, qd, dyn.acceleration(q, qd, 0.0), dyn.energy(q, qd)
     for i in range(1, outputs + 1):
         drift = 0.0
         for j in range(per_output):
-            k1 = derivative(q, qd)
-            k2 = derivative(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1])
-            k3 = derivative(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1])
-            k4 = derivative(q + h * k3[0], qd + h * k3[1])
+            t = times[i - 1] + j * h
+            k1 = derivative(q, qd, t)
+            k2 = derivative(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1], t + 0.5 * h)
+            k3 = derivative(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1], t + 0.5 * h)
+            k4 = derivative(q + h * k3[0], qd + h * k3[1], t + h)
             q = q + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
             qd = qd + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             w += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
@@ -586,7 +596,7 @@ def simulate_free(
             sigma = [sigma[1], value]
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
             raise FloatingPointError(f"the integration went non-finite at t = {times[i]:.6g} s")
-        q_out[i], qd_out[i], qdd_out[i] = q, qd, dyn.acceleration(q, qd)
+        q_out[i], qd_out[i], qdd_out[i] = q, qd, dyn.acceleration(q, qd, times[i])
         residual[i], energy[i], work[i] = drift, dyn.energy(q, qd), w
     return FreeMotion(
         kinematics, times, q_out, qd_out, qdd_out, residual, energy, work, passes, h, time.process_time() - begin

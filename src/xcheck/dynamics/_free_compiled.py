@@ -59,10 +59,14 @@ class Packed:
         self.o_sp = np.array([getattr(t, "s_p", zero) for t in others], dtype=float).reshape(-1, 2)
         self.o_offset = np.array([getattr(t, "offset", 0.0) for t in others], dtype=float)
         self.gravity = np.asarray(dyn.gravity, dtype=float)
-        self.l_body = np.array([k // 3 for k, _, _, _ in dyn.loads], dtype=np.int64)
-        self.l_point = np.array([p for _, p, _, _ in dyn.loads], dtype=float).reshape(-1, 2)
-        self.l_force = np.array([f for _, _, f, _ in dyn.loads], dtype=float).reshape(-1, 2)
-        self.l_torque = np.array([t for _, _, _, t in dyn.loads], dtype=float)
+        self.l_body = np.array([k // 3 for k, *_ in dyn.loads], dtype=np.int64)
+        self.l_point = np.array([p for _, p, *_ in dyn.loads], dtype=float).reshape(-1, 2)
+        self.l_force = np.array([f for _, _, f, *_ in dyn.loads], dtype=float).reshape(-1, 2)
+        self.l_torque = np.array([t for _, _, _, t, _ in dyn.loads], dtype=float)
+        # per load: the time law's code (0: constant) and parameters (LoadLaw.parameters)
+        self.l_law = np.array(
+            [(0.0, 0.0, 0.0, 0.0) if law is None else law.parameters() for *_, law in dyn.loads], dtype=float
+        ).reshape(-1, 4)
         ends = [(first, second) for first, second, *_ in dyn.springs]
         self.s_body = np.array([[-1 if k is None else k // 3 for k, _ in pair] for pair in ends], dtype=np.int64)
         self.s_body = self.s_body.reshape(-1, 2)
@@ -110,6 +114,7 @@ class Packed:
             self.size,
             self.r_body,
             self.r_law,
+            self.l_law,
         )
 
 
@@ -281,7 +286,21 @@ def _twist(q, qd, r_body, r_law, i):
 
 
 @njit(cache=True)
-def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law, out):
+def _law_factor(l_law, j, t):
+    """Load j's time-law factor at t (s): 1 (constant), offset + sin(2 pi f t + phase)
+    (harmonic) or min(t / duration, 1) (ramp); see ``model.LoadLaw``."""
+    code = l_law[j, 0]
+    if code == 1.0:
+        return l_law[j, 3] + math.sin(2.0 * math.pi * l_law[j, 1] * t + l_law[j, 2])
+    if code == 2.0:
+        return min(t / l_law[j, 1], 1.0)
+    return 1.0
+
+
+@njit(cache=True)
+def _forces(
+    q, qd, t, mass, com, gravity, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law, out
+):
     out[:] = 0.0
     for i in range(len(mass)):
         k = 3 * i
@@ -296,10 +315,11 @@ def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_bod
         k = 3 * l_body[j]
         c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
         ax, ay = c * l_point[j, 0] - s * l_point[j, 1], s * l_point[j, 0] + c * l_point[j, 1]
-        fx, fy = l_force[j, 0], l_force[j, 1]
+        factor = _law_factor(l_law, j, t)
+        fx, fy = factor * l_force[j, 0], factor * l_force[j, 1]
         out[k] += fx
         out[k + 1] += fy
-        out[k + 2] += ax * fy - ay * fx + l_torque[j]
+        out[k + 2] += ax * fy - ay * fx + factor * l_torque[j]
     for j in range(len(s_body)):
         length, rate, ux, uy, apx, apy, arx, ary = _spring(q, qd, s_body, s_point, j)
         tension = s_law[j, 0] * (length - s_law[j, 1]) + s_law[j, 2] * rate
@@ -320,11 +340,12 @@ def _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_bod
 
 
 @njit(cache=True)
-def _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law):
+def _power(q, qd, t, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law):
     total = 0.0
     for j in range(len(l_body)):
         _, _, vx, vy, _, _ = _point(q, qd, l_body[j], l_point[j, 0], l_point[j, 1])
-        total += l_force[j, 0] * vx + l_force[j, 1] * vy + l_torque[j] * qd[3 * l_body[j] + 2]
+        factor = _law_factor(l_law, j, t)
+        total += factor * (l_force[j, 0] * vx + l_force[j, 1] * vy + l_torque[j] * qd[3 * l_body[j] + 2])
     for j in range(len(s_body)):
         rate = _spring(q, qd, s_body, s_point, j)[1]
         total -= s_law[j, 2] * rate * rate
@@ -494,15 +515,18 @@ def _times(matrix, vector):
 
 
 @njit(cache=True)
-def _acceleration(model, buffers, last_measure, q, qd):
+def _acceleration(model, buffers, last_measure, q, qd, t):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
      l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _,
-     r_body, r_law) = model  # fmt: skip
+     r_body, r_law, l_law) = model  # fmt: skip
     m_buf, j_buf, _, g_buf, f_buf = buffers
     _mass(q, mass, inertia, com, m_buf)
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
-    _forces(q, qd, mass, com, gravity, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law, f_buf)
+    _forces(
+        q, qd, t, mass, com, gravity, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law,
+        f_buf,
+    )  # fmt: skip
     _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, g_buf)
     return _constrained(m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale)[0]
 
@@ -511,7 +535,7 @@ def _acceleration(model, buffers, last_measure, q, qd):
 def _residual_metres(model, buffers, q):
     """The largest loop-closure violation, m (angles times the size)."""
     (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
-     _, _, _, _, _, _, _, row_is_angle, _, _, _, size, _, _) = model  # fmt: skip
+     _, _, _, _, _, _, _, row_is_angle, _, _, _, size, _, _, _) = model  # fmt: skip
     r_buf = buffers[2]
     _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
     largest = 0.0
@@ -524,7 +548,7 @@ def _residual_metres(model, buffers, q):
 def _project(model, buffers, q, qd):
     """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
-     _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size, _, _) = model  # fmt: skip
+     _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size, _, _, _) = model  # fmt: skip
     m_buf, j_buf, r_buf, _, _ = buffers
     zero = np.zeros(len(q))
     before = _residual_metres(model, buffers, q)
@@ -547,19 +571,20 @@ def _project(model, buffers, q, qd):
 
 
 @njit(cache=True)
-def _energy_and_power(model, q, qd):
-    """(T + V, J; power of the loads and dampers, W)."""
+def _energy_of(model, q, qd):
+    """T + V, J."""
     (mass, inertia, com, _, _, _, _, _, _, _, _, _, _, _, gravity,
-     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law) = model  # fmt: skip
-    energy = _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law)
-    return energy, _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law)
+     _, _, _, _, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law, _) = model  # fmt: skip
+    return _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law)
 
 
 @njit(cache=True)
-def _power_of(model, q, qd):
+def _power_of(model, q, qd, t):
+    """Power of the loads at t (s) and of the dampers, W."""
     (_, _, _, _, _, _, _, _, _, _, _, _, _, _, _,
-     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law) = model  # fmt: skip
-    return _power(q, qd, l_body, l_point, l_force, l_torque, s_body, s_point, s_law, r_body, r_law)
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law,
+     _, _, _, _, _, r_body, r_law, l_law) = model  # fmt: skip
+    return _power(q, qd, t, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law)
 
 
 @njit(cache=True)
@@ -593,18 +618,20 @@ def integrate(model, q0, qd0, h, per_output, outputs, output_step):
     sigma0 = sigma1 = measure
     q, qd = q0.copy(), qd0.copy()  # as the NumPy integrator: the start is used as given
     q_out[0], qd_out[0] = q, qd
-    qdd_out[0] = _acceleration(model, buffers, measure, q, qd)
-    energy[0] = _energy_and_power(model, q, qd)[0]
+    qdd_out[0] = _acceleration(model, buffers, measure, q, qd, 0.0)
+    energy[0] = _energy_of(model, q, qd)
     for i in range(1, outputs + 1):
         drift = 0.0
         for j in range(per_output):
-            a1, p1 = _acceleration(model, buffers, measure, q, qd), _power_of(model, q, qd)
+            t = (i - 1) * output_step + j * h
+            a1, p1 = _acceleration(model, buffers, measure, q, qd, t), _power_of(model, q, qd, t)
             q2, qd2 = q + 0.5 * h * qd, qd + 0.5 * h * a1
-            a2, p2 = _acceleration(model, buffers, measure, q2, qd2), _power_of(model, q2, qd2)
+            half = t + 0.5 * h
+            a2, p2 = _acceleration(model, buffers, measure, q2, qd2, half), _power_of(model, q2, qd2, half)
             q3, qd3 = q + 0.5 * h * qd2, qd + 0.5 * h * a2
-            a3, p3 = _acceleration(model, buffers, measure, q3, qd3), _power_of(model, q3, qd3)
+            a3, p3 = _acceleration(model, buffers, measure, q3, qd3, half), _power_of(model, q3, qd3, half)
             q4, qd4 = q + h * qd3, qd + h * a3
-            a4, p4 = _acceleration(model, buffers, measure, q4, qd4), _power_of(model, q4, qd4)
+            a4, p4 = _acceleration(model, buffers, measure, q4, qd4, t + h), _power_of(model, q4, qd4, t + h)
             q = q + h / 6.0 * (qd + 2.0 * qd2 + 2.0 * qd3 + qd4)
             qd = qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
             w += h / 6.0 * (p1 + 2.0 * p2 + 2.0 * p3 + p4)
@@ -613,12 +640,12 @@ def integrate(model, q0, qd0, h, per_output, outputs, output_step):
             if sigma1 < SINGULAR_THRESHOLD and sigma1 <= sigma0 and sigma1 < measure:
                 if count == len(found):
                     found = np.concatenate((found, np.empty(len(found))))
-                found[count] = (i - 1) * output_step + j * h  # the previous step was the closest
+                found[count] = t  # the previous step was the closest
                 count += 1
             sigma0, sigma1 = sigma1, measure
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
             return q_out, qd_out, qdd_out, residual, energy, work, found[:count], i
         q_out[i], qd_out[i] = q, qd
-        qdd_out[i] = _acceleration(model, buffers, measure, q, qd)
-        residual[i], energy[i], work[i] = drift, _energy_and_power(model, q, qd)[0], w
+        qdd_out[i] = _acceleration(model, buffers, measure, q, qd, i * output_step)
+        residual[i], energy[i], work[i] = drift, _energy_of(model, q, qd), w
     return q_out, qd_out, qdd_out, residual, energy, work, found[:count], -1

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..kinematics import Solution, Status
 from ..model import GROUND, Driver, Joint, Mechanism, Prismatic, Revolute
-from ._forces import Forces, joint_quantities, require_mass_data
+from ._forces import Forces, joint_quantities, require_constant_loads, require_mass_data
 
 __all__ = ["inverse_dynamics", "newton_euler", "body_dynamics"]
 
@@ -145,8 +145,15 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
     pulls each end towards the other; at zero length it has no direction and
     pulls nowhere), then each rotational spring-damper's torque on its joint's
     moving bodies (-k (phi_b - phi_a - rest) - c (omega_b - omega_a) on body b,
-    the opposite on body a)."""
+    the opposite on body a).
+
+    Raises
+    ------
+    ModelError
+        If a load has a time law (the states carry no time).
+    """
     mech = solution.mechanism
+    require_constant_loads(mech)
     n = solution.q.shape[0]
     out = [
         AppliedLoad(

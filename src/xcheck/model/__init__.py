@@ -4,12 +4,14 @@ from ._free_motion import FreeMotionSpec, RotationalSpring, Spring
 from ._load import MAX_BODIES, MAX_FILE_BYTES, MAX_INSTANTS, load_mechanism, parse_mechanism
 from ._mechanism import (
     GROUND,
+    LOAD_LAWS,
     Assembly,
     Body,
     Driver,
     Instant,
     Joint,
     Load,
+    LoadLaw,
     Mechanism,
     MotionLaw,
     PinInSlot,
@@ -31,6 +33,8 @@ __all__ = [
     "Instant",
     "Joint",
     "Load",
+    "LoadLaw",
+    "LOAD_LAWS",
     "Mechanism",
     "MotionLaw",
     "PinInSlot",

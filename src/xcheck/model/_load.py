@@ -35,6 +35,7 @@ from ._mechanism import (
     Instant,
     Joint,
     Load,
+    LoadLaw,
     Mechanism,
     MotionLaw,
     PinInSlot,
@@ -762,9 +763,10 @@ class _Reader:
         moving = [name for name in bodies if name != GROUND]
         for i, spec in enumerate(value):
             field = f"loads[{i}]"
-            spec = self.table(spec, field, ("name", "body", "joint", "point", "force", "torque"))
+            spec = self.table(spec, field, ("name", "body", "joint", "point", "force", "torque", "law"))
+            law = self.load_law(spec["law"], f"{field}.law", units) if "law" in spec else None
             if "joint" in spec:
-                for pair in self.joint_torque(spec, field, joints, i):
+                for pair in self.joint_torque(spec, field, joints, i, law):
                     if pair.name in names:
                         self.fail(f"{field}.name", "a name no other load has", repr(pair.name))
                     names.add(pair.name)
@@ -803,10 +805,31 @@ class _Reader:
             if name in names:
                 self.fail(f"{field}.name", "a name no other load has", repr(name))
             names.add(name)
-            loads.append(Load(name, body_name, point, force, torque, label))
+            loads.append(Load(name, body_name, point, force, torque, label, law))
         return loads
 
-    def joint_torque(self, spec: dict, field: str, joints: list[Joint], i: int) -> list[Load]:
+    def load_law(self, value: Any, field: str, units: Units) -> LoadLaw:
+        """``law = { kind = "harmonic", frequency (Hz), phase (angle unit, default 0), offset
+        (default 0) }`` or ``{ kind = "ramp", duration (s) }``: the load times s(t)."""
+        spec = self.table(value, field, ("kind", "frequency", "phase", "offset", "duration"))
+        kind = self.choice(spec.get("kind"), f"{field}.kind", ("harmonic", "ramp"))
+        allowed = ("kind", "frequency", "phase", "offset") if kind == "harmonic" else ("kind", "duration")
+        extra = [key for key in spec if key not in allowed]
+        if extra:
+            self.fail(f"{field}.{extra[0]}", f"only {', '.join(allowed[1:])} in a {kind} law", repr(extra[0]))
+        if kind == "ramp":
+            duration = self.number(spec.get("duration"), f"{field}.duration")
+            if not duration > 0.0:
+                self.fail(f"{field}.duration", "a ramp duration above 0 s", repr(spec.get("duration")))
+            return LoadLaw("ramp", duration=duration)
+        frequency = self.number(spec.get("frequency"), f"{field}.frequency")
+        if frequency < 0.0:
+            self.fail(f"{field}.frequency", "a frequency of at least 0 Hz", repr(spec.get("frequency")))
+        phase = self.number(spec.get("phase", 0.0), f"{field}.phase", units.angle_factor)
+        offset = self.number(spec.get("offset", 0.0), f"{field}.offset")
+        return LoadLaw("harmonic", frequency=frequency, phase=phase, offset=offset)
+
+    def joint_torque(self, spec: dict, field: str, joints: list[Joint], i: int, law: LoadLaw | None) -> list[Load]:
         """A ``[[loads]]`` entry with ``joint``: the torque on the joint's second body and
         its opposite (named "NAME (reaction)") on the first, each where it is a moving body."""
         extra = [key for key in ("body", "point", "force") if key in spec]
@@ -831,7 +854,8 @@ class _Reader:
         name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
         j = by_name[joint]
         pairs = [(j.body_b, name, torque), (j.body_a, f"{name} (reaction)", -torque)]
-        return [Load(label, body, np.zeros(2), np.zeros(2), value) for body, label, value in pairs if body != GROUND]
+        zero = np.zeros(2)
+        return [Load(label, body, zero, zero, value, None, law) for body, label, value in pairs if body != GROUND]
 
 
 class _UnionFind:

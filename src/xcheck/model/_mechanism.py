@@ -28,6 +28,8 @@ __all__ = [
     "Instant",
     "Assembly",
     "Load",
+    "LoadLaw",
+    "LOAD_LAWS",
     "Mechanism",
 ]
 
@@ -311,9 +313,53 @@ def _frozen_vector(value) -> np.ndarray:
     return arr
 
 
+#: time-law kinds of a load, as codes (the compiled free-motion integrator reads the codes)
+LOAD_LAWS = {"harmonic": 1, "ramp": 2}
+
+
+@dataclass(frozen=True)
+class LoadLaw:
+    """How a load varies in time: its force and torque times a factor s(t).
+
+    Attributes
+    ----------
+    kind : str
+        ``"harmonic"``: s = offset + sin(2 pi frequency t + phase);
+        ``"ramp"``: s = min(t / duration, 1).
+    frequency : float, Hz
+    phase : float, rad
+    offset : float
+    duration : float, s
+    """
+
+    kind: str
+    frequency: float = 0.0
+    phase: float = 0.0
+    offset: float = 0.0
+    duration: float = 1.0
+
+    def factor(self, t):
+        """s(t) for a time or an array of times (s)."""
+        t = np.asarray(t, dtype=float)
+        if self.kind == "harmonic":
+            return self.offset + np.sin(2.0 * np.pi * self.frequency * t + self.phase)
+        return np.minimum(t / self.duration, 1.0)
+
+    def parameters(self) -> tuple[float, float, float, float]:
+        """(kind code, then frequency, phase, offset for a harmonic law or duration, 0, 0 for a ramp)."""
+        if self.kind == "harmonic":
+            return float(LOAD_LAWS["harmonic"]), self.frequency, self.phase, self.offset
+        return float(LOAD_LAWS["ramp"]), self.duration, 0.0, 0.0
+
+    def describe(self) -> str:
+        if self.kind == "harmonic":
+            return f"harmonic law ({self.frequency:g} Hz)"
+        return f"ramp law ({self.duration:g} s)"
+
+
 @dataclass(frozen=True)
 class Load:
-    """A constant applied load on a moving body (used by the dynamics only).
+    """An applied load on a moving body (used by the dynamics only).
 
     Attributes
     ----------
@@ -328,6 +374,9 @@ class Load:
         A couple on the body, counter-clockwise positive.
     label : str or None
         The point's label when the file names one.
+    law : LoadLaw or None
+        None: constant. Otherwise the force and torque are times ``law.factor(t)``
+        (free motion; a driven motion's states have no time).
     """
 
     name: str
@@ -336,6 +385,7 @@ class Load:
     force: np.ndarray
     torque: float = 0.0
     label: str | None = None
+    law: LoadLaw | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "point", _frozen_vector(self.point))

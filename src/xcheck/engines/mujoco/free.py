@@ -251,8 +251,8 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
 
 
 def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
-    """The passive-force callback applying the mechanism's constant loads and its
-    rotational spring-dampers, or None without either.
+    """The passive-force callback applying the mechanism's loads (time laws at
+    ``d.time``) and its rotational spring-dampers, or None without either.
 
     A rotational spring's angle phi_b - phi_a is kept continuous from its value
     at the native initial state ``q0`` (body coordinates), to the nearest turn
@@ -267,6 +267,7 @@ def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
             np.array([*load.point, 0.0]),
             np.array([*load.force, 0.0]),
             np.array([0.0, 0.0, float(load.torque)]),
+            load.law,
         )
         for load in mechanism.loads
     ]
@@ -292,9 +293,10 @@ def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
         return math.atan2(d.xmat[body][3], d.xmat[body][0]) if body else 0.0
 
     def apply(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        for body, point, force, torque in terms:
+        for body, point, force, torque, law in terms:
             at = d.xpos[body] + d.xmat[body].reshape(3, 3) @ point
-            mujoco.mj_applyFT(m, d, force, torque, at, body, d.qfrc_passive)
+            factor = 1.0 if law is None else float(law.factor(d.time))  # RK4 sets d.time at its stages
+            mujoco.mj_applyFT(m, d, factor * force, factor * torque, at, body, d.qfrc_passive)
         for k, (a, b, stiffness, rest, damping) in enumerate(twists):
             twist = angle(d, b) - angle(d, a)
             twist += 2.0 * math.pi * round((last[k] - twist) / (2.0 * math.pi))

@@ -80,7 +80,13 @@ class _Free:
         self.work_data = pm.model.createData()
         mech = pm.mechanism
         self.loads = [
-            (pm.body_frames[load.body], np.asarray(load.point, float), np.asarray(load.force, float), load.torque)
+            (
+                pm.body_frames[load.body],
+                np.asarray(load.point, float),
+                np.asarray(load.force, float),
+                load.torque,
+                load.law,
+            )
             for load in mech.loads
             if load.body in pm.body_frames
         ]
@@ -108,8 +114,8 @@ class _Free:
         self.evaluations = 0
         self.proximal_iterations = 0
 
-    def applied(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Generalised force of the loads and springs (nv,), N or N m."""
+    def applied(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """Generalised force of the loads at time t (s) and of the springs (nv,), N or N m."""
         tau = np.zeros(self.model.nv)
         if not self.loads and not self.springs and not self.twists:
             return tau
@@ -117,7 +123,10 @@ class _Free:
         pin.forwardKinematics(model, data, q, v)
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
-        for fid, point, force, torque in self.loads:
+        for fid, point, force, torque, law in self.loads:
+            if law is not None:
+                factor = float(law.factor(t))
+                force, torque = factor * force, factor * torque
             jac = _jacobian(model, data, fid)
             arm = data.oMf[fid].rotation[:2, :2] @ point
             moment = arm[0] * force[1] - arm[1] * force[0] + torque
@@ -166,7 +175,7 @@ class _Free:
         model, data = self.model, self.work_data
         total = pin.computeKineticEnergy(model, data, q, v) + pin.computePotentialEnergy(model, data, q)
         pin.updateFramePlacements(model, data)
-        for i, (fid, point, force, torque) in enumerate(self.loads):
+        for i, (fid, point, force, torque, _) in enumerate(self.loads):
             placement = data.oMf[fid]
             r = placement.translation[:2] + placement.rotation[:2, :2] @ point
             phi = math.atan2(placement.rotation[1, 0], placement.rotation[0, 0])
@@ -181,11 +190,11 @@ class _Free:
             total += 0.5 * stiffness * (self._turned(k, self._twist_energy, first, second) - rest) ** 2
         return float(total)
 
-    def acceleration(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """q'' (nv,) at (q, v)."""
+    def acceleration(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """q'' (nv,) at (q, v) and time t (s)."""
         self.evaluations += 1
         a = pin.constraintDynamics(
-            self.model, self.data, q, v, self.applied(q, v), self.cms, self.cds, self.settings
+            self.model, self.data, q, v, self.applied(q, v, t), self.cms, self.cds, self.settings
         ).copy()
         self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
         return a
@@ -250,25 +259,26 @@ def _integrate(free: _Free, scheme, q0, v0, dt, steps_per_sample, samples, nativ
     check = free.pm.model.createData()
 
     def record(t):
-        rows.append((t, q.copy(), v.copy(), free.acceleration(q, v), np.zeros(0)))
+        rows.append((t, q.copy(), v.copy(), free.acceleration(q, v, t), np.zeros(0)))
         energy.append(free.energy(q, v))
 
     record(0.0)
     step = 0
     for sample in range(1, samples):
         for _ in range(steps_per_sample):
+            now = step * dt
             if scheme == "rk4":
-                k1v = free.acceleration(q, v)
-                k2v = free.acceleration(q + dt / 2 * v, v + dt / 2 * k1v)
+                k1v = free.acceleration(q, v, now)
+                k2v = free.acceleration(q + dt / 2 * v, v + dt / 2 * k1v, now + dt / 2)
                 k2q = v + dt / 2 * k1v
-                k3v = free.acceleration(q + dt / 2 * k2q, v + dt / 2 * k2v)
+                k3v = free.acceleration(q + dt / 2 * k2q, v + dt / 2 * k2v, now + dt / 2)
                 k3q = v + dt / 2 * k2v
-                k4v = free.acceleration(q + dt * k3q, v + dt * k3v)
+                k4v = free.acceleration(q + dt * k3q, v + dt * k3v, now + dt)
                 k4q = v + dt * k3v
                 q = q + dt / 6 * (v + 2 * k2q + 2 * k3q + k4q)
                 v = v + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
             else:  # semi-implicit Euler: velocity first, then position with the new velocity
-                v = v + dt * free.acceleration(q, v)
+                v = v + dt * free.acceleration(q, v, now)
                 q = q + dt * v
             step += 1
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
@@ -369,7 +379,8 @@ def _run(kinematics, pm, oracle, reference, native, setting, dt, stride, q0, v0,
     errors = free_errors(reference, trajectory)
     row.update({k: errors[k] for k in ("position_error", "final_error", "angle_error")})
     mech = pm.mechanism
-    if all(s.damping == 0.0 for s in (*mech.springs, *mech.rotational_springs)):  # E is conserved
+    conservative = all(s.damping == 0.0 for s in (*mech.springs, *mech.rotational_springs))
+    if conservative and all(load.law is None for load in mech.loads):  # E less the loads' potential is conserved
         row["energy_drift"] = float(np.max(np.abs(np.array(energy) - energy[0])))
     return row, trajectory if failure is None else None
 

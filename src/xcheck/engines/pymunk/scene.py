@@ -250,9 +250,10 @@ class Scene:
         for load in self.mechanism.loads:
             body = self.bodies[load.body]
             if body.body_type == pm.Body.DYNAMIC:
+                factor = 1.0 if load.law is None else float(load.law.factor(t))  # the step's start
                 at = body.local_to_world(tuple(float(x) for x in load.point))
-                body.apply_force_at_world_point(tuple(float(f) for f in load.force), at)
-                body.torque += float(load.torque)
+                body.apply_force_at_world_point(tuple(factor * float(f) for f in load.force), at)
+                body.torque += factor * float(load.torque)
         self.space.step(dt)
 
     def world_point(self, body: str, label: str) -> np.ndarray:
