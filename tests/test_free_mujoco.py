@@ -141,7 +141,16 @@ def test_a_run_that_blows_up_is_a_row(a02):
 
 def test_cli_simulate_lists_the_mode_with_its_ladder():
     result = invoke(
-        "simulate", "iftomm-a01", "--duration", "1", "--engines", "mujoco", "--json", "--models", str(MODELS)
+        "simulate",
+        "iftomm-a01",
+        "--duration",
+        "1",
+        "--engines",
+        "mujoco",
+        "--json",
+        "--no-report",
+        "--models",
+        str(MODELS),
     )
     assert result.returncode == 0, result.stderr
     document = json.loads(result.stdout)

@@ -160,7 +160,16 @@ def test_rk4_without_correction_dies_at_the_fourth_singular_pass():
 
 def test_cli_lists_the_mode_and_its_ladder():
     done = invoke(
-        "simulate", "iftomm-a01", "--duration", "1", "--engines", "pinocchio", "--json", "--models", str(MODELS)
+        "simulate",
+        "iftomm-a01",
+        "--duration",
+        "1",
+        "--engines",
+        "pinocchio",
+        "--json",
+        "--no-report",
+        "--models",
+        str(MODELS),
     )
     assert done.returncode == 0, done.stderr
     mode = json.loads(done.stdout)["engines"]["pinocchio-free"]
