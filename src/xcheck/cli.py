@@ -18,7 +18,7 @@ from rich.table import Table
 from . import __version__
 from . import engines as registry
 from .api import printed_answers, select_modes
-from .catalog import benchmark_names, indexed_names, model_names, model_path, models_dir, reports_dir
+from .catalog import benchmark_names, indexed_names, installed, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -647,7 +647,8 @@ def export_command(
                 failed += 1
                 continue
             for file_name, text in texts.items():
-                target = path.parent / subdirectory / file_name
+                # a bundled file of an installed package exports into ./models, not into the package
+                target = (Path("models") if installed(path) else path.parent) / subdirectory / file_name
                 current = target.read_text(encoding="utf-8") if target.is_file() else None
                 if current == text:
                     continue
