@@ -25,12 +25,24 @@ def _files(folder: Path) -> set[Path]:
     return {p.relative_to(folder) for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts}
 
 
+def _can_build_here() -> bool:
+    import importlib.util
+
+    import setuptools
+
+    major, minor = (int(part) for part in setuptools.__version__.split(".")[:2])
+    return (major, minor) >= (70, 1) or importlib.util.find_spec("wheel") is not None
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
     """The folder the wheel is installed into."""
     tmp = tmp_path_factory.mktemp("install")
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check"]
-    subprocess.run([*pip, "wheel", "--no-deps", "-q", str(ROOT), "-w", str(tmp / "wheel")], check=True)
+    # the test environment's own setuptools when it can build a wheel (wheel installed, or
+    # setuptools >= 70.1 which has bdist_wheel); else pip's isolated build fetches them
+    isolation = ["--no-build-isolation"] if _can_build_here() else []
+    subprocess.run([*pip, "wheel", "--no-deps", *isolation, "-q", str(ROOT), "-w", str(tmp / "wheel")], check=True)
     (wheel,) = (tmp / "wheel").glob("xcheck-*.whl")
     site = tmp / "site"
     subprocess.run([*pip, "install", "--no-deps", "--no-index", "-q", "--target", str(site), str(wheel)], check=True)
