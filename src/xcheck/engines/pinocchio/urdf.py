@@ -12,6 +12,12 @@ the body, frame = the mechanism's body frame, carrying the inertia) hangs from
 it by a fixed joint ``"<body>.fixed"``; every named point is a link
 ``"<body>.<label>"`` on a fixed joint ``"<body>.<label>.fixed"``. Pinocchio's
 URDF parser turns those fixed links into frames of the same names.
+
+In the file every name is a ROS name (:func:`ros_name`: ``"crank.B"`` is
+``"crank__B"``); the file ends with a comment listing the renamed names, and
+the JSON's ``"names"`` maps each model name to the file's. Every link has a
+visual (no collision geometry, no mass), and the JSON's ``"assembly"`` gives
+each joint's value at the assembly.
 """
 
 from __future__ import annotations
