@@ -423,20 +423,21 @@ def test_urdf_of_a_carrier_loads_and_matches_the_programmatic_model(cut, tmp_pat
         (tmp_path / name).write_text(text)
     urdf = pin.buildModelFromUrdf(str(tmp_path / "scotch-yoke.urdf"))
     loops = json.loads((tmp_path / "scotch-yoke.loops.json").read_text())
+    names = loops["names"]  # model name -> URDF name
     assert urdf.nv == pm.model.nv
     q = joint_coordinates(pm, kin.assemble())
     data, udata = pm.model.createData(), urdf.createData()
-    qu = _urdf_configuration(urdf, pm, q)
+    qu = _urdf_configuration(urdf, pm, q, names)
     pin.framesForwardKinematics(pm.model, data, q)
     pin.framesForwardKinematics(urdf, udata, qu)
     for f in range(1, pm.model.nframes):
         frame = pm.model.frames[f]
         kind = pin.FrameType.JOINT if frame.type == pin.FrameType.JOINT else pin.FrameType.BODY
-        other = urdf.getFrameId(frame.name, kind)
+        other = urdf.getFrameId(names[frame.name], kind)
         assert other < urdf.nframes, frame.name
         np.testing.assert_allclose(udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=1e-15)
     for j in range(1, pm.model.njoints):
-        u = urdf.getJointId(pm.model.names[j])
+        u = urdf.getJointId(names[pm.model.names[j]])
         np.testing.assert_allclose(urdf.inertias[u].matrix(), pm.model.inertias[j].matrix(), rtol=0, atol=1e-15)
     (loop,) = loops["loops"]
     assert loop["contact_type"] == ("CONTACT_3D" if cut == "slot" else "CONTACT_6D")
@@ -485,12 +486,13 @@ def test_committed_urdf_files_are_current(name):
         )
 
 
-def _urdf_configuration(urdf_model, pm, q):
+def _urdf_configuration(urdf_model, pm, q, names):
     """The URDF model's configuration at the programmatic q: hinges parsed as
-    RUBZ take (cos, sin)."""
+    RUBZ take (cos, sin). ``names``: model name -> URDF name (the loops file's)."""
+    model_name = {v: k for k, v in names.items()}
     qu = pin.neutral(urdf_model)
     for j in range(1, urdf_model.njoints):
-        x = q[pm.model.idx_qs[pm.model.getJointId(urdf_model.names[j])]]
+        x = q[pm.model.idx_qs[pm.model.getJointId(model_name[urdf_model.names[j]])]]
         k = urdf_model.idx_qs[j]
         if urdf_model.joints[j].nq == 2:
             qu[k : k + 2] = [math.cos(x), math.sin(x)]
@@ -508,22 +510,23 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
     pm = build(kin)
     urdf = pin.buildModelFromUrdf(str(URDF_DIR / f"{name}.urdf"))
     loops = json.loads((URDF_DIR / f"{name}.loops.json").read_text())
+    names = loops["names"]  # model name -> URDF name
     assert urdf.nv == pm.model.nv
     q_ref = joint_coordinates(pm, kin.assemble())
     data, udata = pm.model.createData(), urdf.createData()
     for q in (q_ref, q_ref + 0.3):
         pin.framesForwardKinematics(pm.model, data, q)
-        pin.framesForwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q))
+        pin.framesForwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q, names))
         for f in range(1, pm.model.nframes):
             frame = pm.model.frames[f]
             kind = pin.FrameType.JOINT if frame.type == pin.FrameType.JOINT else pin.FrameType.BODY
-            other = urdf.getFrameId(frame.name, kind)
+            other = urdf.getFrameId(names[frame.name], kind)
             assert other < urdf.nframes, frame.name
             np.testing.assert_allclose(
                 udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=1e-15 * kin.system.size + 1e-15
             )
     for j in range(1, pm.model.njoints):
-        u = urdf.getJointId(pm.model.names[j])
+        u = urdf.getJointId(names[pm.model.names[j]])
         np.testing.assert_allclose(urdf.inertias[u].matrix(), pm.model.inertias[j].matrix(), rtol=0, atol=1e-15)
     # close the loops the way the URDF's header says
     cms = []
@@ -541,13 +544,13 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
             )
         )
     assert len(cms) == len(pm.constraints)
-    pin.forwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q_ref))
+    pin.forwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q_ref, names))
     for cm in cms:
         cd = cm.createData()
         cm.calc(urdf, udata, cd)
         assert np.max(np.abs(cd.oMc1.translation - cd.oMc2.translation)) < 1e-14 * kin.system.size
     for entry, dc in zip(loops["inputs"], pm.drivers):
-        assert (entry["joint"], entry["sign"]) == (dc.joint, dc.sign)
+        assert (entry["joint"], entry["sign"]) == (names[dc.joint], dc.sign)
 
 
 def test_urdf_floats_read_back_exactly():
@@ -555,6 +558,6 @@ def test_urdf_floats_read_back_exactly():
     bit: P of the two-body arm is at 600/sqrt(2) mm at 45 deg, not a short decimal."""
     kin = _kin("two-body-arm")
     root = ElementTree.fromstring(export_files(kin)["two-body-arm.urdf"])
-    joint = next(j for j in root.iter("joint") if j.get("name") == "arm2.P.fixed")
+    joint = next(j for j in root.iter("joint") if j.get("name") == "arm2__P__fixed")
     xyz = [float(x) for x in joint.find("origin").get("xyz").split()]
     assert xyz == [*kin.mechanism.body("arm2").points["P"], 0.0]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from importlib import resources
 from pathlib import Path
 
 from .errors import InputError
@@ -16,15 +17,21 @@ __all__ = [
     "reports_dir",
     "comparisons_dir",
     "comparisons_path",
+    "installed",
 ]
 
-#: The repository's models/ (an editable or source install).
-_BUNDLED = Path(__file__).resolve().parents[2] / "models"
+#: The package's data: ``xcheck/_data/models`` and ``xcheck/_data/comparisons``.
+#: In the repository they are links to the top-level models/ and comparisons/
+#: (the one copy, which an editable install reads); a wheel holds copies.
+_DATA = Path(str(resources.files("xcheck") / "_data"))
+_BUNDLED = _DATA / "models"
+#: Where the installed package lives: nothing is ever written under it.
+_PACKAGE = Path(__file__).resolve().parent
 
 
 def models_dir(override: str | Path | None = None) -> Path:
     """The directory of mechanism files: ``override``, else $XCHECK_MODELS,
-    else ./models if it exists, else the repository's models/."""
+    else ./models if it exists, else the bundled ones (the package's data)."""
     if override is not None:
         return Path(override)
     if os.environ.get("XCHECK_MODELS"):
@@ -70,6 +77,12 @@ def benchmark_names(directory: Path) -> list[str]:
     return sorted(p.stem for p in (Path(directory) / BENCHMARKS).glob("*.toml"))
 
 
+def installed(model_file: Path) -> bool:
+    """Whether a mechanism file is one of an installed package's bundled files
+    (its folder is inside the package, not a link to a checkout's models/)."""
+    return Path(model_file).resolve().is_relative_to(_PACKAGE)
+
+
 def _home(model_file: Path) -> Path:
     """Where a mechanism file's companions live: beside the ``models/`` directory
     it is in, or beside the file itself when it is elsewhere."""
@@ -93,8 +106,11 @@ def comparisons_dir(model_file: Path, override: str | Path | None = None) -> Pat
 def reports_dir(model_file: Path, override: str | Path | None = None) -> Path:
     """Where ``xcheck run`` writes a mechanism's report: ``override``, else
     ``reports/`` at the file's home (so a file of one's own never writes into
-    the repository's reports)."""
-    return Path(override) if override is not None else _home(model_file) / "reports"
+    the repository's reports), else, for a file bundled with an installed
+    package, ``./reports`` (nothing is written into the package)."""
+    if override is not None:
+        return Path(override)
+    return Path("reports") if installed(model_file) else _home(model_file) / "reports"
 
 
 def comparisons_path(model_file: Path, directory: Path) -> Path | None:

@@ -6,6 +6,7 @@ import functools
 import io
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
@@ -19,7 +20,7 @@ from rich.table import Table
 from . import __version__
 from . import engines as registry
 from .api import limit_warnings, printed_answers, select_modes
-from .catalog import benchmark_names, indexed_names, model_names, model_path, models_dir, reports_dir
+from .catalog import benchmark_names, indexed_names, installed, model_names, model_path, models_dir, reports_dir
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -480,18 +481,8 @@ def run_command(
         + _shown_option("--comparisons", comparisons)
         + _shown_option("--out", out)
     )
-    stderr = Console(stderr=True)
     results, entries, failures = [], [], []
-    progress = Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-        disable=quiet or not stderr.is_terminal,
-    )
+    progress = _progress_bar(quiet or as_json)
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
         for model in names:
@@ -553,6 +544,23 @@ def run_command(
         raise typer.Exit(1)
 
 
+def _progress_bar(off: bool) -> Progress:
+    """A transient progress bar on stderr (what runs, done/total, time): only
+    when stderr and stdout are terminals, never with --json or --quiet (``off``),
+    so that piped or captured output stays clean."""
+    stderr = Console(stderr=True)
+    return Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+        disable=off or not stderr.is_terminal or not sys.stdout.isatty(),
+    )
+
+
 def _shown_path(path: Path) -> str:
     """A path as a command line would give it: relative to the working
     directory when it lies below it, else as it is."""
@@ -597,7 +605,7 @@ def simulate_command(
         typer.Option("--out", help="Directory of the Markdown report (default: reports/ beside the models directory)."),
     ] = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown report.")] = True,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress line.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
     models: ModelsOption = None,
 ):
     """Release the mechanism to move freely under gravity, springs and loads, and integrate it exactly.
@@ -618,14 +626,17 @@ def simulate_command(
     path = model_path(name, models_dir(models))
     kin = Kinematics(load_mechanism(path))
     kin.assemble(branch)
-    stderr = Console(stderr=True)
-    show = not quiet and stderr.is_terminal
+    bar = _progress_bar(quiet or as_json)
+    with bar:
+        # one step for the native reference (its step ladder in the description), one per mode
+        task = bar.add_task(f"{kin.mechanism.name}: native", total=1 + len(modes))
 
-    def progress(what: str) -> None:
-        if show:
-            stderr.print(f"{kin.mechanism.name}: {what} ...", highlight=False)
+        def progress(what: str) -> None:
+            if not what.startswith("native:"):  # a mode starts: the stage before it is done
+                bar.advance(task)
+            bar.update(task, description=f"{kin.mechanism.name}: {what}")
 
-    result = simulate_all(kin, modes, duration, branch, progress=progress)
+        result = simulate_all(kin, modes, duration, branch, progress=progress)
     reference = result.reference
     failure = None
     if report:
@@ -710,7 +721,8 @@ def export_command(
                 failed += 1
                 continue
             for file_name, text in texts.items():
-                target = path.parent / subdirectory / file_name
+                # a bundled file of an installed package exports into ./models, not into the package
+                target = (Path("models") if installed(path) else path.parent) / subdirectory / file_name
                 current = target.read_text(encoding="utf-8") if target.is_file() else None
                 if current == text:
                     continue

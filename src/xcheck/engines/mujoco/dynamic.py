@@ -15,7 +15,7 @@ import numpy as np
 
 from xcheck.model import Mechanism
 
-from .mjcf import Layout
+from .mjcf import MUJOCO_SOLIMP, MUJOCO_SOLREF, MUJOCO_TOLERANCE, Layout
 
 __all__ = ["Setting", "DEFAULT", "TIGHT", "Run", "simulate"]
 
@@ -30,8 +30,9 @@ class Setting:
     integrator : str
         MuJoCo integrator name (``"Euler"``, ``"RK4"``, ...).
     stiff : bool
-        False: the file's constraint settings (MuJoCo's defaults, solref
-        0.02 s, solimp 0.9 0.95). True: solref time constant 2 dt (the
+        False: MuJoCo's defaults (solref 0.02 s, solimp 0.9 0.95, solver
+        tolerance 1e-8), set explicitly: the written file carries the tight
+        ones. True: solref time constant 2 dt (the
         smallest MuJoCo accepts, ``refsafe``; with refsafe disabled, dt and
         dt/2 measured 5 and 70 times worse on the four-bar), damping ratio 1,
         solimp 0.9999 (the largest impedance), and solver tolerance 1e-12.
@@ -49,6 +50,10 @@ class Setting:
             model.eq_solref[:] = (2.0 * timestep, 1.0)
             model.eq_solimp[:] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
             model.opt.tolerance = 1e-12
+        else:
+            model.eq_solref[:] = MUJOCO_SOLREF
+            model.eq_solimp[:] = MUJOCO_SOLIMP
+            model.opt.tolerance = MUJOCO_TOLERANCE
         return {
             "setting": self.name,
             "integrator": self.integrator,
@@ -59,7 +64,7 @@ class Setting:
         }
 
 
-#: What a user starts from: the file as written (MuJoCo's defaults).
+#: What a user starts from with no settings of their own: MuJoCo's defaults.
 DEFAULT = Setting("default", "Euler", False)
 #: Stiff loop closures and a fourth-order integrator.
 TIGHT = Setting("tight", "RK4", True)

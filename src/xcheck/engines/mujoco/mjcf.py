@@ -52,6 +52,14 @@ from xcheck.topology import Topology, TreeJoint, carrier_share, spanning_tree
 __all__ = [
     "DEFAULT_MASS",
     "SERVO_FREQUENCY",
+    "TIGHT_INTEGRATOR",
+    "TIGHT_TIMESTEP",
+    "TIGHT_SOLREF",
+    "TIGHT_SOLIMP",
+    "TIGHT_TOLERANCE",
+    "MUJOCO_SOLREF",
+    "MUJOCO_SOLIMP",
+    "MUJOCO_TOLERANCE",
     "CARRIER_INERTIA",
     "CARRIER_INERTIA_FLOOR",
     "MassProperties",
@@ -76,6 +84,19 @@ DEFAULT_DISC_FRACTION = 0.05
 #: Natural frequency (rad/s) of each input's servo, critically damped. With
 #: MuJoCo's default 2 ms Euler step, omega dt = 0.5: stable (the limit is 1).
 SERVO_FREQUENCY = 250.0
+#: The file's solver settings: those of the dynamic mode's tight runs at their
+#: largest timestep (:data:`xcheck.engines.mujoco.dynamic.TIGHT`: RK4, equality
+#: solref = 2 dt with damping ratio 1, solimp 0.9999, solver tolerance 1e-12).
+TIGHT_INTEGRATOR = "RK4"
+TIGHT_TIMESTEP = 1e-3
+TIGHT_SOLREF = (2.0 * TIGHT_TIMESTEP, 1.0)
+TIGHT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+TIGHT_TOLERANCE = 1e-12
+#: MuJoCo's own defaults (what a file without settings gets): the dynamic
+#: mode's 'default' runs.
+MUJOCO_SOLREF = (0.02, 1.0)
+MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
+MUJOCO_TOLERANCE = 1e-8
 #: Rotational inertia of a pin-in-slot carrier, times its mass and the
 #: mechanism's size squared (MuJoCo refuses a body with zero inertia) ...
 CARRIER_INERTIA = 1e-9
@@ -372,6 +393,56 @@ def _round(x: float, digits: int = 3) -> float:
     return float(f"{x:.{digits - 1}e}")
 
 
+def _compose(a: tuple[float, np.ndarray], b: tuple[float, np.ndarray]) -> tuple[float, np.ndarray]:
+    """The planar rigid motion ``a`` after ``b``; a motion is (angle (rad), translation (2,) m): x -> A(angle) x + t."""
+    return a[0] + b[0], rotate(a[0], b[1]) + a[1]
+
+
+def _joint_motion(kind: str, anchor: np.ndarray, axis: np.ndarray, value: float) -> tuple[float, np.ndarray]:
+    """The motion of a body frame by one MuJoCo joint at ``value`` (rad or m), in the frame it is written in.
+
+    A hinge turns about ``anchor`` (``axis[0]`` the sign of its z axis); a slide moves along ``axis``.
+    """
+    if kind == "hinge":
+        turn = float(np.sign(axis[0])) * value
+        return turn, anchor - rotate(turn, anchor)
+    return 0.0, value * axis
+
+
+def _assembled(
+    pose: tuple[float, np.ndarray], moves: list[tuple[str, str, np.ndarray, np.ndarray]], refs: dict[str, float]
+) -> tuple[tuple[float, np.ndarray], list[tuple[str, str, np.ndarray, np.ndarray]]]:
+    """A body's pose and joints written at the joints' reference values.
+
+    MuJoCo places a body at ``P T_1(q_1 - ref_1) ... T_n(q_n - ref_n)``: P its
+    written pose, T_k its joints in order, each in the frame the previous ones
+    leave. The frame written at zero coordinates, ``P0 T_1(q_1) ... T_n(q_n)``,
+    is the same motion for every q when P = P0 T_1(r_1) ... T_n(r_n) and joint k
+    is written conjugated by ``C_k = T_{k+1}(r_{k+1}) ... T_n(r_n)`` (a hinge's
+    anchor and a slide's axis mapped by C_k^-1; the last joint is unchanged).
+
+    Parameters
+    ----------
+    pose : (float, ndarray (2,))
+        P0: the body frame's angle (rad) and position (m) in its parent's frame at zero coordinates.
+    moves : list of (name, kind, anchor (2,) m, axis (2,))
+        The body's joints in order, written in the body frame (a hinge's axis[0]: the sign of z).
+    refs : dict
+        Reference value of each joint (rad or m).
+    """
+    total = pose
+    for name, kind, anchor, axis in moves:
+        total = _compose(total, _joint_motion(kind, anchor, axis, refs[name]))
+    moved = []
+    suffix: tuple[float, np.ndarray] = (0.0, np.zeros(2))  # C_k
+    for name, kind, anchor, axis in reversed(moves):
+        back = rotate(-suffix[0], anchor - suffix[1])  # C_k^-1 (anchor)
+        direction = axis if kind == "hinge" else rotate(-suffix[0], axis)
+        moved.append((name, kind, back, direction))
+        suffix = _compose(_joint_motion(kind, anchor, axis, refs[name]), suffix)
+    return total, moved[::-1]
+
+
 def _comment(text: str) -> ET.Element[Any]:
     return ET.Comment(" " + text.strip().replace("--", "-") + " ")
 
@@ -390,6 +461,9 @@ def mjcf_text(kinematics: Kinematics) -> str:
     written, carriers = file_mass_properties(mech, lay.topology)
     size = mech.size
     radius = _round(0.01 * size)  # visual only
+    # the assembly: every joint's ref, so that qpos0 (and the keyframe) is the assembled configuration
+    qpos = joint_coordinates(mech, lay, kinematics.assemble())
+    refs = {mj.name: float(v) for mj, v in zip(lay.joints, qpos)}
 
     root = ET.Element("mujoco", model=mech.name)
     defaults = [name for name, p in masses.items() if p.default]
@@ -398,7 +472,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
         "SI units; angles in radians. Body frames are the model's body frames. Hinge qpos = phi_b - phi_a "
         "of the model joint (axis -z where the tree runs from body_b to body_a); slide qpos = the joint's "
         "slide displacement. A pin-in-slot is a slide and a hinge in one body.",
-        "Loops are cut at revolutes and closed by site connect constraints (default solref/solimp)"
+        "Loops are cut at revolutes and closed by site connect constraints"
         + (
             ""
             if not carriers
@@ -434,15 +508,30 @@ def mjcf_text(kinematics: Kinematics) -> str:
         ),
         "Each input is driven by a position servo (kp, ctrl = the motion law's value) plus a velocity servo "
         f"(kv, ctrl = the law's rate): critically damped at {_num(SERVO_FREQUENCY)} rad/s for the input's "
-        "smallest apparent inertia over the simulation window (gains rounded to 3 digits). Options are "
-        "MuJoCo's defaults (Euler, 2 ms) apart from gravity.",
-        "Keyframe 'reference': the assembled configuration at the reference inputs (rounded to 12 digits).",
+        "smallest apparent inertia over the simulation window (gains rounded to 3 digits).",
+        f"Solver settings: the tight ones xcheck's dynamic mode verifies against the exact solution (its "
+        f"'tight' runs): {TIGHT_INTEGRATOR}, timestep {_num(TIGHT_TIMESTEP)} s (the largest of its tight "
+        f"runs), equality solref = 2 timestep, damping ratio 1 ({_vec(*TIGHT_SOLREF)}), solimp "
+        f"{_vec(*TIGHT_SOLIMP)} (the largest impedance), solver tolerance {_num(TIGHT_TOLERANCE)}. A smaller "
+        "timestep needs solref = 2 timestep with it (MuJoCo's refsafe floor). MuJoCo's defaults (Euler, 2 ms, "
+        "solref 0.02 1, solimp 0.9 0.95) let the loops open visibly: xcheck's 'default' runs measure that.",
+        "Each joint's ref is its value at the assembly (the reference inputs), so qpos0 is the assembled "
+        "configuration: the file opens assembled, and qpos keeps the meaning above. Keyframe 'reference': "
+        "the same configuration.",
     ]
     for line in header:
         root.append(_comment(line))
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
-    ET.SubElement(root, "option", gravity=_vec(*mech.gravity, 0.0))
+    ET.SubElement(
+        root,
+        "option",
+        gravity=_vec(*mech.gravity, 0.0),
+        timestep=_num(TIGHT_TIMESTEP),
+        integrator=TIGHT_INTEGRATOR,
+        tolerance=_num(TIGHT_TOLERANCE),
+    )
     default = ET.SubElement(root, "default")
+    ET.SubElement(default, "equality", solref=_vec(*TIGHT_SOLREF), solimp=_vec(*TIGHT_SOLIMP))
     ET.SubElement(default, "geom", contype="0", conaffinity="0", rgba="0.3 0.5 0.8 1")
     ET.SubElement(default, "site", size=_num(_round(1.5 * radius)), rgba="0.9 0.3 0.2 1")
 
@@ -478,19 +567,29 @@ def mjcf_text(kinematics: Kinematics) -> str:
         else:
             s_parent, s_child = parent.points[point_a], body.points[point_b]
         pos, anchor = s_parent - rotate(angle, s_child), s_child
-        attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
-        if angle != 0.0:
-            attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
-        el = ET.SubElement(parent_el, "body", attrs)
+        # the body's joints at zero coordinates ...
+        moves = []
         for name, kind in _tree_joints(tj):
-            j_attrs = {"name": name, "type": kind, "pos": _vec(anchor[0], anchor[1], 0.0)}
             if kind == "hinge":
-                j_attrs["axis"] = "0 0 -1" if tj.reversed else "0 0 1"
+                axis = np.array([-1.0 if tj.reversed else 1.0, 0.0])  # (sign of z, unused)
             else:
                 assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
                 # the line's direction in the child frame (reversed: the child carries the line
                 # and moves against it)
                 axis = -joint.direction if tj.reversed else rotate(-angle, joint.direction)
+            moves.append((name, kind, np.asarray(anchor, dtype=float), np.asarray(axis, dtype=float)))
+        # ... written at the assembly: the body's pose at its reference coordinates, each
+        # joint's anchor and axis expressed in that frame (see _assembled)
+        (angle, pos), moved = _assembled((angle, pos), moves, refs)
+        attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
+        if angle != 0.0:
+            attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
+        el = ET.SubElement(parent_el, "body", attrs)
+        for name, kind, at, axis in moved:
+            j_attrs = {"name": name, "type": kind, "pos": _vec(at[0], at[1], 0.0), "ref": _num(refs[name])}
+            if kind == "hinge":
+                j_attrs["axis"] = "0 0 -1" if axis[0] < 0 else "0 0 1"
+            else:
                 j_attrs["axis"] = _vec(axis[0], axis[1], 0.0)
             ET.SubElement(el, "joint", j_attrs)
         props = written[body.name]
@@ -519,9 +618,16 @@ def mjcf_text(kinematics: Kinematics) -> str:
     def add_carriers(parent_el: ET.Element, body: str) -> None:
         for cut in _carried(lay.topology, body):
             name, line = carrier_name(cut), mech.body(body).points[cut.line_point]
-            el = ET.SubElement(parent_el, "body", name=name, pos=_vec(line[0], line[1], 0.0))
+            at = line + refs[name] * np.asarray(cut.direction, dtype=float)  # the carrier at the assembly
+            el = ET.SubElement(parent_el, "body", name=name, pos=_vec(at[0], at[1], 0.0))
             ET.SubElement(
-                el, "joint", name=name, type="slide", pos="0 0 0", axis=_vec(cut.direction[0], cut.direction[1], 0.0)
+                el,
+                "joint",
+                name=name,
+                type="slide",
+                pos="0 0 0",
+                axis=_vec(cut.direction[0], cut.direction[1], 0.0),
+                ref=_num(refs[name]),
             )
             props = carriers[name]
             ET.SubElement(
@@ -562,9 +668,8 @@ def mjcf_text(kinematics: Kinematics) -> str:
         ET.SubElement(actuator, "position", name=f"{driver.name}.position", joint=mj_joint, kp=_num(kp))
         ET.SubElement(actuator, "velocity", name=f"{driver.name}.velocity", joint=mj_joint, kv=_num(kv))
 
-    qpos = joint_coordinates(mech, lay, kinematics.assemble())
     keyframe = ET.SubElement(root, "keyframe")
-    ET.SubElement(keyframe, "key", name="reference", qpos=" ".join(_num(float(f"{v:.11e}")) for v in qpos))
+    ET.SubElement(keyframe, "key", name="reference", qpos=" ".join(_num(v) for v in qpos))
 
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"

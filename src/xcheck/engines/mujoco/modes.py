@@ -297,7 +297,7 @@ def run_dynamic(
     samples : int
         States sampled per run, evenly in time.
     default_timesteps, tight_timesteps : sequence of float
-        Time steps (s) run with the :data:`DEFAULT` (the file as written) and
+        Time steps (s) run with the :data:`DEFAULT` (MuJoCo's defaults) and
         :data:`TIGHT` settings.
     duration : float, optional
         Simulated time (s); default the simulation window. Longer than a

@@ -247,7 +247,14 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
 def export_files(kinematics: Kinematics) -> dict[str, str]:
     """The tree as URDF and the loop closures as JSON: {``NAME.urdf``: text,
     ``NAME.loops.json``: text} (see :mod:`.urdf` for the layout)."""
-    return export_texts(tree_spec(kinematics.mechanism))
+    spec = tree_spec(kinematics.mechanism)
+    pm = build(kinematics)
+    q = joint_coordinates(pm, kinematics.assemble())
+    assembly = {}
+    for js in spec.joints:
+        j = pm.model.getJointId(js.name)
+        assembly[js.name] = float(q[pm.model.idx_qs[j]])
+    return export_texts(spec, assembly)
 
 
 def inverse_dynamics(kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution=None):

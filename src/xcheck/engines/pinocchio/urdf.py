@@ -12,12 +12,19 @@ the body, frame = the mechanism's body frame, carrying the inertia) hangs from
 it by a fixed joint ``"<body>.fixed"``; every named point is a link
 ``"<body>.<label>"`` on a fixed joint ``"<body>.<label>.fixed"``. Pinocchio's
 URDF parser turns those fixed links into frames of the same names.
+
+In the file every name is a ROS name (:func:`ros_name`: ``"crank.B"`` is
+``"crank__B"``); the file ends with a comment listing the renamed names, and
+the JSON's ``"names"`` maps each model name to the file's. Every link has a
+visual (no collision geometry, no mass), and the JSON's ``"assembly"`` gives
+each joint's value at the assembly.
 """
 
 from __future__ import annotations
 
 import json
-from xml.sax.saxutils import escape
+import math
+import re
 
 import numpy as np
 
@@ -25,9 +32,40 @@ from xcheck.model import GROUND, Prismatic, Revolute
 
 from .model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
 
-__all__ = ["export_texts", "LOOPS_SUFFIX"]
+__all__ = ["export_texts", "LOOPS_SUFFIX", "ros_name", "UrdfNames", "ROS_NAME"]
 
 LOOPS_SUFFIX = ".loops.json"
+#: What the file's link, joint and robot names match (what ROS tools accept).
+ROS_NAME = re.compile(r"[A-Za-z0-9_]+")
+#: Radius of the visuals (cylinders between a body's points, spheres at points), times the mechanism's size.
+VISUAL_FRACTION = 0.01
+
+
+def ros_name(name: str) -> str:
+    """A model name as a ROS name: ``.`` becomes ``__``, every other character
+    outside ``[A-Za-z0-9_]`` becomes ``_`` (``"crank.A"`` -> ``"crank__A"``)."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", name.replace(".", "__")) or "_"
+
+
+class UrdfNames:
+    """The file's names: :func:`ros_name` of each model name, made unique in the
+    order the names are first asked for (a clash gets ``_2``, ``_3``, ...), so
+    the mapping is deterministic."""
+
+    def __init__(self) -> None:
+        self.renamed: dict[str, str] = {}
+        self._taken: set[str] = set()
+
+    def __call__(self, name: str) -> str:
+        if name not in self.renamed:
+            base = candidate = ros_name(name)
+            n = 1
+            while candidate in self._taken:
+                n += 1
+                candidate = f"{base}_{n}"
+            self.renamed[name] = candidate
+            self._taken.add(candidate)
+        return self.renamed[name]
 
 
 def _num(x: float) -> str:
@@ -38,19 +76,15 @@ def _vec(*values: float) -> str:
     return " ".join(_num(v) for v in values)
 
 
-def _attr(text: str) -> str:
-    return escape(text, {'"': "&quot;"})
-
-
 def _comment(text: str) -> str:
     return text.replace("--", "- -")
 
 
-def _fixed(lines: list[str], parent: str, child: str, xy, angle: float = 0.0) -> None:
+def _fixed(lines: list[str], n: UrdfNames, parent: str, child: str, xy, angle: float = 0.0) -> None:
     lines += [
-        f'  <joint name="{_attr(fixed_joint(child))}" type="fixed">',
-        f'    <parent link="{_attr(parent)}"/>',
-        f'    <child link="{_attr(child)}"/>',
+        f'  <joint name="{n(fixed_joint(child))}" type="fixed">',
+        f'    <parent link="{n(parent)}"/>',
+        f'    <child link="{n(child)}"/>',
         f'    <origin xyz="{_vec(xy[0], xy[1], 0.0)}" rpy="{_vec(0.0, 0.0, angle)}"/>',
         "  </joint>",
     ]
@@ -68,16 +102,57 @@ def _inertial(body) -> list[str]:
     ]
 
 
-def _blocks(lines: list[str], spec: TreeSpec, body: str) -> None:
+def _visual(geometry: str, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0), colour: str = "link") -> list[str]:
+    return [
+        "    <visual>",
+        f'      <origin xyz="{_vec(*xyz)}" rpy="{_vec(*rpy)}"/>',
+        f"      <geometry>{geometry}</geometry>",
+        f'      <material name="{colour}"/>',
+        "    </visual>",
+    ]
+
+
+def _sphere(radius: float, colour: str = "point") -> list[str]:
+    return _visual(f'<sphere radius="{_num(radius)}"/>', colour=colour)
+
+
+def _bars(points: list[np.ndarray], radius: float) -> list[str]:
+    """Visuals of a body: a cylinder between each pair of consecutive points (a
+    box at a body of one point); only the picture, not the mass."""
+    out: list[str] = []
+    if len(points) == 1:
+        p = points[0]
+        out += _visual(f'<box size="{_vec(6 * radius, 4 * radius, 2 * radius)}"/>', (p[0], p[1], 0.0))
+    for p, q in zip(points, points[1:]):
+        length = float(np.hypot(*(q - p)))
+        if length == 0.0:
+            continue
+        mid = 0.5 * (p + q)
+        yaw = math.atan2(q[1] - p[1], q[0] - p[0])
+        geometry = f'<cylinder radius="{_num(radius)}" length="{_num(length)}"/>'
+        out += _visual(geometry, (mid[0], mid[1], 0.0), (0.0, 0.5 * math.pi, yaw))
+    return out or _sphere(radius, "link")
+
+
+def _link(lines: list[str], n: UrdfNames, name: str, body: list[str]) -> None:
+    lines += [f'  <link name="{n(name)}">', *body, "  </link>"]
+
+
+def _blocks(lines: list[str], n: UrdfNames, spec: TreeSpec, body: str, radius: float) -> None:
     """The block frames of prismatic cuts on ``body``: fixed links turned by -angle."""
     for owner, name, xy, angle in spec.blocks:
         if owner == body:
-            _fixed(lines, body, name, xy, angle)
-            lines.append(f'  <link name="{_attr(name)}"/>')
+            _fixed(lines, n, body, name, xy, angle)
+            _link(lines, n, name, _visual(f'<box size="{_vec(4 * radius, 2 * radius, 2 * radius)}"/>'))
 
 
-def urdf_text(spec: TreeSpec) -> str:
-    """The tree of ``spec`` as URDF (see the module notes for the layout)."""
+def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
+    """The tree of ``spec`` as URDF (see the module notes for the layout).
+
+    ``n`` maps model names to the file's (a fresh :class:`UrdfNames` if None);
+    the file ends with a comment listing every name it changed.
+    """
+    n = UrdfNames() if n is None else n
     mech = spec.mechanism
     loops_file = f"{mech.name}{LOOPS_SUFFIX}"
     defaults = [b.name for b in spec.bodies if b.default]
@@ -90,18 +165,24 @@ def urdf_text(spec: TreeSpec) -> str:
         "pin.FrameType.BODY)] for k in ('frame1', 'frame2')); pin.RigidConstraintModel(",
         "pin.ContactType.CONTACT_3D, model, f1.parentJoint, f1.placement, f2.parentJoint,",
         "f2.placement, pin.LOCAL_WORLD_ALIGNED); a planar loop's z row is zero (proximal mu > 0).",
-        "Links: '<joint>.link' is the frame at a joint; a body's link is the body frame of the",
-        "mechanism model; '<body>.<label>' are its named points. A pin-in-slot is two joints,",
-        "'<joint>.slide' and '<joint>.turn'. Hinges are 'continuous' (Pinocchio parses them as",
+        f"{loops_file} also gives the joint values at the assembly ('assembly': the reference",
+        "inputs, every loop closed): start there, the joints' zero is not an assembled pose.",
+        "Names: the model's names with '.' written '__' and any other character outside",
+        "[A-Za-z0-9_] written '_' (ROS names); the comment at the end lists each renamed name.",
+        "Links: '<joint>__link' is the frame at a joint; a body's link is the body frame of the",
+        "mechanism model; '<body>__<label>' are its named points. A pin-in-slot is two joints,",
+        "'<joint>__slide' and '<joint>__turn'. Hinges are 'continuous' (Pinocchio parses them as",
         "RUBZ joints with (cos, sin) coordinates). Prismatic limits are required by URDF but",
         "not part of the mechanism: the loops bound the travel (effort and velocity 0: not given).",
         "Inertia: Izz about the centre of mass; Ixx = Iyy = Izz / 2 (a lamina; no effect in the plane).",
+        "Visuals (no collision geometry): cylinders between a body's consecutive points, spheres at",
+        "the points and joints, boxes for one-point bodies, carriers and blocks; they carry no mass.",
     ]
     if any(not isinstance(cut, Revolute) for cut in spec.cuts):
         header += [
             "A loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J: the prismatic",
-            "joint 'J.carrier' (a carrier along J's line on its first body) is closed to the pin's point",
-            "link by a CONTACT_3D, or to the block's link 'J.block' by a CONTACT_6D (x, y and rotation z",
+            "joint 'J__carrier' (a carrier along J's line on its first body) is closed to the pin's point",
+            "link by a CONTACT_3D, or to the block's link 'J__block' by a CONTACT_6D (x, y and rotation z",
             "act), as listed in the loops file. Carrier masses are taken from the bodies they are held to",
             "(pin-in-slot: a point mass at the pin, the pin body's centre of mass and inertia moved to keep",
             "its totals; prismatic: half the block): the mass distribution is the mechanism's.",
@@ -112,16 +193,23 @@ def urdf_text(spec: TreeSpec) -> str:
             "1 kg at the centroid of the body's points, Izz = m L^2 / 12 with L the largest distance",
             "between two of its points, at least a tenth of the mechanism's size.",
         ]
+    radius = VISUAL_FRACTION * mech.size
     lines = (
         ['<?xml version="1.0"?>', "<!--"]
         + [f"  {_comment(h)}" for h in header]
-        + ["-->", f'<robot name="{_attr(mech.name)}">', f'  <link name="{GROUND}"/>']
+        + [
+            "-->",
+            f'<robot name="{n(mech.name)}">',
+            '  <material name="link"><color rgba="0.3 0.5 0.8 1.0"/></material>',
+            '  <material name="point"><color rgba="0.9 0.3 0.2 1.0"/></material>',
+            '  <material name="ground"><color rgba="0.4 0.4 0.4 1.0"/></material>',
+        ]
     )
-    size = mech.size
+    _link(lines, n, GROUND, _visual(f'<box size="{_vec(2 * radius, 2 * radius, radius)}"/>', colour="ground"))
     for label, xy in mech.ground.points.items():
-        _fixed(lines, GROUND, point_frame(GROUND, label), xy)
-        lines.append(f'  <link name="{_attr(point_frame(GROUND, label))}"/>')
-    _blocks(lines, spec, GROUND)
+        _fixed(lines, n, GROUND, point_frame(GROUND, label), xy)
+        _link(lines, n, point_frame(GROUND, label), _sphere(1.5 * radius, "ground"))
+    _blocks(lines, n, spec, GROUND, radius)
     carriers = {c.link: c for c in spec.carriers}
     hung = {b.link: b for b in spec.bodies}
     points: dict[str, list[tuple[str, np.ndarray]]] = {}
@@ -130,43 +218,67 @@ def urdf_text(spec: TreeSpec) -> str:
     for js in spec.joints:
         kind = "continuous" if js.kind == "revolute" else "prismatic"
         lines += [
-            f'  <joint name="{_attr(js.name)}" type="{kind}">',
-            f'    <parent link="{_attr(js.parent)}"/>',
-            f'    <child link="{_attr(js.link)}"/>',
+            f'  <joint name="{n(js.name)}" type="{kind}">',
+            f'    <parent link="{n(js.parent)}"/>',
+            f'    <child link="{n(js.link)}"/>',
             f'    <origin xyz="{_vec(js.origin[0], js.origin[1], 0.0)}" rpy="{_vec(0.0, 0.0, js.angle)}"/>',
             f'    <axis xyz="{_vec(*js.axis)}"/>',
         ]
         if kind == "prismatic":
-            limit = _num(10.0 * size)
+            limit = _num(10.0 * mech.size)
             lines.append(f'    <limit lower="-{limit}" upper="{limit}" effort="0" velocity="0"/>')
         lines.append("  </joint>")
+        marker = (
+            _visual(f'<cylinder radius="{_num(radius)}" length="{_num(4 * radius)}"/>', colour="point")
+            if kind == "continuous"
+            else _visual(f'<box size="{_vec(3 * radius, 2 * radius, radius)}"/>', colour="point")
+        )
         if js.link in carriers:
-            lines += [f'  <link name="{_attr(js.link)}">', *_inertial(carriers[js.link]), "  </link>"]
+            _link(lines, n, js.link, [*_inertial(carriers[js.link]), *marker])
         else:
-            lines.append(f'  <link name="{_attr(js.link)}"/>')
+            _link(lines, n, js.link, marker)
         body = hung.get(js.link)
         if body is None:
             continue
-        _fixed(lines, js.link, body.name, body.offset)
-        lines += [f'  <link name="{_attr(body.name)}">', *_inertial(body), "  </link>"]
-        for label, xy in points.get(body.name, []):
-            _fixed(lines, body.name, point_frame(body.name, label), xy)
-            lines.append(f'  <link name="{_attr(point_frame(body.name, label))}"/>')
-        _blocks(lines, spec, body.name)
+        _fixed(lines, n, js.link, body.name, body.offset)
+        own = points.get(body.name, [])
+        _link(lines, n, body.name, [*_inertial(body), *_bars([xy for _, xy in own], radius)])
+        for label, xy in own:
+            _fixed(lines, n, body.name, point_frame(body.name, label), xy)
+            _link(lines, n, point_frame(body.name, label), _sphere(1.5 * radius))
+        _blocks(lines, n, spec, body.name, radius)
+    changed = [(old, new) for old, new in n.renamed.items() if old != new]
+    if changed:
+        lines += ["<!--", "  Names: model name -> name in this file"]
+        lines += [f"  {_comment(old)} -> {new}" for old, new in changed]
+        lines.append("-->")
     lines.append("</robot>")
     return "\n".join(lines) + "\n"
 
 
-def loops_json(spec: TreeSpec) -> str:
-    """The loop closures and inputs of ``spec`` as JSON text."""
+def loops_json(spec: TreeSpec, n: UrdfNames | None = None, assembly: dict[str, float] | None = None) -> str:
+    """The loop closures, inputs and assembled joint values of ``spec`` as JSON text.
+
+    Parameters
+    ----------
+    n : UrdfNames, optional
+        The URDF's names (those of :func:`urdf_text`).
+    assembly : dict, optional
+        Model joint name -> its value at the assembly (rad or m); written as
+        ``"assembly"`` under the URDF's joint names.
+    """
+    n = UrdfNames() if n is None else n
     mech = spec.mechanism
-    doc = {
+    doc: dict[str, object] = {
         "mechanism": mech.name,
         "urdf": f"{mech.name}.urdf",
         "about": "Loop closures of the URDF tree: in each loop, the origins of links frame1 and frame2 "
         "coincide (a revolute joint cut open). Only the x and y rows act: the mechanism is planar. "
         "Inputs: the driven joints; input = sign * joint coordinate (rad or m). Gravity: the "
-        "mechanism's, in the plane (m/s^2; URDF has no field for it; zero when the model gives none)."
+        "mechanism's, in the plane (m/s^2; URDF has no field for it; zero when the model gives none). "
+        "Assembly: each URDF joint's value (rad: the angle of a continuous joint, whose Pinocchio "
+        "coordinates are its cos and sin; m: a prismatic joint's travel) with the inputs at their "
+        "reference values and every loop closed; 'names' maps the model's names to the URDF's."
         + (
             ""
             if all(isinstance(cut, Revolute) for cut in spec.cuts)
@@ -175,23 +287,26 @@ def loops_json(spec: TreeSpec) -> str:
             "the block frame by CONTACT_6D (x, y and rotation z act)."
         ),
         "gravity": [float(g) + 0.0 for g in mech.gravity] + [0.0],
-        "loops": [_loop(cut) for cut in spec.cuts],
+        "loops": [_loop(cut, n) for cut in spec.cuts],
         "inputs": [
-            {"driver": name, "joint": joint, "sign": int(sign), "quantity": mech.drivers[k].quantity}
+            {"driver": name, "joint": n(joint), "sign": int(sign), "quantity": mech.drivers[k].quantity}
             for k, (name, joint, sign) in enumerate(spec.drivers)
         ],
     }
+    if assembly is not None:
+        doc["assembly"] = {n(js.name): float(assembly[js.name]) + 0.0 for js in spec.joints}
+    doc["names"] = dict(sorted(n.renamed.items()))
     return json.dumps(doc, indent=2) + "\n"
 
 
-def _loop(cut) -> dict:
+def _loop(cut, n: UrdfNames) -> dict:
     """One loop closure of the JSON: the two links whose frames are held together."""
     if isinstance(cut, Revolute):
         frame2, kind = point_frame(cut.body_b, cut.point_b), "CONTACT_3D"
         return {
             "cut": cut.name,
-            "frame1": point_frame(cut.body_a, cut.point_a),
-            "frame2": frame2,
+            "frame1": n(point_frame(cut.body_a, cut.point_a)),
+            "frame2": n(frame2),
             "contact_type": kind,
             "reference_frame": "LOCAL_WORLD_ALIGNED",
         }
@@ -202,14 +317,19 @@ def _loop(cut) -> dict:
     return {
         "cut": cut.name,
         "kind": cut.kind,
-        "frame1": f"{carrier_joint(cut)}.link",
-        "frame2": frame2,
+        "frame1": n(f"{carrier_joint(cut)}.link"),
+        "frame2": n(frame2),
         "contact_type": kind,
         "reference_frame": "LOCAL_WORLD_ALIGNED",
     }
 
 
-def export_texts(spec: TreeSpec) -> dict[str, str]:
-    """{``NAME.urdf``: URDF text, ``NAME.loops.json``: JSON text}."""
+def export_texts(spec: TreeSpec, assembly: dict[str, float] | None = None) -> dict[str, str]:
+    """{``NAME.urdf``: URDF text, ``NAME.loops.json``: JSON text}, with one name mapping.
+
+    ``assembly``: model joint name -> value at the assembly (rad or m), for the JSON.
+    """
     name = spec.mechanism.name
-    return {f"{name}.urdf": urdf_text(spec), f"{name}{LOOPS_SUFFIX}": loops_json(spec)}
+    n = UrdfNames()
+    urdf = urdf_text(spec, n)
+    return {f"{name}.urdf": urdf, f"{name}{LOOPS_SUFFIX}": loops_json(spec, n, assembly)}
