@@ -1,0 +1,529 @@
+"""PyBullet in free motion (mode ``pybullet-free``): the mechanism as a
+Featherstone multibody (``createMultiBody``) whose loops are closed by
+point-to-point constraints (``createConstraint(JOINT_POINT2POINT)``), released
+at the native reference's initial state and stepped by PyBullet's
+semi-implicit Euler with its iterative constraint solver, compared with the
+reference at its output times.
+
+The tree is :func:`xcheck.topology.spanning_tree`'s: the ground is the fixed
+base, each moving body a link hung from its parent by a revolute joint about
+z whose link frame sits at the pin with the body's orientation (joint
+coordinate: the child's angle minus the parent's). Each cut revolute is a
+point-to-point constraint between its two points (its z row is idle: the
+tree keeps the plane). PyBullet's defaults that are not the model are set
+off: the joint velocity motors (force 0), the multibody's linear and angular
+damping (0.04 by default) and the joint speed limit (100 rad/s by default;
+Andrews' crank turns faster). Gravity is the mechanism's, in the plane; the
+constant loads and the springs are external forces and torques applied
+before every step (PyBullet clears them after each).
+
+The ladder (:data:`FREE_SETTINGS` x time steps): PyBullet's solver defaults
+(50 iterations, residual threshold 1e-7, its error reduction) and at its best
+(more iterations, no residual cut-off). A run that goes non-finite or comes
+apart (a loop gap above a tenth of the size) or leaves the reference's path
+is a row with its time, not an exception.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from xcheck.compare import ModeResult, Trajectory, convergence_study
+from xcheck.dynamics._forces import require_mass_data
+from xcheck.dynamics._free import FreeReference
+from xcheck.engines._contract import NotApplicable, positive_inertia
+from xcheck.kinematics import Kinematics, rotate
+from xcheck.model import GROUND, Revolute
+from xcheck.simulation import free_errors, ladder_steps, path_distance
+from xcheck.topology import spanning_tree
+
+
+def _import_quietly():
+    """pybullet, imported with its build-time line (printed on the C stdout) kept
+    off xcheck's output (``--json`` writes there)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            return importlib.import_module("pybullet")
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+p = _import_quietly()
+
+__all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "Multibody", "build", "run_free"]
+
+MODE = "pybullet-free"
+#: samples compared with the reference (about; a whole number of outputs apart)
+COMPARED = 200
+#: a loop gap above this fraction of the size: the mechanism came apart
+APART = 0.1
+#: joint speed limit set on every link (PyBullet's default, 100 rad/s, is not the model's)
+MAX_JOINT_VELOCITY = 1e6
+
+
+@dataclass(frozen=True)
+class FreeSetting:
+    """PyBullet's solver: ``iterations`` per step (``numSolverIterations``),
+    ``residual`` (``solverResidualThreshold``; None: PyBullet's default) and the
+    constraints' error reduction ``erp`` (None: PyBullet's default)."""
+
+    name: str
+    iterations: int
+    residual: float | None = None
+    erp: float | None = None
+
+
+FREE_SETTINGS = (FreeSetting("default", 50), FreeSetting("best", 500, 0.0))
+FREE_STEPS = (1e-3, 5e-4, 2.5e-4)
+
+
+@dataclass
+class Multibody:
+    """The mechanism in one PyBullet client.
+
+    Attributes
+    ----------
+    client : int
+        The physics client (DIRECT).
+    uid : int
+        The multibody.
+    links : dict of str to int
+        Moving body -> link index (= joint index).
+    parents : dict of str to str
+        Moving body -> its parent body in the tree (GROUND for the base).
+    pivots : dict of str to ndarray (2,)
+        Moving body -> the pin of its tree joint in its body frame, m (the link frame's origin).
+    cuts : list of (str, ndarray, str, ndarray)
+        Per loop constraint: (body, point in its frame, body, point in its frame).
+    constraints : list of int
+        The constraint ids.
+    """
+
+    client: int
+    uid: int
+    links: dict[str, int]
+    parents: dict[str, str]
+    pivots: dict[str, np.ndarray]
+    cuts: list[tuple[str, np.ndarray, str, np.ndarray]]
+    constraints: list[int]
+
+    def angles(self) -> dict[str, tuple[float, float]]:
+        """Each moving body's angle (rad, continuous: the sum of joint coordinates) and rate (rad/s)."""
+        states = p.getJointStates(self.uid, list(self.links.values()), physicsClientId=self.client)
+        joint = {name: (states[i][0], states[i][1]) for i, name in enumerate(self.links)}
+        out: dict[str, tuple[float, float]] = {}
+        for name in self.links:  # parents first (tree order)
+            parent = self.parents[name]
+            base = out.get(parent, (0.0, 0.0))
+            out[name] = (base[0] + joint[name][0], base[1] + joint[name][1])
+        return out
+
+    def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float]]:
+        """Per moving body: body-frame origin (2,) m, angle rad, centre-of-mass velocity (2,) m/s, rate
+        rad/s and centre-of-mass position (2,) m."""
+        index = list(self.links.values())
+        states = p.getLinkStates(
+            self.uid, index, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=self.client
+        )
+        angles = self.angles()
+        out = {}
+        for i, name in enumerate(self.links):
+            phi, omega = angles[name]
+            origin = np.asarray(states[i][4][:2]) - rotate(phi, self.pivots[name])
+            out[name] = (origin, phi, np.asarray(states[i][6][:2]), omega, np.asarray(states[i][0][:2]))
+        return out
+
+
+def build(kinematics: Kinematics, client: int) -> Multibody:
+    """The mechanism as a PyBullet multibody in ``client`` (see the module notes).
+
+    Raises
+    ------
+    NotApplicable
+        If the mechanism has a prismatic or pin-in-slot joint.
+    ModelError
+        If a moving body has no mass data.
+    """
+    mech = kinematics.mechanism
+    others = [j for j in mech.joints if not isinstance(j, Revolute)]
+    if others:
+        raise NotApplicable(
+            f"joint {others[0].name!r} is {others[0].kind}: xcheck's PyBullet model closes loops with "
+            "point-to-point constraints on a tree of revolute links only (PyBullet's multibody slider "
+            "constraint and pin-in-slot joints are not converted)"
+        )
+    require_mass_data(mech)
+    topology = spanning_tree(mech)
+    size = kinematics.system.size
+    links: dict[str, int] = {}
+    parents: dict[str, str] = {}
+    pivots: dict[str, np.ndarray] = {}
+    masses, positions, inertial, parent_index, inertias = [], [], [], [], []
+    for tj in _depth_first(topology.tree):
+        j = tj.joint
+        assert isinstance(j, Revolute)
+        l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
+        body = mech.body(tj.child)
+        s_parent = np.asarray(mech.body(tj.parent).points[l_parent], dtype=float)
+        s_child = np.asarray(body.points[l_child], dtype=float)
+        offset = pivots[tj.parent] if tj.parent != GROUND else np.zeros(2)
+        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        assert body.mass is not None and body.inertia is not None
+        links[tj.child] = len(links)
+        parents[tj.child] = tj.parent
+        pivots[tj.child] = s_child
+        masses.append(float(body.mass))
+        positions.append([*(s_parent - offset), 0.0])
+        inertial.append([*(com - s_child), 0.0])
+        parent_index.append(0 if tj.parent == GROUND else links[tj.parent] + 1)
+        inertias.append(positive_inertia(float(body.mass), float(body.inertia), size))
+    n = len(links)
+    uid = p.createMultiBody(
+        baseMass=0.0,
+        baseCollisionShapeIndex=-1,
+        baseVisualShapeIndex=-1,
+        basePosition=[0.0, 0.0, 0.0],
+        baseOrientation=[0.0, 0.0, 0.0, 1.0],
+        linkMasses=masses,
+        linkCollisionShapeIndices=[-1] * n,
+        linkVisualShapeIndices=[-1] * n,
+        linkPositions=positions,
+        linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+        linkInertialFramePositions=inertial,
+        linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+        linkParentIndices=parent_index,
+        linkJointTypes=[p.JOINT_REVOLUTE] * n,
+        linkJointAxis=[[0.0, 0.0, 1.0]] * n,
+        useMaximalCoordinates=0,
+        physicsClientId=client,
+    )
+    found = [p.getJointInfo(uid, k, physicsClientId=client)[16] for k in range(n)]
+    if found != [i - 1 for i in parent_index]:  # PyBullet orders links depth-first: so were they given
+        raise RuntimeError(f"PyBullet reordered the links: parents {found}, expected {[i - 1 for i in parent_index]}")
+    p.changeDynamics(uid, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)
+    for k, inertia in enumerate(inertias):  # about z; the other axes only need to be positive
+        # the inertia in a call of its own: with linearDamping, angularDamping or
+        # maxJointVelocity in the same call, PyBullet 3.2.7 sets it to zero
+        p.changeDynamics(uid, k, localInertiaDiagonal=[inertia] * 3, physicsClientId=client)
+        p.changeDynamics(uid, k, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0, physicsClientId=client)
+        p.changeDynamics(uid, k, maxJointVelocity=MAX_JOINT_VELOCITY, physicsClientId=client)
+        held = p.getDynamicsInfo(uid, k, physicsClientId=client)[2][2]
+        if not math.isclose(held, inertia, rel_tol=1e-12):
+            raise RuntimeError(f"PyBullet holds the inertia {held:g} kg m^2 for {inertia:g} on link {k}")
+    p.setJointMotorControlArray(uid, list(range(n)), p.VELOCITY_CONTROL, forces=[0.0] * n, physicsClientId=client)
+    cuts, constraints = [], []
+    for cut in topology.cuts:
+        assert isinstance(cut, Revolute)
+        ends = []
+        for name, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b)):
+            point = np.asarray(mech.body(name).points[label], dtype=float)
+            if name == GROUND:
+                ends.append((-1, point, name, point))
+            else:
+                body = mech.body(name)
+                com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+                ends.append((links[name], point - com, name, point))  # frame: the link's centre of mass
+        (la, fa, na, pa), (lb, fb, nb, pb) = ends
+        cid = p.createConstraint(
+            uid, la, uid, lb, p.JOINT_POINT2POINT, [0.0, 0.0, 0.0], [*fa, 0.0], [*fb, 0.0], physicsClientId=client
+        )
+        constraints.append(cid)
+        cuts.append((na, pa, nb, pb))
+    return Multibody(client, uid, links, parents, pivots, cuts, constraints)
+
+
+def _depth_first(tree) -> list:
+    """The tree joints in depth-first order from the ground, children in tree order
+    (PyBullet's order of the links of a multibody)."""
+    children: dict[str, list] = {}
+    for tj in tree:
+        children.setdefault(tj.parent, []).append(tj)
+    out: list = []
+
+    def visit(body: str) -> None:
+        for tj in children.get(body, []):
+            out.append(tj)
+            visit(tj.child)
+
+    visit(GROUND)
+    return out
+
+
+def set_state(mb: Multibody, q: np.ndarray, qd: np.ndarray, names: list[str]) -> None:
+    """Put the multibody at native body coordinates ``q`` and rates ``qd`` (3 per moving body, ``names`` order)."""
+    index = {name: 3 * i for i, name in enumerate(names)}
+    for name, k in mb.links.items():
+        parent = mb.parents[name]
+        phi = q[index[name] + 2] - (q[index[parent] + 2] if parent != GROUND else 0.0)
+        omega = qd[index[name] + 2] - (qd[index[parent] + 2] if parent != GROUND else 0.0)
+        p.resetJointState(mb.uid, k, targetValue=float(phi), targetVelocity=float(omega), physicsClientId=mb.client)
+
+
+def _world(frames, name: str, point: np.ndarray) -> np.ndarray:
+    if name == GROUND:
+        return point
+    origin, phi = frames[name][:2]
+    return origin + rotate(phi, point)
+
+
+class _Forces:
+    """The constant loads and the springs, applied before every step (PyBullet clears them after it)."""
+
+    def __init__(self, kinematics: Kinematics, mb: Multibody):
+        mech = kinematics.mechanism
+        self.mb = mb
+        self.loads = [
+            (load.body, np.asarray(load.point, float), np.asarray(load.force, float), float(load.torque))
+            for load in mech.loads
+            if load.body in mb.links
+        ]
+        owners = mech.point_owners
+        self.springs = [
+            (
+                owners[s.points[0]],
+                np.asarray(mech.body(owners[s.points[0]]).points[s.points[0]], float),
+                owners[s.points[1]],
+                np.asarray(mech.body(owners[s.points[1]]).points[s.points[1]], float),
+                s.stiffness,
+                s.rest_length,
+                s.damping,
+            )
+            for s in mech.springs
+        ]
+        self.active = bool(self.loads or self.springs)
+
+    def apply(self, frames) -> None:
+        mb = self.mb
+        for name, point, force, torque in self.loads:
+            if np.any(force):
+                at = _world(frames, name, point)
+                p.applyExternalForce(
+                    mb.uid, mb.links[name], [*force, 0.0], [*at, 0.0], p.WORLD_FRAME, physicsClientId=mb.client
+                )
+            if torque:
+                p.applyExternalTorque(
+                    mb.uid, mb.links[name], [0.0, 0.0, torque], p.WORLD_FRAME, physicsClientId=mb.client
+                )
+        for first, s1, second, s2, stiffness, rest, damping in self.springs:
+            r1, r2 = _world(frames, first, s1), _world(frames, second, s2)
+            d = r2 - r1
+            length = float(np.hypot(d[0], d[1]))
+            unit = d / length if length > 0.0 else np.zeros(2)
+            tension = stiffness * (length - rest)
+            if damping:
+                tension += damping * float(unit @ (_velocity(frames, second, s2) - _velocity(frames, first, s1)))
+            for name, at, force in ((first, r1, tension * unit), (second, r2, -tension * unit)):
+                if name != GROUND:
+                    p.applyExternalForce(
+                        mb.uid, mb.links[name], [*force, 0.0], [*at, 0.0], p.WORLD_FRAME, physicsClientId=mb.client
+                    )
+
+
+def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
+    """Velocity of a body point, m/s: v_com + w x (r - r_com)."""
+    if name == GROUND:
+        return np.zeros(2)
+    _, _, v_com, omega, com = frames[name]
+    arm = _world(frames, name, point) - com
+    return v_com + omega * np.array([-arm[1], arm[0]])
+
+
+def run_free(
+    kinematics: Kinematics,
+    reference: FreeReference,
+    branch: str | None = None,
+    *,
+    settings=FREE_SETTINGS,
+    steps=FREE_STEPS,
+) -> ModeResult:
+    """PyBullet's free motion against the reference (see the module's docstring and
+    :meth:`xcheck.engines.Engine.run_free`).
+
+    Raises
+    ------
+    NotApplicable
+        If the mechanism has a joint the PyBullet model does not hold (prismatic, pin-in-slot).
+    """
+    mech = kinematics.mechanism
+    client = p.connect(p.DIRECT)
+    try:
+        build(kinematics, client)  # refuses what it cannot hold before any run
+    finally:
+        p.disconnect(client)
+    motion = reference.motion
+    every = max(1, (len(motion.times) - 1) // COMPARED)
+    index = np.arange(0, len(motion.times), every)
+    rows, trajectories = [], []
+    for setting in settings:
+        for dt in ladder_steps(reference, steps):
+            row, trajectory = _run(kinematics, reference, index, setting, dt)
+            rows.append(row)
+            if trajectory is not None:
+                trajectories.append((row["position_error"], trajectory))
+    summary = pd.DataFrame(rows)
+    study = convergence_study(summary["setting"], summary["timestep"], summary["position_error"], summary["status"])
+    trajectories.sort(key=lambda pair: pair[0])
+    ok = bool(trajectories)
+    reason = "" if ok else f"no run went through: {rows[0]['status']}"
+    return ModeResult(MODE, mech.name, ok, reason, [t for _, t in trajectories], summary, study)
+
+
+def _energy(kinematics: Kinematics, mb: Multibody, frames, turned: dict[str, float]) -> float:
+    """Kinetic + gravitational + spring energy minus the constant loads' potential, J."""
+    mech = kinematics.mechanism
+    g = np.asarray(mech.gravity, dtype=float)
+    total = 0.0
+    for name in mb.links:
+        body = mech.body(name)
+        origin, phi, v_com, omega, _ = frames[name]
+        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        mass, inertia = float(body.mass or 0.0), float(body.inertia or 0.0)
+        total += 0.5 * mass * float(v_com @ v_com) + 0.5 * inertia * omega * omega
+        total -= mass * float(g @ (origin + rotate(phi, com)))
+    for load in mech.loads:
+        if load.body in mb.links:
+            at = _world(frames, load.body, np.asarray(load.point, float))
+            total -= float(np.asarray(load.force, float) @ at) + float(load.torque) * turned[load.body]
+    owners = mech.point_owners
+    for s in mech.springs:
+        a = _world(frames, owners[s.points[0]], np.asarray(mech.body(owners[s.points[0]]).points[s.points[0]], float))
+        b = _world(frames, owners[s.points[1]], np.asarray(mech.body(owners[s.points[1]]).points[s.points[1]], float))
+        total += 0.5 * s.stiffness * (float(np.hypot(*(b - a))) - s.rest_length) ** 2
+    return total
+
+
+def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple[dict, Trajectory | None]:
+    mech = kinematics.mechanism
+    motion = reference.motion
+    row = {
+        "setting": setting.name,
+        "integrator": f"semi-implicit Euler, {setting.iterations} iterations",
+        "timestep": dt,
+        "steps": 0,
+        "status": "ok",
+        "cpu_seconds": math.nan,
+        "cpu_per_simulated_second": math.nan,
+        "position_error": math.nan,
+        "final_error": math.nan,
+        "loop_drift": math.nan,
+        "energy_drift": math.nan,
+    }
+    output_step = float(motion.times[1] - motion.times[0]) if len(motion.times) > 1 else float(motion.times[-1])
+    per_output = max(1, int(round(output_step / dt)))
+    if abs(per_output * dt - output_step) > 1e-9 * output_step:
+        row["status"] = f"the step does not divide the output step ({output_step:g} s)"
+        return row, None
+    moving = [b.name for b in mech.moving_bodies]
+    owners = mech.point_owners
+    bodies = {
+        name: {"position": np.full((len(index), 2), np.nan), "angle": np.full(len(index), np.nan)} for name in moving
+    }
+    points = {label: {"position": np.full((len(index), 2), np.nan)} for label in owners}
+    local = {label: np.asarray(mech.body(owner).points[label], float) for label, owner in owners.items()}
+    drift, energy_drift, energy0 = 0.0, 0.0, math.nan
+    damped = any(s.damping for s in mech.springs)
+    wanted = {int(i): j for j, i in enumerate(index)}
+    total = int(index[-1]) * per_output
+    begin = time.process_time()
+    client = p.connect(p.DIRECT)
+    try:
+        mb = build(kinematics, client)
+        parameters = dict(fixedTimeStep=dt, numSolverIterations=setting.iterations, numSubSteps=0)
+        if setting.residual is not None:
+            parameters["solverResidualThreshold"] = setting.residual
+        if setting.erp is not None:
+            parameters["erp"] = setting.erp
+        p.setPhysicsEngineParameter(**parameters, physicsClientId=client)
+        if setting.erp is not None:
+            for cid in mb.constraints:
+                p.changeConstraint(cid, erp=setting.erp, physicsClientId=client)
+        p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
+        set_state(mb, motion.q[0], motion.qd[0], moving)
+        forces = _Forces(kinematics, mb)
+        for n in range(total + 1):
+            sample = n % per_output == 0 and n // per_output in wanted
+            frames = mb.frames() if (sample or forces.active) else None
+            if sample:
+                assert frames is not None
+                j = wanted[n // per_output]
+                finite = all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values())
+                if not finite:
+                    row["status"] = f"went non-finite at t = {n * dt:.6g} s"
+                    break
+                for name in moving:
+                    bodies[name]["position"][j] = frames[name][0]
+                    bodies[name]["angle"][j] = frames[name][1]
+                for label, owner in owners.items():
+                    points[label]["position"][j] = _world(frames, owner, local[label])
+                gap = max(
+                    (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in mb.cuts),
+                    default=0.0,
+                )
+                drift = max(drift, gap)
+                if gap > APART * mech.size:
+                    row["status"] = f"came apart at t = {n * dt:.6g} s (loops {gap:.3g} m open)"
+                    break
+                if not damped:
+                    turned = {name: frames[name][1] for name in moving}
+                    energy = _energy(kinematics, mb, frames, turned)
+                    energy0 = energy if n == 0 else energy0
+                    energy_drift = max(energy_drift, abs(energy - energy0))
+            if n < total:
+                if forces.active:
+                    forces.apply(frames)
+                p.stepSimulation(physicsClientId=client)
+    finally:
+        p.disconnect(client)
+    seconds = time.process_time() - begin
+    row.update(
+        steps=total,
+        cpu_seconds=seconds,
+        cpu_per_simulated_second=seconds / max(float(motion.times[-1]), 1e-300),
+        loop_drift=drift,
+        energy_drift=math.nan if damped else energy_drift,
+    )
+    if row["status"] != "ok":
+        return row, None
+    times = motion.times[index]
+    empty = np.zeros((len(index), 0))
+    trajectory = Trajectory(
+        MODE,
+        empty,
+        empty,
+        empty,
+        bodies,
+        points,
+        times,
+        {
+            "setting": setting.name,
+            "integrator": row["integrator"],
+            "timestep": dt,
+            "series": setting.name,
+            "iterations": setting.iterations,
+            "residual": setting.residual,
+            "erp": setting.erp,
+        },
+        notes=f"PyBullet free motion, {setting.name} solver, dt = {dt:g} s.",
+    )
+    errors = free_errors(reference, trajectory)
+    row.update(position_error=errors["position_error"], final_error=errors["final_error"])
+    away = path_distance(reference, trajectory)  # out of phase on the branch stays near the reference's path
+    if float(away.max()) > APART * mech.size:
+        first = int(np.argmax(away > APART * mech.size))
+        row["status"] = (
+            f"left the branch at t ≈ {times[first]:.4g} s: {away[first]:.3g} m from every configuration "
+            "the reference passes through"
+        )
+    return row, trajectory
