@@ -85,7 +85,7 @@ class FreeSetting:
     erp: float | None = None
 
 
-FREE_SETTINGS = (FreeSetting("default", 50), FreeSetting("best", 500, 0.0))
+FREE_SETTINGS = (FreeSetting("default", 50), FreeSetting("best", 50, 0.0))
 FREE_STEPS = (1e-3, 5e-4, 2.5e-4)
 
 
@@ -409,7 +409,9 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     motion = reference.motion
     row = {
         "setting": setting.name,
-        "integrator": f"semi-implicit Euler, {setting.iterations} iterations",
+        "integrator": f"semi-implicit Euler, {setting.iterations} iterations"
+        + ("" if setting.residual is None else f", residual threshold {setting.residual:g}")
+        + ("" if setting.erp is None else f", erp {setting.erp:g}"),
         "timestep": dt,
         "steps": 0,
         "status": "ok",
