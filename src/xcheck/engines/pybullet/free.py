@@ -130,7 +130,7 @@ class Multibody:
             out[name] = (base[0] + joint[name][0], base[1] + joint[name][1])
         return out
 
-    def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float]]:
+    def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float, np.ndarray]]:
         """Per moving body: body-frame origin (2,) m, angle rad, centre-of-mass velocity (2,) m/s, rate
         rad/s and centre-of-mass position (2,) m."""
         index = list(self.links.values())
