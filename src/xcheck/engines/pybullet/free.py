@@ -41,7 +41,7 @@ from xcheck.dynamics._forces import require_mass_data
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Revolute
+from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
 from xcheck.simulation import free_errors, ladder_steps, path_distance
 from xcheck.topology import spanning_tree
 
@@ -104,7 +104,13 @@ class Multibody:
     parents : dict of str to str
         Moving body -> its parent body in the tree (GROUND for the base).
     pivots : dict of str to ndarray (2,)
-        Moving body -> the pin of its tree joint in its body frame, m (the link frame's origin).
+        Moving body -> the point of its tree joint in its body frame, m (the link frame's origin).
+    turns : dict of str to float
+        Moving body -> its angle minus its parent's at joint coordinate 0, rad (a prismatic's locked angle).
+    sliding : list of bool
+        Per link: whether its joint is prismatic (else revolute).
+    coms : dict of str to ndarray (2,)
+        Moving body -> its centre of mass in its body frame, m.
     cuts : list of (str, ndarray, str, ndarray)
         Per loop constraint: (body, point in its frame, body, point in its frame).
     constraints : list of int
@@ -116,6 +122,9 @@ class Multibody:
     links: dict[str, int]
     parents: dict[str, str]
     pivots: dict[str, np.ndarray]
+    turns: dict[str, float]
+    sliding: list[bool]
+    coms: dict[str, np.ndarray]
     cuts: list[tuple[str, np.ndarray, str, np.ndarray]]
     constraints: list[int]
 
@@ -124,10 +133,14 @@ class Multibody:
         states = p.getJointStates(self.uid, list(self.links.values()), physicsClientId=self.client)
         joint = {name: (states[i][0], states[i][1]) for i, name in enumerate(self.links)}
         out: dict[str, tuple[float, float]] = {}
-        for name in self.links:  # parents first (tree order)
-            parent = self.parents[name]
-            base = out.get(parent, (0.0, 0.0))
-            out[name] = (base[0] + joint[name][0], base[1] + joint[name][1])
+        for name, k in self.links.items():  # parents first (tree order)
+            base = out.get(self.parents[name], (0.0, 0.0))
+            turn = self.turns[name]
+            out[name] = (
+                (base[0] + turn, base[1])
+                if self.sliding[k]
+                else (base[0] + turn + joint[name][0], base[1] + joint[name][1])
+            )
         return out
 
     def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float, np.ndarray]]:
@@ -141,7 +154,8 @@ class Multibody:
         out = {}
         for i, name in enumerate(self.links):
             phi, omega = angles[name]
-            origin = np.asarray(states[i][4][:2]) - rotate(phi, self.pivots[name])
+            # from the centre of mass (getLinkState's link-frame position, [4], is rounded to float32)
+            origin = np.asarray(states[i][0][:2]) - rotate(phi, self.coms[name])
             out[name] = (origin, phi, np.asarray(states[i][6][:2]), omega, np.asarray(states[i][0][:2]))
         return out
 
@@ -157,25 +171,40 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
         If a moving body has no mass data.
     """
     mech = kinematics.mechanism
-    others = [j for j in mech.joints if not isinstance(j, Revolute)]
-    if others:
+    slots = [j for j in mech.joints if isinstance(j, PinInSlot)]
+    if slots:
         raise NotApplicable(
-            f"joint {others[0].name!r} is {others[0].kind}: xcheck's PyBullet model closes loops with "
-            "point-to-point constraints on a tree of revolute links only (PyBullet's multibody slider "
-            "constraint and pin-in-slot joints are not converted)"
+            f"joint {slots[0].name!r} is a pin-in-slot: xcheck's PyBullet model has revolute and prismatic "
+            "links only (a pin-in-slot would need a massless intermediate link, not converted)"
         )
     require_mass_data(mech)
     topology = spanning_tree(mech)
+    sliding_cuts = [j for j in topology.cuts if not isinstance(j, Revolute)]
+    if sliding_cuts:
+        raise NotApplicable(
+            f"a loop is cut at the prismatic joint {sliding_cuts[0].name!r}: xcheck's PyBullet model closes "
+            "loops with point-to-point constraints only (PyBullet's multibody slider constraint is not converted)"
+        )
     size = kinematics.system.size
     links: dict[str, int] = {}
     parents: dict[str, str] = {}
     pivots: dict[str, np.ndarray] = {}
-    masses, positions, inertial, parent_index, inertias = [], [], [], [], []
+    turns: dict[str, float] = {}
+    coms: dict[str, np.ndarray] = {}
+    masses, positions, orientations, inertial, parent_index, inertias, types, axes = ([] for _ in range(8))
     for tj in _depth_first(topology.tree):
         j = tj.joint
-        assert isinstance(j, Revolute)
-        l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
         body = mech.body(tj.child)
+        if isinstance(j, Revolute):  # link frame at the pin, the body's orientation
+            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
+            turn, kind, axis = 0.0, p.JOINT_REVOLUTE, [0.0, 0.0, 1.0]
+        else:  # prismatic: the child's joint point on the parent's, turned by the locked angle
+            assert isinstance(j, Prismatic)
+            if not tj.reversed:  # the line is the parent's: the child's point slides along it
+                l_parent, l_child, turn, direction = j.line_point, j.point, j.angle, rotate(-j.angle, j.direction)
+            else:  # the line is the child's: its line point slides back along it from the parent's point
+                l_parent, l_child, turn, direction = j.point, j.line_point, -j.angle, -np.asarray(j.direction)
+            kind, axis = p.JOINT_PRISMATIC, [float(direction[0]), float(direction[1]), 0.0]
         s_parent = np.asarray(mech.body(tj.parent).points[l_parent], dtype=float)
         s_child = np.asarray(body.points[l_child], dtype=float)
         offset = pivots[tj.parent] if tj.parent != GROUND else np.zeros(2)
@@ -184,11 +213,16 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
         links[tj.child] = len(links)
         parents[tj.child] = tj.parent
         pivots[tj.child] = s_child
+        turns[tj.child] = float(turn)
+        coms[tj.child] = com
         masses.append(float(body.mass))
         positions.append([*(s_parent - offset), 0.0])
+        orientations.append([0.0, 0.0, math.sin(turn / 2.0), math.cos(turn / 2.0)])
         inertial.append([*(com - s_child), 0.0])
         parent_index.append(0 if tj.parent == GROUND else links[tj.parent] + 1)
         inertias.append(positive_inertia(float(body.mass), float(body.inertia), size))
+        types.append(kind)
+        axes.append(axis)
     n = len(links)
     uid = p.createMultiBody(
         baseMass=0.0,
@@ -200,12 +234,12 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
         linkCollisionShapeIndices=[-1] * n,
         linkVisualShapeIndices=[-1] * n,
         linkPositions=positions,
-        linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+        linkOrientations=orientations,
         linkInertialFramePositions=inertial,
         linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
         linkParentIndices=parent_index,
-        linkJointTypes=[p.JOINT_REVOLUTE] * n,
-        linkJointAxis=[[0.0, 0.0, 1.0]] * n,
+        linkJointTypes=types,
+        linkJointAxis=axes,
         useMaximalCoordinates=0,
         physicsClientId=client,
     )
@@ -241,7 +275,9 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
         )
         constraints.append(cid)
         cuts.append((na, pa, nb, pb))
-    return Multibody(client, uid, links, parents, pivots, cuts, constraints)
+    return Multibody(
+        client, uid, links, parents, pivots, turns, [t == p.JOINT_PRISMATIC for t in types], coms, cuts, constraints
+    )
 
 
 def _depth_first(tree) -> list:
@@ -261,14 +297,53 @@ def _depth_first(tree) -> list:
     return out
 
 
-def set_state(mb: Multibody, q: np.ndarray, qd: np.ndarray, names: list[str]) -> None:
-    """Put the multibody at native body coordinates ``q`` and rates ``qd`` (3 per moving body, ``names`` order)."""
-    index = {name: 3 * i for i, name in enumerate(names)}
-    for name, k in mb.links.items():
-        parent = mb.parents[name]
-        phi = q[index[name] + 2] - (q[index[parent] + 2] if parent != GROUND else 0.0)
-        omega = qd[index[name] + 2] - (qd[index[parent] + 2] if parent != GROUND else 0.0)
-        p.resetJointState(mb.uid, k, targetValue=float(phi), targetVelocity=float(omega), physicsClientId=mb.client)
+def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> None:
+    """Put the multibody at native body coordinates ``q`` and rates ``qd`` (x, y, phi per moving
+    body, in ``mechanism.moving_bodies`` order): revolute coordinates are the relative angles,
+    prismatic ones the slide displacement ``direction . (r_point - r_line_point)`` in ``body_a``'s frame.
+    """
+    mech = kinematics.mechanism
+    index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
+
+    def state(name: str, point=None):
+        """(position (2,), velocity (2,), angle, rate) of a body point (its origin without one)."""
+        if name == GROUND:
+            return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
+        k = index[name]
+        phi, omega = float(q[k + 2]), float(qd[k + 2])
+        arm = np.zeros(2) if point is None else rotate(phi, point)
+        return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
+
+    topology = spanning_tree(mech)
+    for tj in topology.tree:
+        name, j = tj.child, tj.joint
+        if isinstance(j, Revolute):
+            _, _, phi, omega = state(name)
+            _, _, phi0, omega0 = state(tj.parent)
+            value, rate = phi - phi0 - mb.turns[name], omega - omega0
+        else:
+            r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
+            r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
+            u = rotate(phi_a, j.direction)
+            gap = r_point - r_line
+            value = float(u @ gap)
+            rate = float(omega_a * np.array([-u[1], u[0]]) @ gap + u @ (v_point - v_line))
+        p.resetJointState(
+            mb.uid, mb.links[name], targetValue=float(value), targetVelocity=float(rate), physicsClientId=mb.client
+        )
+    frames = mb.frames()
+    size = kinematics.system.size
+    for name, k in index.items():  # the conversion checked: PyBullet's state is the native one
+        origin, phi, v_com, omega, _ = frames[name]
+        body = mech.body(name)
+        _, v_native, _, _ = state(name, np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float))
+        miss = max(float(np.hypot(*(origin - q[k : k + 2]))), abs(phi - q[k + 2]) * size)
+        if miss > 1e-9 * size:
+            raise RuntimeError(f"PyBullet's {name} starts {miss:.3g} m from the native start")
+        speed = max(float(np.hypot(*qd[k : k + 2])), abs(qd[k + 2]) * size, 1.0)
+        off = max(float(np.hypot(*(v_com - v_native))), abs(omega - qd[k + 2]) * size)
+        if off > 1e-9 * speed:
+            raise RuntimeError(f"PyBullet's {name} starts with a velocity {off:.3g} m/s from the native one")
 
 
 def _world(frames, name: str, point: np.ndarray) -> np.ndarray:
@@ -448,11 +523,11 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         if setting.erp is not None:
             parameters["erp"] = setting.erp
         p.setPhysicsEngineParameter(**parameters, physicsClientId=client)
-        if setting.erp is not None:
-            for cid in mb.constraints:
+        for cid in mb.constraints:
+            if setting.erp is not None:
                 p.changeConstraint(cid, erp=setting.erp, physicsClientId=client)
         p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
-        set_state(mb, motion.q[0], motion.qd[0], moving)
+        set_state(mb, kinematics, motion.q[0], motion.qd[0])
         forces = _Forces(kinematics, mb)
         for n in range(total + 1):
             sample = n % per_output == 0 and n // per_output in wanted
