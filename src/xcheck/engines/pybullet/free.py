@@ -67,16 +67,16 @@ from xcheck.topology import spanning_tree
 
 
 def _import_quietly():
-    """pybullet, imported with its build-time line (printed on the C stdout) kept
-    off xcheck's output (``--json`` writes there)."""
-    sys.stdout.flush()
-    saved = os.dup(1)
+    """pybullet, imported with its build-time line (printed by its C code on
+    file descriptor 2) kept off xcheck's output; an import error still raises."""
+    sys.stderr.flush()
+    saved = os.dup(2)
     try:
         with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
             return importlib.import_module("pybullet")
     finally:
-        os.dup2(saved, 1)
+        os.dup2(saved, 2)
         os.close(saved)
 
 
