@@ -62,6 +62,7 @@ def test_pendulum_converges_at_first_order():
         assert all(0.8 <= order <= 1.2 for order in _orders(errors)), (setting, errors)
         assert errors[-1] <= 1e-3  # measured 5.54e-4 m at 0.25 ms
     assert (result.summary["loop_drift"] == 0.0).all()  # a tree: no loop to open
+    assert result.summary["order"].dropna().between(0.9, 1.1).all()  # the ladder table shows the order
 
 
 @pytest.mark.slow

@@ -468,7 +468,11 @@ def run_free(
             if trajectory is not None:
                 trajectories.append((row["position_error"], trajectory))
     summary = pd.DataFrame(rows)
-    study = convergence_study(summary["setting"], summary["timestep"], summary["position_error"], summary["status"])
+    study = convergence_study(
+        summary["setting"], summary["timestep"], summary["position_error"], summary["status"], 1e-13 * mech.size
+    )
+    order = study.set_index(["series", "timestep"])["order"]
+    summary["order"] = [float(order.get((r.setting, r.timestep), math.nan)) for r in summary.itertuples()]
     trajectories.sort(key=lambda pair: pair[0])
     ok = bool(trajectories)
     reason = "" if ok else f"no run went through: {rows[0]['status']}"
