@@ -25,7 +25,8 @@ class Exudyn(Engine):
         "PrismaticJoint2D (a pin-in-slot: the same joint without its rotation lock), gravity, constant "
         "forces and torques, linear spring-dampers; constraints exact at position level (index 3) and "
         "solved by Newton in the implicit generalized-alpha integrator. Not: a massless moving body "
-        "(singular mass matrix); Exudyn's explicit integrators refuse these joints; redundant "
-        "constraints make its Jacobian singular (jgerstmayr/EXUDYN#39), a singular position only "
-        "passes while Newton's tolerance is loose enough."
+        "(singular mass matrix); Exudyn's explicit integrators refuse these joints. Its index-3 "
+        "defaults pass the double four-bar's singular positions on the branch at second order; "
+        "index-2 constraints or Newton to 1e-12 stop there (the Jacobian loses rank, as with "
+        "redundant constraints, jgerstmayr/EXUDYN#39), and spectral radius 1 grows unstable."
     )
