@@ -145,7 +145,7 @@ def _mass(body, size: float) -> tuple[float, float]:
     return mass, positive_inertia(mass, float(body.inertia or 0.0), size)
 
 
-def build_system(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
+def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
     """The Exudyn system of the mechanism, its nodes at the state (q, qd).
 
     Parameters
@@ -161,7 +161,6 @@ def build_system(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> Exudy
     import exudyn as exu
     import exudyn.itemInterface as ei
 
-    mech = kinematics.mechanism
     _refuse(mech)
     size = mech.size
     container = exu.SystemContainer()
@@ -436,7 +435,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         row["status"] = f"the step does not divide the compared output step ({sample:g} s)"
         return row, None
     begin = time.process_time()
-    model = build_system(kinematics, motion.q[0], motion.qd[0])
+    model = build_system(mech, motion.q[0], motion.qd[0])
     mbs = model.mbs
     sensors = {
         name: (
