@@ -49,7 +49,7 @@ def _row(summary, setting: str, timestep: float):
 def test_registered_as_a_free_mode():
     engine = engines.engine("exudyn")
     assert engine.available() == ""
-    assert [(m.name, m.kind) for m in engine.modes] == [("exudyn-free", "free")]
+    assert [(m.name, m.kind) for m in engine.modes] == [("exudyn-dynamic", "dynamic"), ("exudyn-free", "free")]
     assert engines.engine_of("exudyn-free") is engine
 
 
