@@ -14,7 +14,9 @@ locked at the file's angle, a pin-in-slot the same joint with
 normal are ``body_a`` 's, marker 0 is the pin). Gravity is a force m g at each
 centre of mass, the constant loads ``LoadForceVector`` (global direction) at
 their point and ``LoadTorqueVector``, the springs ``ObjectConnectorSpringDamper``
-(the same law: k (l - l0) + c dl/dt along the line of the two points). A point
+(the same law: k (l - l0) + c dl/dt along the line of the two points), the
+rotational springs ``ObjectConnectorCoordinateSpringDamper`` s on the two
+bodies' angle coordinates, a load's time law Exudyn's load user function. A point
 mass (inertia 0) gets :data:`xcheck.engines.POINT_MASS_INERTIA` of m size^2.
 A massless moving body cannot be held (its mass matrix is singular):
 :class:`~xcheck.engines.NotApplicable`.
@@ -237,16 +239,38 @@ def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
     for load in mech.loads:
         if load.body not in nodes:
             continue  # a load on the ground does no work
+        timed = {} if load.law is None else {"loadVectorUserFunction": _timed(load.law)}
         if np.any(np.asarray(load.force) != 0.0):
             at = mbs.AddMarker(
                 ei.MarkerBodyPosition(bodyNumber=bodies[load.body], localPosition=local(load.body, load.point))
             )
-            mbs.AddLoad(
-                ei.LoadForceVector(markerNumber=at, loadVector=[float(load.force[0]), float(load.force[1]), 0.0])
-            )
+            force = [float(load.force[0]), float(load.force[1]), 0.0]
+            mbs.AddLoad(ei.LoadForceVector(markerNumber=at, loadVector=force, **timed))
         if load.torque != 0.0:
             at = rigid_marker(load.body, load.point)
-            mbs.AddLoad(ei.LoadTorqueVector(markerNumber=at, loadVector=[0.0, 0.0, float(load.torque)]))
+            mbs.AddLoad(ei.LoadTorqueVector(markerNumber=at, loadVector=[0.0, 0.0, float(load.torque)], **timed))
+    if mech.rotational_springs:  # on the two angle coordinates (displacements from the reference angles)
+        fixed = mbs.AddMarker(
+            ei.MarkerNodeCoordinate(
+                nodeNumber=mbs.AddNode(ei.NodePointGround(visualization=ei.VNodePointGround(show=False))), coordinate=0
+            )
+        )
+        turns = {
+            name: mbs.AddMarker(ei.MarkerNodeCoordinate(nodeNumber=node, coordinate=2)) for name, node in nodes.items()
+        }
+        for twist in mech.rotational_springs:
+            turned = (reference[twist.body_b][2] if twist.body_b in nodes else 0.0) - (
+                reference[twist.body_a][2] if twist.body_a in nodes else 0.0
+            )
+            mbs.AddObject(
+                ei.ObjectConnectorCoordinateSpringDamper(
+                    markerNumbers=[turns.get(twist.body_a, fixed), turns.get(twist.body_b, fixed)],
+                    stiffness=float(twist.stiffness),
+                    damping=float(twist.damping),
+                    offset=float(twist.rest_angle) - turned,
+                    visualization=ei.VObjectConnectorCoordinateSpringDamper(show=False),
+                )
+            )
     owners = mech.point_owners
     for spring in mech.springs:
         ends = [position_marker(owners[label], label) for label in spring.points]
@@ -260,6 +284,15 @@ def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
             )
         )
     return ExudynModel(container, mbs, nodes, com, reference)
+
+
+def _timed(law):
+    """Exudyn's load user function of a load law: the load vector times ``law.factor(t)``."""
+
+    def load(mbs, t, vector):
+        return [float(law.factor(t)) * float(v) for v in vector]
+
+    return load
 
 
 def _settings(setting: FreeSetting, dt: float, duration: float, every: float):
@@ -314,7 +347,7 @@ def _joint_gaps(mech: Mechanism, points: dict, angles: dict) -> np.ndarray:
 
 
 def _energy(mech: Mechanism, model: ExudynModel, coords: dict, rates: dict, angles: dict, points: dict) -> np.ndarray:
-    """T + V of gravity and springs minus the constant loads' potential, J (N,)."""
+    """T + V of gravity, springs and rotational springs minus the constant loads' potential, J (N,)."""
     gravity = np.asarray(mech.gravity, dtype=float)
     total = 0.0
     for body in mech.moving_bodies:
@@ -328,6 +361,11 @@ def _energy(mech: Mechanism, model: ExudynModel, coords: dict, rates: dict, angl
         ends = [np.broadcast_to(e, (len(angles[next(iter(angles))]), 2)) for e in ends]
         gap = ends[1] - ends[0]
         total = total + 0.5 * spring.stiffness * (np.hypot(gap[:, 0], gap[:, 1]) - spring.rest_length) ** 2
+    for twist in mech.rotational_springs:
+        turned = (angles[twist.body_b] if twist.body_b in angles else 0.0) - (
+            angles[twist.body_a] if twist.body_a in angles else 0.0
+        )
+        total = total + 0.5 * twist.stiffness * (turned - twist.rest_angle) ** 2
     for load in mech.loads:
         if load.body in model.nodes:
             p = points[("load", load.name)]
@@ -511,7 +549,8 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     named = {label: {"position": np.array(points[(owner, label)])} for label, owner in mech.point_owners.items()}
     drift = _joint_gaps(mech, points, angles)
     row["loop_drift"] = float(np.max(drift))
-    if not any(s.damping > 0.0 for s in mech.springs):
+    dampers = any(s.damping > 0.0 for s in (*mech.springs, *mech.rotational_springs))
+    if not dampers and all(load.law is None for load in mech.loads):  # else energy is not conserved
         energy = _energy(mech, model, coords, rates, angles, points)
         row["energy_drift"] = float(np.max(np.abs(energy - energy[0])))
     times = wanted[:reached]
