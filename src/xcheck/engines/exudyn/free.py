@@ -28,7 +28,8 @@ reference's output times, and the row's step is then the step): Exudyn's
 defaults (``default``: generalized-alpha, spectral radius 0.9, index-3
 constraints, modified Newton to 1e-8 relative), no numerical damping
 (``undamped``: spectral radius 1, what a user picks to keep energy), index-2
-(velocity-level) constraints with Newmark (``index-2``), at its best
+(velocity-level) constraints with Newmark's trapezoidal rule (``index-2``,
+Exudyn's TrapezoidalIndex2), at its best
 (``best``: the defaults with Newton to 1e-10, which closes the loops to
 round-off) and Newton to 1e-12 (``newton-1e-12``). A run whose Newton fails,
 that goes non-finite, comes apart or leaves the reference's branch is a row
@@ -76,7 +77,9 @@ class FreeSetting:
     spectral_radius : float
         rho_infinity of the generalized-alpha method (1: no numerical damping).
     index2 : bool
-        Constraints at velocity level (index 2) instead of position level (index 3).
+        Constraints at velocity level (index 2) instead of position level (index 3),
+        with Newmark's trapezoidal rule (Exudyn's TrapezoidalIndex2; the spectral
+        radius plays no part).
     newton_tolerance : float or None
         Newton's relative and absolute tolerance (None: Exudyn's, 1e-8 relative,
         1e-10 absolute).
@@ -89,7 +92,10 @@ class FreeSetting:
 
     @property
     def integrator(self) -> str:
-        text = f"gen-alpha rho {self.spectral_radius:g}, index {2 if self.index2 else 3}"
+        if self.index2:  # Exudyn's TrapezoidalIndex2 solver
+            text = "trapezoidal (Newmark 1/4, 1/2), index 2"
+        else:
+            text = f"gen-alpha rho {self.spectral_radius:g}, index 3"
         return text + (f", Newton tol {self.newton_tolerance:g}" if self.newton_tolerance else "")
 
 
@@ -306,7 +312,7 @@ def _settings(setting: FreeSetting, dt: float, duration: float, every: float):
     s.timeIntegration.adaptiveStep = False  # every step is the row's (a reduced step writes off the outputs)
     s.timeIntegration.generalizedAlpha.spectralRadius = setting.spectral_radius
     s.timeIntegration.generalizedAlpha.useIndex2Constraints = setting.index2
-    s.timeIntegration.generalizedAlpha.useNewmark = setting.index2  # Exudyn needs Newmark for index 2
+    s.timeIntegration.generalizedAlpha.useNewmark = setting.index2  # with index 2: Exudyn's TrapezoidalIndex2
     if setting.newton_tolerance is not None:
         s.timeIntegration.newton.relativeTolerance = setting.newton_tolerance
         s.timeIntegration.newton.absoluteTolerance = setting.newton_tolerance
