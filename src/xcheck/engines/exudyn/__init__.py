@@ -44,8 +44,9 @@ class Exudyn(Engine):
     color = "tab:purple"
     notes = (
         "2-D rigid bodies (NodeRigidBody2D at the centre of mass) joined by RevoluteJoint2D and "
-        "PrismaticJoint2D (a pin-in-slot: the same joint without its rotation lock), gravity, constant "
-        "forces and torques, linear spring-dampers; constraints exact at position level (index 3) and "
+        "PrismaticJoint2D (a pin-in-slot: the same joint without its rotation lock), gravity, forces and "
+        "torques (constant or with a time law), linear and rotational spring-dampers; constraints "
+        "exact at position level (index 3) and "
         "solved by Newton in the implicit generalized-alpha integrator; joint-angle drivers as "
         "coordinate constraints with a time-dependent offset. Not: slide drivers (the slide is not a "
         "node coordinate), a massless moving body in free motion (singular mass matrix); Exudyn's "
