@@ -36,6 +36,7 @@ _BUILT_IN = (
     "xcheck.engines.mujoco:MuJoCo",
     "xcheck.engines.pinocchio:Pinocchio",
     "xcheck.engines.pymunk:Pymunk",
+    "xcheck.engines.exudyn:Exudyn",
     "xcheck.engines.pybullet:PyBullet",
 )
 
