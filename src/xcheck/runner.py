@@ -43,7 +43,7 @@ from .dynamics import (
 from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
-from .motion import law_states, sweep_span
+from .motion import law_states, simulation_window, sweep_span
 from .tolerances import Tolerance, convergence_round_off
 
 __all__ = [
@@ -482,6 +482,7 @@ def run_mechanism(
     static = is_static(kinematics.mechanism)
     branch_name = kinematics._branch_name(branch)
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
+    simulation_window(kinematics, branch)  # one rule for every file: a motion that starts outside is refused here
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
     floors = scale_floors(kinematics.mechanism, rates, accelerations)
     outcomes = {"native": _native_self_check(kinematics, native, NATIVE_TOLERANCE, floors)}
