@@ -490,7 +490,11 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
             failing = outcome.categories[~outcome.categories.passed.astype(bool)]
             categories = ", ".join(failing.category) if not failing.empty else "no categories"
             text = outcome.reason or f"outside the tolerance in {categories}"
-            rows.append(row(mode, "failed", "disagreement", text, seconds=outcome.seconds, **worst))
+            origin = "disagreement"
+            unobserved = _unobserved_order(outcome, failing)
+            if unobserved:  # the engine's own coarser runs broke down: no verdict is possible
+                origin, text = "engine", unobserved
+            rows.append(row(mode, "failed", origin, text, seconds=outcome.seconds, **worst))
     if not run.force_table.empty:
         for _, forces in run.force_table.iterrows():
             source = str(forces.engine)
@@ -516,6 +520,20 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
         passed = bool(energy["passed"])
         rows.append(row("energy", "passed" if passed else "failed", "" if passed else "disagreement", "", **figures))
     return rows
+
+
+def _unobserved_order(outcome, failing: pd.DataFrame) -> str:
+    """For a dynamic mode failed only because no coarser run of its series ran
+    through (so no order can be observed), that reason with the first coarser
+    run's own status; "" otherwise."""
+    if failing.empty or "basis" not in failing or not failing.basis.str.startswith("no coarser run").all():
+        return ""
+    study = outcome.result.study if outcome.result is not None else None
+    broken = ""
+    if study is not None and not study.empty:
+        statuses = [str(s) for s in study.status if str(s) != "ok"]
+        broken = f" ({statuses[0]})" if statuses else ""
+    return f"no coarser run of the compared series ran through{broken}: the order cannot be observed"
 
 
 def _worst(categories: pd.DataFrame) -> dict:
@@ -698,7 +716,7 @@ _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 def reason_class(row) -> str:
     """A failure's class: its reason with the numbers, paths and names blanked
     (``#``); a tolerance failure by its worst category."""
-    if row["outcome"] == "failed":
+    if row["outcome"] == "failed" and row["origin"] == "disagreement":
         return f"outside tolerance: {row['category'] or 'unknown'}"
     text = str(row["reason"]).replace(str(row["file"]), "FILE").replace(str(row["case"]), "NAME")
     return _NUMBER.sub("#", text)[:160]
