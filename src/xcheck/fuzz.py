@@ -499,12 +499,13 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
         for _, forces in run.force_table.iterrows():
             source = str(forces.engine)
             ok = bool(forces.ok)
+            relative, bound = float(forces.max_rel), force_tolerance(source)
             figures = {
                 "category": "forces",
-                "relative": float(forces.max_rel),
-                "tolerance": force_tolerance(source),
+                "relative": relative,
+                "tolerance": bound,
+                "ratio": relative / bound if bound > 0 else math.nan,
             }
-            figures["ratio"] = figures["relative"] / figures["tolerance"] if figures["tolerance"] > 0 else math.nan
             label = source if source == "newton-euler" else f"{source}-forces"
             if not ok:
                 rows.append(row(label, "error", "engine", str(forces.reason), **figures))
@@ -515,8 +516,8 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
                 )
     if run.energy is not None:
         energy = run.energy
-        figures = {"category": "power", "relative": float(energy["relative"]), "tolerance": float(energy["tolerance"])}
-        figures["ratio"] = figures["relative"] / figures["tolerance"]
+        relative, bound = float(energy["relative"]), float(energy["tolerance"])
+        figures = {"category": "power", "relative": relative, "tolerance": bound, "ratio": relative / bound}
         passed = bool(energy["passed"])
         rows.append(row("energy", "passed" if passed else "failed", "" if passed else "disagreement", "", **figures))
     return rows
@@ -564,8 +565,8 @@ def _run_batch(cases: list[Case], paths: list[str], modes: Sequence[str], sample
 
 def _write_part(out: Path, rows: list[dict]) -> Path:
     """One Parquet part file of ``rows``, through a temporary file and a rename."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    import pyarrow as pa  # type: ignore[import-untyped]
+    import pyarrow.parquet as pq  # type: ignore[import-untyped]
 
     folder = out / "results"
     folder.mkdir(parents=True, exist_ok=True)
