@@ -47,12 +47,13 @@ def test_kinds_are_chosen_and_checked():
         fuzz.generate(3, 0, ("fourbar", "crank"))
 
 
-def test_every_generated_mechanism_assembles_where_it_was_drawn():
-    """40 cases of each kind load, assemble, and put the sketched point (C, B or P)
-    where the generator's closed-form position says: the branch drawn."""
+def _assembles_where_drawn(count: int) -> set:
+    """``count`` cases of each kind load, assemble, and put the sketched point (C, B
+    or P) where the generator's closed-form position says: the branch drawn.
+    Returns the (kind, shape, law, masses) seen."""
     seen = set()
     for kind in fuzz.KINDS:
-        for i in range(40):
+        for i in range(count):
             case = fuzz.generate(11, i, (kind,))
             seen.add((case.kind, case.shape, case.law, case.masses))
             kin = Kinematics(parse_mechanism(case.text, case.name))
@@ -63,6 +64,16 @@ def test_every_generated_mechanism_assembles_where_it_was_drawn():
             for label, expected in sketch.items():
                 found = solution.point(label)["position"][0]
                 assert np.allclose(found, expected, rtol=0, atol=1e-6 * case.scale), (case.name, label, found, expected)
+    return seen
+
+
+def test_generated_mechanisms_assemble_where_drawn():
+    _assembles_where_drawn(4)
+
+
+@pytest.mark.slow
+def test_every_kind_shape_and_law_is_drawn_and_assembles():
+    seen = _assembles_where_drawn(40)
     shapes = {(k, s) for k, s, _, _ in seen}
     assert {("fourbar", s) for s in ("grashof", "non-grashof", "near-parallelogram", "near-change-point")} <= shapes
     assert {("slider-crank", s) for s in ("full-turn", "rocking", "near-dead-centre", "extreme-ratio")} <= shapes
