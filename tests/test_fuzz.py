@@ -198,3 +198,23 @@ def test_motion_starting_inside_still_runs():
     from xcheck.runner import run_mechanism
 
     assert run_mechanism(kin, ("native", "formulation-II"), 21).outcomes["formulation-II"].ok
+
+
+# -- force tolerances are conditioned (a fuzz finding) ------------------------------------
+
+
+def test_force_tolerance_is_conditioned():
+    from xcheck.runner import force_tolerance
+
+    assert force_tolerance("pinocchio") == force_tolerance("pinocchio", 10.0) == 1e-12
+    assert force_tolerance("pinocchio", 4326.0) == pytest.approx(10 * np.finfo(float).eps * 4326.0**2)
+    assert force_tolerance("pymunk", 4326.0) == 7e-2
+
+
+def test_reactions_of_a_near_parallelogram_are_judged_at_its_conditioning():
+    """Pinocchio's reactions on the fuzz reproducer exceed the unconditioned 1e-12 and pass the conditioned bound."""
+    from xcheck import api
+
+    run = api.compare(DATA / "fuzz-near-parallelogram.toml", "pinocchio-kinematic", samples=31)
+    row = run.force_table.set_index("engine").loc["pinocchio"]
+    assert row.ok and 1e-12 < row.max_rel <= row.tolerance

@@ -431,7 +431,7 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
     """
     from .kinematics import Kinematics
     from .model import load_mechanism
-    from .runner import force_tolerance, run_mechanism
+    from .runner import run_mechanism
 
     base = {
         "seed": case.seed,
@@ -499,7 +499,7 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
         for _, forces in run.force_table.iterrows():
             source = str(forces.engine)
             ok = bool(forces.ok)
-            relative, bound = float(forces.max_rel), force_tolerance(source)
+            relative, bound = float(forces.max_rel), float(forces.tolerance)
             figures = {
                 "category": "forces",
                 "relative": relative,
