@@ -140,6 +140,7 @@ def test_cli_fuzz(tmp_path):
         (["--kinds", "fourbar,hexapod"], "--kinds"),
         (["--engines", "nosuch"], "--engines"),
         (["--workers", "0"], "--workers"),
+        (["--count", "1", "--engines", "formulations", "--scheduler", "nonsense"], "--scheduler nonsense: expected"),
     ],
 )
 def test_cli_fuzz_bad_options(tmp_path, args, needle):

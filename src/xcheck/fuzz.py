@@ -673,7 +673,7 @@ def _run_dask(arguments: list[tuple], record: Callable[[list[dict], int], None],
     own = client is None
     if own:
         try:
-            client = Client(scheduler, timeout="30s")
+            client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(
                 f"--scheduler {scheduler}: expected the address of a running Dask scheduler, found {err}"
