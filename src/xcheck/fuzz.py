@@ -420,7 +420,8 @@ def _reason_text(text: str, limit: int = 300) -> str:
 
 
 def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[dict]:
-    """Run ``modes`` on the case's file; one row per mode (and per force source
+    """Run ``modes`` on the case (its text, named by ``path``, the file written
+    on the client); one row per mode (and per force source
     when the bodies have masses). Never raises: a refusal or crash of the whole
     case gives one row per mode with outcome ``refused`` or ``crashed``.
 
@@ -430,7 +431,7 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
     refused the generated file), ``crashed`` (an unexpected exception).
     """
     from .kinematics import Kinematics
-    from .model import load_mechanism
+    from .model import parse_mechanism
     from .runner import run_mechanism
 
     base = {
@@ -466,7 +467,7 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
 
     start = time.perf_counter()
     try:
-        kinematics = Kinematics(load_mechanism(path))
+        kinematics = Kinematics(parse_mechanism(case.text, str(path)))  # the text: a remote worker may not see the file
         kinematics.assemble()
         run = run_mechanism(kinematics, modes, samples)
     except XcheckError as err:
@@ -650,7 +651,7 @@ def fuzz(
         if progress is not None:
             progress(finished, len(todo))
 
-    arguments = [([c for c in b], [by_name[c.name] for c in b], chosen, samples) for b in batches]
+    arguments = [(b, [by_name[c.name] for c in b], chosen, samples) for b in batches]
     if client is not None or scheduler is not None:
         _run_dask(arguments, record, client, scheduler)
     elif (workers or os.cpu_count() or 1) <= 1 or len(batches) <= 1:
