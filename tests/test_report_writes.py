@@ -98,3 +98,41 @@ def test_the_index_is_built_from_its_data_not_from_its_markdown(tmp_path):
     update_index(tmp_path, [gone], keep, "xcheck run removed-model")
     update_index(tmp_path, [first], keep, "xcheck run fourbar")
     assert "removed-model" not in (tmp_path / "README.md").read_text(encoding="utf-8")  # not in the folder
+
+
+def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch):
+    """A run killed after the new images are swapped in but before its Markdown is
+    renamed out of them (the one gap left, two renames): the new Markdown waits
+    in the image folder, the old one is untouched; the next writer, under the
+    lock, completes the unit before anything else."""
+    import xcheck.report as report
+
+    out = tmp_path / "reports"
+    _touch(out / "fourbar.md", b"old report")
+    _touch(out / "fourbar" / "drawing.png", b"old image")
+
+    complete = report.complete_reports
+
+    def killed(directory, name=None):
+        if name is None:  # the writer's first step: nothing pending yet
+            return complete(directory)
+        raise KeyboardInterrupt  # stands for SIGKILL between the two renames
+
+    monkeypatch.setattr(report, "complete_reports", killed)
+    from xcheck import api
+
+    run = api.compare(MODELS / "fourbar.toml", "formulations", samples=31)
+    try:
+        report.write_report(run, out, "xcheck run fourbar", gif=False)
+    except KeyboardInterrupt:
+        pass
+    assert (out / "fourbar.md").read_bytes() == b"old report"
+    pending = out / "fourbar" / ".report.md"
+    assert pending.is_file() and (out / "fourbar" / "drawing.png").read_bytes() != b"old image"
+    new_text = pending.read_text(encoding="utf-8")
+    assert "fourbar/drawing.png" in new_text
+    monkeypatch.undo()
+    update_index(out, [], {"fourbar"}, "xcheck run fourbar")  # any later writer in the folder completes it first
+    assert (out / "fourbar.md").read_text(encoding="utf-8") == new_text
+    assert not pending.exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]

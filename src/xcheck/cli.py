@@ -884,6 +884,87 @@ def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
         )
 
 
+@app.command("fuzz")
+@_reports_errors
+def fuzz_command(
+    count: Annotated[int, typer.Option("--count", help="Random mechanisms to generate (1 to 100000).")] = 100,
+    seed: Annotated[int, typer.Option("--seed", help="The campaign's seed: the same seed, the same mechanisms.")] = 0,
+    kinds: Annotated[
+        str, typer.Option("--kinds", help="Comma-separated kinds: fourbar, slider-crank, scotch-yoke.")
+    ] = "fourbar,slider-crank,scotch-yoke",
+    engines: Annotated[
+        Optional[str], typer.Option("--engines", help="Comma-separated modes or groups (default: all).")
+    ] = None,
+    samples: Annotated[int, typer.Option("--samples", help=f"Samples of the sweeps (3 to {MAX_SAMPLES}).")] = 181,
+    scheduler: Annotated[
+        Optional[str], typer.Option("--scheduler", help="Address of a Dask scheduler (default: a local process pool).")
+    ] = None,
+    workers: Annotated[
+        Optional[int], typer.Option("--workers", help="Local worker processes (default: the CPU count).")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="Output folder: cases/, results/ (Parquet), failures.md.")] = Path(
+        "fuzz"
+    ),
+):
+    """Run every mode on random mechanisms; one Parquet row per mechanism and mode.
+
+    Rerunning with the same --out skips the cases done. Exit code 0 when no mode
+    failed, 1 when any did (see OUT/failures.md: each class with a reproducer file), 2 for bad input.
+
+    Examples: xcheck fuzz --count 40 --seed 1;  xcheck fuzz --count 5000 --scheduler tcp://host:8786 --out big
+    """
+    from . import fuzz as campaign
+
+    if not 1 <= count <= 100_000:
+        raise InputError(f"--count: expected a whole number from 1 to 100000, found {count}")
+    if not 3 <= samples <= MAX_SAMPLES:
+        raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
+    if workers is not None and not 1 <= workers <= 256:
+        raise InputError(f"--workers: expected a whole number from 1 to 256, found {workers}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: expected a directory for the campaign, found a file")
+    chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
+    campaign.generate(seed, 0, chosen)  # checks the kinds
+    modes = select_modes(engines)
+    stderr = Console(stderr=True)
+    progress = Progress(
+        SpinnerColumn(),
+        TextColumn("fuzz"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+        disable=not stderr.is_terminal,
+    )
+    with progress:
+        task = progress.add_task("", total=None)
+
+        def step(done: int, total: int) -> None:
+            progress.update(task, completed=done, total=total)
+
+        rows = campaign.fuzz(out, count, seed, chosen, modes, samples, workers, scheduler, progress=step)
+    rows = rows[rows.seed == seed]
+    rows = rows[rows["index"] < count]
+    command = f"xcheck fuzz --count {count} --seed {seed} --kinds {','.join(chosen)}" + (
+        f" --engines {engines}" if engines else ""
+    )
+    write_atomic(out / "failures.md", campaign.failure_report(rows, command))
+    table = Table(title=f"xcheck fuzz: {rows.case.nunique()} cases (seed {seed})")
+    for column in ("mode", "cases", "passed", "failed", "error", "not applicable"):
+        table.add_column(column, justify="left" if column == "mode" else "right")
+    counts = campaign.summary(rows)
+    for _, r in counts.iterrows():
+        table.add_row(
+            escape(str(r["mode"])), *(str(r[c]) for c in ("cases", "passed", "failed", "error", "not applicable"))
+        )
+    console = Console()
+    console.print(table)
+    console.print(f"Rows: {escape(str(out / 'results'))}; failure classes: {escape(str(out / 'failures.md'))}")
+    if int(counts.failed.sum() + counts.error.sum()):
+        raise typer.Exit(1)
+
+
 def main() -> None:
     """Console-script entry point."""
     app()

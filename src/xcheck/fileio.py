@@ -16,12 +16,22 @@ try:
 except ImportError:  # not on Windows: writers are not serialised there
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["write_atomic", "directory_lock", "remove_stale_staging", "REPORT_IMAGES"]
+__all__ = [
+    "write_atomic",
+    "directory_lock",
+    "remove_stale_staging",
+    "complete_reports",
+    "REPORT_IMAGES",
+    "PENDING_MARKDOWN",
+]
 
 #: The files of a report's image folder (reports/NAME/).
 REPORT_IMAGES = frozenset(
     {"drawing.png", "quantities.png", "differences.png", "convergence.png", "forces.png", "motion.gif"}
 )
+
+#: A report's Markdown while it travels in the report's image folder (reports/NAME/), renamed to reports/NAME.md last
+PENDING_MARKDOWN = ".report.md"
 
 #: A hidden temporary name as ``tempfile`` makes it: "." + name + "." + 8 characters
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[a-z0-9_]{8}")
@@ -68,6 +78,23 @@ def directory_lock(directory: str | Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
+def complete_reports(directory: str | Path, name: str | None = None) -> list[Path]:
+    """Finish the report units in ``directory`` whose Markdown still waits in
+    their image folder (NAME/.report.md, see :data:`PENDING_MARKDOWN`): rename
+    it to NAME.md, the last step of a report write. Only ``name``'s when given.
+    Call it holding :func:`directory_lock`. Returns the Markdown paths written."""
+    directory = Path(directory)
+    folders = [directory / name] if name is not None else sorted(directory.iterdir())
+    done = []
+    for folder in folders:
+        pending = folder / PENDING_MARKDOWN
+        if folder.name.startswith(".") or folder.is_symlink() or not pending.is_file() or pending.is_symlink():
+            continue
+        os.replace(pending, directory / f"{folder.name}.md")
+        done.append(directory / f"{folder.name}.md")
+    return done
+
+
 def remove_stale_staging(directory: str | Path) -> list[Path]:
     """Remove what killed writers left in ``directory``: hidden staging folders
     of reports (``.NAME.XXXXXXXX`` holding report images, ``.NAME.old.XXXXXXXX``
@@ -92,8 +119,11 @@ def remove_stale_staging(directory: str | Path) -> list[Path]:
 
 
 def _holds_images(folder: Path) -> bool:
-    """Whether ``folder`` holds nothing but report images (as a report's staging does)."""
-    return all(c.name in REPORT_IMAGES and c.is_file() and not c.is_symlink() for c in folder.iterdir())
+    """Whether ``folder`` holds nothing but report images and maybe the report's Markdown (as staging does)."""
+    return all(
+        (c.name in REPORT_IMAGES or c.name == PENDING_MARKDOWN) and c.is_file() and not c.is_symlink()
+        for c in folder.iterdir()
+    )
 
 
 def _holds_report(folder: Path, name: str) -> bool:

@@ -72,22 +72,30 @@ def simulation_window(
     times = np.linspace(0.0, duration, 20001)
     q = SimulationWindow(duration, reason).inputs(kinematics, times)[0]
     inside = np.ones(times.shape, dtype=bool)
-    for k in range(len(mech.drivers)):
+    for k, driver in enumerate(mech.drivers):
         rng = kinematics.input_range(k, branch)
+        ok = np.ones(times.shape, dtype=bool)
+        low = high = None
         if rng.low is not None and rng.high is not None:
             pad = margin * (rng.high - rng.low)
-            inside &= (q[:, k] >= rng.low + pad) & (q[:, k] <= rng.high - pad)
+            low, high = rng.low + pad, rng.high - pad
         elif rng.low is not None:
-            pad = margin * abs(rng.low) if rng.low else margin
-            inside &= q[:, k] >= rng.low + pad
+            low = rng.low + (margin * abs(rng.low) if rng.low else margin)
         elif rng.high is not None:
-            pad = margin * abs(rng.high) if rng.high else margin
-            inside &= q[:, k] <= rng.high - pad
-    if not inside[0]:
-        raise InputError(
-            f"{mech.path}: drivers: expected a motion that starts inside the feasible range, "
-            "found one that starts at or past a limit position"
-        )
+            high = rng.high - (margin * abs(rng.high) if rng.high else margin)
+        if low is not None:
+            ok &= q[:, k] >= low
+        if high is not None:
+            ok &= q[:, k] <= high
+        if not ok[0]:
+            show = mech.units.show_input
+            limits = " … ".join("" if v is None else show(driver.quantity, v) for v in (low, high))
+            raise InputError(
+                f"{mech.path}: drivers[{k}]: expected a motion that starts inside the feasible range "
+                f"less {margin:.0%} of it at each limit position ({limits}), "
+                f"found {driver.name} starting at {show(driver.quantity, float(q[0, k]))}"
+            )
+        inside &= ok
     if not inside.all():
         duration, reason = float(times[np.argmin(inside) - 1]), "feasible range"
     return SimulationWindow(duration, reason)

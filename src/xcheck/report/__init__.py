@@ -1,11 +1,14 @@
 """Markdown reports of comparison runs: reports/NAME.md with its images in
 reports/NAME/, and reports/README.md indexing them.
 
-A report appears whole or not at all: its images are written into a fresh
-directory beside the old one, which replaces the old directory by renames; the
-Markdown file is written through a temporary file and a rename. Writers of one
-directory take turns (a file lock), and each first removes what a killed
-writer left there.
+A report is written as one unit: its images and its Markdown are written
+into a fresh staging directory beside the old one; nothing is replaced until
+all are written. Then the staging directory replaces the old image directory
+and the Markdown, carried in it, is renamed into place last (two renames). A
+run killed between those renames leaves the new Markdown waiting in the new
+image directory; the next writer, taking the directory's file lock, first
+completes such a unit (:func:`xcheck.fileio.complete_reports`) and removes what
+killed writers left.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ..fileio import directory_lock, remove_stale_staging, write_atomic
+from ..fileio import PENDING_MARKDOWN, complete_reports, directory_lock, remove_stale_staging, write_atomic
 from ..runner import RunResult
 from . import _figures
 from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
@@ -40,6 +43,7 @@ def write_report(run: RunResult, directory: str | Path, command: str, gif: bool 
     which first removes the staging that killed runs left there.
     """
     with directory_lock(directory):
+        complete_reports(directory)
         remove_stale_staging(directory)
         return _write_report(run, Path(directory), command, gif)
 
@@ -69,9 +73,10 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool) -> P
 
 
 def _replace_report(directory: Path, name: str, render) -> Path:
-    """Write reports/NAME/ (the images ``render(staging)`` puts in a staging
-    folder, swapped in whole; it must write drawing.png, the mark of a report
-    folder) and then reports/NAME.md (the text ``render`` returns, atomically)."""
+    """Write reports/NAME/ and reports/NAME.md as one unit: the images
+    ``render(staging)`` puts in a staging folder (it must write drawing.png, the
+    mark of a report folder) and the Markdown it returns, written beside them;
+    then the folder is swapped in and the Markdown renamed out of it, last."""
     directory.mkdir(parents=True, exist_ok=True)
     if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
         raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
@@ -86,6 +91,7 @@ def _replace_report(directory: Path, name: str, render) -> Path:
     os.chmod(staging, 0o777 & ~umask)
     try:
         text = render(staging)
+        (staging / PENDING_MARKDOWN).write_text(text, encoding="utf-8")
         target = directory / name
         retired = None
         if target.exists():
@@ -97,9 +103,8 @@ def _replace_report(directory: Path, name: str, render) -> Path:
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    markdown = directory / f"{name}.md"
-    write_atomic(markdown, text)
-    return markdown
+    complete_reports(directory, name)
+    return directory / f"{name}.md"
 
 
 def write_simulation_report(result, directory: str | Path, command: str) -> Path:
@@ -117,6 +122,7 @@ def write_simulation_report(result, directory: str | Path, command: str) -> Path
         return _simulation.markdown(result, images, command)
 
     with directory_lock(directory):
+        complete_reports(directory)
         remove_stale_staging(directory)
         return _replace_report(Path(directory), name, render)
 
@@ -179,6 +185,7 @@ def update_index(directory: str | Path, entries: list[dict], keep: set[str], com
     ``command`` is the run that wrote it last. The read and the write are one
     step under the directory's lock, so concurrent runs keep each other's lines."""
     with directory_lock(directory):
+        complete_reports(directory)
         known = {e["name"]: e for e in read_index(directory)}
         known.update({e["name"]: e for e in entries})
         fresh = {e["name"] for e in entries}

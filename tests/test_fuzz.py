@@ -1,0 +1,221 @@
+"""``xcheck fuzz`` (issue 18): random mechanisms, Parquet rows, resume, Dask.
+
+Also the one rule for a motion that starts outside the feasible range
+(tests/data/start-outside.toml): ``xcheck run`` refuses it up front, whatever
+modes are asked for and whether or not the bodies have masses.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import invoke
+
+from xcheck import fuzz
+from xcheck.kinematics import Kinematics
+from xcheck.model import load_mechanism, parse_mechanism
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+
+#: figures that differ between two runs of the same cases: the wall-clock times
+TIMINGS = ["seconds"]
+
+
+def _comparable(rows: pd.DataFrame, out: Path) -> pd.DataFrame:
+    """Rows without timings and with the file paths relative to the campaign folder."""
+    rows = rows.drop(columns=TIMINGS).copy()
+    rows["file"] = [str(Path(f).relative_to(out)) for f in rows.file]
+    return rows.reset_index(drop=True)
+
+
+def test_same_seed_same_files_other_seed_other_files():
+    first = [fuzz.generate(7, i).text for i in range(30)]
+    assert first == [fuzz.generate(7, i).text for i in range(30)]
+    assert first[5] == fuzz.generate(7, 5).text  # a case does not depend on the others drawn
+    other = [fuzz.generate(8, i).text for i in range(30)]
+    assert all(a != b for a, b in zip(first, other))
+
+
+def test_kinds_are_chosen_and_checked():
+    assert {fuzz.generate(3, i, ("slider-crank",)).kind for i in range(10)} == {"slider-crank"}
+    with pytest.raises(fuzz.InputError, match="--kinds"):
+        fuzz.generate(3, 0, ("fourbar", "crank"))
+
+
+def _assembles_where_drawn(count: int) -> set:
+    """``count`` cases of each kind load, assemble, and put the sketched point (C, B
+    or P) where the generator's closed-form position says: the branch drawn.
+    Returns the (kind, shape, law, masses) seen."""
+    seen = set()
+    for kind in fuzz.KINDS:
+        for i in range(count):
+            case = fuzz.generate(11, i, (kind,))
+            seen.add((case.kind, case.shape, case.law, case.masses))
+            kin = Kinematics(parse_mechanism(case.text, case.name))
+            kin.assemble()
+            solution = kin.solve(kin.reference_inputs()[None, :])
+            assert solution.success, case.name
+            sketch = next(iter(kin.mechanism.assembly.branches.values()))
+            for label, expected in sketch.items():
+                found = solution.point(label)["position"][0]
+                assert np.allclose(found, expected, rtol=0, atol=1e-6 * case.scale), (case.name, label, found, expected)
+    return seen
+
+
+def test_generated_mechanisms_assemble_where_drawn():
+    _assembles_where_drawn(4)
+
+
+@pytest.mark.slow
+def test_every_kind_shape_and_law_is_drawn_and_assembles():
+    seen = _assembles_where_drawn(40)
+    shapes = {(k, s) for k, s, _, _ in seen}
+    assert {("fourbar", s) for s in ("grashof", "non-grashof", "near-parallelogram", "near-change-point")} <= shapes
+    assert {("slider-crank", s) for s in ("full-turn", "rocking", "near-dead-centre", "extreme-ratio")} <= shapes
+    assert {law for _, _, law, _ in seen} == {"constant-rate", "constant-acceleration", "harmonic"}
+    assert {m for *_, m in seen} == {True, False}
+
+
+def test_scales_span_centimetres_to_kilometres():
+    scales = [fuzz.generate(2, i).scale for i in range(300)]
+    assert 0.01 <= min(scales) < 0.05 and 200 < max(scales) <= 1000
+
+
+def test_small_run_writes_one_row_per_case_and_mode_and_resumes(tmp_path):
+    out = tmp_path / "campaign"
+    rows = fuzz.fuzz(out, count=3, seed=1, modes="formulations", workers=1, batch=2)
+    modes = ("native", "formulation-I", "formulation-II")
+    driven = rows[rows["mode"].isin(modes)]
+    assert len(driven) == 3 * len(modes)
+    assert set(driven.case) == {fuzz.generate(1, i).name for i in range(3)}
+    assert set(rows.columns) == set(fuzz.COLUMNS)
+    assert len(list((out / "results").glob("part-*.parquet"))) == 2  # batches of 2 and 1
+    assert all(Path(f).is_file() for f in rows.file)  # every case has its file
+    assert rows.outcome.isin(["passed", "failed", "error", "not-applicable", "refused", "crashed"]).all()
+    # resume: the three done are skipped, two more are run
+    parts = set((out / "results").glob("part-*.parquet"))
+    again = fuzz.fuzz(out, count=5, seed=1, modes="formulations", workers=1, batch=4)
+    new = set((out / "results").glob("part-*.parquet")) - parts
+    assert len(new) == 1
+    assert set(pd.read_parquet(new.pop()).case) == {fuzz.generate(1, i).name for i in (3, 4)}
+    assert again[again["mode"] == "native"].case.nunique() == 5
+    assert not again.duplicated(["case", "mode"]).any()
+
+
+def test_summary_and_failure_report(tmp_path):
+    rows = fuzz.fuzz(tmp_path, count=2, seed=4, modes="formulations", workers=1)
+    table = fuzz.summary(rows)
+    assert list(table["mode"][:3]) == ["native", "formulation-I", "formulation-II"]
+    assert (table.passed + table.failed + table.error + table["not applicable"] == table.cases).all()
+    fake = rows.copy()
+    fake.loc[fake["mode"] == "formulation-II", ["outcome", "origin", "category"]] = ["failed", "disagreement", "alpha"]
+    classes = fuzz.failure_classes(fake)
+    assert len(classes) == 1 and classes.iloc[0]["count"] == 2
+    reproducer = classes.iloc[0].reproducer
+    sizes = {f: Path(f).stat().st_size for f in fake.file}
+    assert sizes[reproducer] == min(sizes.values()) or fake[fake.file == reproducer].masses.iloc[0] == False  # noqa: E712
+    text = fuzz.failure_report(fake, "xcheck fuzz --count 2 --seed 4")
+    assert "outside tolerance: alpha" in text and reproducer in text
+
+
+def test_cli_fuzz(tmp_path):
+    result = invoke(
+        "fuzz", "--count", "2", "--seed", "5", "--engines", "formulations", "--workers", "1", "--out", str(tmp_path)
+    )
+    assert result.returncode in (0, 1), result.stderr
+    assert "native" in result.stdout and "formulation-II" in result.stdout
+    assert (tmp_path / "failures.md").is_file()
+    assert len(fuzz.read_rows(tmp_path)) >= 6
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--count", "0"], "--count"),
+        (["--kinds", "fourbar,hexapod"], "--kinds"),
+        (["--engines", "nosuch"], "--engines"),
+        (["--workers", "0"], "--workers"),
+        (["--count", "1", "--engines", "formulations", "--scheduler", "nonsense"], "--scheduler nonsense: expected"),
+    ],
+)
+def test_cli_fuzz_bad_options(tmp_path, args, needle):
+    result = invoke("fuzz", *args, "--out", str(tmp_path / "x"))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert len(result.stderr.splitlines()) == 1 and needle in result.stderr
+
+
+@pytest.mark.slow
+def test_local_pool_and_dask_cluster_give_the_same_rows(tmp_path):
+    """The same cases on two local processes and on a two-worker Dask
+    LocalCluster (processes): the same rows but for the timings."""
+    distributed = pytest.importorskip("dask.distributed")
+    local = fuzz.fuzz(tmp_path / "local", count=4, seed=1, modes="kinematic", workers=2, batch=1)
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            remote = fuzz.fuzz(tmp_path / "dask", count=4, seed=1, modes="kinematic", client=client, batch=1)
+    assert remote[remote["mode"] == "native"].case.nunique() == 4
+    pd.testing.assert_frame_equal(_comparable(local, tmp_path / "local"), _comparable(remote, tmp_path / "dask"))
+
+
+# -- a motion that starts outside the feasible range: refused up front -----------------
+
+
+START_OUTSIDE = DATA / "start-outside.toml"
+
+
+@pytest.mark.parametrize("engines", ["formulations", "kinematic", "mujoco-dynamic", "dynamic"])
+def test_motion_starting_outside_is_refused_whatever_the_modes(engines):
+    result = invoke("run", str(START_OUTSIDE), "--engines", engines, "--no-report")
+    assert result.returncode == 2 and result.stdout == "" and "Traceback" not in result.stderr
+    (line,) = result.stderr.splitlines()
+    assert f"{START_OUTSIDE}: drivers[0]: expected a motion that starts inside the feasible range" in line
+    assert "found crank starting at 140 deg" in line
+
+
+def test_motion_starting_outside_is_refused_with_masses_too(tmp_path):
+    """The same four-bar with mass data (forces and power balance would run): the same line."""
+    text = (ROOT / "models" / "fourbar.toml").read_text(encoding="utf-8").replace("start = 30\n", "start = 140\n")
+    path = tmp_path / "start-outside-masses.toml"
+    path.write_text(text, encoding="utf-8")
+    result = invoke("run", str(path), "--engines", "formulations", "--no-report")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    (line,) = result.stderr.splitlines()
+    assert "drivers[0]: expected a motion that starts inside the feasible range" in line
+    assert "found crank starting at 140 deg" in line
+
+
+def test_motion_starting_inside_still_runs():
+    kin = Kinematics(load_mechanism(START_OUTSIDE))
+    rng = kin.input_range(0)
+    assert math.degrees(rng.high) == pytest.approx(129.02, abs=0.01)  # 140 deg is past the limit
+    text = START_OUTSIDE.read_text(encoding="utf-8").replace("start = 140\n", "start = 30\n")
+    kin = Kinematics(parse_mechanism(text, "inside"))
+    kin.assemble()
+    from xcheck.runner import run_mechanism
+
+    assert run_mechanism(kin, ("native", "formulation-II"), 21).outcomes["formulation-II"].ok
+
+
+# -- force tolerances are conditioned (a fuzz finding) ------------------------------------
+
+
+def test_force_tolerance_is_conditioned():
+    from xcheck.runner import force_tolerance
+
+    assert force_tolerance("pinocchio") == force_tolerance("pinocchio", 10.0) == 1e-12
+    assert force_tolerance("pinocchio", 4326.0) == pytest.approx(10 * np.finfo(float).eps * 4326.0**2)
+    assert force_tolerance("pymunk", 4326.0) == 7e-2
+
+
+def test_reactions_of_a_near_parallelogram_are_judged_at_its_conditioning():
+    """Pinocchio's reactions on the fuzz reproducer exceed the unconditioned 1e-12 and pass the conditioned bound."""
+    from xcheck import api
+
+    run = api.compare(DATA / "fuzz-near-parallelogram.toml", "pinocchio-kinematic", samples=31)
+    row = run.force_table.set_index("engine").loc["pinocchio"]
+    assert row.ok and 1e-12 < row.max_rel <= row.tolerance
