@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import MODELS, invoke
+from conftest import DATA, MODELS, invoke
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -18,7 +18,7 @@ from xcheck import Kinematics, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines.mujoco.dynamic import Setting  # noqa: E402
 from xcheck.engines.mujoco.free import joint_velocities, run_free  # noqa: E402
-from xcheck.engines.mujoco.mjcf import layout  # noqa: E402
+from xcheck.engines.mujoco.mjcf import layout, mjcf_text  # noqa: E402
 from xcheck.simulation import free_errors  # noqa: E402
 
 STEPS = (1e-3, 5e-4, 2.5e-4)
@@ -180,3 +180,18 @@ def test_loads_act_at_every_stage(tmp_path, a01):
     plain = a01[1].motion.solution().point("P1")["position"][: len(ref.motion.times)]
     assert np.max(np.hypot(*(ref.motion.solution().point("P1")["position"] - plain).T)) > 0.1
     assert mujoco.get_mjcb_passive() is None  # the callback was for the run only
+
+
+def test_exported_mjcf_carries_the_springs():
+    """The MJCF (``xcheck export``, and the file the free and dynamic modes load) holds
+    the file's springs as spatial tendons: at the spring-block's assembly (0.15 m from O,
+    k = 200 N/m, rest 0.1 m) MuJoCo's passive force on the slide is -k (0.15 - 0.1) = -10 N."""
+    import mujoco
+
+    kin = Kinematics(load_mechanism(DATA / "spring-block.toml"))
+    model = mujoco.MjModel.from_xml_string(mjcf_text(kin))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    assert model.ntendon == 1 and model.tendon_stiffness[0] == 200.0 and model.tendon_damping[0] == 4.0
+    assert data.ten_length[0] == pytest.approx(0.15, abs=1e-14)
+    assert data.qfrc_passive[0] == pytest.approx(-10.0, rel=1e-12)

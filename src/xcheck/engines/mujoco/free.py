@@ -32,7 +32,6 @@ from __future__ import annotations
 import copy
 import math
 import time
-import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
@@ -125,23 +124,7 @@ def free_model(kinematics: Kinematics) -> tuple[mujoco.MjModel, Layout]:
     """
     mech = kinematics.mechanism
     lay = layout(mech)
-    text = mjcf_text(kinematics)
-    if mech.springs:
-        root = ET.fromstring(text)
-        tendon = ET.SubElement(root, "tendon")
-        owners = mech.point_owners
-        for spring in mech.springs:
-            el = ET.SubElement(
-                tendon,
-                "spatial",
-                name=f"{spring.name}.spring",
-                stiffness=repr(float(spring.stiffness)),
-                springlength=repr(float(spring.rest_length)),
-                damping=repr(float(spring.damping)),
-            )
-            for label in spring.points:
-                ET.SubElement(el, "site", site=f"{owners[label]}.{label}")
-        text = ET.tostring(root, encoding="unicode")
+    text = mjcf_text(kinematics)  # the springs are its spatial tendons
     model = mujoco.MjModel.from_xml_string(text)
     model.actuator_gainprm[:] = 0.0
     model.actuator_biasprm[:] = 0.0

@@ -492,8 +492,20 @@ def mjcf_text(kinematics: Kinematics) -> str:
         )
         + (
             f" The model's applied loads ({', '.join(load.name for load in mech.loads)}) are not in the file: "
-            "xcheck's inverse dynamics applies them (xfrc_applied)."
+            "xcheck's inverse dynamics applies them (xfrc_applied), its free motion through mjcb_passive."
             if mech.loads
+            else ""
+        )
+        + (
+            " The model's springs are spatial tendons (stiffness, springlength, damping: tension k (l - l0) + "
+            "c dl/dt, the same law)."
+            if mech.springs
+            else ""
+        )
+        + (
+            f" Its rotational springs ({', '.join(t.name for t in mech.rotational_springs)}) are not in the file: "
+            "xcheck's free motion applies them through mjcb_passive."
+            if mech.rotational_springs
             else ""
         )
         + " Links never collide (contype = conaffinity = 0).",
@@ -660,6 +672,21 @@ def mjcf_text(kinematics: Kinematics) -> str:
                 )
             else:
                 ET.SubElement(equality, "weld", name=cut.name, site1=carrier_name(cut), site2=weld_site(cut))
+
+    if mech.springs:  # spatial tendons between the ends' sites: MuJoCo's tendon spring-damper is the same law
+        tendon = ET.SubElement(root, "tendon")
+        owners = mech.point_owners
+        for spring in mech.springs:
+            el = ET.SubElement(
+                tendon,
+                "spatial",
+                name=f"{spring.name}.spring",
+                stiffness=_num(float(spring.stiffness)),
+                springlength=_num(float(spring.rest_length)),
+                damping=_num(float(spring.damping)),
+            )
+            for label in spring.points:
+                ET.SubElement(el, "site", site=_site(owners[label], label))
 
     actuator = ET.SubElement(root, "actuator")
     for driver, mj_joint, inertia in zip(mech.drivers, lay.driver_joints, _servo_inertia(kinematics, masses)):
