@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -226,7 +227,7 @@ class Kinematics:
     _turns: dict = field(init=False, default_factory=dict)
     _walked: dict = field(init=False, default_factory=dict)
     _atlases: dict = field(init=False, default_factory=dict)
-    _packed: object = field(init=False, default=None)
+    _packed: Any = field(init=False, default=None)
 
     def __post_init__(self):
         self.system = ConstraintSystem(self.mechanism)
@@ -636,8 +637,9 @@ class Kinematics:
         samples, then velocities and accelerations from one LU per sample.
         Scratch memory is O(n^2) besides the (N, n) results.
         """
-        from . import _compiled as fast
+        from . import _compiled
 
+        fast: Any = _compiled  # numba's dispatchers carry no signatures for mypy
         system = self.system
         if self._packed is None:
             self._packed = fast.Packed(system)
