@@ -140,7 +140,7 @@ def _residual(pose, inputs, kind, ta, tb, s1, s2, w, offset, driver, row, out):
 @njit(cache=True)
 def _jacobian(pose, kind, ta, tb, s1, s2, w, row, out):
     """Phi_q of one sample into out (rows, n)."""
-    out[:, :] = 0.0
+    out.fill(0.0)
     for t in range(len(kind)):
         a, b, r = ta[t], tb[t], row[t]
         xa, ya, ca, sa = pose[a, 0], pose[a, 1], pose[a, 3], pose[a, 4]
@@ -292,6 +292,36 @@ def _lu_solve(lu, piv, x):
         x[i] = total / lu[i, i]
 
 
+@njit(cache=True)
+def _inverse(lu, piv, inverse):
+    """a^-1 into inverse (n, n) from the factors of :func:`_lu`: all columns at
+    once, row operations skipping the factors' zeros (a Jacobian is sparse)."""
+    n = lu.shape[0]
+    inverse.fill(0.0)
+    for r in range(n):
+        inverse[r, r] = 1.0
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            for j in range(n):
+                inverse[k, j], inverse[p, j] = inverse[p, j], inverse[k, j]
+    for m in range(n):
+        for i in range(m + 1, n):
+            factor = lu[i, m]
+            if factor != 0.0:
+                for j in range(n):
+                    inverse[i, j] -= factor * inverse[m, j]
+    for m in range(n - 1, -1, -1):
+        for k in range(m + 1, n):
+            factor = lu[m, k]
+            if factor != 0.0:
+                for j in range(n):
+                    inverse[m, j] -= factor * inverse[k, j]
+        pivot = lu[m, m]
+        for j in range(n):
+            inverse[m, j] = inverse[m, j] / pivot
+
+
 # -- the sweep ------------------------------------------------------------------------
 
 
@@ -404,7 +434,8 @@ def newton_rounds(
             _pose(q[i], pose)
             _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
             _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
-            step[:] = phi
+            for r in range(n):
+                step[r] = phi[r]
             if _lu(jac, piv) == 0.0:  # exactly singular: least squares, as solve_linear
                 _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
                 step[:] = np.linalg.lstsq(jac, phi, rcond=-1.0)[0]
@@ -420,7 +451,8 @@ def newton_rounds(
             new = _metres(phi, metres)
             finite = finite and np.isfinite(new)
             if finite:
-                q[i, :] = trial
+                for j in range(n):
+                    q[i, j] = trial[j]
                 if new < residual[i]:
                     improving = True
                 residual[i] = new
@@ -435,6 +467,14 @@ def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, out):
     for r in range(out.shape[0]):
         for j in range(out.shape[1]):
             out[r, j] = out[r, j] * jacobian_scale[r, j]
+
+
+@njit(cache=True)
+def _copy(source, target):
+    """target[...] = source for (n, n) arrays, without numba's slicing machinery."""
+    for r in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            target[r, j] = source[r, j]
 
 
 @njit(cache=True)
@@ -494,11 +534,7 @@ def _rates(
         qd[i, :] = np.nan
         qdd[i, :] = np.nan
         return
-    for j in range(n):
-        vector[:] = 0.0
-        vector[j] = 1.0
-        _lu_solve(lu, piv, vector)
-        inverse[:, j] = vector
+    _inverse(lu, piv, inverse)
     value = 1.0 / (norm * _norm1(inverse))
     value = value if np.isfinite(value) else 0.0
     singularity[i] = value
@@ -581,7 +617,7 @@ def check_and_finish(
                     break
         _pose(q[i], pose)
         _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, scaled)
-        lu[:, :] = scaled
+        _copy(scaled, lu)
         sign = _lu(lu, piv)
         on_branch = correction <= max_correction and (sign == base_sign[i] or sign == 0.0)
         if converged and on_branch:
@@ -659,7 +695,7 @@ def finish(
     for i in idx:
         _pose(q[i], pose)
         _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, scaled)
-        lu[:, :] = scaled
+        _copy(scaled, lu)
         sign = _lu(lu, piv)
         _rates(
             i,
