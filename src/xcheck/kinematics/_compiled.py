@@ -274,22 +274,24 @@ def _lu(a, piv):
 
 @njit(cache=True)
 def _lu_solve(lu, piv, x):
-    """Solve in place with the factors of :func:`_lu`: x (n,) becomes a^-1 x."""
+    """Solve in place with the factors of :func:`_lu`: x (n,) becomes a^-1 x
+    (column-oriented substitutions, skipping zeros)."""
     n = lu.shape[0]
     for k in range(n):
         p = piv[k]
         if p != k:
             x[k], x[p] = x[p], x[k]
-    for i in range(1, n):
-        total = x[i]
-        for j in range(i):
-            total -= lu[i, j] * x[j]
-        x[i] = total
-    for i in range(n - 1, -1, -1):
-        total = x[i]
-        for j in range(i + 1, n):
-            total -= lu[i, j] * x[j]
-        x[i] = total / lu[i, i]
+    for m in range(n):
+        xm = x[m]
+        if xm != 0.0:
+            for i in range(m + 1, n):
+                x[i] -= lu[i, m] * xm
+    for m in range(n - 1, -1, -1):
+        xm = x[m] / lu[m, m]
+        x[m] = xm
+        if xm != 0.0:
+            for i in range(m):
+                x[i] -= lu[i, m] * xm
 
 
 @njit(cache=True)
@@ -420,20 +422,23 @@ def newton_rounds(
     trial = np.empty(n)
     pose = _new_pose(n)
     for i in idx:
-        _pose(q[i], pose)
-        _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
-        residual[i] = _metres(phi, metres)
         iterations[i] = 0
-    for _ in range(max_iter):
+    for round_ in range(max(max_iter, 1)):
         active = False
         improving = False
         for i in idx:
-            if not residual[i] > stop:
-                continue
-            active = True
             _pose(q[i], pose)
+            if round_ == 0:  # the starting residuals, and the first round's right-hand sides
+                _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
+                residual[i] = _metres(phi, metres)
+                if not residual[i] > stop or max_iter == 0:
+                    continue
+            elif not residual[i] > stop:
+                continue
+            else:
+                _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
+            active = True
             _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
-            _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
             for r in range(n):
                 step[r] = phi[r]
             if _lu(jac, piv) == 0.0:  # exactly singular: least squares, as solve_linear
