@@ -5,9 +5,10 @@ sweep as the number of samples grows.
 
 Run:  make bench   (or: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_solver.py)
 
-Timings alternate the variants in one process (medians of ``--repeats``), so
-their ratios hold on a machine shared with other work even when the absolute
-figures do not. Peak memory is measured in a fresh subprocess per size with
+Timings are CPU seconds of this process (``time.process_time``: on a machine
+shared with other work, wall time mostly measures the others) and alternate
+the variants in one process (medians of ``--repeats``), so that their ratios
+hold even when the absolute figures drift. Peak memory is measured in a fresh subprocess per size with
 tracemalloc (NumPy's allocations included): the whole peak during ``solve`` and
 the part above the returned arrays (the working memory).
 """
@@ -75,8 +76,8 @@ def timings(name: str, samples: int, repeats: int, reference: bool) -> dict:
     """Median wall times of the compiled sweep, the reference and (four-bar) the closed form."""
     kin = Kinematics(load_mechanism(MODELS / f"{name}.toml"))
     c, rates, accelerations = sweep(kin, samples)
-    kin.solve(c[:1000], rates[:1000], accelerations[:1000])  # warm-up (compiles or loads the kernels)
-    variants = {"compiled": lambda: kin.solve(c, rates, accelerations)}
+    kin.solve(c[:1000], rates[:1000], accelerations[:1000], compiled=True)  # warm-up: compile or load the kernels
+    variants = {"compiled": lambda: kin.solve(c, rates, accelerations, compiled=True)}
     if reference:
         variants["reference"] = lambda: kin.solve(c, rates, accelerations, compiled=False)
     if name == "fourbar":
@@ -84,9 +85,9 @@ def timings(name: str, samples: int, repeats: int, reference: bool) -> dict:
     times: dict[str, list[float]] = {key: [] for key in variants}
     for _ in range(repeats):
         for key, run in variants.items():
-            start = time.perf_counter()
+            start = time.process_time()
             result = run()
-            times[key].append(time.perf_counter() - start)
+            times[key].append(time.process_time() - start)
             if key == "compiled":
                 assert result.success, "the benchmark sweep must solve"
                 solution = result
@@ -108,9 +109,9 @@ def _peak_child(name: str, samples: int, compiled: bool) -> None:
     kin.solve(c, rates, accelerations, compiled=compiled)  # warm-up: atlas, kernels
     c, rates, accelerations = sweep(kin, samples)
     tracemalloc.start()
-    start = time.perf_counter()
+    start = time.process_time()
     solution = kin.solve(c, rates, accelerations, compiled=compiled)
-    seconds = time.perf_counter() - start
+    seconds = time.process_time() - start
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     fields = ("q", "qd", "qdd", "status", "residual", "singularity", "iterations")
@@ -147,7 +148,7 @@ def main() -> None:
         return
     print(
         f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-        f"numpy {np.__version__}, one thread, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
+        f"numpy {np.__version__}, one thread, CPU time, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
     )
     print(
         f"{'mechanism':14} {'samples':>8} {'compiled/s':>11} {'reference/s':>12} {'speed-up':>9} "

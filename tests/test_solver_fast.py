@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 from xcheck import Kinematics, load_mechanism
+from xcheck.kinematics._solve import COMPILED_FROM
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = np.finfo(float).eps
@@ -94,7 +95,7 @@ def test_compiled_sweep_matches_the_reference(path):
     kin = Kinematics(load_mechanism(path))
     checked = 0
     for branch, c, rates, accelerations in _sweeps(kin, 600):
-        fast = kin.solve(c, rates, accelerations, branch=branch)
+        fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
         ref = kin.solve(c, rates, accelerations, branch=branch, compiled=False)
         assert_same_solution(kin, fast, ref)
         checked += int(np.sum(ref.status <= 1))
@@ -106,7 +107,7 @@ def test_samples_past_a_limit_are_rejected_alike():
     NaN rows, and the samples inside solved."""
     kin = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
     branch, c, rates, accelerations = next(_sweeps(kin, 600))
-    fast = kin.solve(c, rates, accelerations, branch=branch)
+    fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
     outside = fast.status == 3
     assert 0 < outside.sum() < len(c) // 2
     assert np.all(np.isnan(fast.q[outside])) and np.all(np.isfinite(fast.q[~outside]))
@@ -118,9 +119,21 @@ def test_strided_inputs_give_the_same_solution():
     branch, c, rates, accelerations = next(_sweeps(kin, 400))
     wide = np.repeat(c, 2, axis=1)[:, ::2]
     assert not wide.flags.c_contiguous
-    a = kin.solve(wide, rates, accelerations, branch=branch)
-    b = kin.solve(np.ascontiguousarray(c), rates, accelerations, branch=branch)
+    a = kin.solve(wide, rates, accelerations, branch=branch, compiled=True)
+    b = kin.solve(np.ascontiguousarray(c), rates, accelerations, branch=branch, compiled=True)
     assert np.array_equal(a.q, b.q, equal_nan=True) and np.array_equal(a.qdd, b.qdd, equal_nan=True)
+
+
+def test_small_sweeps_run_the_reference_by_default():
+    """Below COMPILED_FROM samples the default is the reference, bit for bit
+    (the committed reports solve a few hundred samples)."""
+    kin = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
+    branch, c, rates, accelerations = next(_sweeps(kin, 300))
+    default = kin.solve(c, rates, accelerations, branch=branch)
+    ref = kin.solve(c, rates, accelerations, branch=branch, compiled=False)
+    for field in ("q", "qd", "qdd", "residual", "singularity"):
+        assert np.array_equal(getattr(default, field), getattr(ref, field), equal_nan=True), field
+    assert 300 < COMPILED_FROM
 
 
 @pytest.mark.slow
@@ -128,6 +141,6 @@ def test_compiled_sweep_matches_the_reference_at_scale():
     """100 000 four-bar samples: the round-off floor's iteration counts."""
     kin = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
     branch, c, rates, accelerations = next(_sweeps(kin, 100_000))
-    fast = kin.solve(c, rates, accelerations, branch=branch)
+    fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
     ref = kin.solve(c, rates, accelerations, branch=branch, compiled=False)
     assert_same_solution(kin, fast, ref)
