@@ -398,16 +398,16 @@ def predict_atlas(inputs, c_atlas, q_atlas, tangents, period, periodic, scale, t
 
 @njit(cache=True)
 def newton_rounds(
-    q, inputs, idx, kind, ta, tb, s1, s2, w, offset, driver, row, metres, stop, max_iter, residual, iterations
+    q, inputs, attempt, kind, ta, tb, s1, s2, w, offset, driver, row, metres, stop, max_iter, residual, iterations
 ):
-    """Newton-Raphson on the samples idx, in place, as :func:`._newton.newton`.
+    """Newton-Raphson on the attempted samples, in place, as :func:`._newton.newton`.
 
     Parameters
     ----------
     q : ndarray, shape (N, n)
-        Starting configurations of the samples idx, overwritten by the solutions.
+        Starting configurations of the attempted samples, overwritten by the solutions.
     inputs : ndarray, shape (N, k)
-    idx : ndarray of int
+    attempt : ndarray of bool, shape (N,)
     residual : ndarray, shape (N,)
         Written: the largest constraint violation (m).
     iterations : ndarray of int, shape (N,)
@@ -421,12 +421,14 @@ def newton_rounds(
     step = np.empty(n)
     trial = np.empty(n)
     pose = _new_pose(n)
-    for i in idx:
+    for i in range(len(attempt)):
         iterations[i] = 0
     for round_ in range(max(max_iter, 1)):
         active = False
         improving = False
-        for i in idx:
+        for i in range(len(attempt)):
+            if not attempt[i]:
+                continue
             _pose(q[i], pose)
             if round_ == 0:  # the starting residuals, and the first round's right-hand sides
                 _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
@@ -574,7 +576,7 @@ def check_and_finish(
     qdd,
     rates,
     cdd,
-    idx,
+    attempt,
     residual,
     converged_tolerance,
     max_correction,
@@ -596,7 +598,7 @@ def check_and_finish(
     status,
     singularity,
 ):
-    """Steps 2 and 4 of the solve for the samples idx after :func:`newton_rounds`.
+    """Steps 2 and 4 of the solve for the attempted samples after :func:`newton_rounds`.
 
     A sample is accepted when it converged, moved little from its prediction
     (``guess``, in the velocity array qd until overwritten) and kept the
@@ -611,7 +613,9 @@ def check_and_finish(
     piv = np.empty(n, dtype=np.int64)
     vector = np.empty(n)
     pose = _new_pose(n)
-    for i in idx:
+    for i in range(len(attempt)):
+        if not attempt[i]:
+            continue
         converged = residual[i] <= converged_tolerance
         correction = -np.inf
         for j in range(n):

@@ -646,7 +646,8 @@ class Kinematics:
         atlas in compiled code, or from continuation through waypoints), Newton
         in rounds, the branch check, the continuation walk for the few rejected
         samples, then velocities and accelerations from one LU per sample.
-        Scratch memory is O(n^2) besides the (N, n) results.
+        Working memory besides the results: O(n^2) scratch and 5 bytes a
+        sample (which samples are attempted, the branch's determinant sign).
         """
         from . import _compiled
 
@@ -665,7 +666,7 @@ class Kinematics:
         iterations = np.zeros(n_samples, dtype=int)
         status = np.full(n_samples, Status.NOT_CONVERGED, dtype=np.int8)
         singularity = np.zeros(n_samples)
-        base_sign = np.zeros(n_samples)
+        base_sign = np.zeros(n_samples, dtype=np.float32)  # +-1, 0 or NaN: exact in float32
         atlas = self._atlas(name)
         prediction = None
         if atlas is not None:
@@ -686,30 +687,33 @@ class Kinematics:
                 base_sign,
                 signs,
             )
-            idx = np.flatnonzero(inside)
+            attempt = inside
         else:
             prediction = self._predictions(name, c, waypoint_spacing)
-            idx = np.zeros(0, dtype=np.intp) if prediction is None else prediction[0]
+            attempt = np.zeros(n_samples, dtype=bool)
             if prediction is not None:
+                idx = prediction[0]
+                attempt[idx] = True
                 q[idx] = qd[idx] = prediction[1]
                 base_sign[idx] = prediction[4]
-        fast.newton_rounds(q, c, idx, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
+        fast.newton_rounds(q, c, attempt, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
         kernel_terms = (*terms[:6], *terms[7:])  # no angle offsets
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
         fast.check_and_finish(
-            q, qd, qdd, cd, cdd, idx, residual, CONVERGED_TOLERANCE * system.size, MAX_CORRECTION, base_sign,
+            q, qd, qdd, cd, cdd, attempt, residual, CONVERGED_TOLERANCE * system.size, MAX_CORRECTION, base_sign,
             *rest, *limits
         )  # fmt: skip
         # the few rejected in the batch: walk to them from their anchor
-        failed = np.flatnonzero(status[idx] >= Status.NOT_CONVERGED)
+        failed = np.flatnonzero(attempt & (status >= Status.NOT_CONVERGED))
         if failed.size:
             if prediction is None:
-                _, _, base_q, base_c, _ = self._atlas_predictions(atlas, c[idx[failed]])
+                _, _, base_q, base_c, _ = self._atlas_predictions(atlas, c[failed])
             else:
-                base_q, base_c = prediction[2][failed], prediction[3][failed]
+                at = np.searchsorted(prediction[0], failed)
+                base_q, base_c = prediction[2][at], prediction[3][at]
             reached = []
-            for j, i in enumerate(idx[failed]):
+            for j, i in enumerate(failed):
                 q_new, _, ok, _ = continue_to(system, base_q[j], base_c[j], c[i])
                 if ok:
                     q[i], status[i] = q_new, Status.OK
