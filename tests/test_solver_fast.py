@@ -124,6 +124,39 @@ def test_strided_inputs_give_the_same_solution():
     assert np.array_equal(a.q, b.q, equal_nan=True) and np.array_equal(a.qdd, b.qdd, equal_nan=True)
 
 
+@pytest.mark.parametrize("name", ["models/fourbar.toml", "models/slider-crank.toml"])
+def test_samples_rejected_in_the_batch_are_walked_to_alike(name, monkeypatch):
+    """The continuation fallback (step 3) and the rates of the samples it
+    reaches: with the batch's correction limit made tiny, every sample is
+    rejected in the batch and walked to from its anchor, in both paths."""
+    import xcheck.kinematics._solve as solve_module
+    from xcheck.kinematics import _compiled
+
+    monkeypatch.setattr(solve_module, "MAX_CORRECTION", 1e-300)
+    walked = []
+    finish = _compiled.finish
+    monkeypatch.setattr(_compiled, "finish", lambda *args: walked.append(len(args[5])) or finish(*args))
+    kin = Kinematics(load_mechanism(ROOT / name))
+    branch, c, rates, accelerations = next(_sweeps(kin, 60))
+    fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
+    ref = kin.solve(c, rates, accelerations, branch=branch, compiled=False)
+    assert sum(walked) > 40  # the fallback ran, for most samples
+    assert_same_solution(kin, fast, ref)
+
+
+@pytest.mark.slow
+def test_scattered_inputs_of_several_drivers_match():
+    """Inputs in random order across the five-bar's plane of inputs (waypoint walks)."""
+    kin = Kinematics(load_mechanism(ROOT / "tests" / "data" / "fivebar.toml"))
+    rng = np.random.default_rng(1)
+    c = kin.reference_inputs() + rng.uniform(-1.5, 1.5, size=(200, 2))
+    rates, accelerations = rng.normal(size=c.shape), rng.normal(size=c.shape)
+    fast = kin.solve(c, rates, accelerations, compiled=True)
+    ref = kin.solve(c, rates, accelerations, compiled=False)
+    assert 0 < np.sum(ref.status == 3) < 100  # some past a limit, most assembled
+    assert_same_solution(kin, fast, ref)
+
+
 def test_small_sweeps_run_the_reference_by_default():
     """Below COMPILED_FROM samples the default is the reference, bit for bit
     (the committed reports solve a few hundred samples)."""
