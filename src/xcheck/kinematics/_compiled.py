@@ -10,7 +10,9 @@ inverse (condition number, velocities, accelerations).
 
 Newton runs in rounds over all samples, as the batched reference does: a
 sample that has stopped improving keeps iterating while any other sample
-still improves, so every sample gets the same iterations as in the reference.
+still improves, so every sample takes the reference's iterations (up to a
+step more or less where its residual sits at the round-off floor, since the
+two LU factorisations round differently).
 
 Constraint terms (rows in the system's order): point coincidences (2 rows,
 metres), projections (1 row, metres), relative angles (1 row, radians); body
