@@ -121,7 +121,7 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
     monkeypatch.setattr(report, "complete_reports", killed)
     from xcheck import api
 
-    run = api.compare(MODELS / "fourbar.toml", "formulations", samples=31)
+    run = api.run(MODELS / "fourbar.toml", "formulations", samples=31)
     try:
         report.write_report(run, out, "xcheck run fourbar", gif=False)
     except KeyboardInterrupt:

@@ -76,6 +76,7 @@ def inverse_forces(
 
     dyn = copy.deepcopy(model)
     dyn.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    dyn.tendon_stiffness[:], dyn.tendon_damping[:] = 0.0, 0.0  # the springs enter as applied loads (below)
     for name, props in mass_properties(mech).items():  # the model's, not the file's carrier split
         body = dyn.body(name).id
         dyn.body_mass[body], dyn.body_inertia[body] = props.mass, props.inertia
