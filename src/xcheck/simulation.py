@@ -27,6 +27,7 @@ __all__ = [
     "free_errors",
     "LADDER_COLUMNS",
     "ladder_steps",
+    "left_branch",
     "path_distance",
     "simulate_all",
 ]
@@ -132,6 +133,22 @@ def path_distance(reference, trajectory: Trajectory) -> np.ndarray:
         gap = path - state[None]
         out[i] = float(np.min(np.max(np.hypot(gap[..., 0], gap[..., 1]), axis=1)))
     return out
+
+
+def left_branch(reference, trajectory: Trajectory, limit: float) -> str:
+    """ "" if every sample of ``trajectory`` lies within ``limit`` (m) of the reference's
+    path (:func:`path_distance`: a run out of phase on the branch stays near it), else
+    the status line of a run that left the branch: when, and how far it was then."""
+    away = path_distance(reference, trajectory)
+    off = np.flatnonzero(away > limit)
+    if not off.size:
+        return ""
+    first = int(off[0])
+    times = trajectory.times if trajectory.times is not None else np.arange(len(away), dtype=float)
+    return (
+        f"left the branch at t ≈ {float(times[first]):.4g} s: {away[first]:.3g} m from every configuration "
+        "the reference passes through"
+    )
 
 
 def ladder_steps(reference: FreeReference, steps) -> tuple[float, ...]:

@@ -55,7 +55,7 @@ from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from xcheck.simulation import free_errors, ladder_steps, path_distance
+from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 __all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "ExudynModel", "build_system", "run_free"]
 
@@ -585,13 +585,8 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         position_error=errors["position_error"], final_error=errors["final_error"], angle_error=errors["angle_error"]
     )
     apart = np.argmax(drift > APART * mech.size) if np.any(drift > APART * mech.size) else None
-    away = path_distance(reference, trajectory)
     if row["status"] == "ok" and apart is not None:
         row["status"] = f"came apart at t = {times[apart]:.6g} s (joints {drift[apart]:.3g} m apart)"
-    elif row["status"] == "ok" and float(away.max()) > APART * mech.size:
-        left = int(np.argmax(away > APART * mech.size))
-        row["status"] = (
-            f"left the branch at t ≈ {times[left]:.4g} s: {away[left]:.3g} m from every configuration "
-            "the reference passes through"
-        )
+    elif row["status"] == "ok":
+        row["status"] = left_branch(reference, trajectory, APART * mech.size) or "ok"
     return row, trajectory if row["status"] == "ok" else None

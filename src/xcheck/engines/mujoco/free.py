@@ -41,7 +41,7 @@ from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
-from xcheck.simulation import free_errors, ladder_steps, path_distance
+from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 from .dynamic import Setting
 from .mjcf import Layout, joint_coordinates, layout, mjcf_text
@@ -222,13 +222,9 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     row.update(
         position_error=errors["position_error"], final_error=errors["final_error"], angle_error=errors["angle_error"]
     )
-    away = path_distance(reference, trajectory)
-    off = np.flatnonzero(away > LEFT_BRANCH * mech.size)
-    if off.size:  # the errors stay in the row: what the run did until then
-        row["status"] = (
-            f"left the branch at t ≈ {times[off[0]]:.4g} s: {away[off[0]]:.3g} m from every configuration "
-            "the reference passes"
-        )
+    left = left_branch(reference, trajectory, LEFT_BRANCH * mech.size)
+    if left:  # the errors stay in the row: what the run did until then
+        row["status"] = left
         return row, None
     return row, trajectory
 

@@ -67,7 +67,7 @@ from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
-from xcheck.simulation import free_errors, ladder_steps, path_distance
+from xcheck.simulation import free_errors, ladder_steps, left_branch
 from xcheck.topology import spanning_tree
 
 
@@ -646,11 +646,5 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     )
     errors = free_errors(reference, trajectory)
     row.update(position_error=errors["position_error"], final_error=errors["final_error"])
-    away = path_distance(reference, trajectory)  # out of phase on the branch stays near the reference's path
-    if float(away.max()) > APART * mech.size:
-        first = int(np.argmax(away > APART * mech.size))
-        row["status"] = (
-            f"left the branch at t ≈ {times[first]:.4g} s: {away[first]:.3g} m from every configuration "
-            "the reference passes through"
-        )
+    row["status"] = left_branch(reference, trajectory, APART * mech.size) or row["status"]
     return row, trajectory

@@ -21,7 +21,7 @@ import pandas as pd
 from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._free import FreeReference
 from xcheck.kinematics import Kinematics
-from xcheck.simulation import free_errors, ladder_steps, path_distance
+from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 from .scene import build_scene
 
@@ -159,11 +159,5 @@ def _run(kinematics, reference, start, index, setting: FreeSetting, dt: float) -
     )
     errors = free_errors(reference, trajectory)
     row.update(position_error=errors["position_error"], final_error=errors["final_error"])
-    away = path_distance(reference, trajectory)  # out of phase on the branch stays near the reference's path
-    if float(away.max()) > APART * mech.size:
-        first = int(np.argmax(away > APART * mech.size))
-        row["status"] = (
-            f"left the branch at t ≈ {times[first]:.4g} s: {away[first]:.3g} m from every configuration "
-            "the reference passes through"
-        )
+    row["status"] = left_branch(reference, trajectory, APART * mech.size) or row["status"]
     return row, trajectory
