@@ -40,7 +40,7 @@ from ..kinematics import Solution, Status
 from ..model import GROUND, Driver, Joint, Mechanism, Prismatic, Revolute
 from ._forces import Forces, joint_quantities, require_constant_loads, require_mass_data
 
-__all__ = ["inverse_dynamics", "newton_euler", "body_dynamics"]
+__all__ = ["AppliedLoad", "applied_loads", "inverse_dynamics", "newton_euler", "body_dynamics"]
 
 
 def _rot(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
