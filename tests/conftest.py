@@ -48,3 +48,13 @@ def invoke(*args: str, cwd: Path = ROOT, unset: tuple[str, ...] = ("XCHECK_MODEL
     if result.exception is not None and not isinstance(result.exception, SystemExit):
         stderr += "".join(traceback.format_exception(result.exception))
     return subprocess.CompletedProcess(["xcheck", *args], result.exit_code, result.stdout, stderr)
+
+
+def assert_first_order(result, finest: float) -> None:
+    """A free mode's ladder all ran (status ok) and, per setting, its error at the finest
+    step is at most ``finest`` (m) and halves with each halved step (ratios 1.8 to 2.2)."""
+    assert result.ok and (result.summary["status"] == "ok").all()
+    for _, part in result.summary.groupby("setting"):
+        errors = part.sort_values("timestep")["position_error"].to_numpy()
+        assert errors[0] <= finest
+        assert all(1.8 <= coarse / fine <= 2.2 for fine, coarse in zip(errors[:-1], errors[1:]))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import DATA, MODELS
+from conftest import DATA, MODELS, assert_first_order
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.dynamics._free import simulate
@@ -63,34 +63,16 @@ def test_double_fourbar_runs_that_leave_the_branch_say_so():
     assert all(0.8 <= math.log2(errors[i] / errors[i + 1]) <= 1.2 for i in range(2)), errors
 
 
-def test_spring_and_damper_converge_at_first_order():
+@pytest.mark.parametrize("name", ["spring-block", "torsion-pendulum"])
+def test_springs_and_dampers_converge_at_first_order(name):
     """tests/data/spring-block.toml (a block on a guide, spring k = 200 N/m and damper
-    c = 4 N s/m to the ground; 0.05 m stretch, 2 s): pymunk's DampedSpring follows the
-    reference at first order. Measured (2026-11-25): 2.50e-4, 1.25e-4, 6.26e-5 m at
-    dt = 1, 0.5, 0.25 ms with either solver setting (the guide holds exactly: the
-    block's centre of mass is on its line)."""
-    kin = Kinematics(load_mechanism(DATA / "spring-block.toml"))
+    c = 4 N s/m to the ground; 0.05 m stretch, 2 s) and torsion-pendulum.toml (a disc on
+    a torsion spring-damper, 2 s): pymunk's DampedSpring and DampedRotarySpring (whose
+    rest angle is of angle_a - angle_b, the opposite sense of the file's) follow the
+    reference at first order. Measured (2026-11-25): 2.50e-4, 1.25e-4, 6.26e-5 m (the
+    block: the guide holds exactly, its centre of mass is on its line) and 2.62e-4,
+    1.31e-4, 6.56e-5 m (the disc's rim point) at dt = 1, 0.5, 0.25 ms with either
+    solver setting; with the rest angle's sign not flipped the disc settled 0.11 m away."""
+    kin = Kinematics(load_mechanism(DATA / f"{name}.toml"))
     kin.assemble()
-    result = run_free(kin, simulate(kin))
-    assert result.ok and (result.summary["status"] == "ok").all()
-    for _, part in result.summary.groupby("setting"):
-        errors = part.sort_values("timestep")["position_error"].to_numpy()
-        assert errors[0] <= 7e-5  # 0.25 ms
-        assert all(1.8 <= coarse / fine <= 2.2 for fine, coarse in zip(errors[:-1], errors[1:]))
-
-
-def test_rotational_spring_and_damper_converge_at_first_order():
-    """tests/data/torsion-pendulum.toml (a disc on a torsion spring-damper, 2 s):
-    pymunk's DampedRotarySpring (whose rest angle is of angle_a - angle_b, the
-    opposite sense of the file's) follows the reference at first order. Measured
-    (2026-11-25): 2.62e-4, 1.31e-4, 6.56e-5 m at the disc's rim point at dt = 1,
-    0.5, 0.25 ms with either setting; with the rest angle's sign not flipped the
-    disc settled 0.11 m away."""
-    kin = Kinematics(load_mechanism(DATA / "torsion-pendulum.toml"))
-    kin.assemble()
-    result = run_free(kin, simulate(kin))
-    assert result.ok and (result.summary["status"] == "ok").all()
-    for _, part in result.summary.groupby("setting"):
-        errors = part.sort_values("timestep")["position_error"].to_numpy()
-        assert errors[0] <= 7e-5  # 0.25 ms
-        assert all(1.8 <= coarse / fine <= 2.2 for fine, coarse in zip(errors[:-1], errors[1:]))
+    assert_first_order(run_free(kin, simulate(kin)), 7e-5)  # 7e-5 m at 0.25 ms
