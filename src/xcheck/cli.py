@@ -20,7 +20,16 @@ from rich.table import Table
 from . import __version__
 from . import engines as registry
 from .api import limit_warnings, printed_answers, select_modes
-from .catalog import benchmark_names, indexed_names, installed, model_names, model_path, models_dir, reports_dir
+from .catalog import (
+    BENCHMARKS,
+    benchmark_names,
+    indexed_names,
+    installed,
+    model_names,
+    model_path,
+    models_dir,
+    reports_dir,
+)
 from .dynamics import inverse_dynamics
 from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
@@ -676,7 +685,12 @@ def export_command(
         Optional[list[str]], typer.Argument(help="Mechanisms to export (default: all in the models directory).")
     ] = None,
     fmt: Annotated[
-        str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the loop-closure list), or all.")
+        str,
+        typer.Option(
+            "--format",
+            help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the loop-closure list), exudyn (a script of the "
+            "system exudyn-free integrates; files with [free_motion]), or all.",
+        ),
     ] = "all",
     check: Annotated[
         bool,
@@ -687,12 +701,16 @@ def export_command(
     ] = False,
     models: ModelsOption = None,
 ):
-    """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf) from the mechanism files.
+    """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf,
+    models/benchmarks/exudyn/NAME.py) from the mechanism files and the benchmarks.
 
     Each file is written whole or not at all (a temporary file renamed). A
     mechanism that cannot be exported is reported in one line on stderr (file,
     field, expected, found) and the others are still exported; the exit code
-    is then 2. With --check, each file is listed as "missing" or "stale".
+    is then 2. A format that does not apply to a mechanism (an Exudyn script
+    needs [free_motion]) or whose engine is not installed is skipped, and
+    said so when the mechanism was named. With --check, each file is listed
+    as "missing" or "stale".
 
     Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
     """
@@ -703,7 +721,8 @@ def export_command(
         if f not in writers:
             raise InputError(f"--format: expected one of {', '.join(writers)} or all, found {f!r}")
     outdated, failed = [], 0
-    for name in names or model_names(directory):
+    every = [*model_names(directory), *(str(directory / BENCHMARKS / f"{b}.toml") for b in benchmark_names(directory))]
+    for name in names or every:
         try:
             path = model_path(name, directory)
             kin = Kinematics(load_mechanism(path))
@@ -715,7 +734,13 @@ def export_command(
             writer = writers[f]
             subdirectory = writer.export_directory or f
             try:
+                if writer.available():
+                    raise registry.NotApplicable(writer.available())
                 texts = writer.export_files(kin)
+            except registry.NotApplicable as skipped:
+                if names:
+                    typer.echo(f"skipped {f} for {kin.mechanism.name}: {skipped.reason}")
+                continue
             except XcheckError as err:
                 typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)
                 failed += 1

@@ -41,6 +41,7 @@ class Exudyn(Engine):
         ),
         Mode("exudyn-free", "free", FREE_MOTION, style=dict(color="tab:purple", lw=1, ls="--")),
     )
+    export_format, export_directory = "exudyn", "exudyn"
     color = "tab:purple"
     notes = (
         "2-D rigid bodies (NodeRigidBody2D at the centre of mass) joined by RevoluteJoint2D and "

@@ -298,6 +298,7 @@ def _timed(law):
     def load(mbs, t, vector):
         return [float(law.factor(t)) * float(v) for v in vector]
 
+    load.law = law  # type: ignore[attr-defined]  # read by the exported script (.export)
     return load
 
 

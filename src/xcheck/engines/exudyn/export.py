@@ -1,0 +1,145 @@
+"""The Exudyn script of a mechanism (``xcheck export --format exudyn``): the very
+system the ``exudyn-free`` mode integrates (:func:`.free.build_system`), read back
+item by item from Exudyn and written as ``mbs.AddNode({...})``,
+``mbs.AddObject({...})``, ``mbs.AddMarker({...})`` and ``mbs.AddLoad({...})``
+calls, so a user can open, run and change what xcheck tested.
+
+Only a mechanism with a ``[free_motion]`` section is written: its nodes start at
+the release state (:func:`xcheck.dynamics.release_state`). A load's time law
+becomes a Python user function in the script. Run as a program, the script
+integrates the system with the ``default`` setting of the mode (generalized-alpha,
+spectral radius 0.9, fixed steps) and prints each body's final node coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from xcheck.engines._contract import NotApplicable
+from xcheck.kinematics import Kinematics
+from xcheck.model import LoadLaw
+
+from .free import FREE_SETTINGS, FREE_STEPS, build_system
+
+__all__ = ["export_files", "script"]
+
+#: Exudyn's item kinds, in the order the script adds them (markers name bodies,
+#: joints name markers, loads name markers: every number exists when Assemble checks)
+_KINDS = (("Node", "NumberOfNodes"), ("Object", "NumberOfObjects"), ("Marker", "NumberOfMarkers"))
+
+
+def export_files(kinematics: Kinematics) -> dict[str, str]:
+    """``{NAME.py: the script}``; NotApplicable without ``[free_motion]`` or for
+    what Exudyn cannot hold."""
+    return {f"{kinematics.mechanism.name}.py": script(kinematics)}
+
+
+def _value(value) -> str:
+    """Python source of one item field (numbers written to round-trip exactly)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else f"float({str(value)!r})"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def _law_function(name: str, law: LoadLaw) -> str:
+    """The source of an Exudyn load user function for a time law."""
+    if law.kind == "harmonic":
+        factor = f"{law.offset!r} + math.sin(2.0 * math.pi * {law.frequency!r} * t + {law.phase!r})"
+    else:
+        factor = f"min(t / {law.duration!r}, 1.0)"
+    return (
+        f"def {name}(mbs, t, load):\n"
+        f'    """The load times its {law.describe()}."""\n'
+        f"    return [({factor}) * v for v in load]\n"
+    )
+
+
+def script(kinematics: Kinematics) -> str:
+    """The Exudyn script of the mechanism released in free motion (text)."""
+    from xcheck import __version__
+    from xcheck.dynamics._free import release_state
+    from xcheck.errors import XcheckError
+
+    mech = kinematics.mechanism
+    spec = mech.free_motion
+    if spec is None:
+        raise NotApplicable("no [free_motion]: the Exudyn script holds a mechanism released in free motion")
+    try:
+        start = release_state(kinematics)
+    except XcheckError as error:
+        raise NotApplicable(f"no release state: {' '.join(str(error).split())}") from error
+    model = build_system(mech, start.q, start.qd)
+    mbs = model.mbs
+    names = {int(node): body for body, node in model.nodes.items()}
+    laws: list[str] = []
+    lines: list[str] = []
+    data = mbs.systemData
+    for kind, count in (*_KINDS, ("Load", "NumberOfLoads")):
+        for index in range(getattr(data, count)()):
+            item = dict(getattr(mbs, f"Get{kind}")(index))
+            if kind == "Node" and index in names:
+                item["name"] = names[index]
+            fields = []
+            for key, value in item.items():
+                if key.startswith("V") and key != "Vshow":
+                    continue  # drawing data, and nothing the dynamics reads
+                if isinstance(value, dict) and "function" in value:  # a load's time law
+                    law = getattr(value["function"], "law", None)
+                    if law is None:
+                        raise NotApplicable(f"{kind.lower()} {index}: a user function xcheck cannot write")
+                    function = f"law_{len(laws)}"
+                    laws.append(_law_function(function, law))
+                    fields.append(f"{key!r}: {function}")
+                    continue
+                fields.append(f"{key!r}: {_value(value)}")
+            lines.append(f"mbs.Add{kind}({{{', '.join(fields)}}})")
+    setting, dt = FREE_SETTINGS[0], min(FREE_STEPS[0], spec.output_step / 10.0)
+    steps = max(1, round(spec.duration / dt))
+    header = (
+        f'"""Exudyn model of {mech.name} ({Path(mech.path).name}), written by `xcheck export --format exudyn`\n'
+        f"(xcheck {__version__}); regenerate it rather than edit it.\n\n"
+        "The system xcheck's mode exudyn-free integrates: 2-D rigid bodies with their nodes at the\n"
+        "centres of mass, at the release state of [free_motion]; joints as index-3 constraints;\n"
+        "gravity as a force at each centre of mass; springs, torques and loads as in the file.\n"
+        f"Run it to integrate {spec.duration:g} s at a step of {dt:g} s with Exudyn's {setting.integrator}\n"
+        "(xcheck's `default` setting) and print each body's final node coordinates (x, y of the\n"
+        'centre of mass in m, angle in rad).\n"""\n'
+    )
+    body = [
+        header,
+        "import math  # noqa: F401 - used by the load laws, when there are some",
+        "",
+        "import exudyn as exu",
+        "",
+        "SC = exu.SystemContainer()",
+        "mbs = SC.AddSystem()",
+        "",
+        *laws,
+        *lines,
+        "",
+        "",
+        'if __name__ == "__main__":',
+        "    mbs.Assemble()",
+        "    settings = exu.SimulationSettings()",
+        f"    settings.timeIntegration.numberOfSteps = {steps}",
+        f"    settings.timeIntegration.endTime = {spec.duration!r}",
+        "    settings.timeIntegration.verboseMode = 0",
+        "    settings.timeIntegration.adaptiveStep = False",
+        f"    settings.timeIntegration.generalizedAlpha.spectralRadius = {setting.spectral_radius!r}",
+        "    settings.solution.file.write = False",
+        "    mbs.SolveDynamic(settings)",
+        f"    for name in {sorted(model.nodes)!r}:",
+        "        node = mbs.GetNodeNumber(name)",
+        "        start = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates, exu.ConfigurationType.Reference)",
+        "        displaced = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)",
+        "        print(name, *(f'{r + d:.12g}' for r, d in zip(start, displaced)))",
+        "",
+    ]
+    return "\n".join(body)
