@@ -17,7 +17,7 @@ entry-point group ``xcheck.engines``.
 
 from __future__ import annotations
 
-from ._contract import DRIVEN_KINDS, KINDS, Engine, Mode, NotApplicable
+from ._contract import DRIVEN_KINDS, KINDS, Engine, Mode, NotApplicable, with_unit_mass
 from ._registry import (
     ENTRY_POINT_GROUP,
     engine,
@@ -38,6 +38,7 @@ __all__ = [
     "Engine",
     "Mode",
     "NotApplicable",
+    "with_unit_mass",
     "ENTRY_POINT_GROUP",
     "engine",
     "engine_of",

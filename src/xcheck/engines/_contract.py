@@ -34,11 +34,14 @@ Modes
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
 
 from xcheck.tolerances import Tolerance
 
@@ -47,8 +50,18 @@ if TYPE_CHECKING:
     from xcheck.dynamics import Forces
     from xcheck.dynamics._free import FreeReference
     from xcheck.kinematics import Kinematics, Solution
+    from xcheck.model import Mechanism
 
-__all__ = ["KINDS", "DRIVEN_KINDS", "Mode", "Engine", "NotApplicable", "POINT_MASS_INERTIA", "positive_inertia"]
+__all__ = [
+    "KINDS",
+    "DRIVEN_KINDS",
+    "Mode",
+    "Engine",
+    "NotApplicable",
+    "POINT_MASS_INERTIA",
+    "positive_inertia",
+    "with_unit_mass",
+]
 
 #: what a mode does, in the order tables show them
 KINDS = ("kinematic", "dynamic", "free")
@@ -66,6 +79,20 @@ def positive_inertia(mass: float, inertia: float, size: float, fraction: float =
     """``inertia`` (kg m^2), or for a point mass (0) the least an engine can hold:
     ``fraction`` (default :data:`POINT_MASS_INERTIA`) x mass x size^2."""
     return inertia if inertia > 0.0 else fraction * mass * size * size
+
+
+def with_unit_mass(mech: Mechanism) -> Mechanism:
+    """The mechanism with 1 kg and m size^2 / 12 about its frame origin for each moving
+    body without mass data: what a driven mode whose engine needs masses simulates
+    (the drivers prescribe the motion, so masses only weigh the solver)."""
+    size = mech.size
+    bodies = [mech.ground] + [
+        b
+        if b.mass is not None and b.mass > 0.0 and b.inertia is not None
+        else dataclasses.replace(b, mass=1.0, inertia=size * size / 12.0, com=np.zeros(2))
+        for b in mech.moving_bodies
+    ]
+    return dataclasses.replace(mech, bodies=tuple(bodies))
 
 
 class NotApplicable(Exception):

@@ -16,7 +16,6 @@ constraint here: :class:`~xcheck.engines.NotApplicable`.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from typing import Any
@@ -25,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences
-from xcheck.engines._contract import NotApplicable
+from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
 from xcheck.motion import simulation_window
@@ -43,18 +42,6 @@ STEPS_PER_SAMPLE = (100, 50, 25)
 SAMPLES = 40
 
 _ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel", "acceleration": "rel", "alpha": "rel"}
-
-
-def _with_mass(mech: Mechanism) -> Mechanism:
-    """The mechanism with 1 kg and m size^2 / 12 at the frame origin for a body without mass data."""
-    size = mech.size
-    bodies = [mech.ground] + [
-        b
-        if b.mass is not None and b.mass > 0.0 and b.inertia is not None
-        else dataclasses.replace(b, mass=1.0, inertia=size * size / 12.0, com=np.zeros(2))
-        for b in mech.moving_bodies
-    ]
-    return dataclasses.replace(mech, bodies=tuple(bodies))
 
 
 def _perp(v: np.ndarray) -> np.ndarray:
@@ -223,7 +210,7 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None) -> ModeResult
         start = kinematics.solve(q, qd, qdd, branch=branch)
         if start.status[0] > Status.NEAR_SINGULAR:
             raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        massive = _with_mass(mech)
+        massive = with_unit_mass(mech)
         runs = [
             _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
             for setting in SETTINGS

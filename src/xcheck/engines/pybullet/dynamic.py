@@ -1,0 +1,256 @@
+"""PyBullet in driven dynamics (mode ``pybullet-dynamic``): the multibody of
+:func:`.free.build` with each driven joint (always a tree joint: the spanning
+tree takes the driven joints first) held on the drivers' motion laws by
+PyBullet's joint motor (``POSITION_CONTROL``: target position and velocity of
+the next step, unbounded force), stepped over :func:`xcheck.motion.simulation_window`
+from the native state at t = 0, and compared with the native solution at the
+inputs PyBullet realised.
+
+The drivers prescribe the motion, so masses only weigh the solver: a body
+without mass data gets 1 kg and m size^2 / 12 about its frame origin
+(:func:`xcheck.engines.with_unit_mass`). PyBullet gives positions and
+velocities, not accelerations (there is no joint-acceleration output; a
+finite difference would be xcheck's answer, not PyBullet's): accelerations are
+not compared. What the free mode cannot hold (a pin-in-slot, a loop cut at a
+prismatic joint) is :class:`~xcheck.engines.NotApplicable` here too.
+
+Measured: see :data:`SETTINGS`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pandas as pd
+
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences
+from xcheck.engines._contract import NotApplicable, with_unit_mass
+from xcheck.kinematics import Kinematics, Status, rotate
+from xcheck.model import GROUND, Revolute
+from xcheck.motion import simulation_window
+from xcheck.topology import spanning_tree
+
+from .free import FreeSetting, Multibody, _velocity, _world, build, p, set_state
+
+__all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
+
+MODE = "pybullet-dynamic"
+#: the compared series: residual threshold 0 (the solver iterates its 50 sweeps; the
+#: free mode's "best") first, then PyBullet's defaults
+SETTINGS = (FreeSetting("best", 50, 0.0), FreeSetting("default", 50))
+#: time steps per sample of the ladder, finest first
+STEPS_PER_SAMPLE = (100, 50, 25)
+#: samples compared per run
+SAMPLES = 40
+#: the motor's force bound, N or N m: no bound a mechanism of the files reaches
+MOTOR_FORCE = 1e12
+
+_ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel"}
+
+
+def _sign(mb: Multibody, kinematics: Kinematics) -> dict[str, tuple[int, float]]:
+    """Per driver: its link (the tree joint's child) and the sign of the joint
+    coordinate against the driver's value (-1 where the tree hangs body_a from body_b)."""
+    mech = kinematics.mechanism
+    tree = {tj.joint.name: tj for tj in spanning_tree(mech).tree}
+    out = {}
+    for driver in mech.drivers:
+        tj = tree[driver.joint]
+        reversed_angle = isinstance(tj.joint, Revolute) and tj.child != tj.joint.body_b
+        out[driver.name] = (mb.links[tj.child], -1.0 if reversed_angle else 1.0)
+    return out
+
+
+def _inputs(kinematics: Kinematics, frames) -> tuple[np.ndarray, np.ndarray]:
+    """The drivers' values and rates at a state (SI), as the native solver defines them."""
+    mech = kinematics.mechanism
+    values, rates = [], []
+    for driver in mech.drivers:
+        joint = mech.joint(driver.joint)
+
+        def state(name):
+            return (0.0, 0.0) if name == GROUND else (frames[name][1], frames[name][3])
+
+        if driver.quantity == "angle":
+            (pa, wa), (pb, wb) = state(joint.body_a), state(joint.body_b)
+            values.append(pb - pa)
+            rates.append(wb - wa)
+            continue
+        assert not isinstance(joint, Revolute)  # a slide driver: a prismatic joint or a pin-in-slot
+        line = np.asarray(mech.body(joint.body_a).points[joint.line_point], dtype=float)
+        point = np.asarray(mech.body(joint.body_b).points[joint.point], dtype=float)
+        phi_a, omega_a = state(joint.body_a)
+        u = rotate(phi_a, joint.direction)
+        gap = _world(frames, joint.body_b, point) - _world(frames, joint.body_a, line)
+        values.append(float(u @ gap))
+        rates.append(
+            float(
+                omega_a * np.array([-u[1], u[0]]) @ gap
+                + u @ (_velocity(frames, joint.body_b, point) - _velocity(frames, joint.body_a, line))
+            )
+        )
+    return np.array(values), np.array(rates)
+
+
+def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, setting: FreeSetting, per: int):
+    """One run: (row, Trajectory or None)."""
+    mech = kinematics.mechanism
+    duration = window.duration
+    dt = duration / (SAMPLES * per)
+    row = {
+        "setting": setting.name,
+        "integrator": "semi-implicit Euler, 50 iterations"
+        + ("" if setting.residual is None else f", residual threshold {setting.residual:g}"),
+        "timestep": dt,
+        "status": "ok",
+    }
+    moving = [b.name for b in mech.moving_bodies]
+    bodies = {
+        name: {key: np.full((SAMPLES, 2) if key in ("position", "velocity") else SAMPLES, np.nan) for key in _ERRORS}
+        for name in moving
+    }
+    points = {
+        label: {"position": np.full((SAMPLES, 2), np.nan), "velocity": np.full((SAMPLES, 2), np.nan)}
+        for label, owner in mech.point_owners.items()
+        if owner != GROUND
+    }
+    inputs = np.full((SAMPLES, len(mech.drivers)), np.nan)
+    rates = np.full_like(inputs, np.nan)
+    gaps = np.zeros(SAMPLES)
+    begin = time.process_time()
+    client = p.connect(p.DIRECT)
+    try:
+        mb = build(massive, client)
+        parameters = dict(fixedTimeStep=dt, numSolverIterations=setting.iterations, numSubSteps=0)
+        if setting.residual is not None:
+            parameters["solverResidualThreshold"] = setting.residual
+        p.setPhysicsEngineParameter(**parameters, physicsClientId=client)
+        p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
+        set_state(mb, massive, q0, qd0)
+        motors = _sign(mb, kinematics)
+        laws = [(motors[d.name], d.law) for d in mech.drivers]
+        for n in range(SAMPLES * per):
+            t_next = (n + 1) * dt
+            for (link, sign), law in laws:
+                value, rate, _ = (float(v) for v in law.at_time(t_next))
+                p.setJointMotorControl2(
+                    mb.uid,
+                    link,
+                    p.POSITION_CONTROL,
+                    targetPosition=sign * value,
+                    targetVelocity=sign * rate,
+                    force=MOTOR_FORCE,
+                    physicsClientId=client,
+                )
+            p.stepSimulation(physicsClientId=client)
+            if (n + 1) % per:
+                continue
+            j = (n + 1) // per - 1
+            frames = mb.frames()
+            if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
+                row["status"] = f"went non-finite at t = {t_next:.6g} s"
+                break
+            for name in moving:
+                origin, phi, v_com, omega, com = frames[name]
+                arm = origin - com
+                bodies[name]["position"][j] = origin
+                bodies[name]["angle"][j] = phi
+                bodies[name]["velocity"][j] = v_com + omega * np.array([-arm[1], arm[0]])
+                bodies[name]["omega"][j] = omega
+            for label in points:
+                owner = mech.point_owners[label]
+                local = np.asarray(mech.body(owner).points[label], dtype=float)
+                points[label]["position"][j] = _world(frames, owner, local)
+                points[label]["velocity"][j] = _velocity(frames, owner, local)
+            inputs[j], rates[j] = _inputs(kinematics, frames)
+            gaps[j] = max(
+                (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in mb.cuts),
+                default=0.0,
+            )
+    finally:
+        p.disconnect(client)
+    row["cpu_seconds"] = time.process_time() - begin
+    if row["status"] != "ok":
+        return row, None
+    times = window.times(SAMPLES + 1)[1:]
+    accelerations = np.stack([d.law.at_time(times)[2] for d in mech.drivers], axis=1)
+    trajectory = Trajectory(
+        MODE,
+        inputs,
+        rates,
+        accelerations,
+        bodies,
+        points,
+        times,
+        {"integrator": row["integrator"], "timestep": dt, "series": setting.name, "steps_per_sample": per},
+        diagnostics={"input_error": inputs - window.inputs(kinematics, times)[0], "constraint_violation": gaps},
+        notes=f"PyBullet driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as PyBullet realised them "
+        "(input accelerations: the motion laws'; PyBullet gives no accelerations).",
+    )
+    return row, trajectory
+
+
+def run_dynamic(kinematics: Kinematics, branch: str | None = None) -> ModeResult:
+    """Simulate the driven mechanism in PyBullet at :data:`SETTINGS` x
+    :data:`STEPS_PER_SAMPLE` and compare each run with the native solution.
+
+    Returns
+    -------
+    ModeResult
+        ``trajectories``: the runs that went through, the finest of the first
+        setting first; ``summary``: per run setting, timestep (s), status,
+        cpu_seconds, the largest errors (position m, angle rad; velocity, omega
+        relative to the native magnitude), input_error (the motor's lag behind the
+        law, SI) and loop_gap (m); ``study``: :func:`~xcheck.compare.convergence_study`
+        of the position error.
+
+    Raises
+    ------
+    NotApplicable
+        What :func:`.free.build` cannot hold.
+    """
+    mech = kinematics.mechanism
+    massive = Kinematics(with_unit_mass(mech))
+    client = p.connect(p.DIRECT)
+    try:
+        build(massive, client)  # refuses what it cannot hold before any run
+    finally:
+        p.disconnect(client)
+    try:
+        window = simulation_window(kinematics, branch)
+        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
+        start = kinematics.solve(q, qd, qdd, branch=branch)
+        if start.status[0] > Status.NEAR_SINGULAR:
+            raise ValueError("the native solver does not assemble the mechanism at t = 0")
+        runs = [
+            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
+            for setting in SETTINGS
+            for per in (STEPS_PER_SAMPLE if setting is SETTINGS[0] else STEPS_PER_SAMPLE[:1])
+        ]
+    except NotApplicable:
+        raise
+    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
+        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
+    rows = []
+    for row, trajectory in runs:
+        if trajectory is not None:
+            table = differences(kinematics, trajectory, branch)
+            for quantity, kind in _ERRORS.items():
+                part = table[table["quantity"] == quantity]
+                if part.empty:
+                    continue
+                worst = float(part["max_abs"].max())
+                scale = float(part["scale"].max())
+                row[f"{quantity}_error"] = worst / scale if kind == "rel" and scale > 0.0 else worst
+            row["input_error"] = float(np.max(np.abs(trajectory.diagnostics["input_error"])))
+            row["loop_gap"] = float(np.max(trajectory.diagnostics["constraint_violation"]))
+        rows.append(row)
+    summary = pd.DataFrame(rows)
+    errors = summary["position_error"] if "position_error" in summary else [math.nan] * len(summary)
+    study = convergence_study(summary["setting"], summary["timestep"], errors, summary["status"], 1e-13 * mech.size)
+    trajectories = [t for _, t in runs if t is not None]
+    if runs[0][1] is None:
+        return ModeResult(MODE, mech.name, False, f"{MODE}: {runs[0][0]['status']}", trajectories, summary, study)
+    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)
