@@ -1,0 +1,35 @@
+"""Drake: the mechanism as a ``MultibodyPlant`` (a tree of revolute and
+prismatic joints on the world body) whose loops are closed by ball
+constraints, stepped by Drake's discrete SAP solver in free motion
+(:mod:`.free`)."""
+
+from __future__ import annotations
+
+from xcheck.engines._contract import Engine, Mode
+from xcheck.tolerances import FREE_MOTION
+
+__all__ = ["Drake"]
+
+
+class Drake(Engine):
+    """Drake (MultibodyPlant, discrete SAP solver): free motion."""
+
+    name = "drake"
+    title = "Drake"
+    requires = ("pydrake",)
+    implementation = "xcheck.engines.drake.free"
+    distributions = ("drake",)
+    install = "pip install xcheck[drake]"
+    modes = (Mode("drake-free", "free", FREE_MOTION, style=dict(color="tab:pink", lw=1, ls="--")),)
+    color = "tab:pink"
+    notes = (
+        "Revolute and prismatic joints: a MultibodyPlant tree (RevoluteJoint about z, PrismaticJoint in the "
+        "plane, xcheck's body frames as Drake's) with each loop cut at a revolute closed by a ball constraint "
+        "(AddBallConstraint), stepped by the discrete SAP solver (first order, the constraints near-rigid). "
+        "Gravity, constant and time-law loads (applied spatial forces), linear spring-dampers "
+        "(LinearSpringDamper) and rotational spring-dampers on tree revolutes (RevoluteSpring and joint "
+        "damping). Not converted (not applicable): pin-in-slot joints, loops cut at a prismatic joint, "
+        "rotational springs across a cut joint, springs of rest length 0 (Drake's LinearSpringDamper needs a "
+        "positive free length). Free motion only: no driven mode (Drake has no time-prescribed joint "
+        "constraint; a stiff PD actuator would measure its gain, not the time step)."
+    )
