@@ -31,14 +31,25 @@ positive free length).
 
 The ladder (:data:`FREE_SETTINGS` x :data:`FREE_STEPS`, scaled by
 :func:`~xcheck.simulation.ladder_steps`): the plant as a user builds it
-(``default``: ``MultibodyPlant(time_step)``, Drake's default discrete
-approximation, lagged SAP, and near-rigid threshold beta 1) and at its best
-(``best``: the SAP approximation with beta 0, the constraints as stiff as the
-solver makes them). The discrete scheme is first order (implicit in the
-constraints, joint damping and near-rigid compliance; the positions follow
-from the new velocities). A run that goes non-finite, comes apart (a loop gap
-above a tenth of the size) or leaves the reference's path is a row with its
-time, not an exception.
+(``default``: ``MultibodyPlant(time_step)``, Drake's defaults) and at its best
+(``best``: the same plant at a quarter of the steps). The time step is the one
+knob that reaches the loops: the ball constraint's near-rigid parameter is
+fixed inside Drake (beta 0.1, ``SapBallConstraint``), the plant's
+``set_sap_near_rigid_threshold`` and ``set_discrete_contact_approximation``
+act on contact only (on A02 over 2 s, kSap with beta 0 gave the defaults'
+(lagged, beta 1) errors, drift and energy to every printed digit; over 1 s, so
+did beta 1e-3 and 10 and the kSimilar approximation), and
+SAP's solver tolerances are not in pydrake. The discrete scheme is first order
+(the new velocities implicit in the constraints, joint damping and the
+near-rigid compliance, the positions from the new velocities). A run that goes
+non-finite, comes apart (a loop gap above a tenth of the size) or leaves the
+reference's path is a row with its time, not an exception.
+
+pydrake 1.51.1 crashes the process (a segmentation fault in its SAP driver) on
+a ball constraint between the world body and a body, either way round
+(reproduced with two links and one constraint); a loop cut at the ground is
+therefore closed on a body welded to the world at its frame (``ground-anchor``),
+which runs.
 
 Measured on the IFToMM benchmarks: see :func:`run_free`.
 """
@@ -322,15 +333,18 @@ def build(kinematics: Kinematics, dt: float) -> DrakeModel:
 def apply_loads(model: DrakeModel, t: float) -> None:
     """Fix the plant's applied spatial forces at their values at time ``t`` (s)."""
     plant_module, tree_module, _, _ = _drake()
-    from pydrake.multibody.math import SpatialForce
+    from pydrake.multibody import math as drake_math
 
+    spatial_force: Any = drake_math.SpatialForce  # its stubs misspell ndarray's type parameters
     forces = []
     for index, point, force, torque, law in model.loads:
         factor = 1.0 if law is None else float(law.factor(t))
         applied = plant_module.ExternallyAppliedSpatialForce()
         applied.body_index = index
         applied.p_BoBq_B = point
-        applied.F_Bq_W = SpatialForce([0.0, 0.0, factor * torque], [factor * force[0], factor * force[1], 0.0])
+        applied.F_Bq_W = spatial_force(
+            np.array([0.0, 0.0, factor * torque]), np.array([factor * force[0], factor * force[1], 0.0])
+        )
         forces.append(applied)
     model.plant.get_applied_spatial_force_input_port().FixValue(model.context, forces)
 
@@ -365,6 +379,7 @@ def set_state(model: DrakeModel, kinematics: Kinematics, q: np.ndarray, qd: np.n
             joint.set_angular_rate(context, omega - omega0)
             continue
         j = mech.joint(joint.name())
+        assert isinstance(j, Prismatic)
         r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
         r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
         u = rotate(phi_a, j.direction)
@@ -416,6 +431,32 @@ def run_free(
     ------
     NotApplicable
         If the Drake model cannot hold the mechanism (:func:`refuse`).
+
+    Notes
+    -----
+    Measured with pydrake 1.51.1 (``xcheck simulate NAME --engines
+    drake-free``, 2 shared cores), largest error over the outputs at dt = 1,
+    0.5, 0.25 ms (best: 0.25, 0.125, 0.0625 ms; A03 10, 5, 2.5 us and a quarter
+    of them), CPU seconds per simulated second:
+
+    - A01 pendulum, 10 s: 2.215e-3, 1.107e-3, 5.54e-4 m, best down to 1.38e-4
+      m, order 1.00 (PyBullet's semi-implicit Euler to four digits); energy
+      drift 1.35e-2 .. 8.4e-4 J; 0.02 .. 0.16 s.
+    - A02 double four-bar, 10 s, ten singular passes: on the parallelogram
+      branch throughout, loops closed to 9e-8 .. 2.2e-9 m, energy drift 9.1e-2
+      .. 6.0e-3 J (first order), but the position error does not fall with the
+      step: 6.9e-4, 2.1e-4, 5.2e-4 m, best 5.2e-4, 3.1e-4, 8.6e-4 m (orders
+      1.7, -1.3, 0.7, -1.5); 0.16 .. 2.2 s. Up to the first pass (0.714 s) the
+      error falls as dt^2 (7.2e-7, 1.8e-7, 4.5e-8 m at 0.7 s, dt = 0.5, 0.25,
+      0.125 ms); each pass then adds a part that no step removes (2.8 .. 3.4e-6
+      m at 2 s, 3.0 .. 3.6e-5 m at 3 s for every step), which the slow swing
+      near the upright amplifies. Where it comes from is not established: the
+      loops' constraint rows turn dependent at the singular positions, where
+      the fixed near-rigid regularisation and SAP's stopping tolerance (neither
+      reachable from pydrake) set the answer rather than the step.
+    - A03 Andrews' squeezer, 0.03 s: 3.42e-4, 1.71e-4, 8.54e-5 m, best down to
+      2.13e-5 m, order 1.00 (PyBullet's figures); loops open by 1.1e-6 ..
+      4.4e-9 m (order 2); 42 .. 283 s.
     """
     mech = kinematics.mechanism
     refuse(mech, spanning_tree(mech))
