@@ -12,18 +12,20 @@ discrete step is semi-implicit Euler here: PyBullet's figures to four digits).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
-from conftest import DATA, MODELS, assert_first_order
+from conftest import DATA, MODELS, assert_first_order, invoke
 
 pytest.importorskip("pydrake")
 
 from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
-from xcheck.engines.drake import free  # noqa: E402
-from xcheck.model import Spring  # noqa: E402
+from xcheck.engines.drake import free, sdf  # noqa: E402
+from xcheck.kinematics import rotate  # noqa: E402
+from xcheck.model import Prismatic, Spring  # noqa: E402
 from xcheck.simulation import simulate_all  # noqa: E402
 from xcheck.topology import Topology, spanning_tree  # noqa: E402
 
@@ -146,3 +148,65 @@ def test_sliding_cut_rotational_spring_across_a_cut_and_zero_rest_length_are_ref
     short = dataclasses.replace(fourbar, springs=(Spring(spring.name, spring.points, spring.stiffness, 0.0),))
     with pytest.raises(NotApplicable, match="rest length 0"):
         free.refuse(short, spanning_tree(short))
+
+
+# -- the model file (xcheck export --format sdf) ------------------------------------------
+
+
+def _parsed(kin: Kinematics):
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    plant = MultibodyPlant(1e-3)
+    Parser(plant).AddModelsFromString(sdf.sdf_text(kin), "sdf")
+    plant.Finalize()
+    return plant, plant.CreateDefaultContext()
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        MODELS / "fourbar.toml",  # a cut at the ground
+        MODELS / "task-2-7.toml",  # prismatic joints, no mass data (the defaults)
+        MODELS / "benchmarks" / "iftomm-a03.toml",  # three cuts
+        DATA / "sleeve.toml",  # the line on the child
+        DATA / "spring-block.toml",  # the line on the parent
+    ],
+)
+def test_sdf_loads_in_drake_at_the_assembly_with_its_loops(path):
+    """Every link at its body's assembled pose (measured at most 3.2e-16 m or rad over the
+    models and benchmarks: round-off; bound 1e-14) with every joint at 0, a ball
+    constraint per cut, and each prismatic joint sliding along its line."""
+    kin = _kinematics(path)
+    q = kin.assemble()
+    plant, context = _parsed(kin)
+    assert plant.num_constraints() == len(spanning_tree(kin.mechanism).cuts)
+    assert not np.any(plant.GetPositions(context))
+    for i, body in enumerate(kin.mechanism.moving_bodies):
+        pose = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(body.name))
+        r = pose.rotation().matrix()
+        assert np.hypot(*(pose.translation()[:2] - q[3 * i : 3 * i + 2])) <= 1e-14 * kin.mechanism.size
+        assert abs(math.remainder(math.atan2(r[1, 0], r[0, 0]) - q[3 * i + 2], math.tau)) <= 1e-14
+    names = [b.name for b in kin.mechanism.moving_bodies]
+    for tj in spanning_tree(kin.mechanism).tree:
+        if not isinstance(tj.joint, Prismatic):
+            continue
+        child = plant.GetBodyByName(tj.child)
+        before = plant.EvalBodyPoseInWorld(context, child).translation()[:2]
+        plant.GetJointByName(f"{tj.joint.name}.joint").set_translation(context, 0.01)
+        moved = plant.EvalBodyPoseInWorld(context, child).translation()[:2] - before
+        plant.GetJointByName(f"{tj.joint.name}.joint").set_translation(context, 0.0)
+        phi_a = 0.0 if tj.joint.body_a == "ground" else q[3 * names.index(tj.joint.body_a) + 2]
+        line = rotate(phi_a, tj.joint.direction)
+        assert abs(moved[0] * line[1] - moved[1] * line[0]) <= 1e-14 and np.hypot(*moved) == pytest.approx(0.01)
+
+
+def test_sdf_files_are_current_and_a_pin_in_slot_is_skipped():
+    """models/sdf/ is what `xcheck export --format sdf` writes; a mechanism with a
+    pin-in-slot gets no file and one line saying why (exit 0)."""
+    done = invoke("export", "--check", "--format", "sdf")
+    assert done.returncode == 0, done.stdout
+    assert all(line.startswith("skipped sdf of ") for line in done.stdout.splitlines())
+    assert "skipped sdf of task-2-2: joint 'guide B' is a pin-in-slot" in done.stdout
+    with pytest.raises(NotApplicable, match="pin-in-slot"):
+        sdf.sdf_text(_kinematics(MODELS / "task-2-3.toml"))

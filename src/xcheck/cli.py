@@ -676,7 +676,11 @@ def export_command(
         Optional[list[str]], typer.Argument(help="Mechanisms to export (default: all in the models directory).")
     ] = None,
     fmt: Annotated[
-        str, typer.Option("--format", help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the loop-closure list), or all.")
+        str,
+        typer.Option(
+            "--format",
+            help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with its loops file), sdf (Drake, loops included), or all.",
+        ),
     ] = "all",
     check: Annotated[
         bool,
@@ -716,6 +720,9 @@ def export_command(
             subdirectory = writer.export_directory or f
             try:
                 texts = writer.export_files(kin)
+            except registry.NotApplicable as err:  # the engine cannot hold it (Drake: a pin-in-slot): no file
+                typer.echo(f"skipped {f} of {name}: {err.reason}")
+                continue
             except XcheckError as err:
                 typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)
                 failed += 1

@@ -21,6 +21,7 @@ class Drake(Engine):
     distributions = ("drake",)
     install = "pip install xcheck[drake]"
     modes = (Mode("drake-free", "free", FREE_MOTION, style=dict(color="tab:pink", lw=1, ls="--")),)
+    export_format, export_directory = "sdf", "sdf"
     color = "tab:pink"
     notes = (
         "Revolute and prismatic joints: a MultibodyPlant tree (RevoluteJoint about z, PrismaticJoint in the "
@@ -31,5 +32,12 @@ class Drake(Engine):
         "damping). Not converted (not applicable): pin-in-slot joints, loops cut at a prismatic joint, "
         "rotational springs across a cut joint, springs of rest length 0 (Drake's LinearSpringDamper needs a "
         "positive free length). Free motion only: no driven mode (Drake has no time-prescribed joint "
-        "constraint; a stiff PD actuator would measure its gain, not the time step)."
+        "constraint; a stiff PD actuator would measure its gain, not the time step). Its model file: "
+        "SDFormat with the loop cuts as drake:ball_constraint elements (one file holds the whole mechanism)."
     )
+
+    def export_files(self, kinematics) -> dict[str, str]:
+        """``{NAME.sdf: text}`` (:func:`xcheck.engines.drake.sdf.export_files`; needs no pydrake)."""
+        from .sdf import export_files
+
+        return export_files(kinematics)
