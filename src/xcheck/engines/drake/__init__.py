@@ -12,7 +12,14 @@ __all__ = ["Drake"]
 
 
 class Drake(Engine):
-    """Drake (MultibodyPlant, discrete SAP solver): free motion."""
+    """Drake (MultibodyPlant, discrete SAP solver): free motion, and its SDFormat file.
+
+    No driven mode: Drake has no constraint that prescribes a joint coordinate as a
+    function of time (its coupler constraint has a constant offset), so the driven
+    mechanism would need a PD actuator (SAP's implicit PD controller) whose error is its
+    gain's lag, not a time step's truncation: efforts compared through it would measure
+    the chosen gain, which is not an honest driven-dynamics verdict.
+    """
 
     name = "drake"
     title = "Drake"
