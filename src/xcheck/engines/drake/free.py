@@ -161,6 +161,7 @@ class DrakeModel:
 
 def _drake():
     """pydrake's modules this engine uses (imported when a mode runs)."""
+    import pydrake.systems.analysis  # noqa: F401 - the simulator, imported with the rest
     from pydrake.math import RigidTransform, RotationMatrix
     from pydrake.multibody import plant, tree
 
@@ -460,6 +461,7 @@ def run_free(
     """
     mech = kinematics.mechanism
     refuse(mech, spanning_tree(mech))
+    _drake()  # pydrake imported before the first run's clock starts
     motion = reference.motion
     every = max(1, (len(motion.times) - 1) // COMPARED)
     while (len(motion.times) - 1) % every:  # end at the last output
