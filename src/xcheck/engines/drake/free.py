@@ -442,22 +442,24 @@ def run_free(
 
     - A01 pendulum, 10 s: 2.215e-3, 1.107e-3, 5.54e-4 m, best down to 1.38e-4
       m, order 1.00 (PyBullet's semi-implicit Euler to four digits); energy
-      drift 1.35e-2 .. 8.4e-4 J; 0.02 .. 0.16 s.
+      drift 1.35e-2 .. 8.4e-4 J; 0.013 .. 0.18 s.
     - A02 double four-bar, 10 s, ten singular passes: on the parallelogram
       branch throughout, loops closed to 9e-8 .. 2.2e-9 m, energy drift 9.1e-2
       .. 6.0e-3 J (first order), but the position error does not fall with the
       step: 6.9e-4, 2.1e-4, 5.2e-4 m, best 5.2e-4, 3.1e-4, 8.6e-4 m (orders
-      1.7, -1.3, 0.7, -1.5); 0.16 .. 2.2 s. Up to the first pass (0.714 s) the
+      1.7, -1.3, 0.7, -1.5); 0.18 .. 2.7 s. Up to the first pass (0.714 s) the
       error falls as dt^2 (7.2e-7, 1.8e-7, 4.5e-8 m at 0.7 s, dt = 0.5, 0.25,
-      0.125 ms); each pass then adds a part that no step removes (2.8 .. 3.4e-6
-      m at 2 s, 3.0 .. 3.6e-5 m at 3 s for every step), which the slow swing
-      near the upright amplifies. Where it comes from is not established: the
-      loops' constraint rows turn dependent at the singular positions, where
-      the fixed near-rigid regularisation and SAP's stopping tolerance (neither
-      reachable from pydrake) set the answer rather than the step.
+      0.125 ms); by 1.2 s, just before the second pass (1.228 s), it stops
+      falling (6.9e-7, 3.5e-7, 2.9e-7 m), and from then on a part that no step
+      removes dominates and grows through the slow swing that follows (2.8 ..
+      3.4e-6 m at 2 s, 3.0 .. 3.6e-5 m at 3 s for each step). Where it comes
+      from is not established: the loops' constraint rows turn dependent at
+      the singular positions, where the fixed near-rigid regularisation and
+      SAP's stopping tolerance (neither reachable from pydrake) may set the
+      answer rather than the step.
     - A03 Andrews' squeezer, 0.03 s: 3.42e-4, 1.71e-4, 8.54e-5 m, best down to
       2.13e-5 m, order 1.00 (PyBullet's figures); loops open by 1.1e-6 ..
-      4.4e-9 m (order 2); 42 .. 283 s.
+      4.4e-9 m (order 2); 23 .. 281 s.
     """
     mech = kinematics.mechanism
     refuse(mech, spanning_tree(mech))
