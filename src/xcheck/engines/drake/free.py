@@ -277,8 +277,7 @@ def build(kinematics: Kinematics, dt: float) -> DrakeModel:
         turns[tj.child] = float(turn)
     bodies = {name: bodies[name] for name in joints}  # tree order: parents first
     for twist in mech.rotational_springs:  # across a tree revolute (refuse() keeps the rest out)
-        tj = topology.parent_of(mech.joint(twist.joint).body_b)
-        tj = tj if tj.joint.name == twist.joint else topology.parent_of(mech.joint(twist.joint).body_a)
+        tj = next(t for t in topology.tree if t.joint.name == twist.joint)
         # the spring's angle phi_b - phi_a is the joint coordinate (child minus parent) or its opposite
         sign = 1.0 if twist.body_b == tj.child else -1.0
         plant.AddForceElement(
