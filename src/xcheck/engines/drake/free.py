@@ -451,8 +451,11 @@ def run_free(
       0.125 ms); by 1.2 s, just before the second pass (1.228 s), it stops
       falling (6.9e-7, 3.5e-7, 2.9e-7 m), and from then on a part that no step
       removes dominates and grows through the slow swing that follows (2.8 ..
-      3.4e-6 m at 2 s, 3.0 .. 3.6e-5 m at 3 s for each step). Where it comes
-      from is not established: the loops' constraint rows turn dependent at
+      3.4e-6 m at 2 s, 3.0 .. 3.6e-5 m at 3 s for each step). Cutting the
+      loops elsewhere changes nothing in kind: a chain tree cut at the two
+      ground pivots O2, O3 (through the anchor) converges to 1.0 s (9.7e-7,
+      3.1e-7, 6.6e-8 m) and is erratic by 1.2 s (6.6e-7, 3.2e-7, 1.27e-6 m:
+      the finest step the worst). Where it comes from is not established: the loops' constraint rows turn dependent at
       the singular positions, where the fixed near-rigid regularisation and
       SAP's stopping tolerance (neither reachable from pydrake) may set the
       answer rather than the step.
