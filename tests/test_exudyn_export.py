@@ -79,4 +79,4 @@ def test_a_file_without_free_motion_is_skipped_not_an_error():
         script(kin)
     result = invoke("export", "fourbar", "--format", "exudyn", "--check")
     assert result.returncode == 0, result.stderr
-    assert "skipped exudyn for fourbar: no [free_motion]" in result.stdout
+    assert "skipped exudyn of fourbar: no [free_motion]" in result.stdout

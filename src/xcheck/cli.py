@@ -688,8 +688,8 @@ def export_command(
         str,
         typer.Option(
             "--format",
-            help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with the loop-closure list), exudyn (a script of the "
-            "system exudyn-free integrates; files with [free_motion]), or all.",
+            help="mjcf (MuJoCo), urdf (Pinocchio/ROS, with its loops file), sdf (Drake, loops included), "
+            "exudyn (a script of the system exudyn-free integrates; files with [free_motion]), or all.",
         ),
     ] = "all",
     check: Annotated[
@@ -701,16 +701,16 @@ def export_command(
     ] = False,
     models: ModelsOption = None,
 ):
-    """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf,
+    """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf, models/sdf/NAME.sdf,
     models/benchmarks/exudyn/NAME.py) from the mechanism files and the benchmarks.
 
     Each file is written whole or not at all (a temporary file renamed). A
     mechanism that cannot be exported is reported in one line on stderr (file,
     field, expected, found) and the others are still exported; the exit code
     is then 2. A format that does not apply to a mechanism (an Exudyn script
-    needs [free_motion]) or whose engine is not installed is skipped, and
-    said so when the mechanism was named. With --check, each file is listed
-    as "missing" or "stale".
+    needs [free_motion], Drake's SDF no pin-in-slot) or whose engine is not
+    installed is skipped, said so in one line. With --check, each file is
+    listed as "missing" or "stale".
 
     Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
     """
@@ -737,9 +737,8 @@ def export_command(
                 if writer.available():
                     raise registry.NotApplicable(writer.available())
                 texts = writer.export_files(kin)
-            except registry.NotApplicable as skipped:
-                if names:
-                    typer.echo(f"skipped {f} for {kin.mechanism.name}: {skipped.reason}")
+            except registry.NotApplicable as err:  # the engine cannot hold it, or is not installed: no file
+                typer.echo(f"skipped {f} of {kin.mechanism.name}: {err.reason}")
                 continue
             except XcheckError as err:
                 typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)

@@ -38,6 +38,7 @@ _BUILT_IN = (
     "xcheck.engines.pymunk:Pymunk",
     "xcheck.engines.exudyn:Exudyn",
     "xcheck.engines.pybullet:PyBullet",
+    "xcheck.engines.drake:Drake",
 )
 
 _registered: dict[str, Engine] = {}
