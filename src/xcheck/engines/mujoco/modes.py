@@ -133,6 +133,13 @@ def run_kinematic(
         for c, order in ((down, slice(None, None, -1)), (up, slice(None))):
             if c.size:
                 p = oracle.project(start, ref, c)
+                if p.stopped is not None:
+                    return ModeResult(
+                        KINEMATIC_MODE,
+                        mech.name,
+                        False,
+                        f"MuJoCo's continuation left the assembly branch: it {p.reason}",
+                    )
                 parts.append((c[order], p.qpos[order], p.residual[order], p.converged[order]))
     inputs, q, residual, converged = (np.concatenate(arrays) for arrays in zip(*parts))
     if not converged.all():
@@ -151,9 +158,10 @@ def run_kinematic(
     bodies, points = oracle.states(q, qvel, qacc)
     notes = (
         "Positions: Newton projection on MuJoCo's equality rows (efc_pos, efc_J, least squares) from the "
-        "previous sample; velocities: efc_J with the input rates imposed; accelerations: the same with the "
-        "drift -Jdot qd from mj_jacDot at both sites of each connect. Bodies from xpos/xmat, mj_jac, "
-        "mj_jacDot; points from their sites."
+        "previous sample, predicted along MuJoCo's tangent dq/dc, in steps halved while the correction is "
+        "large or the determinant of the system changes sign; velocities: efc_J with the input rates "
+        "imposed; accelerations: the same with the drift -Jdot qd from mj_jacDot at both sites of each "
+        "connect. Bodies from xpos/xmat, mj_jac, mj_jacDot; points from their sites."
     )
     if stand_ins:
         notes += (

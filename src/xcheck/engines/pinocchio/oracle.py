@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from .._continuation import Walk, follow
 from .model import PinocchioMechanism
 
 __all__ = ["Oracle", "NEWTON_TOLERANCE", "frame_states", "one_line"]
@@ -102,6 +103,37 @@ class Oracle:
                 break
             q = q - np.linalg.lstsq(jac, residual, rcond=None)[0]
         return q, float(np.max(np.abs(residual[: self.n_loop]), initial=np.inf)), iteration, False
+
+    def system_matrix(self, q: np.ndarray) -> np.ndarray:
+        """[J_loop; S] at q: shape (loop rows + k, nv)."""
+        self.loop_residual(q)
+        return np.vstack([self.loop_jacobian(q), self.selector])
+
+    def coordinate_scale(self, size: float) -> np.ndarray:
+        """Per velocity coordinate (nv,): 1 for an angle, 1/size for a slide (makes them dimensionless)."""
+        scale = np.ones(self._model.nv)
+        for joint in self._model.joints[1:]:
+            if "Prismatic" in joint.shortname():
+                scale[joint.idx_v : joint.idx_v + joint.nv] = 1.0 / size
+        return scale
+
+    def follow(self, q: np.ndarray, c: np.ndarray, inputs: np.ndarray, size: float) -> Walk:
+        """Pinocchio's Newton walked from (q (nq,), c (k,)) through ``inputs`` (N, k) in
+        order, each step predicted along Pinocchio's tangent and halved while the
+        correction is large or the determinant changes sign
+        (:func:`xcheck.engines._continuation.follow`)."""
+        scale = self.coordinate_scale(size)
+        selected = np.abs(self.selector) @ scale  # each input's coordinate's scale, (k,)
+        return follow(
+            lambda guess, target: self.project(guess, target, size),
+            self.system_matrix,
+            self.n_loop,
+            np.asarray(q, dtype=float),
+            np.asarray(c, dtype=float),
+            np.asarray(inputs, dtype=float),
+            selected,
+            scale,
+        )
 
     def rates(self, q: np.ndarray, right: np.ndarray) -> np.ndarray:
         """Solve [J_loop; S] x = [0; right] for x (nv,) or (nv, m) at q.
