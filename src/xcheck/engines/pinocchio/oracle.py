@@ -16,12 +16,15 @@ import pinocchio as pin
 from .._continuation import Walk, follow
 from .model import PinocchioMechanism
 
-__all__ = ["Oracle", "NEWTON_TOLERANCE", "frame_states", "one_line"]
+__all__ = ["Oracle", "NEWTON_TOLERANCE", "CONVERGED_TOLERANCE", "frame_states", "one_line"]
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Newton stops when every loop and driver residual is below this times the
 #: mechanism's size (m; rad for angle inputs): round-off is ~1e-16.
 NEWTON_TOLERANCE = 1e-14
+#: A projection counts as converged below this times the size (as MuJoCo's and the native solver's);
+#: Newton goes on towards NEWTON_TOLERANCE while it improves.
+CONVERGED_TOLERANCE = 1e-10
 _MAX_ITERATIONS = 30
 
 
@@ -85,6 +88,13 @@ class Oracle:
     def project(self, q: np.ndarray, c: np.ndarray, size: float):
         """Newton-Raphson onto the loops at inputs ``c`` (k,) from ``q``.
 
+        Iterates until every loop and driver residual is below
+        ``NEWTON_TOLERANCE`` of the size (driver rows of angles times the size),
+        or, below ``CONVERGED_TOLERANCE`` of it, until a step no longer
+        improves: the round-off floor, which grows with the coordinates'
+        magnitudes (a rod of 426 km at a crank angle of 136 rad, many turns
+        on: 6e-9 m = 1.4e-14 of the size, eps x 136 x 426 km).
+
         Returns
         -------
         q : ndarray, shape (nq,)
@@ -94,15 +104,20 @@ class Oracle:
         converged : bool
         """
         q = np.array(q, dtype=float)
+        metres = np.concatenate([np.ones(self.n_loop), np.abs(self.selector) @ (size * self.coordinate_scale(size))])
+        best_q, best, best_loop, best_iteration = q, np.inf, np.inf, 0
         for iteration in range(_MAX_ITERATIONS + 1):
             residual, jac = self.system(q, c)
-            worst = float(np.max(np.abs(residual), initial=0.0))
-            if worst <= NEWTON_TOLERANCE * size:
-                return q, float(np.max(np.abs(residual[: self.n_loop]), initial=0.0)), iteration, True
-            if not np.isfinite(worst) or iteration == _MAX_ITERATIONS:
+            worst = float(np.max(np.abs(residual) * metres, initial=0.0))
+            loop = float(np.max(np.abs(residual[: self.n_loop]), initial=0.0))
+            if not np.isfinite(worst) or (not worst < best and best <= CONVERGED_TOLERANCE * size):
+                break  # no longer improving at the round-off floor (or diverged)
+            if worst < best:
+                best_q, best, best_loop, best_iteration = q, worst, loop, iteration
+            if worst <= NEWTON_TOLERANCE * size or iteration == _MAX_ITERATIONS:
                 break
             q = q - np.linalg.lstsq(jac, residual, rcond=None)[0]
-        return q, float(np.max(np.abs(residual[: self.n_loop]), initial=np.inf)), iteration, False
+        return best_q, best_loop, best_iteration, best <= CONVERGED_TOLERANCE * size
 
     def system_matrix(self, q: np.ndarray) -> np.ndarray:
         """[J_loop; S] at q: shape (loop rows + k, nv)."""
