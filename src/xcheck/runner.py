@@ -308,15 +308,17 @@ def _convergence_verdict(
     series (h_c, same integrator and settings) give per category the errors
     e_f and e_c (relative as in :func:`_categorise`) and the observed order
     :func:`~xcheck.compare.observed_order`. A category with an expected order
-    p (the mode's ``orders``, :class:`xcheck.engines.Mode`) passes when e_f <= :func:`convergence_limit`
+    p (the mode's ``orders``, :class:`xcheck.engines.Mode`, or the compared trajectory's
+    ``settings["orders"]`` where the run states an engine limitation) passes when e_f <= :func:`convergence_limit`
     (e_c, h_c, h_f, p), i.e. the observed order is at least p -
     :data:`ORDER_MARGIN`, or e_f is at round-off; ``tolerance`` becomes that
     limit. Added columns: expected_order, observed_order, coarse_error,
     coarse_step, step (s), estimate (e_c (h_f / h_c)^p, the error the expected
     order predicts for the compared run), basis (one line).
     """
-    expected = engines.mode(mode).orders
     compared = result.trajectories[0]
+    # a run may declare lower orders for a stated engine limitation (its settings' "orders")
+    expected = {**engines.mode(mode).orders, **compared.settings.get("orders", {})}
     step, series = _step_and_series(compared)
     coarser = [t for t in result.trajectories[1:] if _step_and_series(t)[1] == series and _step_and_series(t)[0] > step]
     coarse = min(coarser, key=lambda t: _step_and_series(t)[0]) if coarser else None
@@ -357,6 +359,8 @@ def _convergence_verdict(
             limit = round_off if math.isnan(limit) else limit
         else:
             basis = "no coarser run of the same settings ran through: the order cannot be observed"
+        if row.category in compared.settings.get("orders", {}):
+            basis += f"; the run expects order {order:g} here: {compared.settings.get('orders_reason', '')}"
         categories.loc[
             i, ["expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate", "tolerance"]
         ] = [order, observed, coarse_error, coarse_step, step, estimate, limit]
