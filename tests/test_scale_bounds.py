@@ -120,3 +120,19 @@ def test_engines_pass_at_1_km_and_1000_to_1(name):
         assert outcome.ok and outcome.passed, (mode, outcome.reason, outcome.categories)
     assert run.force_table.passed.all(), run.force_table
     assert run.energy["passed"], run.energy
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pinocchio"])
+def test_engine_reactions_at_round_off_on_a_km_yoke(engine):
+    """tests/data/km-yoke.toml: the engines' reactions and efforts at round-off of
+    their scale (measured 9e-16; 1.9e-12 before the solves were equilibrated), and
+    the engine's yoke at x = 500 cos(theta) m."""
+    from xcheck.dynamics import compare_forces
+
+    kinematics = Kinematics(load_mechanism(DATA / "km-yoke.toml"))
+    (result,) = compare_forces(kinematics, [engine])
+    assert result.ok, result.reason
+    assert float(result.table["max_rel"].max()) <= 1e-14
+    solution = window_states(kinematics)
+    yoke = solution.body("yoke")["position"][:, 0]
+    assert np.max(np.abs(yoke - 500.0 * np.cos(solution.inputs[:, 0]))) <= 1e-12 * 500.0

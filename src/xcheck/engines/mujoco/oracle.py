@@ -129,10 +129,17 @@ class Oracle:
         residual, jacobian = self.constraints(qpos)
         return residual, np.vstack([jacobian, self.selector])
 
-    @staticmethod
-    def _lstsq(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        # least squares: a planar loop's z rows are zero, so the stack is not square
-        return np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+    def _lstsq(self, matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """Least squares of the loop rows over the input rows (a planar loop's z rows are
+        zero, so the stack is not square), equilibrated first: rows per size (angle
+        inputs' as they are), slide columns per size. Unscaled, the hinge columns carry
+        lengths and the slide ones not, and the solution's round-off grew with that
+        spread instead of the mechanism's conditioning."""
+        rows = np.ones(matrix.shape[0]) / self.size
+        rows[matrix.shape[0] - len(self.input_dofs) :] = self.coordinate_scale[self.input_dofs]
+        columns = 1.0 / self.coordinate_scale
+        scaled = np.linalg.lstsq(rows[:, None] * matrix * columns, (rows * rhs.T).T, rcond=None)[0]
+        return (columns * scaled.T).T
 
     def violation(self, qpos: np.ndarray) -> float:
         """Largest loop violation at ``qpos``, m."""
