@@ -577,10 +577,11 @@ def force_tolerance(source: str, condition: float = 1.0) -> float:
     ones: the source's own, but at least the round-off of accelerations at the
     states' conditioning ``condition`` (10 eps kappa^2,
     :func:`~xcheck.tolerances.conditioned_round_off`), since the reactions come
-    from the accelerations. Measured (xcheck fuzz, seed 1): Pinocchio's
-    reactions 3.7e-11 (6.2 eps kappa^2) on a slider-crank near its dead centre
-    (kappa = 163) and 3.2e-12 on a near-parallelogram (kappa = 4326) against the
-    unconditioned 1e-12. Over the models with mass data kappa is 2 to 156
+    from the accelerations. Measured (xcheck fuzz, seed 1): on a slider-crank
+    near its dead centre (kappa = 163) MuJoCo's reactions 5.1e-11 (8.6 eps
+    kappa^2), Pinocchio's 1.5e-12 (3.7e-11 before its solves were
+    equilibrated); on a near-parallelogram (kappa = 4326) Pinocchio's 1.3e-14
+    (3.2e-12 unequilibrated). Over the models with mass data kappa is 2 to 156
     (task-2-1): the bound stays 1e-12 up to kappa = 21 (fourbar) and is 5.4e-11
     at task-2-1."""
     if source == "newton-euler":
