@@ -213,9 +213,12 @@ def test_force_tolerance_is_conditioned():
 
 
 def test_reactions_of_a_near_parallelogram_are_judged_at_its_conditioning():
-    """Pinocchio's reactions on the fuzz reproducer exceed the unconditioned 1e-12 and pass the conditioned bound."""
+    """Pinocchio's reactions on the fuzz reproducer (kappa = 4326) pass the conditioned bound.
+    They were 3.2e-12, over the unconditioned 1e-12, while Pinocchio's least squares ran
+    on the unscaled system; equilibrated (issue 18) they are 1.3e-14."""
     from xcheck import api
 
     run = api.run(DATA / "fuzz-near-parallelogram.toml", "pinocchio-kinematic", samples=31)
     row = run.force_table.set_index("engine").loc["pinocchio"]
-    assert row.ok and 1e-12 < row.max_rel <= row.tolerance
+    assert row.ok and row.max_rel <= min(row.tolerance, 1e-13)
+    assert row.tolerance > 1e-12  # the conditioned bound, 10 eps kappa^2

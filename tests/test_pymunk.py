@@ -319,3 +319,27 @@ def test_a_groove_that_pymunk_cannot_hold_says_why():
     result = run_dynamic(kin)
     assert not result.ok
     assert "rod's centre of mass 0.1 m from its pin 'P'" in result.reason
+
+
+@pytest.mark.slow
+def test_a_skewed_groove_converges_at_first_order_and_says_why():
+    """tests/data/yoke-mid-crank-mass.toml: the crank's centre of mass is mid-crank,
+    off its pin in the slot, where pymunk's GrooveJoint holds a skewed direction:
+    the run declares order 1 for positions with that reason, observes it (measured
+    1.00 on xcheck fuzz s1-00012), and passes; the native yoke is at r cos(theta)."""
+    from xcheck.runner import run_mechanism
+
+    kinematics = Kinematics(load_mechanism(DATA / "yoke-mid-crank-mass.toml"))
+    run = run_mechanism(kinematics, ["pymunk-dynamic"], 181)
+    outcome = run.outcomes["pymunk-dynamic"]
+    assert outcome.ok, outcome.reason
+    settings = outcome.trajectory.settings
+    assert settings["orders"] == {"position": 1.0, "angle": 1.0}
+    assert "crank's centre of mass" in settings["orders_reason"]
+    position = outcome.categories.set_index("category").loc["position"]
+    assert position.expected_order == 1.0 and 0.9 <= position.observed_order <= 1.1
+    assert "the run expects order 1" in position.basis
+    assert outcome.passed, outcome.categories
+    theta = run.native.inputs[:, 0]
+    yoke = run.native.body("yoke")["position"]
+    assert np.max(np.abs(yoke[:, 0] - 0.5 * np.cos(theta))) <= 1e-15 * 8

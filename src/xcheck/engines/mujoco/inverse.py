@@ -67,6 +67,8 @@ def inverse_forces(
     inputs, rates, accelerations = solution.inputs, solution.input_rates, solution.input_accelerations
     start = joint_coordinates(mech, lay, solution.q[0])
     projection = oracle.project(start, inputs[0], inputs)
+    if projection.stopped is not None:
+        raise ValueError(f"MuJoCo's continuation left the assembly branch: it {projection.reason}")
     if not projection.converged.all():
         i = int(np.argmin(projection.converged))
         raise ValueError(

@@ -15,6 +15,7 @@ import numpy as np
 
 from xcheck.model import Mechanism
 
+from .._continuation import follow
 from .mjcf import Layout
 
 __all__ = ["STOP_TOLERANCE", "CONVERGED_TOLERANCE", "Oracle", "Projection"]
@@ -36,12 +37,21 @@ class Projection:
         Largest loop violation, m.
     iterations : ndarray of int, shape (N,)
     converged : ndarray of bool, shape (N,)
+    steps : ndarray of int, shape (N,)
+        Accepted continuation steps from the previous sample.
+    stopped : int or None
+        The first sample the walk did not reach (None: all reached).
+    reason : str
+        Why it stopped.
     """
 
     qpos: np.ndarray
     residual: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
+    steps: np.ndarray | None = None
+    stopped: int | None = None
+    reason: str = ""
 
 
 class Oracle:
@@ -84,6 +94,13 @@ class Oracle:
             for i in range(model.neq)
         ]
         self._jacp, self._jacr = np.zeros((3, self.nv)), np.zeros((3, self.nv))
+        # coordinates made dimensionless: hinges in rad, slides per mechanism size
+        self.coordinate_scale = np.array(
+            [
+                1.0 if model.jnt_type[model.dof_jntid[j]] == mujoco.mjtJoint.mjJNT_HINGE else 1.0 / self.size
+                for j in range(self.nv)
+            ]
+        )
 
     # -- loop closure -------------------------------------------------------
     def constraints(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -112,59 +129,90 @@ class Oracle:
         residual, jacobian = self.constraints(qpos)
         return residual, np.vstack([jacobian, self.selector])
 
-    @staticmethod
-    def _lstsq(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        # least squares: a planar loop's z rows are zero, so the stack is not square
-        return np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+    def _lstsq(self, matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """Least squares of the loop rows over the input rows (a planar loop's z rows are
+        zero, so the stack is not square), equilibrated first: rows per size (angle
+        inputs' as they are), slide columns per size. Unscaled, the hinge columns carry
+        lengths and the slide ones not, and the solution's round-off grew with that
+        spread instead of the mechanism's conditioning."""
+        rows = np.ones(matrix.shape[0]) / self.size
+        rows[matrix.shape[0] - len(self.input_dofs) :] = self.coordinate_scale[self.input_dofs]
+        columns = 1.0 / self.coordinate_scale
+        scaled = np.linalg.lstsq(rows[:, None] * matrix * columns, (rows * rhs.T).T, rcond=None)[0]
+        return (columns * scaled.T).T
 
     def violation(self, qpos: np.ndarray) -> float:
         """Largest loop violation at ``qpos``, m."""
         residual, _ = self.constraints(qpos)
         return float(np.max(np.abs(residual), initial=0.0))
 
-    def project(
-        self, start: np.ndarray, start_inputs: np.ndarray, inputs: np.ndarray, max_iter: int = 30
-    ) -> Projection:
-        """Newton projection along a sweep, each sample from the previous one.
+    def newton(self, q: np.ndarray, c: np.ndarray, max_iter: int = 30) -> tuple[np.ndarray, float, int, bool]:
+        """Newton steps on [efc_pos; q_in - c] = 0 from ``q`` (nv,) at inputs ``c`` (k,).
+
+        Returns
+        -------
+        q : ndarray, shape (nv,)
+            The best iterate (stops when no longer improving: the round-off floor).
+        violation : float
+            Its largest loop violation, m.
+        iterations : int
+        converged : bool
+            Loops and inputs within ``CONVERGED_TOLERANCE`` of the size.
+        """
+        stop, ok = STOP_TOLERANCE * self.size, CONVERGED_TOLERANCE * self.size
+        best_q, best, best_loop, iterations = np.array(q, dtype=float), np.inf, np.inf, 0
+        for it in range(max_iter + 1):
+            loop, matrix = self._system(q)
+            rows = np.concatenate([loop, q[self.input_dofs] - c])
+            loop_value = float(np.max(np.abs(loop), initial=0.0))
+            value = max(loop_value, float(np.max(np.abs(rows[loop.size :]) * self.input_scale)))
+            if not value < best:  # no longer improving: round-off floor (or divergence)
+                break
+            best_q, best, best_loop = q, value, loop_value
+            if value <= stop or it == max_iter:
+                break
+            q = q - self._lstsq(matrix, rows)
+            iterations = it + 1
+        return best_q, best_loop, iterations, best <= ok
+
+    def system_matrix(self, qpos: np.ndarray) -> np.ndarray:
+        """MuJoCo's loop Jacobian over the inputs' rows at ``qpos``: shape (r + k, nv)."""
+        return self._system(qpos)[1]
+
+    def project(self, start: np.ndarray, start_inputs: np.ndarray, inputs: np.ndarray) -> Projection:
+        """MuJoCo's Newton walked along a sweep, each sample from the previous one
+        (:func:`xcheck.engines._continuation.follow`).
 
         Parameters
         ----------
         start : ndarray, shape (nq,)
-            An assembled configuration at ``start_inputs`` (k,), next to ``inputs[0]``.
+            An assembled configuration at ``start_inputs`` (k,), next to ``inputs[0]``;
+            projected onto MuJoCo's loops first.
         inputs : ndarray, shape (N, k)
             Input values (rad or m) in the order the mechanism moves through them.
 
         Notes
         -----
-        Each sample is predicted from the previous one along the tangent
-        dq/dc (MuJoCo's constraint Jacobian with the inputs' rows), then
-        corrected by Newton steps on [efc_pos; q_in - c] = 0.
+        Each step is predicted from the previous accepted one along the tangent
+        dq/dc (MuJoCo's constraint Jacobian with the inputs' rows), corrected by
+        Newton steps, and halved while the correction is large or the
+        determinant of the square system changes sign. ``stopped`` and
+        ``reason`` say where the branch could not be followed.
         """
-        n = inputs.shape[0]
-        qpos, residual = np.empty((n, self.nv)), np.empty(n)
-        iterations, converged = np.zeros(n, dtype=int), np.zeros(n, dtype=bool)
-        stop, ok = STOP_TOLERANCE * self.size, CONVERGED_TOLERANCE * self.size
-        q, c_prev = np.array(start, dtype=float), np.asarray(start_inputs, dtype=float)
-        for i, c in enumerate(inputs):
-            q = q + self.tangent(q) @ (c - c_prev)
-            best_q, best, best_loop = q, np.inf, np.inf
-            for it in range(max_iter + 1):
-                loop, matrix = self._system(q)
-                rows = np.concatenate([loop, q[self.input_dofs] - c])
-                loop_value = float(np.max(np.abs(loop), initial=0.0))
-                value = max(loop_value, float(np.max(np.abs(rows[loop.size :]) * self.input_scale)))
-                if not value < best:  # no longer improving: round-off floor (or divergence)
-                    break
-                best_q, best, best_loop = q, value, loop_value
-                if value <= stop or it == max_iter:
-                    break
-                q = q - self._lstsq(matrix, rows)
-                iterations[i] = it + 1
-            q = best_q
-            qpos[i], residual[i] = q, best_loop
-            converged[i] = best <= ok
-            c_prev = c
-        return Projection(qpos, residual, iterations, converged)
+        start = np.asarray(start, dtype=float)
+        walk = follow(
+            self.newton,
+            self.system_matrix,
+            self.constraints(start)[0].size,
+            start,
+            np.asarray(start_inputs, dtype=float),
+            np.asarray(inputs, dtype=float),
+            self.coordinate_scale[self.input_dofs],
+            self.coordinate_scale,
+        )
+        return Projection(
+            walk.qpos, walk.residual, walk.iterations, walk.converged, walk.steps, walk.stopped, walk.reason
+        )
 
     def tangent(self, qpos: np.ndarray) -> np.ndarray:
         """dq/dc at ``qpos``: shape (nv, k)."""

@@ -27,8 +27,6 @@ there for the frame conventions.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from xcheck.compare import ModeResult, Trajectory, differences
@@ -48,9 +46,6 @@ KINEMATIC = "pinocchio-kinematic"
 #: Fraction of a bounded input's feasible range kept clear of each limit
 #: position (there the mechanism is singular), as in the simulation window.
 RANGE_MARGIN = 0.02
-#: Largest input change (rad, or slide / size) between two Newton projections;
-#: farther samples are reached through intermediate inputs.
-MAX_STEP = math.radians(2.0)
 
 
 def build(kinematics: Kinematics) -> PinocchioMechanism:
@@ -66,7 +61,7 @@ def build(kinematics: Kinematics) -> PinocchioMechanism:
 
 # -- kinematic oracle --------------------------------------------------------
 class _NotConverged(RuntimeError):
-    """A sample where Newton projection failed (the mode's reason)."""
+    """A sample the continuation could not reach on the branch (the mode's reason)."""
 
 
 def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None):
@@ -184,40 +179,22 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
             )
         per_driver = n // len(starts)
 
-        scale = kinematics.system.input_scale()
-        identity = np.eye(len(c_ref))
-
-        def step_to(q_prev, c_prev, c):
-            """Newton projection at inputs c, predicted along the tangent from
-            (q_prev, c_prev); through intermediate inputs when c is far."""
-            pieces = max(1, math.ceil(np.max(np.abs(c - c_prev) * scale) / MAX_STEP))
-            start = c_prev
-            for f in np.arange(1, pieces + 1) / pieces:
-                target = start + f * (c - start)
-                guess = q_prev + oracle.rates(q_prev, identity) @ (target - c_prev)
-                q_prev, res, its, converged = oracle.project(guess, target, size)
-                if not converged:
-                    raise _NotConverged(
-                        f"Newton did not converge at input {target.tolist()} (loop residual {res:.3g} m)"
-                    )
-                c_prev = target
-            return q_prev, res, its
-
-        def walk(order, q_prev, c_prev):
-            """Project sample after sample from (q_prev, c_prev); return the first solution."""
-            first = None
-            for i in order:
-                q, residual[i], iterations[i] = step_to(q_prev, c_prev, inputs[i])
+        def walk(order: np.ndarray, q_prev: np.ndarray, c_prev: np.ndarray) -> np.ndarray:
+            """Follow the branch from (q_prev, c_prev) through the samples ``order``; their first solution."""
+            path = oracle.follow(q_prev, c_prev, inputs[order], size)
+            if path.stopped is not None:
+                raise _NotConverged(f"Pinocchio's continuation left the assembly branch: it {path.reason}")
+            for j, i in enumerate(order):
+                q, residual[i], iterations[i] = path.qpos[j], path.residual[j], path.iterations[j]
                 v = oracle.rates(q, rates[i])
                 a = oracle.acceleration(q, v, accelerations[i])
                 _store(pm, bodies, points, i, frame_states(pm, oracle.data, q, v, a))
-                first = q if first is None else first
-                q_prev, c_prev = q, inputs[i]
-            return first
+            return path.qpos[0]
 
         for d, start in enumerate(starts):
-            q_start = walk(range(start, (d + 1) * per_driver), q_ref, c_ref)
-            walk(range(start - 1, d * per_driver - 1, -1), q_start, inputs[start])
+            q_start = walk(np.arange(start, (d + 1) * per_driver), q_ref, c_ref)
+            if start > d * per_driver:
+                walk(np.arange(start - 1, d * per_driver - 1, -1), q_start, inputs[start])
         trajectory = Trajectory(
             source=KINEMATIC,
             inputs=inputs,
@@ -234,7 +211,8 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
             },
             diagnostics={"loop_residual": residual, "iterations": iterations},
             notes="Pinocchio forward kinematics; Newton projection onto the loops (getConstraintsJacobian of "
-            "CONTACT_3D constraints, least squares) from the previous sample with a tangent prediction; "
+            "CONTACT_3D constraints, least squares) from the previous sample with a tangent prediction, in "
+            "steps halved while the correction is large or the determinant of the system changes sign; "
             "velocities from the constraint Jacobian with the input rates imposed; accelerations with the "
             "drift from frame classical accelerations at zero joint acceleration. Sweep: " + "; ".join(sweep_notes),
         )

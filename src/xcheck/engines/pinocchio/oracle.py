@@ -13,14 +13,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from .._continuation import Walk, follow
 from .model import PinocchioMechanism
 
-__all__ = ["Oracle", "NEWTON_TOLERANCE", "frame_states", "one_line"]
+__all__ = ["Oracle", "NEWTON_TOLERANCE", "CONVERGED_TOLERANCE", "frame_states", "one_line"]
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Newton stops when every loop and driver residual is below this times the
 #: mechanism's size (m; rad for angle inputs): round-off is ~1e-16.
 NEWTON_TOLERANCE = 1e-14
+#: A projection counts as converged below this times the size (as MuJoCo's and the native solver's);
+#: Newton goes on towards NEWTON_TOLERANCE while it improves.
+CONVERGED_TOLERANCE = 1e-10
 _MAX_ITERATIONS = 30
 
 
@@ -51,6 +55,20 @@ class Oracle:
         self.selector = self.pm.input_selector()
         self.rows = self.pm.constraint_rows()
         self.n_loop = sum(n for _, n in self.rows)
+        self._size = float(self.pm.mechanism.size)
+
+    def solve(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """Least squares of [J_loop; S] x = rhs ((rows,) or (rows, m)), equilibrated first:
+        rows per size (angle inputs' as they are), slide columns per size. Unscaled, the
+        revolute columns carry lengths and the prismatic ones not, and the round-off
+        grew with that spread: reactions 3.7e-12 to 1.1e-11 of their scale on a Scotch
+        yoke of 81 m to 81 km (xcheck fuzz s1-00052), 1e-15 equilibrated."""
+        size = self._size
+        columns = 1.0 / self.coordinate_scale(size)
+        rows = np.ones(jac.shape[0]) / size
+        rows[self.n_loop :] = np.abs(self.selector) @ self.coordinate_scale(size)
+        scaled = np.linalg.lstsq(rows[:, None] * jac * columns, (rows * np.asarray(rhs).T).T, rcond=None)[0]
+        return (columns * scaled.T).T
 
     # -- loop closure ------------------------------------------------------
     def loop_residual(self, q: np.ndarray) -> np.ndarray:
@@ -84,6 +102,13 @@ class Oracle:
     def project(self, q: np.ndarray, c: np.ndarray, size: float):
         """Newton-Raphson onto the loops at inputs ``c`` (k,) from ``q``.
 
+        Iterates until every loop and driver residual is below
+        ``NEWTON_TOLERANCE`` of the size (driver rows of angles times the size),
+        or, below ``CONVERGED_TOLERANCE`` of it, until a step no longer
+        improves: the round-off floor, which grows with the coordinates'
+        magnitudes (a rod of 426 km at a crank angle of 136 rad, many turns
+        on: 6e-9 m = 1.4e-14 of the size, eps x 136 x 426 km).
+
         Returns
         -------
         q : ndarray, shape (nq,)
@@ -93,15 +118,51 @@ class Oracle:
         converged : bool
         """
         q = np.array(q, dtype=float)
+        metres = np.concatenate([np.ones(self.n_loop), np.abs(self.selector) @ (size * self.coordinate_scale(size))])
+        best_q, best, best_loop, best_iteration = q, np.inf, np.inf, 0
         for iteration in range(_MAX_ITERATIONS + 1):
             residual, jac = self.system(q, c)
-            worst = float(np.max(np.abs(residual), initial=0.0))
-            if worst <= NEWTON_TOLERANCE * size:
-                return q, float(np.max(np.abs(residual[: self.n_loop]), initial=0.0)), iteration, True
-            if not np.isfinite(worst) or iteration == _MAX_ITERATIONS:
+            worst = float(np.max(np.abs(residual) * metres, initial=0.0))
+            loop = float(np.max(np.abs(residual[: self.n_loop]), initial=0.0))
+            if not np.isfinite(worst) or (not worst < best and best <= CONVERGED_TOLERANCE * size):
+                break  # no longer improving at the round-off floor (or diverged)
+            if worst < best:
+                best_q, best, best_loop, best_iteration = q, worst, loop, iteration
+            if worst <= NEWTON_TOLERANCE * size or iteration == _MAX_ITERATIONS:
                 break
-            q = q - np.linalg.lstsq(jac, residual, rcond=None)[0]
-        return q, float(np.max(np.abs(residual[: self.n_loop]), initial=np.inf)), iteration, False
+            q = q - self.solve(jac, residual)
+        return best_q, best_loop, best_iteration, best <= CONVERGED_TOLERANCE * size
+
+    def system_matrix(self, q: np.ndarray) -> np.ndarray:
+        """[J_loop; S] at q: shape (loop rows + k, nv)."""
+        self.loop_residual(q)
+        return np.vstack([self.loop_jacobian(q), self.selector])
+
+    def coordinate_scale(self, size: float) -> np.ndarray:
+        """Per velocity coordinate (nv,): 1 for an angle, 1/size for a slide (makes them dimensionless)."""
+        scale = np.ones(self._model.nv)
+        for joint in self._model.joints[1:]:
+            if "Prismatic" in joint.shortname():
+                scale[joint.idx_v : joint.idx_v + joint.nv] = 1.0 / size
+        return scale
+
+    def follow(self, q: np.ndarray, c: np.ndarray, inputs: np.ndarray, size: float) -> Walk:
+        """Pinocchio's Newton walked from (q (nq,), c (k,)) through ``inputs`` (N, k) in
+        order, each step predicted along Pinocchio's tangent and halved while the
+        correction is large or the determinant changes sign
+        (:func:`xcheck.engines._continuation.follow`)."""
+        scale = self.coordinate_scale(size)
+        selected = np.abs(self.selector) @ scale  # each input's coordinate's scale, (k,)
+        return follow(
+            lambda guess, target: self.project(guess, target, size),
+            self.system_matrix,
+            self.n_loop,
+            np.asarray(q, dtype=float),
+            np.asarray(c, dtype=float),
+            np.asarray(inputs, dtype=float),
+            selected,
+            scale,
+        )
 
     def rates(self, q: np.ndarray, right: np.ndarray) -> np.ndarray:
         """Solve [J_loop; S] x = [0; right] for x (nv,) or (nv, m) at q.
@@ -113,7 +174,7 @@ class Oracle:
         jac = np.vstack([self.loop_jacobian(q), self.selector])
         rhs = np.zeros((jac.shape[0],) + np.shape(right)[1:])
         rhs[self.n_loop :] = right
-        return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+        return self.solve(jac, rhs)
 
     def drift(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Loop acceleration at zero joint acceleration, shape (loop rows,), m/s^2:
@@ -136,7 +197,7 @@ class Oracle:
         self.loop_residual(q)
         jac = np.vstack([self.loop_jacobian(q), self.selector])
         rhs = np.concatenate([-drift, input_accelerations])
-        return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+        return self.solve(jac, rhs)
 
 
 def frame_states(pm: PinocchioMechanism, data: pin.Data, q, v, a) -> tuple[dict, dict]:

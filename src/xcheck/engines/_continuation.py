@@ -1,0 +1,166 @@
+"""Continuation for the engines' kinematic oracles: an engine's own Newton
+solver walked along a sweep of inputs on one assembly branch.
+
+The engine is seeded as a user would seed it: each step starts from the
+previous accepted configuration, predicted along the engine's own tangent
+dq/dc (its constraint Jacobian with the inputs' rows). A step is accepted only
+if the engine's Newton converges, the correction from the prediction is small
+(at most :data:`MAX_CORRECTION`, and at most :data:`CORRECTION_RATIO` of the
+predicted move: a tangent step's error grows like its square, so halving the
+step brings a too-large correction down) and the determinant of the engine's
+square system keeps its sign (it changes only through a singular
+configuration, or on the other branch). Otherwise the step is halved; below
+:data:`MIN_STEP` the walk stops and says where and why, so that a branch the
+engine cannot follow is a stated result, never a silent jump.
+
+Every number here (residuals, Jacobians) comes from the engine; the native
+solver only provides the first configuration (at the reference inputs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+__all__ = ["MAX_STEP", "MIN_STEP", "MAX_CORRECTION", "CORRECTION_RATIO", "Walk", "follow"]
+
+#: Longest step, scaled input units (rad; slides per mechanism size), as the native continuation.
+MAX_STEP = math.radians(2.0)
+#: Below this step (scaled input units) the walk stops: the branch cannot be followed further.
+#: A correction below it (scaled coordinates) is round-off whatever the step.
+MIN_STEP = 1e-9
+#: Largest correction from the prediction, scaled coordinates (rad; lengths per size), as the native's.
+MAX_CORRECTION = 0.1
+#: Largest correction as a fraction of the predicted move (scaled, largest component).
+CORRECTION_RATIO = 0.5
+
+
+@dataclass
+class Walk:
+    """An engine's configurations along a sweep, N samples.
+
+    Attributes
+    ----------
+    qpos : ndarray, shape (N, nv)
+        NaN from the first sample not reached.
+    residual : ndarray, shape (N,)
+        Largest loop violation, m (inf where not reached).
+    iterations : ndarray of int, shape (N,)
+        Newton iterations of each sample's last step.
+    steps : ndarray of int, shape (N,)
+        Accepted steps (substeps) from the previous sample.
+    converged : ndarray of bool, shape (N,)
+    stopped : int or None
+        The first sample not reached, None if all were.
+    reason : str
+        Why the walk stopped ("" if it did not).
+    """
+
+    qpos: np.ndarray
+    residual: np.ndarray
+    iterations: np.ndarray
+    steps: np.ndarray
+    converged: np.ndarray
+    stopped: int | None = None
+    reason: str = ""
+
+
+def _square_rows(matrix: np.ndarray) -> np.ndarray:
+    """Indices of nv independent rows of the (rows, nv) system (pivoted QR of its
+    transpose): the planar rows, without the structural zeros (a connect's z)."""
+    _, _, pivots = scipy.linalg.qr(matrix.T, pivoting=True, mode="economic")
+    return np.sort(pivots[: matrix.shape[1]])
+
+
+def follow(
+    newton: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, float, int, bool]],
+    system_matrix: Callable[[np.ndarray], np.ndarray],
+    n_loop: int,
+    q0: np.ndarray,
+    c0: np.ndarray,
+    inputs: np.ndarray,
+    input_scale: np.ndarray,
+    coordinate_scale: np.ndarray,
+) -> Walk:
+    """Walk an engine's solver from (q0, c0) through ``inputs`` in order.
+
+    Parameters
+    ----------
+    newton : callable
+        ``newton(guess (nv,), c (k,)) -> (q (nv,), loop violation (m), iterations, converged)``:
+        the engine's own Newton projection.
+    system_matrix : callable
+        ``system_matrix(q) -> (n_loop + k, nv)``: the engine's loop Jacobian over the inputs' rows.
+    n_loop : int
+        Loop rows of that matrix.
+    q0 : ndarray, shape (nv,)
+        An assembled configuration at ``c0`` (k,).
+    inputs : ndarray, shape (N, k)
+        Input values (rad or m) in the order the mechanism moves through them.
+    input_scale, coordinate_scale : ndarray, shapes (k,), (nv,)
+        Factors making inputs and coordinates dimensionless (1 for angles, 1/size for lengths).
+    """
+    n, nv = inputs.shape[0], q0.size
+    qpos, residual = np.full((n, nv), np.nan), np.full(n, np.inf)
+    iterations, steps = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
+    converged = np.zeros(n, dtype=bool)
+    c = np.array(c0, dtype=float)
+    q, loop, _, ok = newton(np.array(q0, dtype=float), c)  # the start, on the engine's own loops
+    if not ok:
+        return Walk(
+            qpos, residual, iterations, steps, converged, 0, f"the start does not close the loops ({loop:.3g} m)"
+        )
+    matrix = system_matrix(q)
+    rows = _square_rows(matrix)
+    k = matrix.shape[0] - n_loop
+
+    def tangent(m: np.ndarray) -> np.ndarray:
+        rhs = np.zeros((m.shape[0], k))
+        rhs[n_loop:] = np.eye(k)
+        return np.linalg.lstsq(m, rhs, rcond=None)[0]
+
+    def orientation(m: np.ndarray) -> float:
+        return float(np.linalg.slogdet(m[rows])[0])
+
+    sign = orientation(matrix)
+    step = MAX_STEP
+    for i, target in enumerate(inputs):
+        taken, why = 0, ""
+        while True:
+            distance = float(np.max(np.abs((target - c) * input_scale), initial=0.0))
+            if distance == 0.0:
+                break
+            fraction = min(1.0, step / distance)
+            c_next = target if fraction == 1.0 else c + (target - c) * fraction
+            guess = q + tangent(matrix) @ (c_next - c)
+            q_new, violation, its, ok = newton(guess, c_next)
+            if ok:
+                predicted = float(np.max(np.abs((guess - q) * coordinate_scale)))
+                correction = float(np.max(np.abs((q_new - guess) * coordinate_scale)))
+                new_matrix = system_matrix(q_new)
+                new_sign = orientation(new_matrix)
+                if new_sign != sign and sign != 0.0 and new_sign != 0.0:
+                    ok, why = (
+                        False,
+                        "the determinant of its Jacobian changes sign (a singular configuration or the other branch)",
+                    )
+                elif correction > min(MAX_CORRECTION, max(CORRECTION_RATIO * predicted, MIN_STEP)):
+                    ok, why = False, f"Newton's correction stays large ({correction:.3g} scaled)"
+            else:
+                why = f"Newton does not converge (loop violation {violation:.3g} m)"
+            if ok:
+                q, c, matrix, sign = q_new, c_next, new_matrix, new_sign if new_sign != 0.0 else sign
+                loop, iterations[i] = violation, its
+                taken += 1
+                step = min(MAX_STEP, step * 1.5)
+            else:
+                step *= 0.5
+                if step < MIN_STEP:
+                    where = ", ".join(f"{v:.9g}" for v in c)
+                    return Walk(qpos, residual, iterations, steps, converged, i, f"stopped at inputs ({where}): {why}")
+        qpos[i], residual[i], steps[i], converged[i] = q, loop, taken, True
+    return Walk(qpos, residual, iterations, steps, converged)

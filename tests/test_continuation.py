@@ -1,0 +1,136 @@
+"""The engines' kinematic continuation (:mod:`xcheck.engines._continuation`):
+an engine's own Newton walked along a sweep stays on its branch next to a
+dead centre, and says where it cannot go on instead of jumping."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import DATA
+
+from xcheck import Kinematics, load_mechanism
+from xcheck.engines._continuation import follow
+
+EPSILON = 1e-4  # the toy's branches y = +-sqrt(x^2 + EPSILON^2) are 2e-4 apart at x = 0
+
+
+def _hyperbola(q: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """The toy's residual: loop y^2 - x^2 - EPSILON^2, input x - c."""
+    return np.array([q[1] ** 2 - q[0] ** 2 - EPSILON**2, q[0] - c[0]])
+
+
+def _hyperbola_matrix(q: np.ndarray) -> np.ndarray:
+    return np.array([[-2.0 * q[0], 2.0 * q[1]], [1.0, 0.0]])
+
+
+def _circle(q: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Residual of a point on the unit circle driven by its x: a fold at x = 1."""
+    return np.array([q[0] ** 2 + q[1] ** 2 - 1.0, q[0] - c[0]])
+
+
+def _circle_matrix(q: np.ndarray) -> np.ndarray:
+    return np.array([[2.0 * q[0], 2.0 * q[1]], [1.0, 0.0]])
+
+
+def _newton(residual, matrix):
+    def solve(q: np.ndarray, c: np.ndarray):
+        q = np.array(q, dtype=float)
+        for iteration in range(30):
+            r = residual(q, c)
+            if np.max(np.abs(r)) <= 1e-15:
+                return q, float(abs(r[0])), iteration, True
+            q = q - np.linalg.solve(matrix(q), r)
+        r = residual(q, c)
+        return q, float(abs(r[0])), 30, bool(np.max(np.abs(r)) <= 1e-10)
+
+    return solve
+
+
+def test_a_walk_past_two_close_branches_stays_on_its_own():
+    """The upper branch of y^2 = x^2 + 1e-8, x from -1 to 1 in steps of 0.036: one
+    tangent step per sample from x = -0.018 lands at y = -0.018, where Newton
+    finds the lower branch (the old adapters' jump); the walk halves its step
+    instead and stays on y = +sqrt(x^2 + 1e-8), derived by hand."""
+    x = np.linspace(-1.0, 1.0, 56)
+    naive = _newton(_hyperbola, _hyperbola_matrix)  # the old scheme, for contrast: it must jump
+    q, c = np.array([-1.0, math.hypot(1.0, EPSILON)]), np.array([-1.0])
+    for value in x[1:]:
+        tangent = np.linalg.solve(_hyperbola_matrix(q), [0.0, 1.0])
+        q = naive(q + tangent * (value - c[0]), np.array([value]))[0]
+        c = np.array([value])
+    assert q[1] < 0.0
+    walk = follow(
+        _newton(_hyperbola, _hyperbola_matrix),
+        _hyperbola_matrix,
+        1,
+        np.array([-1.0, math.hypot(1.0, EPSILON)]),
+        np.array([-1.0]),
+        x[:, None],
+        np.ones(1),
+        np.ones(2),
+    )
+    assert walk.stopped is None and walk.converged.all()
+    assert np.max(np.abs(walk.qpos[:, 1] - np.hypot(x, EPSILON))) <= 1e-14
+    assert walk.steps.max() > 1  # it did take smaller steps next to x = 0
+
+
+def test_a_walk_into_a_fold_stops_and_says_where():
+    """A point on the unit circle driven by its x past x = 1 (a limit position):
+    the walk stops within a few MIN_STEP of the fold with its reason, leaves the
+    samples past it unreached (NaN), and never reports the lower half."""
+    x = np.array([0.5, 0.9, 0.99, 1.01, 1.1])
+    walk = follow(
+        _newton(_circle, _circle_matrix),
+        _circle_matrix,
+        1,
+        np.array([0.0, 1.0]),
+        np.array([0.0]),
+        x[:, None],
+        np.ones(1),
+        np.ones(2),
+    )
+    assert walk.stopped == 3
+    assert "stopped at inputs (" in walk.reason
+    assert walk.converged[:3].all() and not walk.converged[3:].any()
+    assert np.isnan(walk.qpos[3:]).all()
+    assert np.allclose(walk.qpos[:3, 1], np.sqrt(1.0 - x[:3] ** 2), atol=1e-14, rtol=0.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("engine", ["mujoco", "pinocchio"])
+def test_kinematic_oracles_follow_the_branch_next_to_a_dead_centre(engine):
+    """tests/data/near-dead-centre.toml: the other branch is 15 mm away at crank =
+    270 deg and a sample falls 0.3 deg from it. The slider follows the right
+    branch B_x = r cos(theta) + sqrt(L^2 - (e - r sin(theta))^2) at every sample
+    (before the fix both engines jumped there: errors of 1.9 sizes)."""
+    import importlib
+
+    run_kinematic = importlib.import_module(f"xcheck.engines.{engine}.modes").run_kinematic
+    kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
+    result = run_kinematic(kinematics, 181)
+    assert result.ok, result.reason
+    trajectory = result.trajectories[0]
+    theta = trajectory.inputs[:, 0]
+    assert np.min(np.abs(np.mod(theta, 2 * math.pi) - 1.5 * math.pi)) < math.radians(0.31)
+    r, rod, e = 1.0, 3.00001, 2.0
+    expected = r * np.cos(theta) + np.sqrt(rod**2 - (e - r * np.sin(theta)) ** 2)
+    slider = trajectory.bodies["slider"]["position"]
+    assert np.max(np.abs(slider[:, 0] - expected)) <= 1e-10 * kinematics.system.size
+    assert np.max(np.abs(slider[:, 1] - e)) <= 1e-10 * kinematics.system.size
+
+
+@pytest.mark.slow
+def test_mujoco_simulation_across_the_dead_centre_says_it_left_the_branch():
+    """MuJoCo's soft loops carry tests/data/near-dead-centre.toml onto the other branch
+    just past the dead centre (crank at 270 deg at t = 69.7 deg / 10 rad/s = 0.122 s):
+    the mode fails with that reason and the time, not as a disagreement of 2 sizes."""
+    from xcheck.engines.mujoco.modes import run_dynamic
+
+    kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
+    result = run_dynamic(kinematics)
+    assert not result.ok
+    assert "left the assembly branch at t = " in result.reason
+    t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
+    assert math.radians(270.0 - 200.3) / 10.0 <= t <= 0.2
