@@ -38,6 +38,7 @@ _BUILT_IN = (
     "xcheck.engines.pymunk:Pymunk",
     "xcheck.engines.exudyn:Exudyn",
     "xcheck.engines.pybullet:PyBullet",
+    "xcheck.engines.mjx:MJX",
 )
 
 _registered: dict[str, Engine] = {}
