@@ -60,7 +60,17 @@ from xcheck.kinematics import Kinematics
 from xcheck.model import Mechanism
 from xcheck.simulation import free_errors, ladder_steps, left_branch
 
-__all__ = ["FREE_MODE", "SETTINGS", "TIMESTEPS", "Setting", "load_mjx", "mjx_model", "rollout", "run_free"]
+__all__ = [
+    "FREE_MODE",
+    "ALL_SETTINGS",
+    "SETTINGS",
+    "TIMESTEPS",
+    "Setting",
+    "load_mjx",
+    "mjx_model",
+    "rollout",
+    "run_free",
+]
 
 FREE_MODE = "mjx-free"
 #: The ladder's time steps, s (MuJoCo's free mode's).
@@ -98,13 +108,16 @@ class Setting:
         return mujoco_dynamic.Setting(self.name, self.integrator, self.softness == "stiff")
 
 
-#: The ladder: each softness, integrator and solver.
-SETTINGS = tuple(
+#: Every softness, integrator and solver (six compilations; about 15 min on A02's 10 s on 2 shared cores).
+ALL_SETTINGS = tuple(
     Setting(softness, integrator, solver)
     for softness in ("default", "stiff")
     for solver in ("Newton", "CG")
     for integrator in ("Euler", "implicitfast", "RK4")
 )
+#: The default ladder (four compilations): Newton with each integrator, CG with Euler only (on A02 CG
+#: gave Newton's errors to 3 digits with each integrator at 1.1 to 2.3 times its CPU time).
+SETTINGS = tuple(s for s in ALL_SETTINGS if s.solver == "Newton" or s.integrator == "Euler")
 
 
 def load_mjx():
@@ -171,6 +184,10 @@ def rollout(m, parameters: dict, qpos0, qvel0, xfrc, samples: int):
         eq_solimp=jnp.broadcast_to(parameters["solimp"], m.eq_solimp.shape),
     )
     d = mjx.make_data(m).replace(qpos=qpos0, qvel=qvel0, xfrc_applied=xfrc)
+    # with float64 on, make_data gives int32 tendon wrap indices (ten_wrapadr, ten_wrapnum, wrap_obj)
+    # that mjx.step returns as int64, which a loop carry refuses: start from step's own dtypes
+    types = jax.eval_shape(partial(mjx.step, m), d)
+    d = jax.tree_util.tree_map(lambda x, t: x.astype(t.dtype), d, types)
 
     def sample(d, _):
         d = jax.lax.fori_loop(0, parameters["every"], lambda _, d: mjx.step(m, d), d)
@@ -260,6 +277,8 @@ def _empty_row(setting: Setting, timestep: float, steps: int) -> dict:
         "loop_drift": math.nan,
         "energy_drift": math.nan,
         "mujoco_position_error": math.nan,
+        "mujoco_loop_drift": math.nan,
+        "mujoco_cpu_per_simulated_second": math.nan,
         "mujoco_difference": math.nan,
     }
 
@@ -326,13 +345,16 @@ def _finish(kinematics, model, lay, oracle, reference, run: _Run, index, xfrc, q
         mj_row, mj_trajectory = mujoco_free._run(
             kinematics, mj_model, lay, oracle, reference, run.setting.mujoco(), run.timestep, qpos0, qvel0
         )
-        row["mujoco_position_error"] = mj_row["position_error"]
+        for key in ("position_error", "loop_drift", "cpu_per_simulated_second"):
+            row[f"mujoco_{key}"] = mj_row[key]
     if s < 2:
         row["status"] = failure or "no step went through"
         return row, None
     good = slice(0, s)
     qacc, energy = _mujoco_states(model, run.setting, run.timestep, xfrc, qpos[good], qvel[good])
-    trajectory = mujoco_free._trajectory(kinematics, oracle, reference, run.settings, qpos[good], qvel[good], qacc, times[good])
+    trajectory = mujoco_free._trajectory(
+        kinematics, oracle, reference, run.settings, qpos[good], qvel[good], qacc, times[good]
+    )
     trajectory = replace(
         trajectory,
         source=FREE_MODE,
@@ -397,14 +419,16 @@ def run_free(
         Run the rows of each integrator and solver as one ``jax.vmap`` batch
         (default: on an accelerator, not on the CPU).
     compare : bool
-        Also run MuJoCo (C) at each setting: ``mujoco_position_error`` and
-        ``mujoco_difference`` (m, the largest point distance between the two).
+        Also run MuJoCo (C) at each setting (its free mode's run): its
+        ``mujoco_position_error``, ``mujoco_loop_drift`` (m),
+        ``mujoco_cpu_per_simulated_second`` and ``mujoco_difference`` (m, the
+        largest point distance between the two trajectories).
 
     Returns
     -------
     ModeResult
         See :meth:`xcheck.engines.Engine.run_free`; ``summary`` also has
-        compile_seconds, angle_error (rad), observed_order, and the two
+        compile_seconds, angle_error (rad), observed_order, and the
         MuJoCo columns.
 
     Raises
@@ -461,14 +485,20 @@ def run_free(
         compile_seconds = _execute(runs, m, qpos0, qvel0, xfrc, len(index), batched)
         for run in runs:
             run.row["compile_seconds"] = compile_seconds
-            row, trajectory = _finish(kinematics, model, lay, oracle, reference, run, index, xfrc, qpos0, qvel0, compare)
+            row, trajectory = _finish(
+                kinematics, model, lay, oracle, reference, run, index, xfrc, qpos0, qvel0, compare
+            )
             rows[id(run)] = row
             if trajectory is not None:
                 trajectories.append((row["position_error"], trajectory))
     summary = pd.DataFrame([rows.get(id(run), run.row) for run in order])
     floor = float(np.max(reference.estimate))  # errors within the reference's own are not measured: no order
     study = convergence_study(
-        summary.setting + " " + summary.integrator, summary.timestep, summary.position_error, summary.status, floor=floor
+        summary.setting + " " + summary.integrator,
+        summary.timestep,
+        summary.position_error,
+        summary.status,
+        floor=floor,
     )
     observed = study.set_index(["series", "timestep"])["order"]
     summary["observed_order"] = [
