@@ -31,29 +31,29 @@ time (``compile_seconds``, CPU s of the executable a row ran, shared by the
 rows of one integrator and solver; ``cpu_seconds`` is the run alone).
 
 Measured (2026-11-25, 2 shared cores, mujoco 4.0.0, mujoco-mjx 3.17.0, jax 0.10.2 on
-the CPU; ``ALL_SETTINGS`` on A02, ``SETTINGS`` on A01 and A03, dt = 1, 0.5, 0.25 ms). The pendulum (A01, 10 s): Euler
-2.2e-3 .. 5.5e-4 m (order 1.00), RK4 at the reference's own error (2e-11 m), MuJoCo
-(C) within 3e-15 m. The double four-bar (A02, 10 s, ten singular passes): every
-run stays on the branch; default softness 1.9 m out of phase (loops open by 8e-4
-m), no convergence, and 2.0 m from MuJoCo (C); stiff loops converge at order
-0.85 (Euler and implicitfast alike: 2.7e-4, 1.5e-4, 8.2e-5 m) and 0.7 (RK4:
-1.8e-4, 1.1e-4, 6.8e-5 m), loops closed to 3e-8 .. 3e-9 m, against MuJoCo (C)'s
-1.1e-3, 3.3e-4, 1.4e-4 m (Euler): the two differ by 8.8e-4, 1.8e-4, 5.8e-5 m.
-Andrews' squeezer (A03, 0.03 s, a constant torque and a spring tendon): default
-softness leaves the branch at 10.6 ms (as MuJoCo (C) does); stiff Euler 3.4e-4,
-1.7e-4, 8.5e-5 m at 10, 5, 2.5 us (order 1.0, MuJoCo (C) within 4.8e-7 m), stiff
-RK4 6.9e-6, 1.9e-6, 4.9e-7 m (order 1.9, loops open by 4.5e-6 .. 2.8e-7 m) where
-MuJoCo (C)'s RK4 reaches 8.6e-9 .. 4.6e-10 m (loops 4.6e-9 .. 2.9e-10 m). The
-difference is one term: MuJoCo 4.0's reference acceleration of a connect row
-carries -J-dot qd, MJX 3.17's does not (tests/test_engine_mjx.py), so MJX's
-stabilisation holds the loops open by about J-dot qd (2 dt)^2, which is large
-at the squeezer's 1100 rad/s. CG gives Newton's errors to 3 digits at 1.1 to
-2.3 times its CPU. CPU per simulated second at 1 ms (A02): Euler 0.05 s, RK4 0.32 s (MuJoCo (C): Euler 0.008 to 0.011 s);
-compilation 14 CPU s (Euler, implicitfast) to 25 CPU s (RK4) per integrator and
-solver. The batched ladder (A02, stiff and default Newton Euler, six rows) cost
-10.3 CPU s against 8.0 s in sequence; a batch of copies at one step pays
-(benchmarks/bench_mjx.py, A02 stiff Newton Euler at 1 ms, wall): 6.2e3 steps/s
-alone, 3.0e4 for 16, 2.6e4 for 64.
+the CPU; ``ALL_SETTINGS`` on A02, ``SETTINGS`` on A01 and A03, dt = 1, 0.5, 0.25
+ms). The pendulum (A01, 10 s): Euler 2.2e-3 .. 5.5e-4 m (order 1.00), RK4 at the
+reference's own error (2e-11 m), MuJoCo (C) within 3e-15 m. The double four-bar
+(A02, 10 s, ten singular passes): every run stays on the branch; default softness
+1.9 m out of phase (loops open by 8e-4 m), no convergence, and 2.0 m from MuJoCo
+(C); stiff loops converge at order 0.85 (Euler and implicitfast alike: 2.7e-4,
+1.5e-4, 8.2e-5 m) and 0.7 (RK4: 1.8e-4, 1.1e-4, 6.8e-5 m), loops closed to 3e-8 ..
+3e-9 m, against MuJoCo (C)'s 1.1e-3, 3.3e-4, 1.4e-4 m (Euler): the two differ by
+8.8e-4, 1.8e-4, 5.8e-5 m. Andrews' squeezer (A03, 0.03 s, a constant torque and a
+spring tendon): default softness leaves the branch at 10.6 ms (as MuJoCo (C) does);
+stiff Euler 3.4e-4, 1.7e-4, 8.5e-5 m at 10, 5, 2.5 us (order 1.0, MuJoCo (C) within
+4.8e-7 m), stiff RK4 6.9e-6, 1.9e-6, 4.9e-7 m (order 1.9, loops open by 4.5e-6 ..
+2.8e-7 m) where MuJoCo (C)'s RK4 reaches 8.6e-9 .. 4.6e-10 m (loops 4.6e-9 ..
+2.9e-10 m). The difference is one term: MuJoCo 4.0's reference acceleration of a
+connect row carries -J-dot qd, MJX 3.17's does not (tests/test_engine_mjx.py), so
+MJX's stabilisation holds the loops open by about J-dot qd (2 dt)^2, which is large
+at the squeezer's 1100 rad/s. CG gives Newton's errors to 3 digits at 1.1 to 2.3
+times its CPU. CPU per simulated second at 1 ms (A02): Euler 0.05 s, RK4 0.32 s
+(MuJoCo (C): Euler 0.008 to 0.011 s); compilation 14 CPU s (Euler, implicitfast) to
+25 CPU s (RK4) per integrator and solver. The batched ladder (A02, stiff and default
+Newton Euler, six rows) cost 10.3 CPU s against 8.0 s in sequence; a batch of copies
+at one step pays (benchmarks/bench_mjx.py, A02 stiff Newton Euler at 1 ms, wall):
+6.2e3 steps/s alone, 3.0e4 for 16, 2.6e4 for 64.
 """
 
 from __future__ import annotations
