@@ -43,6 +43,14 @@ def test_registered_as_a_free_mode():
     assert [e.name for e in engines.engines()].index("mjx") == [e.name for e in engines.engines()].index("pybullet") + 1
 
 
+def test_without_the_extra_the_mode_says_how_to_install(monkeypatch):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None if name == "jax" else find_spec(name))
+    assert engines.engine("mjx").available() == "not installed: jax (pip install xcheck[mjx])"
+
+
 def test_import_is_quiet(capfd):
     """mujoco.mjx prints "Failed to import warp" twice without the warp package; load_mjx drops it."""
     jax, _, mjx = free.load_mjx()
