@@ -39,6 +39,7 @@ _BUILT_IN = (
     "xcheck.engines.exudyn:Exudyn",
     "xcheck.engines.pybullet:PyBullet",
     "xcheck.engines.drake:Drake",
+    "xcheck.engines.mjx:MJX",
 )
 
 _registered: dict[str, Engine] = {}

@@ -1,0 +1,180 @@
+"""MJX (mjx-free): the MuJoCo engine's MJCF on MJX's JAX back end, against the
+native reference and against MuJoCo (C) at the same settings.
+
+Measured here with mujoco 4.0.0, mujoco-mjx 3.17.0, jax 0.10.2 on the CPU
+(2026-11-25, 2 shared cores): the IFToMM pendulum (A01, 2 s) with semi-implicit
+Euler, 2.215e-3 and 1.107e-3 m at dt = 1 and 0.5 ms (order 1.00), MuJoCo (C)
+at the same settings within 2.7e-15 m (no loop: the same arithmetic). One
+compilation of the rollout costs 7 to 20 CPU s here (so the heavier tests are
+slow).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import DATA, MODELS
+
+pytest.importorskip("mujoco.mjx")
+pytest.importorskip("jax")
+
+import mujoco  # noqa: E402
+
+from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
+from xcheck.dynamics._free import simulate  # noqa: E402
+from xcheck.engines import NotApplicable  # noqa: E402
+from xcheck.engines.mjx import free  # noqa: E402
+from xcheck.engines.mujoco.free import free_model  # noqa: E402
+from xcheck.simulation import simulate_all  # noqa: E402
+
+
+def _kinematics(path) -> Kinematics:
+    kin = Kinematics(load_mechanism(path))
+    kin.assemble()
+    return kin
+
+
+def test_registered_as_a_free_mode():
+    engine = engines.engine("mjx")
+    assert [(m.name, m.kind) for m in engine.modes] == [("mjx-free", "free")]
+    assert engine.available() == ""
+    assert [e.name for e in engines.engines()].index("mjx") == [e.name for e in engines.engines()].index("pybullet") + 1
+
+
+def test_without_the_extra_the_mode_says_how_to_install(monkeypatch):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None if name == "jax" else find_spec(name))
+    assert engines.engine("mjx").available() == "not installed: jax (pip install xcheck[mjx])"
+
+
+def test_import_is_quiet(capfd):
+    """mujoco.mjx prints "Failed to import warp" twice without the warp package; load_mjx drops it."""
+    jax, _, mjx = free.load_mjx()
+    assert "warp" not in capfd.readouterr().out
+    assert jax.config.jax_enable_x64 and hasattr(mjx, "step")
+
+
+@pytest.mark.parametrize(
+    ("path", "joints", "equalities"),
+    [
+        (MODELS / "benchmarks" / "iftomm-a02.toml", {"hinge"}, {"connect"}),  # revolutes, two loops
+        (DATA / "spring-block.toml", {"slide"}, set()),  # a prismatic joint on the ground, a spring tendon
+        (DATA / "free-mixed.toml", {"hinge", "slide"}, {"connect"}),  # revolute, pin-in-slot, prismatic
+        (MODELS / "slider-crank.toml", {"hinge", "slide"}, {"connect"}),
+    ],
+)
+def test_converter_puts_every_joint_type(path, joints, equalities):
+    """The MuJoCo engine's free-motion MJCF goes onto MJX as written: hinges, slides,
+    connect equalities and spring tendons; the energy flag (refused by MJX) is off."""
+    model, _ = free_model(_kinematics(path))
+    m = free.mjx_model(model, "Euler", "Newton")
+    kinds = {mujoco.mjtJoint(int(t)).name.removeprefix("mjJNT_").lower() for t in m.jnt_type}
+    assert kinds == joints
+    eq = {mujoco.mjtEq(int(t)).name.removeprefix("mjEQ_").lower() for t in m.eq_type}
+    assert eq == equalities
+    assert (m.nq, m.nv, m.ntendon) == (model.nq, model.nv, model.ntendon)
+    assert model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY  # the copy put on MJX has it off
+    assert not m.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY
+
+
+@pytest.mark.parametrize(("integrator", "solver"), [("implicit", "Newton"), ("Euler", "PGS")])
+def test_what_mjx_refuses_is_a_row_status(integrator, solver):
+    """MuJoCo's implicit integrator and PGS solver are not in MJX: the run is a row
+    with MJX's reason, nothing compiles, and no run went through."""
+    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
+    model, _ = free_model(kin)
+    with pytest.raises(NotImplementedError):
+        free.mjx_model(model, integrator, solver)
+    result = free.run_free(kin, simulate(kin, duration=0.1), settings=(free.Setting("stiff", integrator, solver),))
+    assert not result.ok and "MJX does not implement" in result.reason
+    assert result.summary["status"].str.startswith("MJX does not implement").all()
+
+
+@pytest.mark.parametrize(
+    ("name", "reason"),
+    [
+        ("fourbar-loaded", "off the centre of mass"),  # a force at the coupler point P
+        ("shaken-block", "has a time law"),  # a harmonic force
+        ("torsion-pendulum", "rotational spring"),
+    ],
+)
+def test_loads_mjx_cannot_apply_are_not_applicable(name, reason):
+    kin = _kinematics(DATA / f"{name}.toml")
+    with pytest.raises(NotApplicable, match=reason):
+        free.applied_forces(kin.mechanism, free_model(kin)[0])
+    result = simulate_all(kin, modes=["mjx-free"], duration=0.02)
+    assert reason in result.not_applicable["mjx-free"] and "mjx-free" not in result.outcomes
+
+
+def test_constant_torque_is_applied_at_the_centre_of_mass():
+    """A03's motor torque (0.033 N m on the crank) becomes the crank's xfrc_applied torque."""
+    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a03.toml")
+    model, _ = free_model(kin)
+    xfrc = free.applied_forces(kin.mechanism, model)
+    crank = model.body("crank").id
+    assert xfrc[crank].tolist() == [0.0, 0.0, 0.0, 0.0, 0.0, 0.033]
+    assert not np.delete(xfrc, crank, axis=0).any()
+
+
+def test_pendulum_converges_at_first_order_and_matches_mujoco():
+    """A01 over 2 s, stiff Newton Euler at 1 and 0.5 ms: one compilation for both steps."""
+    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
+    result = free.run_free(
+        kin, simulate(kin, duration=2.0), timesteps=(1e-3, 5e-4), settings=(free.Setting("stiff", "Euler", "Newton"),)
+    )
+    assert result.ok and (result.summary["status"] == "ok").all()
+    errors = result.summary["position_error"].to_numpy()
+    assert errors[-1] <= 1.2e-3  # measured 1.107e-3 m at 0.5 ms (2.215e-3 m at 1 ms)
+    assert 0.9 <= math.log2(errors[0] / errors[1]) <= 1.1  # measured 1.00
+    assert (result.summary["mujoco_difference"] <= 1e-12).all()  # measured 2.7e-15 m: no loop, same arithmetic
+    assert result.summary["compile_seconds"].nunique() == 1  # one compilation served the ladder
+    assert (result.summary["loop_drift"] == 0.0).all()
+
+
+@pytest.mark.slow
+def test_batched_ladder_equals_the_sequential_one():
+    """The vmap batch of a ladder gives the sequential runs' trajectories (to round-off:
+    measured 7e-12 rad on A02's final qpos, 10 s; here A01 over 0.5 s)."""
+    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
+    reference = simulate(kin, duration=0.5)
+    settings = (free.Setting("default", "RK4", "Newton"),)
+    runs = [
+        free.run_free(kin, reference, timesteps=(1e-3, 5e-4), settings=settings, batched=b, compare=False)
+        for b in (False, True)
+    ]
+    for a, b in zip(runs[0].trajectories, runs[1].trajectories):
+        for label, states in a.points.items():
+            assert np.max(np.abs(states["position"] - b.points[label]["position"])) <= 1e-12
+
+
+@pytest.mark.slow
+def test_mjx_constraint_lacks_mujoco_4s_velocity_term():
+    """At a state whose velocities do not satisfy the loops' velocity constraint, MJX's
+    reference acceleration of a connect row (efc_aref) differs from MuJoCo 4.0's (C) by
+    exactly J-dot qd (xcheck's mj_jacDot drift of the row): MuJoCo's C constraint carries
+    the term, MJX's does not. At rest the two agree to the solver's tolerance (measured
+    3.9e-11 m/s^2 in qacc of 20)."""
+    from xcheck.engines.mujoco.oracle import Oracle
+
+    jax, jnp, mjx = free.load_mjx()
+    kin = _kinematics(DATA / "free-mixed.toml")
+    model, lay = free_model(kin)
+    model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    m = free.mjx_model(model, "Euler", "Newton")
+    forward = jax.jit(mjx.forward)
+    data = mujoco.MjData(model)
+    for speed in (0.0, 0.3):
+        data.qvel[:] = speed
+        mujoco.mj_forward(model, data)
+        out = forward(m, mjx.make_data(m).replace(qpos=jnp.asarray(data.qpos), qvel=jnp.asarray(data.qvel)))
+        gap = data.efc_aref - np.asarray(out._impl.efc_aref)[: data.nefc]
+        drift = Oracle(model, kin.mechanism, lay).drift(data.qpos, data.qvel)
+        assert np.max(np.abs(gap + drift)) <= 1e-9 * max(1.0, float(np.max(np.abs(data.efc_aref))))
+        if speed == 0.0:
+            assert np.max(np.abs(np.asarray(out.qacc) - data.qacc)) <= 1e-9 * np.max(np.abs(data.qacc))
+        else:
+            assert np.max(np.abs(drift)) > 1e-3  # measured 4.5e-3, 7.8e-3 m/s^2: the term is there
