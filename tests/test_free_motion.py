@@ -106,7 +106,7 @@ def test_double_fourbar_passes_its_singular_positions_on_the_branch():
 def test_spring_and_damper_follow_the_damped_oscillator():
     """tests/data/spring-block.toml: m u'' + c u' + k u = 0 from u0 = 0.05 m at rest
     (closed form in its header); the damper's work keeps the energy balance."""
-    done = invoke("simulate", str(DATA / "spring-block.toml"), "--json")
+    done = invoke("simulate", str(DATA / "spring-block.toml"), "--json", "--engines", "native")
     assert done.returncode == 0, done.stderr
     native = json.loads(done.stdout)["native"]
     t, w0, zeta = 2.0, 10.0, 0.1
@@ -127,7 +127,9 @@ def test_rotational_spring_and_damper_follow_the_damped_oscillator():
     (spring energy, damper work) 2.3e-13 J of 0.27 J. MuJoCo's and Pinocchio's
     RK4 (the spring's torque applied through their force callbacks) 1.6e-11 m at
     the rim at 1 ms; pymunk's DampedRotarySpring: tests/test_free_pymunk.py."""
-    done = invoke("simulate", str(DATA / "torsion-pendulum.toml"), "--json")
+    done = invoke(
+        "simulate", str(DATA / "torsion-pendulum.toml"), "--json", "--engines", "native,mujoco-free,pinocchio-free"
+    )
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     native = doc["native"]
@@ -192,7 +194,9 @@ def test_harmonic_force_drives_the_oscillator():
     MuJoCo's and Pinocchio's RK4, which evaluate the law at their stage times, 1.9e-11 m
     at 1 ms (order 4 down to the reference's own error); pymunk 4.5e-4 .. 1.1e-4 m
     (first order)."""
-    done = invoke("simulate", str(DATA / "shaken-block.toml"), "--json")
+    done = invoke(
+        "simulate", str(DATA / "shaken-block.toml"), "--json", "--engines", "native,mujoco-free,pinocchio-free"
+    )
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     native = doc["native"]
@@ -301,7 +305,18 @@ def test_rotational_spring_on_a_prismatic_joint_is_refused(tmp_path):
 
 
 def test_simulate_json_states_the_pendulum_and_its_error():
-    done = invoke("simulate", "iftomm-a01", "--duration", "1", "--json", "--no-report", "--models", str(MODELS))
+    done = invoke(
+        "simulate",
+        "iftomm-a01",
+        "--duration",
+        "1",
+        "--json",
+        "--no-report",
+        "--engines",
+        "native",
+        "--models",
+        str(MODELS),
+    )
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     final = doc["native"]["final"]
@@ -343,7 +358,10 @@ def test_simulate_needs_a_free_motion_section():
 
 
 def test_simulate_writes_a_report_and_the_index_keeps_it(tmp_path):
-    done = invoke("simulate", "iftomm-a01", "--duration", "0.5", "--out", str(tmp_path), "-q", "--models", str(MODELS))
+    done = invoke(
+        "simulate", "iftomm-a01", "--duration", "0.5", "--engines", "native,mujoco-free",
+        "--out", str(tmp_path), "-q", "--models", str(MODELS),
+    )  # fmt: skip
     assert done.returncode == 0, done.stderr
     report = (tmp_path / "iftomm-a01.md").read_text(encoding="utf-8")
     for heading in ("## The native reference", "## Engines in free motion", "## Versions"):
