@@ -17,7 +17,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from . import __version__
+from . import __version__, cache
 from . import engines as registry
 from .api import limit_warnings, printed_answers, select_modes
 from .catalog import benchmark_names, indexed_names, installed, model_names, model_path, models_dir, reports_dir
@@ -38,8 +38,6 @@ from .output import (
     textbook_json,
     wide_console,
 )
-from .report import index_entry, simulation_entry, update_index, write_report, write_simulation_report
-from .runner import run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -126,9 +124,10 @@ def list_command(
     for path in paths:  # one bad file is reported at the end; the others are listed
         try:
             mech = load_mechanism(path)
-            kin = Kinematics(mech)
+            kin = cache.cached_kinematics(mech)  # the branch map of an unchanged file is not computed again
             dof = kin.mobility()
             ranges = [kin.input_range(k) for k in range(len(mech.drivers))]
+            cache.store(kin)
         except XcheckError as err:
             failures.append(str(err))
             continue
@@ -296,7 +295,7 @@ def solve_command(
         )
     if accel is not None and rate is None:
         raise InputError(f"{mech.path}: --accel: expected it with --rate, found --accel alone")
-    kin = Kinematics(mech)
+    kin = cache.cached_kinematics(mech)
     kin.assemble(branch)
     if at is None:
         if not mech.instants:
@@ -315,6 +314,7 @@ def solve_command(
         ]
         fields = None
     _check_ranges(kin, states, branch, fields)
+    cache.store(kin)
     values = np.array(states)  # (N, k, 3)
     solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
     _check_statuses(kin, solution, labels, fields)
@@ -336,6 +336,7 @@ def solve_command(
             textbook, document = printed_answers(kin, comparisons)
     except XcheckError as err:
         textbook_error = err
+    cache.store(kin)  # the printed answers' branches too
     if as_json:
         output = solution_json(solution, labels, forces)
         if textbook is not None:
@@ -385,8 +386,9 @@ def draw_command(
 
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
-    kin = Kinematics(mech)
+    kin = cache.cached_kinematics(mech)
     kin.assemble(branch)
+    cache.store(kin)
     target = output if output is not None else Path(f"{mech.name}.png")
     if target.suffix.lower() != ".png":
         raise InputError(f"-o {target}: expected a file name ending in .png, found {target.suffix or 'none'}")
@@ -466,6 +468,9 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
+    from .report import index_entry, update_index, write_report  # matplotlib: only when a report is written
+    from .runner import run_mechanism
+
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
     modes = select_modes(engines)
@@ -488,7 +493,7 @@ def run_command(
         for model in names:
             try:  # one bad file is reported at the end; the others run
                 path = model_path(model, directory)
-                kin = Kinematics(load_mechanism(path))
+                kin = cache.cached_kinematics(load_mechanism(path))
                 kin.assemble(branch)
                 label = kin.mechanism.name
 
@@ -497,6 +502,7 @@ def run_command(
 
                 textbook, _ = printed_answers(kin, comparisons)
                 run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
+                cache.store(kin)
             except XcheckError as err:
                 failures.append(str(err))
                 progress.update(task, advance=len(modes))
@@ -618,6 +624,7 @@ def simulate_command(
 
     Examples: xcheck simulate iftomm-a02;  xcheck simulate iftomm-a01 --duration 2 --json
     """
+    from .report import simulation_entry, update_index, write_simulation_report
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
