@@ -447,7 +447,15 @@ def run_command(
             "--out", help="Directory of the Markdown reports (default: reports/ beside the models directory)."
         ),
     ] = None,
-    report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown reports.")] = True,
+    report: Annotated[
+        Optional[bool],
+        typer.Option(
+            "--report/--no-report",
+            help="Write the Markdown reports and their figures (default: yes, but not with --json: "
+            "a script asking for JSON does not pay for figures unless it adds --report).",
+            show_default=False,
+        ),
+    ] = None,
     quiet: Annotated[
         bool,
         typer.Option(
@@ -464,15 +472,20 @@ def run_command(
     """Compare every solver and engine mode with the exact native solution over the feasible input range.
 
     Exit code 0 when every mode is within its tolerance, 1 when any is not (the
-    table says which quantity, where, by how much), 2 for bad input.
+    table says which quantity, where, by how much), 2 for bad input. With
+    --json only the JSON is written (stdout; every wall-clock time under its
+    "timings" key): add --report for the Markdown reports and figures too.
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
-    from .report import index_entry, update_index, write_report  # matplotlib: only when a report is written
     from .runner import run_mechanism
 
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
+    if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
+        report = not as_json
+    if report:  # matplotlib and the figures' code: only when a report is written
+        from .report import index_entry, update_index, write_report
     modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
