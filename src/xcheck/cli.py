@@ -6,6 +6,7 @@ import functools
 import io
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Annotated, Any, Optional
@@ -468,6 +469,16 @@ def run_command(
     ] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
+    jobs: Annotated[
+        Optional[int],
+        typer.Option(
+            "--jobs",
+            "-j",
+            help="Mechanisms run at once, each in its own process (default: one per CPU core; 1: one after "
+            "another in this process). The results and reports are those of a serial run.",
+            show_default=False,
+        ),
+    ] = None,
 ):
     """Compare every solver and engine mode with the exact native solution over the feasible input range.
 
@@ -478,14 +489,14 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
-    from .runner import run_mechanism
-
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
+    if jobs is not None and not 1 <= jobs <= 256:
+        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
     if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
         report = not as_json
     if report:  # matplotlib and the figures' code: only when a report is written
-        from .report import index_entry, update_index, write_report
+        from .report import update_index
     modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
@@ -500,44 +511,27 @@ def run_command(
         + _shown_option("--out", out)
     )
     results, entries, failures = [], [], []
+    settings = (directory, modes, samples, branch, comparisons, report, out, options)
+    jobs = min(jobs if jobs is not None else os.cpu_count() or 1, len(names))
     progress = _progress_bar(quiet or as_json)
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
-        for model in names:
-            try:  # one bad file is reported at the end; the others run
-                path = model_path(model, directory)
-                kin = cache.cached_kinematics(load_mechanism(path))
-                kin.assemble(branch)
-                label = kin.mechanism.name
+        if jobs <= 1:
+            outcomes = []
+            for model in names:
 
-                def step(mode, label=label):
+                def step(label: str, mode: str) -> None:
                     progress.update(task, description=f"{label}: {mode}", advance=1)
 
-                textbook, _ = printed_answers(kin, comparisons)
-                run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
-                cache.store(kin)
-            except XcheckError as err:
-                failures.append(str(err))
-                progress.update(task, advance=len(modes))
-                continue
-            progress.update(task, advance=1)  # native
-            if report:
-                progress.update(task, description=f"{label}: report")
-                target = reports_dir(path, out)
-                try:  # a report that cannot be written is reported; the run's results still count
-                    write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
-                    entries.append((target, path, index_entry(run)))
-                except OSError as err:
-                    failures.append(
-                        f"{target}: expected a directory where the report of {label} can be "
-                        f"written, found {err.strerror or err}"
-                    )
-                except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
-                    failures.append(
-                        f"{path}: report: expected a written report, found an internal error "
-                        f"({type(err).__name__}: {err}); please report it"
-                    )
-            results.append(run)
+                outcomes.append(_run_model(model, *settings, step=step))
+        else:  # one mechanism per worker process; the outcomes kept in the order of the names
+            outcomes = _run_models_in_parallel(names, settings, jobs, lambda: progress.update(task, advance=len(modes)))
+        for run, entry, problems in outcomes:
+            failures += problems
+            if entry is not None:
+                entries.append(entry)
+            if run is not None:
+                results.append(run)
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
         model_file = next(f for t, f, _ in entries if t == target)
@@ -561,6 +555,89 @@ def run_command(
         raise typer.Exit(2)
     if not all(r.passed for r in results):
         raise typer.Exit(1)
+
+
+def _run_model(model, directory, modes, samples, branch, comparisons, report, out, options, step=None):
+    """One mechanism of ``xcheck run``: its comparison and, if ``report``, its
+    report. Returns (the run or None, (reports directory, file, index entry) or
+    None, failure lines). ``step(label, stage)`` is told of each stage; it is
+    left out in a worker process (:func:`_run_models_in_parallel`)."""
+    from .runner import run_mechanism
+
+    def tell(label: str, stage: str) -> None:
+        if step is not None:
+            step(label, stage)
+
+    try:  # one bad file is reported at the end; the others run
+        path = model_path(model, directory)
+        kin = cache.cached_kinematics(load_mechanism(path))
+        kin.assemble(branch)
+        label = kin.mechanism.name
+        textbook, _ = printed_answers(kin, comparisons)
+        run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode))
+        cache.store(kin)
+    except XcheckError as err:
+        if step is not None:
+            step(model, "failed")  # the progress bar's share of the file's modes
+            for _ in modes[1:]:
+                step(model, "failed")
+        return None, None, [str(err)]
+    tell(label, "report" if report else "done")  # native
+    if not report:
+        return run, None, []
+    from .report import index_entry, write_report
+
+    target = reports_dir(path, out)
+    try:  # a report that cannot be written is reported; the run's results still count
+        write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
+        return run, (target, path, index_entry(run)), []
+    except OSError as err:
+        problem = (
+            f"{target}: expected a directory where the report of {label} can be written, found {err.strerror or err}"
+        )
+    except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
+        problem = (
+            f"{path}: report: expected a written report, found an internal error "
+            f"({type(err).__name__}: {err}); please report it"
+        )
+    return run, None, [problem]
+
+
+def _picklable_mechanisms() -> None:
+    """Let a worker process send its runs back: a :class:`Mechanism` keeps
+    mappings as read-only views (``types.MappingProxyType``), which pickle does
+    not know; they travel as dicts and come back as views."""
+    import copyreg
+    import types
+
+    copyreg.pickle(types.MappingProxyType, lambda view: (_read_only, (dict(view),)))
+
+
+def _read_only(items: dict):
+    """A read-only view of ``items`` (how a pickled mapping view comes back)."""
+    import types
+
+    return types.MappingProxyType(items)
+
+
+def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
+    """:func:`_run_model` for each name in a pool of ``jobs`` worker processes
+    (started afresh: "spawn"), the outcomes in the order of ``names`` whatever
+    the order they finish in, so that the output and the reports are those of
+    a serial run; ``done()`` after each mechanism. Engines registered at run
+    time (:func:`xcheck.engines.register`) exist only in this process: run
+    them with ``--jobs 1``."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_picklable_mechanisms) as pool:
+        futures = {pool.submit(_run_model, model, *settings): i for i, model in enumerate(names)}
+        outcomes: list = [None] * len(names)
+        for future in as_completed(futures):
+            outcomes[futures[future]] = future.result()
+            done()
+    return outcomes
 
 
 def _progress_bar(off: bool) -> Progress:
