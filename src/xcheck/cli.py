@@ -469,6 +469,12 @@ def run_command(
     ] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
+    gif: Annotated[
+        bool,
+        typer.Option(
+            "--gif/--no-gif", help="With the report: its animated GIF of the motion (a fifth of a report's time)."
+        ),
+    ] = True,
     jobs: Annotated[
         Optional[int],
         typer.Option(
@@ -509,9 +515,10 @@ def run_command(
         + _shown_option("--models", models)
         + _shown_option("--comparisons", comparisons)
         + _shown_option("--out", out)
+        + ("" if gif else " --no-gif")
     )
     results, entries, failures = [], [], []
-    settings = (directory, modes, samples, branch, comparisons, report, out, options)
+    settings = (directory, modes, samples, branch, comparisons, report, out, options, gif)
     jobs = min(jobs if jobs is not None else os.cpu_count() or 1, len(names))
     progress = _progress_bar(quiet or as_json)
     with progress:
@@ -557,7 +564,7 @@ def run_command(
         raise typer.Exit(1)
 
 
-def _run_model(model, directory, modes, samples, branch, comparisons, report, out, options, step=None):
+def _run_model(model, directory, modes, samples, branch, comparisons, report, out, options, gif=True, step=None):
     """One mechanism of ``xcheck run``: its comparison and, if ``report``, its
     report. Returns (the run or None, (reports directory, file, index entry) or
     None, failure lines). ``step(label, stage)`` is told of each stage; it is
@@ -589,7 +596,7 @@ def _run_model(model, directory, modes, samples, branch, comparisons, report, ou
 
     target = reports_dir(path, out)
     try:  # a report that cannot be written is reported; the run's results still count
-        write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
+        write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif)
         return run, (target, path, index_entry(run)), []
     except OSError as err:
         problem = (
