@@ -49,6 +49,7 @@ _CODE = (
     "kinematics/_system.py",
     "model/_load.py",
     "model/_mechanism.py",
+    "units.py",
 )
 _code_digest: str | None = None
 
