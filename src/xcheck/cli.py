@@ -471,9 +471,7 @@ def run_command(
     comparisons: ComparisonsOption = None,
     gif: Annotated[
         bool,
-        typer.Option(
-            "--gif/--no-gif", help="With the report: its animated GIF of the motion (a fifth of a report's time)."
-        ),
+        typer.Option("--gif/--no-gif", help="With the report: its animated GIF of the motion (the costliest figure)."),
     ] = True,
     jobs: Annotated[
         Optional[int],
