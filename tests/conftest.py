@@ -15,6 +15,24 @@ DATA = Path(__file__).resolve().parent / "data"
 MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.toml"))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def branch_map_cache(tmp_path_factory):
+    """The branch-map cache (xcheck.cache) of every test in a temporary
+    directory, never the user's: the command lines run here and in
+    subprocesses read $XCHECK_CACHE_DIR."""
+    import os
+
+    from xcheck.cache import CACHE_ENV
+
+    previous = os.environ.get(CACHE_ENV)
+    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("xcheck-cache"))
+    yield Path(os.environ[CACHE_ENV])
+    if previous is None:
+        os.environ.pop(CACHE_ENV, None)
+    else:
+        os.environ[CACHE_ENV] = previous
+
+
 @pytest.fixture(scope="session")
 def kinematics():
     """Kinematics of a model in models/ by name, built once per session."""

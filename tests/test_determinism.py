@@ -21,6 +21,7 @@ def _run(out) -> dict:
         "--out",
         str(out),
         "--json",
+        "--report",
         "--models",
         str(MODELS),
     )

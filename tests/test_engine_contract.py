@@ -77,6 +77,7 @@ def test_toy_engines_are_judged_and_reported(toys, tmp_path):
         "--engines",
         "toy,boom,absent,formulation-II",
         "--json",
+        "--report",
         "--samples",
         "21",
         "--out",

@@ -41,3 +41,17 @@ def test_timings_are_under_one_key_and_runs_diff_clean():
         assert all(t >= 0 for t in timings["engines"].values())
         assert list(_times(document)) == []  # no time left among the results
     assert first == second
+
+
+def test_json_writes_no_report_unless_asked(tmp_path):
+    """A script asking for JSON does not pay for figures: `run --json` writes
+    only the JSON; `--json --report` writes the report as a plain run does."""
+    common = ["run", "fourbar", "--engines", "formulations", "--samples", "11", "--quiet", "--models", str(MODELS)]
+    bare = CliRunner().invoke(app, [*common, "--json", "--out", str(tmp_path / "bare")])
+    assert bare.exit_code == 0, bare.output
+    assert json.loads(bare.stdout)["mechanism"] == "fourbar"
+    assert not (tmp_path / "bare").exists()
+    asked = CliRunner().invoke(app, [*common, "--json", "--report", "--out", str(tmp_path / "asked")])
+    assert asked.exit_code == 0, asked.output
+    assert json.loads(asked.stdout)["mechanism"] == "fourbar"
+    assert (tmp_path / "asked" / "fourbar.md").is_file() and (tmp_path / "asked" / "fourbar" / "drawing.png").is_file()

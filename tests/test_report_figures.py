@@ -111,3 +111,30 @@ def test_differences_are_relative_with_each_modes_tolerance(two_input_run):
     ]
     assert tolerance in flat
     assert position.get_yscale() == "log"
+
+
+def _boxes_apart(figure) -> None:
+    """Every panel with its tick labels, axis labels and title lies inside the
+    figure and clear of the other panels (fixed margins instead of tight_layout
+    must not hide or overlap anything a reader relies on)."""
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    page = figure.bbox
+    boxes = [ax.get_tightbbox(renderer) for ax in figure.axes if ax.get_visible()]
+    for box in boxes:
+        assert box.x0 >= page.x0 - 1 and box.y0 >= page.y0 - 1 and box.x1 <= page.x1 + 1 and box.y1 <= page.y1 + 1
+    for a, b in itertools.combinations(boxes, 2):
+        overlap_x = min(a.x1, b.x1) - max(a.x0, b.x0)
+        overlap_y = min(a.y1, b.y1) - max(a.y0, b.y0)
+        assert overlap_x <= 1 or overlap_y <= 1, (a, b)
+    title = figure._suptitle.get_window_extent(renderer)
+    assert all(title.y0 >= box.y1 - 1 for box in boxes)
+
+
+def test_panels_and_their_labels_fit_without_tight_layout(two_input_run):
+    _boxes_apart(_figures.quantities_figure(two_input_run))
+    _boxes_apart(_figures.error_figure(two_input_run))
+    convergence = _figures.convergence_figure(two_input_run)
+    assert convergence is not None
+    _boxes_apart(convergence)

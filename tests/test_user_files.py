@@ -357,6 +357,7 @@ def test_a_report_that_cannot_be_written_is_one_line_and_the_rest_run(tmp_path):
         "--out",
         blocked / "reports",
         "--json",
+        "--report",
     )
     lines = result.stderr.strip().splitlines()
     assert result.exit_code == 2 and len(lines) == 2, result.output

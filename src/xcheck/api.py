@@ -37,7 +37,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from . import engines
 from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
@@ -48,6 +47,7 @@ from .motion import law_states
 from .textbook import check_printed, load_comparisons
 
 if TYPE_CHECKING:
+    import pandas as pd  # imported where used: `xcheck solve` need not pay for it
     from matplotlib.figure import Figure
 
     from .runner import RunResult
@@ -159,6 +159,8 @@ class Result:
         ``alpha_rad_s2`` (bodies only; NaN for points), ``status``.
         Rows of states that did not solve hold NaN; ``status`` says why.
         """
+        import pandas as pd
+
         sol, mech = self.solution, self.mechanism
         n = len(sol.status)
         common: dict[str, object] = {"sample": np.arange(n), "label": list(self.labels)}
@@ -640,6 +642,8 @@ def summary(result: "RunResult") -> pd.DataFrame:
     tolerance, that error and tolerance (relative: see
     :class:`xcheck.runner.ModeOutcome`), and the reason of a mode that failed
     or does not apply."""
+    import pandas as pd
+
     rows = []
     for mode, outcome in result.outcomes.items():
         worst: tuple[float, str, float, float] | None = None  # (ratio, category, relative, tolerance)
@@ -736,6 +740,8 @@ def simulate(
     >>> sorted(motion.columns)[:4], bool(motion.attrs["converged"])
     (['angle_rad', 'body', 'error_bound_m', 'omega_rad_s'], True)
     """
+    import pandas as pd
+
     from .dynamics._free import simulate as free_simulate
 
     loaded = name if isinstance(name, Assembled) else load(name, models, branch)

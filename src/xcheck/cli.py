@@ -6,6 +6,7 @@ import functools
 import io
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Annotated, Any, Optional
@@ -17,7 +18,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from . import __version__
+from . import __version__, cache
 from . import engines as registry
 from .api import limit_warnings, printed_answers, select_modes
 from .catalog import (
@@ -47,8 +48,6 @@ from .output import (
     textbook_json,
     wide_console,
 )
-from .report import index_entry, simulation_entry, update_index, write_report, write_simulation_report
-from .runner import run_mechanism
 from .units import evaluate_expression
 
 __all__ = ["app", "main"]
@@ -135,9 +134,10 @@ def list_command(
     for path in paths:  # one bad file is reported at the end; the others are listed
         try:
             mech = load_mechanism(path)
-            kin = Kinematics(mech)
+            kin = cache.cached_kinematics(mech)  # the branch map of an unchanged file is not computed again
             dof = kin.mobility()
             ranges = [kin.input_range(k) for k in range(len(mech.drivers))]
+            cache.store(kin)
         except XcheckError as err:
             failures.append(str(err))
             continue
@@ -305,7 +305,7 @@ def solve_command(
         )
     if accel is not None and rate is None:
         raise InputError(f"{mech.path}: --accel: expected it with --rate, found --accel alone")
-    kin = Kinematics(mech)
+    kin = cache.cached_kinematics(mech)
     kin.assemble(branch)
     if at is None:
         if not mech.instants:
@@ -324,6 +324,7 @@ def solve_command(
         ]
         fields = None
     _check_ranges(kin, states, branch, fields)
+    cache.store(kin)
     values = np.array(states)  # (N, k, 3)
     solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
     _check_statuses(kin, solution, labels, fields)
@@ -345,6 +346,7 @@ def solve_command(
             textbook, document = printed_answers(kin, comparisons)
     except XcheckError as err:
         textbook_error = err
+    cache.store(kin)  # the printed answers' branches too
     if as_json:
         output = solution_json(solution, labels, forces)
         if textbook is not None:
@@ -394,8 +396,9 @@ def draw_command(
 
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
-    kin = Kinematics(mech)
+    kin = cache.cached_kinematics(mech)
     kin.assemble(branch)
+    cache.store(kin)
     target = output if output is not None else Path(f"{mech.name}.png")
     if target.suffix.lower() != ".png":
         raise InputError(f"-o {target}: expected a file name ending in .png, found {target.suffix or 'none'}")
@@ -454,7 +457,15 @@ def run_command(
             "--out", help="Directory of the Markdown reports (default: reports/ beside the models directory)."
         ),
     ] = None,
-    report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown reports.")] = True,
+    report: Annotated[
+        Optional[bool],
+        typer.Option(
+            "--report/--no-report",
+            help="Write the Markdown reports and their figures (default: yes, but not with --json: "
+            "a script asking for JSON does not pay for figures unless it adds --report).",
+            show_default=False,
+        ),
+    ] = None,
     quiet: Annotated[
         bool,
         typer.Option(
@@ -467,16 +478,38 @@ def run_command(
     ] = False,
     models: ModelsOption = None,
     comparisons: ComparisonsOption = None,
+    gif: Annotated[
+        bool,
+        typer.Option("--gif/--no-gif", help="With the report: its animated GIF of the motion (the costliest figure)."),
+    ] = True,
+    jobs: Annotated[
+        Optional[int],
+        typer.Option(
+            "--jobs",
+            "-j",
+            help="Mechanisms run at once, each in its own process (default: one per CPU core; 1: one after "
+            "another in this process). The results and reports are those of a serial run.",
+            show_default=False,
+        ),
+    ] = None,
 ):
     """Compare every solver and engine mode with the exact native solution over the feasible input range.
 
     Exit code 0 when every mode is within its tolerance, 1 when any is not (the
-    table says which quantity, where, by how much), 2 for bad input.
+    table says which quantity, where, by how much), 2 for bad input. With
+    --json only the JSON is written (stdout; every wall-clock time under its
+    "timings" key): add --report for the Markdown reports and figures too.
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
+    if jobs is not None and not 1 <= jobs <= 256:
+        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
+    if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
+        report = not as_json
+    if report:  # matplotlib and the figures' code: only when a report is written
+        from .report import update_index
     modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
@@ -489,45 +522,30 @@ def run_command(
         + _shown_option("--models", models)
         + _shown_option("--comparisons", comparisons)
         + _shown_option("--out", out)
+        + ("" if gif else " --no-gif")
     )
     results, entries, failures = [], [], []
+    settings = (directory, modes, samples, branch, comparisons, report, out, options, gif)
+    jobs = min(jobs if jobs is not None else os.cpu_count() or 1, len(names))
     progress = _progress_bar(quiet or as_json)
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
-        for model in names:
-            try:  # one bad file is reported at the end; the others run
-                path = model_path(model, directory)
-                kin = Kinematics(load_mechanism(path))
-                kin.assemble(branch)
-                label = kin.mechanism.name
+        if jobs <= 1:
+            outcomes = []
+            for model in names:
 
-                def step(mode, label=label):
+                def step(label: str, mode: str) -> None:
                     progress.update(task, description=f"{label}: {mode}", advance=1)
 
-                textbook, _ = printed_answers(kin, comparisons)
-                run = run_mechanism(kin, modes, samples, branch, textbook, progress=step)
-            except XcheckError as err:
-                failures.append(str(err))
-                progress.update(task, advance=len(modes))
-                continue
-            progress.update(task, advance=1)  # native
-            if report:
-                progress.update(task, description=f"{label}: report")
-                target = reports_dir(path, out)
-                try:  # a report that cannot be written is reported; the run's results still count
-                    write_report(run, target, f"xcheck run {_shown_model(model)}{options}")
-                    entries.append((target, path, index_entry(run)))
-                except OSError as err:
-                    failures.append(
-                        f"{target}: expected a directory where the report of {label} can be "
-                        f"written, found {err.strerror or err}"
-                    )
-                except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
-                    failures.append(
-                        f"{path}: report: expected a written report, found an internal error "
-                        f"({type(err).__name__}: {err}); please report it"
-                    )
-            results.append(run)
+                outcomes.append(_run_model(model, *settings, step=step))
+        else:  # one mechanism per worker process; the outcomes kept in the order of the names
+            outcomes = _run_models_in_parallel(names, settings, jobs, lambda: progress.update(task, advance=len(modes)))
+        for run, entry, problems in outcomes:
+            failures += problems
+            if entry is not None:
+                entries.append(entry)
+            if run is not None:
+                results.append(run)
     command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
         model_file = next(f for t, f, _ in entries if t == target)
@@ -551,6 +569,89 @@ def run_command(
         raise typer.Exit(2)
     if not all(r.passed for r in results):
         raise typer.Exit(1)
+
+
+def _run_model(model, directory, modes, samples, branch, comparisons, report, out, options, gif=True, step=None):
+    """One mechanism of ``xcheck run``: its comparison and, if ``report``, its
+    report. Returns (the run or None, (reports directory, file, index entry) or
+    None, failure lines). ``step(label, stage)`` is told of each stage; it is
+    left out in a worker process (:func:`_run_models_in_parallel`)."""
+    from .runner import run_mechanism
+
+    def tell(label: str, stage: str) -> None:
+        if step is not None:
+            step(label, stage)
+
+    try:  # one bad file is reported at the end; the others run
+        path = model_path(model, directory)
+        kin = cache.cached_kinematics(load_mechanism(path))
+        kin.assemble(branch)
+        label = kin.mechanism.name
+        textbook, _ = printed_answers(kin, comparisons)
+        run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode))
+        cache.store(kin)
+    except XcheckError as err:
+        if step is not None:
+            step(model, "failed")  # the progress bar's share of the file's modes
+            for _ in modes[1:]:
+                step(model, "failed")
+        return None, None, [str(err)]
+    tell(label, "report" if report else "done")  # native
+    if not report:
+        return run, None, []
+    from .report import index_entry, write_report
+
+    target = reports_dir(path, out)
+    try:  # a report that cannot be written is reported; the run's results still count
+        write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif)
+        return run, (target, path, index_entry(run)), []
+    except OSError as err:
+        problem = (
+            f"{target}: expected a directory where the report of {label} can be written, found {err.strerror or err}"
+        )
+    except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
+        problem = (
+            f"{path}: report: expected a written report, found an internal error "
+            f"({type(err).__name__}: {err}); please report it"
+        )
+    return run, None, [problem]
+
+
+def _picklable_mechanisms() -> None:
+    """Let a worker process send its runs back: a :class:`Mechanism` keeps
+    mappings as read-only views (``types.MappingProxyType``), which pickle does
+    not know; they travel as dicts and come back as views."""
+    import copyreg
+    import types
+
+    copyreg.pickle(types.MappingProxyType, lambda view: (_read_only, (dict(view),)))
+
+
+def _read_only(items: dict):
+    """A read-only view of ``items`` (how a pickled mapping view comes back)."""
+    import types
+
+    return types.MappingProxyType(items)
+
+
+def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
+    """:func:`_run_model` for each name in a pool of ``jobs`` worker processes
+    (started afresh: "spawn"), the outcomes in the order of ``names`` whatever
+    the order they finish in, so that the output and the reports are those of
+    a serial run; ``done()`` after each mechanism. Engines registered at run
+    time (:func:`xcheck.engines.register`) exist only in this process: run
+    them with ``--jobs 1``."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_picklable_mechanisms) as pool:
+        futures = {pool.submit(_run_model, model, *settings): i for i, model in enumerate(names)}
+        outcomes: list = [None] * len(names)
+        for future in as_completed(futures):
+            outcomes[futures[future]] = future.result()
+            done()
+    return outcomes
 
 
 def _progress_bar(off: bool) -> Progress:
@@ -627,6 +728,7 @@ def simulate_command(
 
     Examples: xcheck simulate iftomm-a02;  xcheck simulate iftomm-a01 --duration 2 --json
     """
+    from .report import simulation_entry, update_index, write_simulation_report
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs

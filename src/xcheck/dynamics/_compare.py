@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ..compare import relative_to_floored_scale, scale_floors
 from ..errors import XcheckError
@@ -22,6 +22,9 @@ from ..motion import law_states, simulation_window
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
+
+if TYPE_CHECKING:
+    import pandas as pd  # imported where used: 0.3 s that `xcheck solve` and `list` need not pay
 
 __all__ = [
     "force_engines",
@@ -135,6 +138,8 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
         where the native solution succeeded) and ``missing`` (of those, states
         where the source gave no finite value: left out of the figures).
     """
+    import pandas as pd
+
     native = kinematics.solve(forces.inputs, forces.input_rates, forces.input_accelerations, branch=branch)
     reference = inverse_dynamics(native)
     good = native.status <= Status.NEAR_SINGULAR
@@ -271,6 +276,8 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
     and empty for a failed engine), ``max_abs`` there (SI, ``unit``), the
     physical ``floor`` of that unit's scale (:func:`force_floors`),
     ``states`` and ``seconds``."""
+    import pandas as pd
+
     rows = []
     for r in results:
         row = {

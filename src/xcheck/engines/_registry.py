@@ -9,7 +9,6 @@ report -- asks here, so an engine added in one place appears everywhere.
 from __future__ import annotations
 
 import importlib
-from importlib import metadata
 
 from ._contract import KINDS, Engine, Mode
 
@@ -63,6 +62,8 @@ def _load() -> None:
     for spec in _BUILT_IN:
         module, _, name = spec.partition(":")
         _add(_instance(getattr(importlib.import_module(module), name)))
+    from importlib import metadata  # 0.1 s: only when the engines are first listed
+
     for point in metadata.entry_points(group=ENTRY_POINT_GROUP):
         try:
             _add(_instance(point.load()))

@@ -10,7 +10,6 @@ from enum import IntEnum
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import ModelError
 from ..model import Mechanism
@@ -404,6 +403,8 @@ class Kinematics:
                 row[:, 3 * i + 2] = _perp(rotate(q[3 * i + 2 : 3 * i + 3], s))[0]
                 rows.append(weight * row / size)
             return np.vstack([jac] + rows) if rows else jac
+
+        from scipy.optimize import least_squares  # 0.3 s to import: only when a sketch is fitted
 
         q = q0
         for weight in (1.0, 1e-1, 1e-2, 1e-3):

@@ -1,0 +1,80 @@
+"""`xcheck run all --jobs N`: mechanisms in worker processes give the results
+and the report bytes of a serial run (issue 17)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+from conftest import MODELS, invoke
+
+SMALL = ("fourbar", "slider-crank", "two-body-arm")
+
+
+def _run_all(models, out, jobs: str) -> tuple[list, dict]:
+    done = invoke(
+        "run",
+        "all",
+        "--models",
+        str(models),
+        "--engines",
+        "formulations,mujoco-kinematic",
+        "--samples",
+        "21",
+        "--out",
+        str(out),
+        "--json",
+        "--report",
+        "--jobs",
+        jobs,
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode in (0, 1), done.stderr
+    documents = json.loads(done.stdout)
+    for document in documents:
+        del document["timings"]
+    files = {}
+    for path in sorted(p for p in out.rglob("*") if p.is_file()):
+        data = path.read_bytes()
+        if path.suffix in (".md", ".json"):  # the reports and the index name the run's --out
+            data = data.replace(str(out).encode(), b"OUT")
+        files[str(path.relative_to(out))] = data
+    return documents, files
+
+
+@pytest.mark.slow
+def test_parallel_run_all_equals_the_serial_run(tmp_path):
+    models = tmp_path / "models"
+    models.mkdir()
+    for name in SMALL:
+        shutil.copy(MODELS / f"{name}.toml", models)
+    serial_json, serial_files = _run_all(models, tmp_path / "serial", "1")
+    parallel_json, parallel_files = _run_all(models, tmp_path / "parallel", "3")
+    assert [d["mechanism"] for d in serial_json] == list(SMALL)
+    assert parallel_json == serial_json
+    assert {f"{name}.md" for name in SMALL} | {f"{name}/drawing.png" for name in SMALL} <= set(serial_files)
+    assert parallel_files.keys() == serial_files.keys()
+    for relative, data in serial_files.items():
+        assert parallel_files[relative] == data, f"{relative} differs between the serial and the parallel run"
+
+
+def test_a_bad_file_among_parallel_runs_is_one_line_and_the_others_run(tmp_path):
+    models = tmp_path / "models"
+    models.mkdir()
+    shutil.copy(MODELS / "slider-crank.toml", models)
+    (models / "broken.toml").write_text("[mechanism\n", encoding="utf-8")
+    done = invoke(
+        "run", "all", "--models", str(models), "--engines", "formulations", "--samples", "11", "--json", "--jobs", "2"
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "broken.toml" in done.stderr
+    assert [d["mechanism"] for d in json.loads(done.stdout)] == ["slider-crank"]
+
+
+def test_jobs_out_of_range_is_refused():
+    done = invoke("run", "all", "--jobs", "0")
+    assert (
+        done.returncode == 2
+        and done.stderr.strip() == "xcheck: error: --jobs: expected a whole number from 1 to 256, found 0"
+    )
