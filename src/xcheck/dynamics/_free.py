@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import null_space
+from scipy.linalg import null_space, solve_triangular
 
 from ..kinematics import Kinematics, Solution, Status, rotate
 
@@ -61,6 +61,13 @@ ROUND_OFF = 1e-14
 #: stopping once the loops close to PROJECTION_TOLERANCE x size
 PROJECTION_ITERATIONS = 3
 PROJECTION_TOLERANCE = 1e-15
+#: from this many constraint rows, where every body has mass and inertia (M
+#: positive definite, block-diagonal), the solves go through J M^-1 J^T itself,
+#: banded along the chain, rather than through the augmented M + J^T J, whose
+#: inverse is dense (:meth:`_Dynamics._constrained_banded`)
+BANDED_FROM = 40
+#: inverse and power iterations estimating the extreme eigenvalues of J M^-1 J^T there
+EIGEN_ITERATIONS = 30
 
 
 @dataclass(frozen=True)
@@ -299,6 +306,36 @@ class _Joints:
         return np.concatenate(values)
 
 
+def start_vector(rows: int) -> np.ndarray:
+    """The fixed start of the eigenvalue iterations, (rows,): 1 + sin(1.3 i + 0.4) / 2,
+    never orthogonal to an extreme eigenvector in practice."""
+    return 1.0 + 0.5 * np.sin(1.3 * np.arange(rows) + 0.4)
+
+
+def augmented_measure(smallest: float, largest: float) -> float:
+    """The singularity measure, sqrt(smallest / largest eigenvalue) of the augmented
+    J (M + J^T J)^-1 J^T = S (1 + S)^-1, from the smallest and largest eigenvalue of S =
+    J M^-1 J^T (dimensionless)."""
+    if not largest > 0.0:
+        return 0.0
+    smallest = max(smallest, 0.0)
+    return math.sqrt((smallest / (1.0 + smallest)) / (largest / (1.0 + largest)))
+
+
+def _iterated_measure(schur: np.ndarray, lower: np.ndarray, start: np.ndarray) -> float:
+    """:func:`augmented_measure` from the Rayleigh quotients of :data:`EIGEN_ITERATIONS`
+    inverse (through the Cholesky factor ``lower``) and power iterations on ``schur`` (m, m)."""
+    v = start / np.linalg.norm(start)
+    for _ in range(EIGEN_ITERATIONS):
+        v = solve_triangular(lower, solve_triangular(lower, v, lower=True), lower=True, trans="T")
+        v /= np.linalg.norm(v)
+    w = start / np.linalg.norm(start)
+    for _ in range(EIGEN_ITERATIONS):
+        w = schur @ w
+        w /= np.linalg.norm(w)
+    return augmented_measure(float(v @ schur @ v), float(w @ schur @ w))
+
+
 class _Dynamics:
     """The equations of the free mechanism at one state (no sample axis)."""
 
@@ -348,6 +385,11 @@ class _Dynamics:
         self.jac_factor = r[:, None] / d[None, :]
         self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
         self.load_factor = 1.0 / (d * self.mass_scale)
+        positive = bool(np.all(self.bodies.mass > 0.0) and np.all(self.bodies.inertia > 0.0))
+        pairs = [(a, b) for a, b in zip(self.joints.a, self.joints.b)] + [(t.a, t.b) for t in self.joints.others]
+        distinct = all(a != b for a, b in pairs)  # a row on two slots of one body would count it twice
+        self.banded = positive and distinct and self.joints.rows >= BANDED_FROM
+        self.start = start_vector(self.joints.rows)
 
     def _offset(self, body: str) -> int | None:
         """The body's coordinate offset, None for the ground."""
@@ -481,6 +523,8 @@ class _Dynamics:
         while the last one measured exceeds :data:`LEAST_SQUARES_BELOW` the
         multipliers come from a plain solve. Shapes (n,), n coordinates.
         """
+        if self.banded:
+            return self._constrained_banded(mass, jac, load, gap, measure, cutoff)
         d = self.scale_coordinates
         scaled_jac = jac * self.jac_factor
         augmented = mass * self.mass_factor + scaled_jac.T @ scaled_jac
@@ -498,6 +542,42 @@ class _Dynamics:
                 pass
         multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
         return (free + mj @ multipliers) / d, math.sqrt(float(singular[-1] / singular[0]))
+
+    def _constrained_banded(
+        self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray, measure: bool, cutoff: float
+    ) -> tuple[np.ndarray, float]:
+        """:meth:`_constrained` where M is positive definite and the rows many
+        (:data:`BANDED_FROM`): x = M^-1 (load + J^T nu) with (J M^-1 J^T) nu =
+        gap - J M^-1 load, in the same scaled units. M is block-diagonal, so
+        J M^-1 J^T is banded along the chain (the compiled kernel factors it
+        as such), where the augmented form's is dense. Its eigenvalues s are
+        the augmented form's s / (1 + s), so the measure is the same quantity,
+        here from the Rayleigh quotients of :data:`EIGEN_ITERATIONS` inverse
+        and power iterations from :func:`start_vector` (eigvalsh would cost
+        more than the rest of the step); where the Cholesky factor does not
+        exist, or below :data:`LEAST_SQUARES_BELOW`, from the least-squares
+        solve's singular values."""
+        d = self.scale_coordinates
+        scaled_jac = jac * self.jac_factor
+        scaled_mass = mass * self.mass_factor
+        free = np.linalg.solve(scaled_mass, load * self.load_factor)
+        mj = np.linalg.solve(scaled_mass, scaled_jac.T)
+        schur, rhs = scaled_jac @ mj, self.scale_rows * gap - scaled_jac @ free
+        try:
+            lower: np.ndarray | None = np.linalg.cholesky(schur)
+        except np.linalg.LinAlgError:
+            lower = None
+        singularity, plain = math.nan, self.measure > LEAST_SQUARES_BELOW
+        if measure:
+            singularity = 0.0 if lower is None else _iterated_measure(schur, lower, self.start)
+            plain = singularity > LEAST_SQUARES_BELOW
+        if plain and lower is not None:
+            multipliers = solve_triangular(lower, solve_triangular(lower, rhs, lower=True), lower=True, trans="T")
+        else:
+            multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
+            if measure:
+                singularity = augmented_measure(float(singular[-1]), float(singular[0]))
+        return (free + mj @ multipliers) / d, singularity
 
     def acceleration(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
         """q'' at time t (s) by Gauss's principle: M q'' - Q as small as the constraints
@@ -611,8 +691,9 @@ def _simulate_compiled(
 
     q0 = np.ascontiguousarray(start.q, dtype=float)
     qd0 = np.ascontiguousarray(start.qd, dtype=float)
+    packed = Packed(dyn)
     q, qd, qdd, residual, energy, work, passes, failed = integrate(
-        Packed(dyn).arrays(), q0, qd0, h, per_output, outputs, output_step
+        packed.arrays(), packed.structure(), q0, qd0, h, per_output, outputs, output_step
     )
     if failed >= 0:
         raise FloatingPointError(f"the integration went non-finite at t = {failed * output_step:.6g} s")
