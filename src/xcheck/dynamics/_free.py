@@ -68,6 +68,14 @@ PROJECTION_TOLERANCE = 1e-15
 BANDED_FROM = 40
 #: inverse and power iterations estimating the extreme eigenvalues of J M^-1 J^T there
 EIGEN_ITERATIONS = 30
+#: on that path, the multipliers come from least squares (a dense SVD) below this
+#: singularity measure only: above it the ratio of the extreme eigenvalues of
+#: J M^-1 J^T exceeds 5e-11 (the measure squared over 1 + the largest eigenvalue,
+#: about 1.75 on the IFToMM chains), the cut-off (RANK_CUTOFF, 1e-12) drops
+#: nothing and least squares equals the banded Cholesky solve to round-off (whose
+#: error, eps over the measure, is the SVD's as well); an SVD of 242 rows costs
+#: more than a hundred banded steps
+BANDED_LEAST_SQUARES_BELOW = 1e-5
 
 
 @dataclass(frozen=True)
@@ -555,7 +563,7 @@ class _Dynamics:
         here from the Rayleigh quotients of :data:`EIGEN_ITERATIONS` inverse
         and power iterations from :func:`start_vector` (eigvalsh would cost
         more than the rest of the step); where the Cholesky factor does not
-        exist, or below :data:`LEAST_SQUARES_BELOW`, from the least-squares
+        exist, or below :data:`BANDED_LEAST_SQUARES_BELOW`, from the least-squares
         solve's singular values."""
         d = self.scale_coordinates
         scaled_jac = jac * self.jac_factor
@@ -567,10 +575,10 @@ class _Dynamics:
             lower: np.ndarray | None = np.linalg.cholesky(schur)
         except np.linalg.LinAlgError:
             lower = None
-        singularity, plain = math.nan, self.measure > LEAST_SQUARES_BELOW
+        singularity, plain = math.nan, self.measure > BANDED_LEAST_SQUARES_BELOW
         if measure:
             singularity = 0.0 if lower is None else _iterated_measure(schur, lower, self.start)
-            plain = singularity > LEAST_SQUARES_BELOW
+            plain = singularity > BANDED_LEAST_SQUARES_BELOW
         if plain and lower is not None:
             multipliers = solve_triangular(lower, solve_triangular(lower, rhs, lower=True), lower=True, trans="T")
         else:
