@@ -729,6 +729,22 @@ def _times(matrix, vector):
 
 
 @njit(cache=True)
+def _rows_times(jac, vector, structure):
+    """jac @ vector, (m, n) by (n,); on the banded path through each row's (at most two) bodies."""
+    if structure[5][0] == 0:
+        return _times(jac, vector)
+    row_body = structure[0]
+    out = np.zeros(jac.shape[0])
+    for r in range(jac.shape[0]):
+        for slot in range(2):
+            k = row_body[r, slot]
+            if k >= 0:
+                for i in range(3 * k, 3 * k + 3):
+                    out[r] += jac[r, i] * vector[i]
+    return out
+
+
+@njit(cache=True)
 def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
@@ -783,7 +799,7 @@ def _project(model, structure, work, buffers, q, qd):
     _mass(q, mass, inertia, com, m_buf)
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
     correction, singular = _solve(
-        m_buf, j_buf, zero, -_times(j_buf, qd), True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
+        m_buf, j_buf, zero, -_rows_times(j_buf, qd, structure), True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
     )
     return q, qd + correction, before, singular
 
