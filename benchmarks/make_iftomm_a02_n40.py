@@ -22,8 +22,11 @@ OUT = Path(__file__).resolve().parent.parent / "models/benchmarks/iftomm-a02-n40
 
 def header(windows: int, name: str) -> str:
     """The file's comment and [mechanism] for a chain of ``windows`` windows."""
-    return _HEADER.replace("{W}", str(windows)).replace("{W1}", str(windows + 1)).replace("{NAME}", name).replace(
-        "{BARS}", str(2 * windows + 1)
+    return (
+        _HEADER.replace("{W}", str(windows))
+        .replace("{W1}", str(windows + 1))
+        .replace("{NAME}", name)
+        .replace("{BARS}", str(2 * windows + 1))
     )
 
 

@@ -98,7 +98,9 @@ class Packed:
         pairs += list(zip(self.o_a, self.o_b))
         rows, bodies = len(pairs), len(self.mass)
         self.row_body = np.array(pairs, dtype=np.int64).reshape(rows, 2)
-        on = [[(r, slot) for r in range(rows) for slot in range(2) if self.row_body[r, slot] == k] for k in range(bodies)]
+        on = [
+            [(r, slot) for r in range(rows) for slot in range(2) if self.row_body[r, slot] == k] for k in range(bodies)
+        ]
         self.body_ptr = np.cumsum([0] + [len(e) for e in on]).astype(np.int64)
         self.body_row = np.array([r for e in on for r, _ in e], dtype=np.int64)
         self.body_slot = np.array([slot for e in on for _, slot in e], dtype=np.int64)
@@ -617,7 +619,9 @@ def _band_measure(schur, lower, band, start):
 
 
 @njit(cache=True)
-def _constrained_banded(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work):
+def _constrained_banded(
+    mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
+):
     """As ``_Dynamics._constrained_banded``: (x, singularity measure or NaN). M^-1 by
     3 x 3 blocks, J by its (at most two) bodies per row, J M^-1 J^T assembled body
     by body in the rows' banded order and factored as banded; the least-squares
@@ -799,7 +803,18 @@ def _project(model, structure, work, buffers, q, qd):
     _mass(q, mass, inertia, com, m_buf)
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
     correction, singular = _solve(
-        m_buf, j_buf, zero, -_rows_times(j_buf, qd, structure), True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
+        m_buf,
+        j_buf,
+        zero,
+        -_rows_times(j_buf, qd, structure),
+        True,
+        PROJECTION_CUTOFF,
+        0.0,
+        scale_rows,
+        d,
+        mass_scale,
+        structure,
+        work,
     )
     return q, qd + correction, before, singular
 
@@ -865,11 +880,20 @@ def integrate(model, structure, q0, qd0, h, per_output, outputs, output_step):
             a1, p1 = _acceleration(model, structure, scratch, buffers, measure, q, qd, t), _power_of(model, q, qd, t)
             q2, qd2 = q + 0.5 * h * qd, qd + 0.5 * h * a1
             half = t + 0.5 * h
-            a2, p2 = _acceleration(model, structure, scratch, buffers, measure, q2, qd2, half), _power_of(model, q2, qd2, half)
+            a2, p2 = (
+                _acceleration(model, structure, scratch, buffers, measure, q2, qd2, half),
+                _power_of(model, q2, qd2, half),
+            )
             q3, qd3 = q + 0.5 * h * qd2, qd + 0.5 * h * a2
-            a3, p3 = _acceleration(model, structure, scratch, buffers, measure, q3, qd3, half), _power_of(model, q3, qd3, half)
+            a3, p3 = (
+                _acceleration(model, structure, scratch, buffers, measure, q3, qd3, half),
+                _power_of(model, q3, qd3, half),
+            )
             q4, qd4 = q + h * qd3, qd + h * a3
-            a4, p4 = _acceleration(model, structure, scratch, buffers, measure, q4, qd4, t + h), _power_of(model, q4, qd4, t + h)
+            a4, p4 = (
+                _acceleration(model, structure, scratch, buffers, measure, q4, qd4, t + h),
+                _power_of(model, q4, qd4, t + h),
+            )
             q = q + h / 6.0 * (qd + 2.0 * qd2 + 2.0 * qd3 + qd4)
             qd = qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
             w += h / 6.0 * (p1 + 2.0 * p2 + 2.0 * p3 + p4)
