@@ -444,3 +444,27 @@ def test_double_fourbar_of_forty_windows_follows_its_reduction():
     crossings = motion.times[1:][np.sign(exact[1:, 1]) != np.sign(exact[:-1, 1])]
     assert len(crossings) == len(motion.singular_passes) == 1
     assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
+
+
+def test_reference_ladder_stops_where_the_difference_grows(monkeypatch):
+    """A halving whose difference grows (round-off, not truncation, rules there) ends the
+    ladder: not converged, the previous pair's finer run with its difference."""
+    import types
+
+    import xcheck.dynamics._free as free
+
+    errors = {0.0025: 1e-6, 0.00125: 1e-7, 0.000625: 5e-6}  # m, the runs' own (made-up) errors
+    kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02.toml"))
+    start = release_state(kin)
+
+    def fake(kinematics, start, duration, output_step, step, compiled=True):
+        q = np.zeros((3, kinematics.system.n))
+        q[:, 0] = errors[round(step, 9)]
+        return types.SimpleNamespace(q=q, step=step, seconds=0.0)
+
+    monkeypatch.setattr(free, "simulate_free", fake)
+    reference = free.free_reference(kin, start, 1.0, 0.01, tolerance=1e-12, first_step=0.0025)
+    assert not reference.converged
+    assert reference.motion.step == 0.00125
+    assert reference.estimate.max() == pytest.approx(9e-7)
+    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625]
