@@ -424,3 +424,65 @@ def test_andrews_squeezer_reaches_the_published_state():
     assert max(abs(found[k] - ANDREWS[k]) for k in ANDREWS) <= 5e-9, found
     assert motion.residual.max() <= 1e-12  # m, the loops before each projection
     assert abs(motion.energy_error).max() <= 1e-8 * abs(motion.energy).max()  # motor work and the spring
+
+
+@pytest.mark.slow
+def test_double_fourbar_of_forty_windows_follows_its_reduction():
+    """models/benchmarks/iftomm-a02-n40.toml (81 bars, 243 coordinates, 242 rows: the
+    banded path) through its first all-horizontal pass, where all forty windows
+    lose rank together: every crank at the reduced theta'' = -((41/2 + 40) /
+    (41/3 + 40)) g cos(theta). Measured (2026-11-25) over 1 s from a 2.5 ms
+    step: converged at 1.25 ms, stated 1.9e-8 m (angles times the 40 m size),
+    true 1.3e-9 (crank angles times the size) and 3.2e-11 m (B0); energy
+    balance 2.8e-8 J of about 600 J; the bounds leave a factor of about 4."""
+    kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02-n40.toml"))
+    assert (len(kin.mechanism.moving_bodies), kin.system.n) == (81, 243)
+    reference = free_reference(kin, release_state(kin), 1.0, 0.01, tolerance=1e-9, first_step=2.5e-3)
+    assert reference.converged
+    motion, size = reference.motion, kin.system.size
+    k = (41 / 2 + 40) / (41 / 3 + 40)
+    ode = solve_ivp(
+        lambda t, y: [y[1], -k * G * math.cos(y[0])],
+        (0.0, 1.0),
+        [math.pi / 2, -1.0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-14,
+        t_eval=motion.times,
+    )
+    theta = ode.y[0]
+    cranks = [3 * i + 2 for i, b in enumerate(kin.mechanism.moving_bodies) if b.name.startswith("crank")]
+    assert len(cranks) == 41
+    angle_error = np.abs(motion.q[:, cranks] - theta[:, None]).max(axis=1) * size
+    exact = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    point_error = np.abs(motion.solution().point("B0")["position"] - exact).max(axis=1)
+    assert np.all(angle_error <= reference.estimate + 1e-15)  # the estimate bounds the true error
+    assert angle_error.max() <= 5e-9 and point_error.max() <= 1e-10
+    assert np.abs(motion.energy_error).max() <= 1e-7
+    crossings = motion.times[1:][np.sign(exact[1:, 1]) != np.sign(exact[:-1, 1])]
+    assert len(crossings) == len(motion.singular_passes) == 1
+    assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
+
+
+def test_reference_ladder_stops_where_the_difference_grows(monkeypatch):
+    """A halving whose difference grows (round-off, not truncation, rules there) ends the
+    ladder: not converged, the previous pair's finer run with its difference."""
+    import types
+
+    import xcheck.dynamics._free as free
+
+    errors = {0.0025: 1e-6, 0.00125: 1e-7, 0.000625: 5e-6}  # m, the runs' own (made-up) errors
+    kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02.toml"))
+    start = release_state(kin)
+
+    def fake(kinematics, start, duration, output_step, step, compiled=True):
+        q = np.zeros((3, kinematics.system.n))
+        q[:, 0] = errors[round(step, 9)]
+        return types.SimpleNamespace(q=q, step=step, seconds=0.0)
+
+    monkeypatch.setattr(free, "simulate_free", fake)
+    reference = free.free_reference(kin, start, 1.0, 0.01, tolerance=1e-12, first_step=0.0025)
+    assert not reference.converged
+    assert reference.motion.step == 0.00125
+    assert reference.estimate.max() == pytest.approx(9e-7)
+    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625]

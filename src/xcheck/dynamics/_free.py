@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import null_space
+from scipy.linalg import null_space, solve_triangular
 
 from ..kinematics import Kinematics, Solution, Status, rotate
 
@@ -61,6 +61,25 @@ ROUND_OFF = 1e-14
 #: stopping once the loops close to PROJECTION_TOLERANCE x size
 PROJECTION_ITERATIONS = 3
 PROJECTION_TOLERANCE = 1e-15
+#: from this many constraint rows, where every body has mass and inertia (M
+#: positive definite, block-diagonal), the solves go through J M^-1 J^T itself,
+#: banded along the chain, rather than through the augmented M + J^T J, whose
+#: inverse is dense (:meth:`_Dynamics._constrained_banded`)
+BANDED_FROM = 40
+#: inverse and power iterations estimating the extreme eigenvalues of J M^-1 J^T
+#: there; measured on iftomm-a02-n40 along its branch (crank angles 1e-5 to
+#: pi/2): the smallest to 1e-10 relative (its neighbour is four times larger, or
+#: round-off below 1e-12), the largest up to 11 % low (its neighbours crowd), the
+#: measure within 3.5 % of eigvalsh's; 30 iterations gain only a factor 2 there
+EIGEN_ITERATIONS = 8
+#: on that path, the multipliers come from least squares (a dense SVD) below this
+#: singularity measure only: above it the ratio of the extreme eigenvalues of
+#: J M^-1 J^T exceeds 5e-11 (the measure squared over 1 + the largest eigenvalue,
+#: about 1.75 on the IFToMM chains), the cut-off (RANK_CUTOFF, 1e-12) drops
+#: nothing and least squares equals the banded Cholesky solve to round-off (whose
+#: error, eps over the measure, is the SVD's as well); an SVD of 242 rows costs
+#: more than a hundred banded steps
+BANDED_LEAST_SQUARES_BELOW = 1e-5
 
 
 @dataclass(frozen=True)
@@ -299,6 +318,36 @@ class _Joints:
         return np.concatenate(values)
 
 
+def start_vector(rows: int) -> np.ndarray:
+    """The fixed start of the eigenvalue iterations, (rows,): 1 + sin(1.3 i + 0.4) / 2,
+    never orthogonal to an extreme eigenvector in practice."""
+    return 1.0 + 0.5 * np.sin(1.3 * np.arange(rows) + 0.4)
+
+
+def augmented_measure(smallest: float, largest: float) -> float:
+    """The singularity measure, sqrt(smallest / largest eigenvalue) of the augmented
+    J (M + J^T J)^-1 J^T = S (1 + S)^-1, from the smallest and largest eigenvalue of S =
+    J M^-1 J^T (dimensionless)."""
+    if not largest > 0.0:
+        return 0.0
+    smallest = max(smallest, 0.0)
+    return math.sqrt((smallest / (1.0 + smallest)) / (largest / (1.0 + largest)))
+
+
+def _iterated_measure(schur: np.ndarray, lower: np.ndarray, start: np.ndarray) -> float:
+    """:func:`augmented_measure` from the Rayleigh quotients of :data:`EIGEN_ITERATIONS`
+    inverse (through the Cholesky factor ``lower``) and power iterations on ``schur`` (m, m)."""
+    v = start / np.linalg.norm(start)
+    for _ in range(EIGEN_ITERATIONS):
+        v = solve_triangular(lower, solve_triangular(lower, v, lower=True), lower=True, trans="T")
+        v /= np.linalg.norm(v)
+    w = start / np.linalg.norm(start)
+    for _ in range(EIGEN_ITERATIONS):
+        w = schur @ w
+        w /= np.linalg.norm(w)
+    return augmented_measure(float(v @ schur @ v), float(w @ schur @ w))
+
+
 class _Dynamics:
     """The equations of the free mechanism at one state (no sample axis)."""
 
@@ -348,6 +397,11 @@ class _Dynamics:
         self.jac_factor = r[:, None] / d[None, :]
         self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
         self.load_factor = 1.0 / (d * self.mass_scale)
+        positive = bool(np.all(self.bodies.mass > 0.0) and np.all(self.bodies.inertia > 0.0))
+        pairs = [(a, b) for a, b in zip(self.joints.a, self.joints.b)] + [(t.a, t.b) for t in self.joints.others]
+        distinct = all(a != b for a, b in pairs)  # a row on two slots of one body would count it twice
+        self.banded = positive and distinct and self.joints.rows >= BANDED_FROM
+        self.start = start_vector(self.joints.rows)
 
     def _offset(self, body: str) -> int | None:
         """The body's coordinate offset, None for the ground."""
@@ -481,6 +535,8 @@ class _Dynamics:
         while the last one measured exceeds :data:`LEAST_SQUARES_BELOW` the
         multipliers come from a plain solve. Shapes (n,), n coordinates.
         """
+        if self.banded:
+            return self._constrained_banded(mass, jac, load, gap, measure, cutoff)
         d = self.scale_coordinates
         scaled_jac = jac * self.jac_factor
         augmented = mass * self.mass_factor + scaled_jac.T @ scaled_jac
@@ -498,6 +554,42 @@ class _Dynamics:
                 pass
         multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
         return (free + mj @ multipliers) / d, math.sqrt(float(singular[-1] / singular[0]))
+
+    def _constrained_banded(
+        self, mass: np.ndarray, jac: np.ndarray, load: np.ndarray, gap: np.ndarray, measure: bool, cutoff: float
+    ) -> tuple[np.ndarray, float]:
+        """:meth:`_constrained` where M is positive definite and the rows many
+        (:data:`BANDED_FROM`): x = M^-1 (load + J^T nu) with (J M^-1 J^T) nu =
+        gap - J M^-1 load, in the same scaled units. M is block-diagonal, so
+        J M^-1 J^T is banded along the chain (the compiled kernel factors it
+        as such), where the augmented form's is dense. Its eigenvalues s are
+        the augmented form's s / (1 + s), so the measure is the same quantity,
+        here from the Rayleigh quotients of :data:`EIGEN_ITERATIONS` inverse
+        and power iterations from :func:`start_vector` (eigvalsh would cost
+        more than the rest of the step); where the Cholesky factor does not
+        exist, or below :data:`BANDED_LEAST_SQUARES_BELOW`, from the least-squares
+        solve's singular values."""
+        d = self.scale_coordinates
+        scaled_jac = jac * self.jac_factor
+        scaled_mass = mass * self.mass_factor
+        free = np.linalg.solve(scaled_mass, load * self.load_factor)
+        mj = np.linalg.solve(scaled_mass, scaled_jac.T)
+        schur, rhs = scaled_jac @ mj, self.scale_rows * gap - scaled_jac @ free
+        try:
+            lower: np.ndarray | None = np.linalg.cholesky(schur)
+        except np.linalg.LinAlgError:
+            lower = None
+        singularity, plain = math.nan, self.measure > BANDED_LEAST_SQUARES_BELOW
+        if measure:
+            singularity = 0.0 if lower is None else _iterated_measure(schur, lower, self.start)
+            plain = singularity > BANDED_LEAST_SQUARES_BELOW
+        if plain and lower is not None:
+            multipliers = solve_triangular(lower, solve_triangular(lower, rhs, lower=True), lower=True, trans="T")
+        else:
+            multipliers, _, _, singular = np.linalg.lstsq(schur, rhs, rcond=cutoff)
+            if measure:
+                singularity = augmented_measure(float(singular[-1]), float(singular[0]))
+        return (free + mj @ multipliers) / d, singularity
 
     def acceleration(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
         """q'' at time t (s) by Gauss's principle: M q'' - Q as small as the constraints
@@ -611,8 +703,9 @@ def _simulate_compiled(
 
     q0 = np.ascontiguousarray(start.q, dtype=float)
     qd0 = np.ascontiguousarray(start.qd, dtype=float)
+    packed = Packed(dyn)
     q, qd, qdd, residual, energy, work, passes, failed = integrate(
-        Packed(dyn).arrays(), q0, qd0, h, per_output, outputs, output_step
+        packed.arrays(), packed.structure(), q0, qd0, h, per_output, outputs, output_step
     )
     if failed >= 0:
         raise FloatingPointError(f"the integration went non-finite at t = {failed * output_step:.6g} s")
@@ -661,7 +754,12 @@ def free_reference(
 ) -> FreeReference:
     """The native reference of a free motion: RK4 runs at halving steps until
     two consecutive ones differ by at most ``tolerance`` x the mechanism's
-    size at every output (see :class:`FreeReference`).
+    size at every output (see :class:`FreeReference`). Where a difference
+    grows from the previous pair's, the finer steps only add round-off (on
+    iftomm-a02-n40 the singular passes cost more energy the closer a step lands,
+    and below 1.25 ms each halving made the true error larger, 39 us a run 1.3e-3
+    off whose difference from the 78 us one was 4.2e-4): the ladder stops there,
+    not converged, with the previous pair's finer run and its difference.
 
     Parameters
     ----------
@@ -675,6 +773,7 @@ def free_reference(
     ladder: list[dict] = []
     coarse = None
     estimate, relative = np.full(1, math.inf), math.inf  # no estimate before two runs
+    previous: tuple[FreeMotion, np.ndarray, float] | None = None  # the last pair's finer run, estimate, relative
     for _ in range(max(max_halvings, 1) + 1):
         if progress is not None:
             progress(step)
@@ -692,6 +791,9 @@ def free_reference(
             relative = float(estimate.max()) / size
             if relative <= tolerance:
                 return FreeReference(motion, estimate, relative, True, ladder, tolerance)
+            if previous is not None and relative > previous[2]:
+                return FreeReference(*previous, False, ladder, tolerance)
+            previous = (motion, estimate, relative)
         else:
             ladder.append(entry)
         coarse, step = motion, motion.step / 2.0

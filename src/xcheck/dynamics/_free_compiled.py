@@ -22,6 +22,8 @@ import numpy as np
 from numba import njit
 
 from ._free import (
+    BANDED_LEAST_SQUARES_BELOW,
+    EIGEN_ITERATIONS,
     LEAST_SQUARES_BELOW,
     PROJECTION_CUTOFF,
     PROJECTION_ITERATIONS,
@@ -81,6 +83,42 @@ class Packed:
         self.scale_coordinates = np.asarray(dyn.scale_coordinates, dtype=float)
         self.mass_scale = float(dyn.mass_scale)
         self.size = float(dyn.size)
+        self._band(dyn)
+
+    def _band(self, dyn) -> None:
+        """The structure of J M^-1 J^T for :func:`_constrained_banded` (used where
+        ``dyn.banded``): each row's bodies (m, 2; -1 the ground), per body the rows on it
+        (CSR: ``body_ptr`` (B + 1,), ``body_row`` and ``body_slot``, which of the row's
+        two bodies it is), the rows' positions in a reverse Cuthill-McKee order (m,)
+        and the half-bandwidth there, and the iterations' start in that order (m,)."""
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        pairs = [(a, b) for a, b in zip(self.c_a, self.c_b) for _ in range(2)]
+        pairs += list(zip(self.o_a, self.o_b))
+        rows, bodies = len(pairs), len(self.mass)
+        self.row_body = np.array(pairs, dtype=np.int64).reshape(rows, 2)
+        on = [
+            [(r, slot) for r in range(rows) for slot in range(2) if self.row_body[r, slot] == k] for k in range(bodies)
+        ]
+        self.body_ptr = np.cumsum([0] + [len(e) for e in on]).astype(np.int64)
+        self.body_row = np.array([r for e in on for r, _ in e], dtype=np.int64)
+        self.body_slot = np.array([slot for e in on for _, slot in e], dtype=np.int64)
+        coupled = [(r, c) for e in on for r, _ in e for c, _ in e]
+        first = np.array([r for r, _ in coupled], dtype=np.int64)
+        second = np.array([c for _, c in coupled], dtype=np.int64)
+        pattern = csr_matrix((np.ones(len(first)), (first, second)), shape=(rows, rows))
+        order = reverse_cuthill_mckee(pattern, symmetric_mode=True) if rows else np.zeros(0, dtype=np.int64)
+        self.position = np.empty(rows, dtype=np.int64)
+        self.position[order] = np.arange(rows)
+        width = int(np.abs(self.position[first] - self.position[second]).max(initial=0))
+        self.band = np.array([1 if dyn.banded else 0, width], dtype=np.int64)
+        self.start = np.empty(rows)
+        self.start[self.position] = dyn.start
+
+    def structure(self) -> tuple:
+        """The band structure in :func:`integrate`'s ``structure`` order."""
+        return (self.row_body, self.body_ptr, self.body_row, self.body_slot, self.position, self.band, self.start)
 
     def arrays(self) -> tuple:
         """The arrays in :func:`integrate`'s argument order."""
@@ -165,7 +203,9 @@ def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offs
 
 @njit(cache=True)
 def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
-    out[:, :] = 0.0
+    """Phi_q into ``out`` (m, n): only its structural entries, the same at every
+    call, are written; the rest of ``out`` must be zero (:func:`integrate`'s buffer
+    is; zeroing it per call cost more than the banded solve on 81 bars)."""
     row = 0
     for t in range(len(c_a)):
         for body, s0, s1, sign in ((c_a[t], c_sa[t, 0], c_sa[t, 1], 1.0), (c_b[t], c_sb[t, 0], c_sb[t, 1], -1.0)):
@@ -242,13 +282,15 @@ def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
 
 @njit(cache=True)
 def _mass(q, mass, inertia, com, out):
-    out[:, :] = 0.0
+    """M(q) into ``out`` (n, n): only its 3 x 3 diagonal blocks are written; the
+    rest of ``out`` must be zero (:func:`integrate`'s buffer is)."""
     for i in range(len(mass)):
         k = 3 * i
         c, s = math.cos(q[k + 2]), math.sin(q[k + 2])
         ax, ay = c * com[i, 0] - s * com[i, 1], s * com[i, 0] + c * com[i, 1]
         m = mass[i]
         out[k, k] = out[k + 1, k + 1] = m
+        out[k, k + 1] = out[k + 1, k] = 0.0
         out[k, k + 2] = out[k + 2, k] = -m * ay
         out[k + 1, k + 2] = out[k + 2, k + 1] = m * ax
         out[k + 2, k + 2] = inertia[i] + m * (com[i, 0] * com[i, 0] + com[i, 1] * com[i, 1])
@@ -505,6 +547,182 @@ def _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows
 
 
 @njit(cache=True)
+def _augmented_measure(smallest, largest):
+    """As ``_free.augmented_measure``."""
+    if not largest > 0.0:
+        return 0.0
+    smallest = max(smallest, 0.0)
+    return math.sqrt((smallest / (1.0 + smallest)) / (largest / (1.0 + largest)))
+
+
+@njit(cache=True)
+def _band_cholesky(matrix, lower, band):
+    """The lower Cholesky factor of the symmetric ``matrix`` (m, m) of half-bandwidth
+    ``band`` into ``lower`` (only its band is written); False where it is not positive definite."""
+    m = len(matrix)
+    for j in range(m):
+        low = max(0, j - band)
+        total = matrix[j, j]
+        for k in range(low, j):
+            total -= lower[j, k] * lower[j, k]
+        if not total > 0.0:
+            return False
+        pivot = math.sqrt(total)
+        lower[j, j] = pivot
+        for i in range(j + 1, min(m, j + band + 1)):
+            total = matrix[i, j]
+            for k in range(max(low, i - band), j):
+                total -= lower[i, k] * lower[j, k]
+            lower[i, j] = total / pivot
+    return True
+
+
+@njit(cache=True)
+def _band_solve(lower, band, x):
+    """Overwrite ``x`` (m,) with the solution of L L^T y = x, L banded."""
+    m = len(x)
+    for i in range(m):
+        total = x[i]
+        for j in range(max(0, i - band), i):
+            total -= lower[i, j] * x[j]
+        x[i] = total / lower[i, i]
+    for i in range(m - 1, -1, -1):
+        total = x[i]
+        for j in range(i + 1, min(m, i + band + 1)):
+            total -= lower[j, i] * x[j]
+        x[i] = total / lower[i, i]
+
+
+@njit(cache=True)
+def _band_times(matrix, band, x):
+    """matrix @ x for a banded (m, m) matrix."""
+    m = len(x)
+    out = np.zeros(m)
+    for i in range(m):
+        for j in range(max(0, i - band), min(m, i + band + 1)):
+            out[i] += matrix[i, j] * x[j]
+    return out
+
+
+@njit(cache=True)
+def _band_measure(schur, lower, band, start):
+    """As ``_free._iterated_measure``, on the banded ``schur`` and its factor."""
+    v = start / math.sqrt(np.dot(start, start))
+    for _ in range(EIGEN_ITERATIONS):
+        _band_solve(lower, band, v)
+        v /= math.sqrt(np.dot(v, v))
+    w = start / math.sqrt(np.dot(start, start))
+    for _ in range(EIGEN_ITERATIONS):
+        w = _band_times(schur, band, w)
+        w /= math.sqrt(np.dot(w, w))
+    return _augmented_measure(np.dot(v, _band_times(schur, band, v)), np.dot(w, _band_times(schur, band, w)))
+
+
+@njit(cache=True)
+def _constrained_banded(
+    mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
+):
+    """As ``_Dynamics._constrained_banded``: (x, singularity measure or NaN). M^-1 by
+    3 x 3 blocks, J by its (at most two) bodies per row, J M^-1 J^T assembled body
+    by body in the rows' banded order and factored as banded; the least-squares
+    solve (dense SVD) only where that factor does not exist or below
+    :data:`BANDED_LEAST_SQUARES_BELOW`."""
+    row_body, body_ptr, body_row, body_slot, position, band_info, start = structure
+    schur, lower = work
+    band = band_info[1]
+    m, n = jac.shape
+    bodies = n // 3
+    inverse = np.empty((bodies, 3, 3))
+    free = np.empty(n)
+    block = np.empty((3, 3))
+    for k in range(bodies):
+        o = 3 * k
+        for i in range(3):
+            for j in range(3):
+                block[i, j] = mass[o + i, o + j] / (d[o + i] * d[o + j] * mass_scale)
+        c00 = block[1, 1] * block[2, 2] - block[1, 2] * block[2, 1]
+        c01 = block[1, 2] * block[2, 0] - block[1, 0] * block[2, 2]
+        c02 = block[1, 0] * block[2, 1] - block[1, 1] * block[2, 0]
+        det = block[0, 0] * c00 + block[0, 1] * c01 + block[0, 2] * c02
+        inverse[k, 0, 0], inverse[k, 1, 0], inverse[k, 2, 0] = c00 / det, c01 / det, c02 / det
+        inverse[k, 0, 1] = (block[0, 2] * block[2, 1] - block[0, 1] * block[2, 2]) / det
+        inverse[k, 1, 1] = (block[0, 0] * block[2, 2] - block[0, 2] * block[2, 0]) / det
+        inverse[k, 2, 1] = (block[0, 1] * block[2, 0] - block[0, 0] * block[2, 1]) / det
+        inverse[k, 0, 2] = (block[0, 1] * block[1, 2] - block[0, 2] * block[1, 1]) / det
+        inverse[k, 1, 2] = (block[0, 2] * block[1, 0] - block[0, 0] * block[1, 2]) / det
+        inverse[k, 2, 2] = (block[0, 0] * block[1, 1] - block[0, 1] * block[1, 0]) / det
+        for i in range(3):
+            total = 0.0
+            for j in range(3):
+                total += inverse[k, i, j] * load[o + j] / (d[o + j] * mass_scale)
+            free[o + i] = total
+    rows = np.zeros((m, 2, 3))  # scaled J on each row's two bodies
+    solved = np.zeros((m, 2, 3))  # M^-1 applied to them
+    rhs = np.empty(m)
+    for r in range(m):
+        total = scale_rows[r] * gap[r]
+        for slot in range(2):
+            k = row_body[r, slot]
+            if k < 0:
+                continue
+            for i in range(3):
+                rows[r, slot, i] = jac[r, 3 * k + i] * scale_rows[r] / d[3 * k + i]
+            for i in range(3):
+                solved[r, slot, i] = (
+                    inverse[k, i, 0] * rows[r, slot, 0]
+                    + inverse[k, i, 1] * rows[r, slot, 1]
+                    + inverse[k, i, 2] * rows[r, slot, 2]
+                )
+                total -= rows[r, slot, i] * free[3 * k + i]
+        rhs[position[r]] = total
+    for i in range(m):  # outside its band schur stays zero (integrate's buffer starts so)
+        for j in range(max(0, i - band), min(m, i + band + 1)):
+            schur[i, j] = 0.0
+    for k in range(bodies):
+        for e in range(body_ptr[k], body_ptr[k + 1]):
+            r, sr = body_row[e], body_slot[e]
+            for f in range(body_ptr[k], body_ptr[k + 1]):
+                c, sc = body_row[f], body_slot[f]
+                schur[position[r], position[c]] += (
+                    rows[r, sr, 0] * solved[c, sc, 0]
+                    + rows[r, sr, 1] * solved[c, sc, 1]
+                    + rows[r, sr, 2] * solved[c, sc, 2]
+                )
+    factored = _band_cholesky(schur, lower, band)
+    singularity = math.nan
+    plain = last_measure > BANDED_LEAST_SQUARES_BELOW
+    if measure:
+        singularity = _band_measure(schur, lower, band, start) if factored else 0.0
+        plain = singularity > BANDED_LEAST_SQUARES_BELOW
+    if plain and factored:
+        multipliers = rhs.copy()
+        _band_solve(lower, band, multipliers)
+    else:
+        multipliers, singular = _least_squares(schur, rhs, cutoff)
+        if measure:
+            singularity = _augmented_measure(singular[-1], singular[0])
+    x = np.empty(n)
+    for k in range(bodies):
+        for i in range(3):
+            total = free[3 * k + i]
+            for e in range(body_ptr[k], body_ptr[k + 1]):
+                r, slot = body_row[e], body_slot[e]
+                total += solved[r, slot, i] * multipliers[position[r]]
+            x[3 * k + i] = total / d[3 * k + i]
+    return x, singularity
+
+
+@njit(cache=True)
+def _solve(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work):
+    """``_constrained_banded`` where the structure says banded, else ``_constrained``."""
+    if structure[5][0] > 0:
+        return _constrained_banded(
+            mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
+        )
+    return _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale)
+
+
+@njit(cache=True)
 def _times(matrix, vector):
     """matrix @ vector, (m, n) by (n,)."""
     out = np.zeros(matrix.shape[0])
@@ -515,7 +733,23 @@ def _times(matrix, vector):
 
 
 @njit(cache=True)
-def _acceleration(model, buffers, last_measure, q, qd, t):
+def _rows_times(jac, vector, structure):
+    """jac @ vector, (m, n) by (n,); on the banded path through each row's (at most two) bodies."""
+    if structure[5][0] == 0:
+        return _times(jac, vector)
+    row_body = structure[0]
+    out = np.zeros(jac.shape[0])
+    for r in range(jac.shape[0]):
+        for slot in range(2):
+            k = row_body[r, slot]
+            if k >= 0:
+                for i in range(3 * k, 3 * k + 3):
+                    out[r] += jac[r, i] * vector[i]
+    return out
+
+
+@njit(cache=True)
+def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
      l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _,
@@ -528,7 +762,9 @@ def _acceleration(model, buffers, last_measure, q, qd, t):
         f_buf,
     )  # fmt: skip
     _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, g_buf)
-    return _constrained(m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale)[0]
+    return _solve(
+        m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale, structure, work
+    )[0]
 
 
 @njit(cache=True)
@@ -545,7 +781,7 @@ def _residual_metres(model, buffers, q):
 
 
 @njit(cache=True)
-def _project(model, buffers, q, qd):
+def _project(model, structure, work, buffers, q, qd):
     """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
      _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size, _, _, _) = model  # fmt: skip
@@ -559,13 +795,26 @@ def _project(model, buffers, q, qd):
         _mass(q, mass, inertia, com, m_buf)
         _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
         _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
-        step = _constrained(m_buf, j_buf, zero, -r_buf, True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale)[0]
+        step = _solve(
+            m_buf, j_buf, zero, -r_buf, True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
+        )[0]
         q = q + step
         gap = _residual_metres(model, buffers, q)
     _mass(q, mass, inertia, com, m_buf)
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
-    correction, singular = _constrained(
-        m_buf, j_buf, zero, -_times(j_buf, qd), True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale
+    correction, singular = _solve(
+        m_buf,
+        j_buf,
+        zero,
+        -_rows_times(j_buf, qd, structure),
+        True,
+        PROJECTION_CUTOFF,
+        0.0,
+        scale_rows,
+        d,
+        mass_scale,
+        structure,
+        work,
     )
     return q, qd + correction, before, singular
 
@@ -588,13 +837,15 @@ def _power_of(model, q, qd, t):
 
 
 @njit(cache=True)
-def integrate(model, q0, qd0, h, per_output, outputs, output_step):
+def integrate(model, structure, q0, qd0, h, per_output, outputs, output_step):
     """One integration (see ``_free.simulate_free``).
 
     Parameters
     ----------
     model : tuple
         :meth:`Packed.arrays`.
+    structure : tuple
+        :meth:`Packed.structure`.
     q0, qd0 : (n,)
         The consistent initial state.
     h : float
@@ -608,34 +859,45 @@ def integrate(model, q0, qd0, h, per_output, outputs, output_step):
     which the state went non-finite, or -1.
     """
     n, rows = len(q0), len(model[23])
-    buffers = (np.empty((n, n)), np.empty((rows, n)), np.empty(rows), np.empty(rows), np.empty(n))
+    buffers = (np.zeros((n, n)), np.zeros((rows, n)), np.empty(rows), np.empty(rows), np.empty(n))
     q_out, qd_out, qdd_out = np.empty((outputs + 1, n)), np.empty((outputs + 1, n)), np.empty((outputs + 1, n))
     residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)
+    side = rows if structure[5][0] > 0 else 0
+    scratch = (np.zeros((side, side)), np.empty((side, side)))  # J M^-1 J^T and its factor, banded path
     found, count = np.empty(16), 0
     q, qd = q0.copy(), qd0.copy()
     w = 0.0
-    q, qd, _, measure = _project(model, buffers, q, qd)
+    q, qd, _, measure = _project(model, structure, scratch, buffers, q, qd)
     sigma0 = sigma1 = measure
     q, qd = q0.copy(), qd0.copy()  # as the NumPy integrator: the start is used as given
     q_out[0], qd_out[0] = q, qd
-    qdd_out[0] = _acceleration(model, buffers, measure, q, qd, 0.0)
+    qdd_out[0] = _acceleration(model, structure, scratch, buffers, measure, q, qd, 0.0)
     energy[0] = _energy_of(model, q, qd)
     for i in range(1, outputs + 1):
         drift = 0.0
         for j in range(per_output):
             t = (i - 1) * output_step + j * h
-            a1, p1 = _acceleration(model, buffers, measure, q, qd, t), _power_of(model, q, qd, t)
+            a1, p1 = _acceleration(model, structure, scratch, buffers, measure, q, qd, t), _power_of(model, q, qd, t)
             q2, qd2 = q + 0.5 * h * qd, qd + 0.5 * h * a1
             half = t + 0.5 * h
-            a2, p2 = _acceleration(model, buffers, measure, q2, qd2, half), _power_of(model, q2, qd2, half)
+            a2, p2 = (
+                _acceleration(model, structure, scratch, buffers, measure, q2, qd2, half),
+                _power_of(model, q2, qd2, half),
+            )
             q3, qd3 = q + 0.5 * h * qd2, qd + 0.5 * h * a2
-            a3, p3 = _acceleration(model, buffers, measure, q3, qd3, half), _power_of(model, q3, qd3, half)
+            a3, p3 = (
+                _acceleration(model, structure, scratch, buffers, measure, q3, qd3, half),
+                _power_of(model, q3, qd3, half),
+            )
             q4, qd4 = q + h * qd3, qd + h * a3
-            a4, p4 = _acceleration(model, buffers, measure, q4, qd4, t + h), _power_of(model, q4, qd4, t + h)
+            a4, p4 = (
+                _acceleration(model, structure, scratch, buffers, measure, q4, qd4, t + h),
+                _power_of(model, q4, qd4, t + h),
+            )
             q = q + h / 6.0 * (qd + 2.0 * qd2 + 2.0 * qd3 + qd4)
             qd = qd + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
             w += h / 6.0 * (p1 + 2.0 * p2 + 2.0 * p3 + p4)
-            q, qd, before, measure = _project(model, buffers, q, qd)
+            q, qd, before, measure = _project(model, structure, scratch, buffers, q, qd)
             drift = max(drift, before)
             if sigma1 < SINGULAR_THRESHOLD and sigma1 <= sigma0 and sigma1 < measure:
                 if count == len(found):
@@ -646,6 +908,6 @@ def integrate(model, q0, qd0, h, per_output, outputs, output_step):
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
             return q_out, qd_out, qdd_out, residual, energy, work, found[:count], i
         q_out[i], qd_out[i] = q, qd
-        qdd_out[i] = _acceleration(model, buffers, measure, q, qd, i * output_step)
+        qdd_out[i] = _acceleration(model, structure, scratch, buffers, measure, q, qd, i * output_step)
         residual[i], energy[i], work[i] = drift, _energy_of(model, q, qd), w
     return q_out, qd_out, qdd_out, residual, energy, work, found[:count], -1
