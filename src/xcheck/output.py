@@ -533,8 +533,9 @@ def simulation_json(reference, result=None) -> dict:
                 "relative": _number(reference.relative),
                 "final": _number(reference.estimate[-1]),
                 "converged": reference.converged,
-                "basis": "the largest difference so far between the two finest RK4 runs of a "
-                "halving ladder (about 15 times the finer run's error)",
+                "basis": "the largest difference so far between the finer run and the one before it in a "
+                "halving ladder of RK4 runs (about 15 times the finer run's error); the ladder stops at "
+                "the tolerance, or where the difference grows as the step halves (round-off: then not converged)",
             },
             "step": _number(motion.step),
             "singular_passes": [_number(t) for t in motion.singular_passes],

@@ -169,12 +169,14 @@ class FreeReference:
     Attributes
     ----------
     motion : FreeMotion
-        The finest run.
+        The run returned: the finest, or, where the ladder stopped because the
+        difference grew as the step halved, the finer run of the last pair whose
+        difference fell.
     estimate : ndarray, shape (N,)
         At each output, the largest difference so far of a body position (m)
-        or angle (rad, times the mechanism's size) between the two finest
-        runs, at least 1e-14 of the size: the stated error bound (for RK4
-        about 15 times the finer run's own error).
+        or angle (rad, times the mechanism's size) between that run and the one
+        before it in the ladder, at least 1e-14 of the size: the stated error
+        bound (for RK4 about 15 times the finer run's own error).
     relative : float
         max(estimate) / size.
     converged : bool
