@@ -49,7 +49,7 @@ def _orders(errors: list[float]) -> list[float]:
 
 def test_registered_as_a_free_mode():
     engine = engines.engine("pybullet")
-    assert [(m.name, m.kind) for m in engine.modes] == [("pybullet-free", "free")]
+    assert [(m.name, m.kind) for m in engine.modes] == [("pybullet-dynamic", "dynamic"), ("pybullet-free", "free")]
     assert engine.available() == ""
 
 
