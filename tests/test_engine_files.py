@@ -68,9 +68,11 @@ def _pose_error(kin: Kinematics, model, data, q: np.ndarray) -> tuple[float, flo
     return position / kin.mechanism.size, angle
 
 
-def _equality_violation(model, data) -> float:
+def _equality_violation(model, data, size: float) -> float:
+    """The largest loop-closure (equality) violation per mechanism size: round-off grows
+    with the size and along a chain (iftomm-a02-n40, 81 bodies, 40 m: 1.4e-14 m)."""
     rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-    return float(np.max(np.abs(data.efc_pos[rows]))) if rows.any() else 0.0
+    return float(np.max(np.abs(data.efc_pos[rows]))) / size if rows.any() else 0.0
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES + BENCHMARKS)
@@ -82,7 +84,7 @@ def test_mjcf_opens_assembled_at_qpos0(name, tmp_path):
     mujoco.mj_forward(model, data)
     position, angle = _pose_error(kin, model, data, q)
     assert position < ROUND_OFF and angle < ROUND_OFF, (position, angle)
-    assert _equality_violation(model, data) < ROUND_OFF
+    assert _equality_violation(model, data, kin.mechanism.size) < ROUND_OFF
     if model.nkey:  # the keyframe is the same configuration
         np.testing.assert_array_equal(model.key_qpos[0], model.qpos0)
 
@@ -110,7 +112,7 @@ def test_mjcf_qpos_keeps_its_meaning_away_from_the_assembly(name, tmp_path):
         mujoco.mj_forward(model, data)
         position, angle = _pose_error(kin, model, data, q)
         assert position < ROUND_OFF and angle < ROUND_OFF, (position, angle)
-        assert _equality_violation(model, data) < ROUND_OFF
+        assert _equality_violation(model, data, kin.mechanism.size) < ROUND_OFF
     assert moved > 1e-3  # the states are away from the assembly
 
 
