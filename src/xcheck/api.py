@@ -727,7 +727,7 @@ def simulate(
     Columns: ``time_s``, ``body``, ``x_m``, ``y_m``, ``angle_rad`` (the body
     frame), ``vx_m_s``, ``vy_m_s``, ``omega_rad_s``, ``error_bound_m`` (the
     reference's stated error at that time: the largest difference so far
-    between its two finest runs). ``attrs`` holds ``converged`` (bool) and
+    between the returned run and the one before it in the step ladder). ``attrs`` holds ``converged`` (bool) and
     ``relative_error`` (the bound per mechanism size).
 
     Parameters
