@@ -23,10 +23,10 @@ import math
 import time
 
 import numpy as np
-import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences
+from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
+from xcheck.engines._driven import driven_result
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
@@ -233,24 +233,4 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None) -> ModeResult
         raise
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    rows = []
-    for row, trajectory in runs:
-        if trajectory is not None:
-            table = differences(kinematics, trajectory, branch)
-            for quantity, kind in _ERRORS.items():
-                part = table[table["quantity"] == quantity]
-                if part.empty:
-                    continue
-                worst = float(part["max_abs"].max())
-                scale = float(part["scale"].max())
-                row[f"{quantity}_error"] = worst / scale if kind == "rel" and scale > 0.0 else worst
-            row["input_error"] = float(np.max(np.abs(trajectory.diagnostics["input_error"])))
-            row["loop_gap"] = float(np.max(trajectory.diagnostics["constraint_violation"]))
-        rows.append(row)
-    summary = pd.DataFrame(rows)
-    errors = summary["position_error"] if "position_error" in summary else [math.nan] * len(summary)
-    study = convergence_study(summary["setting"], summary["timestep"], errors, summary["status"], 1e-13 * mech.size)
-    trajectories = [t for _, t in runs if t is not None]
-    if runs[0][1] is None:
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {runs[0][0]['status']}", trajectories, summary, study)
-    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)
+    return driven_result(MODE, kinematics, runs, _ERRORS, branch)
