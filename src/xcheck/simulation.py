@@ -10,6 +10,7 @@ others still run.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -25,6 +26,10 @@ __all__ = [
     "SimulationResult",
     "free_modes",
     "free_errors",
+    "free_row",
+    "outputs_per_step",
+    "empty_path",
+    "finish_free_run",
     "LADDER_COLUMNS",
     "ladder_steps",
     "left_branch",
@@ -149,6 +154,71 @@ def left_branch(reference, trajectory: Trajectory, limit: float) -> str:
         f"left the branch at t ≈ {float(times[first]):.4g} s: {away[first]:.3g} m from every configuration "
         "the reference passes through"
     )
+
+
+def free_row(setting: str, integrator: str, timestep: float) -> dict:
+    """A ladder row before its run: the columns of
+    :meth:`xcheck.engines.Engine.run_free`'s summary, figures NaN, status "ok"."""
+    return {
+        "setting": setting,
+        "integrator": integrator,
+        "timestep": timestep,
+        "steps": 0,
+        "status": "ok",
+        "cpu_seconds": math.nan,
+        "cpu_per_simulated_second": math.nan,
+        "position_error": math.nan,
+        "final_error": math.nan,
+        "loop_drift": math.nan,
+        "energy_drift": math.nan,
+    }
+
+
+def outputs_per_step(reference: FreeReference, timestep: float) -> tuple[int, str]:
+    """(steps per reference output, "") or (0, why not): a fixed-step engine samples
+    the reference's output times only if its step divides the output step."""
+    times = reference.motion.times
+    output = float(times[1] - times[0]) if len(times) > 1 else float(times[-1])
+    per_output = max(1, int(round(output / timestep)))
+    if abs(per_output * timestep - output) > 1e-9 * output:
+        return 0, f"the step does not divide the output step ({output:g} s)"
+    return per_output, ""
+
+
+def empty_path(mechanism, count: int) -> tuple[dict, dict]:
+    """NaN-filled ``(bodies, points)`` of :class:`~xcheck.compare.Trajectory` for
+    ``count`` samples: each moving body's position (count, 2) and angle (count,),
+    each named point's position (count, 2)."""
+    bodies = {
+        b.name: {"position": np.full((count, 2), np.nan), "angle": np.full(count, np.nan)}
+        for b in mechanism.moving_bodies
+    }
+    points = {label: {"position": np.full((count, 2), np.nan)} for label in mechanism.point_owners}
+    return bodies, points
+
+
+def finish_free_run(
+    mode: str,
+    reference: FreeReference,
+    index,
+    path: tuple[dict, dict],
+    settings: dict,
+    notes: str,
+    row: dict,
+    limit: float,
+) -> tuple[dict, Trajectory]:
+    """A run that went through, compared: its Trajectory at the reference's outputs
+    ``index``, and the row with position_error, final_error (m) and, where it strayed
+    farther than ``limit`` (m) from the reference's path, the status saying so."""
+    empty = np.zeros((len(index), 0))
+    bodies, points = path
+    trajectory = Trajectory(
+        mode, empty, empty, empty, bodies, points, reference.motion.times[index], settings, notes=notes
+    )
+    errors = free_errors(reference, trajectory)
+    row.update(position_error=errors["position_error"], final_error=errors["final_error"])
+    row["status"] = left_branch(reference, trajectory, limit) or row["status"]
+    return row, trajectory
 
 
 def ladder_steps(reference: FreeReference, steps) -> tuple[float, ...]:

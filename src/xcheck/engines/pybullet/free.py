@@ -67,7 +67,7 @@ from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
-from xcheck.simulation import free_errors, ladder_steps, left_branch
+from xcheck.simulation import empty_path, finish_free_run, free_row, ladder_steps, outputs_per_step
 from xcheck.topology import spanning_tree
 
 
@@ -529,32 +529,20 @@ def _energy(kinematics: Kinematics, mb: Multibody, frames, turned: dict[str, flo
 def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple[dict, Trajectory | None]:
     mech = kinematics.mechanism
     motion = reference.motion
-    row = {
-        "setting": setting.name,
-        "integrator": f"semi-implicit Euler, {setting.iterations} iterations"
+    row = free_row(
+        setting.name,
+        f"semi-implicit Euler, {setting.iterations} iterations"
         + ("" if setting.residual is None else f", residual threshold {setting.residual:g}")
         + ("" if setting.erp is None else f", erp {setting.erp:g}"),
-        "timestep": dt,
-        "steps": 0,
-        "status": "ok",
-        "cpu_seconds": math.nan,
-        "cpu_per_simulated_second": math.nan,
-        "position_error": math.nan,
-        "final_error": math.nan,
-        "loop_drift": math.nan,
-        "energy_drift": math.nan,
-    }
-    output_step = float(motion.times[1] - motion.times[0]) if len(motion.times) > 1 else float(motion.times[-1])
-    per_output = max(1, int(round(output_step / dt)))
-    if abs(per_output * dt - output_step) > 1e-9 * output_step:
-        row["status"] = f"the step does not divide the output step ({output_step:g} s)"
+        dt,
+    )
+    per_output, why = outputs_per_step(reference, dt)
+    if why:
+        row["status"] = why
         return row, None
     moving = [b.name for b in mech.moving_bodies]
     owners = mech.point_owners
-    bodies = {
-        name: {"position": np.full((len(index), 2), np.nan), "angle": np.full(len(index), np.nan)} for name in moving
-    }
-    points = {label: {"position": np.full((len(index), 2), np.nan)} for label in owners}
+    bodies, points = empty_path(mech, len(index))
     local = {label: np.asarray(mech.body(owner).points[label], float) for label, owner in owners.items()}
     drift, energy_drift, energy0 = 0.0, 0.0, math.nan
     # E less the loads' potential is conserved without dampers and time laws
@@ -623,28 +611,14 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     )
     if row["status"] != "ok":
         return row, None
-    times = motion.times[index]
-    empty = np.zeros((len(index), 0))
-    trajectory = Trajectory(
-        MODE,
-        empty,
-        empty,
-        empty,
-        bodies,
-        points,
-        times,
-        {
-            "setting": setting.name,
-            "integrator": row["integrator"],
-            "timestep": dt,
-            "series": setting.name,
-            "iterations": setting.iterations,
-            "residual": setting.residual,
-            "erp": setting.erp,
-        },
-        notes=f"PyBullet free motion, {setting.name} solver, dt = {dt:g} s.",
-    )
-    errors = free_errors(reference, trajectory)
-    row.update(position_error=errors["position_error"], final_error=errors["final_error"])
-    row["status"] = left_branch(reference, trajectory, APART * mech.size) or row["status"]
-    return row, trajectory
+    settings = {
+        "setting": setting.name,
+        "integrator": row["integrator"],
+        "timestep": dt,
+        "series": setting.name,
+        "iterations": setting.iterations,
+        "residual": setting.residual,
+        "erp": setting.erp,
+    }
+    notes = f"PyBullet free motion, {setting.name} solver, dt = {dt:g} s."
+    return finish_free_run(MODE, reference, index, (bodies, points), settings, notes, row, APART * mech.size)
