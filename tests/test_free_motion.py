@@ -106,7 +106,7 @@ def test_double_fourbar_passes_its_singular_positions_on_the_branch():
 def test_spring_and_damper_follow_the_damped_oscillator():
     """tests/data/spring-block.toml: m u'' + c u' + k u = 0 from u0 = 0.05 m at rest
     (closed form in its header); the damper's work keeps the energy balance."""
-    done = invoke("simulate", str(DATA / "spring-block.toml"), "--json", "--engines", "native")
+    done = invoke("simulate", str(DATA / "spring-block.toml"), "--json", "--no-report", "--engines", "native")
     assert done.returncode == 0, done.stderr
     native = json.loads(done.stdout)["native"]
     t, w0, zeta = 2.0, 10.0, 0.1
@@ -128,7 +128,12 @@ def test_rotational_spring_and_damper_follow_the_damped_oscillator():
     RK4 (the spring's torque applied through their force callbacks) 1.6e-11 m at
     the rim at 1 ms; pymunk's DampedRotarySpring: tests/test_free_pymunk.py."""
     done = invoke(
-        "simulate", str(DATA / "torsion-pendulum.toml"), "--json", "--engines", "native,mujoco-free,pinocchio-free"
+        "simulate",
+        str(DATA / "torsion-pendulum.toml"),
+        "--json",
+        "--no-report",
+        "--engines",
+        "native,mujoco-free,pinocchio-free",
     )
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
@@ -155,7 +160,7 @@ def test_torque_across_a_joint_shifts_the_oscillation(tmp_path):
     path = tmp_path / "driven-disc.toml"
     text = (DATA / "torsion-pendulum.toml").read_text(encoding="utf-8")
     path.write_text(text + '\n[[loads]]\njoint = "O"\ntorque = 0.5\n', encoding="utf-8")
-    done = invoke("simulate", str(path), "--json", "--engines", "native")
+    done = invoke("simulate", str(path), "--json", "--no-report", "--engines", "native")
     assert done.returncode == 0, done.stderr
     native = json.loads(done.stdout)["native"]
     t, w0, zeta, u0, u_eq = 2.0, 10.0, 0.1, math.pi / 6, 0.25
@@ -195,7 +200,12 @@ def test_harmonic_force_drives_the_oscillator():
     at 1 ms (order 4 down to the reference's own error); pymunk 4.5e-4 .. 1.1e-4 m
     (first order)."""
     done = invoke(
-        "simulate", str(DATA / "shaken-block.toml"), "--json", "--engines", "native,mujoco-free,pinocchio-free"
+        "simulate",
+        str(DATA / "shaken-block.toml"),
+        "--json",
+        "--no-report",
+        "--engines",
+        "native,mujoco-free,pinocchio-free",
     )
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)

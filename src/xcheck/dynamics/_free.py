@@ -164,7 +164,7 @@ class FreeMotion:
 
 @dataclass
 class FreeReference:
-    """The native reference: the finest run of a step ladder and its error estimate.
+    """The native reference: the run a step ladder keeps and its error estimate.
 
     Attributes
     ----------

@@ -160,7 +160,9 @@ def markdown(result: SimulationResult, images: dict[str, str], command: str) -> 
         (
             f"RK4 on the index-1 equations (accelerations by Gauss's principle), positions and velocities "
             f"projected onto the constraints after every step, at halving steps until two runs agree to "
-            f"{reference.tolerance:g} of the size. Finest step {motion.step:g} s; stated error "
+            f"{reference.tolerance:g} of the size, or until their difference grows as the step halves "
+            f"(round-off: the finer run of the last pair whose difference fell is kept). Step of the run "
+            f"kept {motion.step:g} s; stated error "
             f"{_g(float(reference.estimate.max()), 3)} m ({_g(reference.relative, 3)} of the size; "
             f"{'converged' if reference.converged else '**not converged**'}). Singular positions passed at "
             f"{passes} s. Loop closure before each projection at most {_g(float(motion.residual.max()), 2)} m; "
