@@ -28,8 +28,8 @@ from ._markdown import _g, _table  # noqa: E402
 __all__ = ["figures", "markdown"]
 
 
-def _png(figure) -> bytes:
-    return _figures._png(figure, dpi=110, metadata={"Software": None})
+def _png(figure, **options) -> bytes:
+    return _figures._png(figure, dpi=110, metadata={"Software": None}, **options)
 
 
 def _passes(ax, result: SimulationResult) -> None:
@@ -95,7 +95,7 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
         figure.tight_layout()
         out["errors"] = _png(figure)
 
-        figure, ax = plt.subplots(figsize=(7, 4.5))
+        figure, ax = plt.subplots(figsize=(10.5, 4.5))
         for mode, outcome in result.outcomes.items():
             summary = outcome.summary
             if summary is None or summary.empty or "cpu_seconds" not in summary:
@@ -127,10 +127,11 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
         ax.set_xlabel("CPU time [s]")
         ax.set_ylabel("largest point position error [m]")
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=6)
+        # beside the axes: with seven engines' settings a legend inside hides their points
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
         ax.set_title(f"{mech.name}: work-precision (one line per engine and setting, step falling)", fontsize=9)
         figure.tight_layout()
-        out["work-precision"] = _png(figure)
+        out["work-precision"] = _png(figure, bbox_inches="tight", pad_inches=0.1)  # the legend beside the axes
     return out
 
 
