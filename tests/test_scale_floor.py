@@ -40,10 +40,23 @@ def test_floor_of_a_sliding_input(trammel):
 def test_floor_of_a_revolute_input():
     fourbar = load_mechanism(DATA / "fourbar-200.toml")  # coupler 400 mm is the largest extent
     floors = scale_floors(fourbar, [[1.5], [-0.5]], [[0.0], [-3.0]])
+    assert floors["size"] == pytest.approx(0.4, rel=1e-15)
     assert floors["omega"] == pytest.approx(1.5, rel=1e-15)
     assert floors["alpha"] == pytest.approx(3.0, rel=1e-15)  # |-3| > 1.5^2 = 2.25
-    assert floors["velocity"] == pytest.approx(0.6, rel=1e-14)  # 1.5 rad/s x 0.4 m
-    assert floors["acceleration"] == pytest.approx(1.2, rel=1e-14)
+    # speeds at the crank's tip, 100 mm from its pivot, not at the coupler's 400 mm
+    assert floors["velocity"] == pytest.approx(0.15, rel=1e-14)  # 1.5 rad/s x 0.1 m
+    assert floors["acceleration"] == pytest.approx(0.3, rel=1e-14)
+
+
+def test_floor_of_a_short_crank_driving_long_links():
+    """A crank of 500 m driving a rod of 500 km (1000:1): the speed floor is the
+    crank tip's, 1000 times below the rate times the size, which let a velocity
+    1000 times too wrong pass as round-off (issue 18)."""
+    slider = load_mechanism(DATA / "ratio-1000.toml")
+    floors = scale_floors(slider, [[2.0]], [[0.5]])
+    assert floors["size"] == pytest.approx(5e5, rel=1e-12)
+    assert floors["velocity"] == pytest.approx(2.0 * 500.0, rel=1e-12)
+    assert floors["acceleration"] == pytest.approx(4.0 * 500.0, rel=1e-12)
 
 
 def test_floor_of_a_static_mechanism(trammel):

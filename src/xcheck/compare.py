@@ -81,14 +81,19 @@ def observed_order(
 def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float]:
     """The smallest scale of each quantity, from the mechanism itself.
 
-    With L the mechanism's size (m), the characteristic angular rate is
-    w = the largest |rate| of a revolute input or |rate| / L of a sliding one
-    over the samples, and the characteristic angular acceleration
-    a = max(w^2, a_in), a_in the largest |acceleration| of a revolute input or
-    |acceleration| / L of a sliding one. When every rate is zero, w =
-    sqrt(a_in), or where a_in is zero too (a static mechanism) w = sqrt(g / L)
-    (g: the mechanism's gravity, else :data:`STANDARD_GRAVITY`), the rate of a
-    pendulum of the mechanism's size.
+    With L the mechanism's size (m), each input i has an angular rate w_i =
+    its largest |rate| over the samples (revolute) or |rate| / L (sliding), an
+    angular acceleration a_i = max(w_i^2, its largest |acceleration|, or
+    |acceleration| / L) and a reach r_i: the largest distance from a revolute
+    input's joint to a point of the moving bodies it joins (the crank's
+    length), L for a sliding one. The characteristic angular rate is w =
+    max w_i, the angular acceleration a = max a_i, the velocity max w_i r_i
+    and the acceleration max a_i r_i, so that a small crank driving long
+    links (1000:1) is judged at its tip's speed, not at w L. When every rate
+    is zero, w = sqrt(a_in), or where every acceleration is zero too (a static
+    mechanism) w = sqrt(g / L) (g: the mechanism's gravity, else
+    :data:`STANDARD_GRAVITY`), the rate of a pendulum of the mechanism's
+    size, with reach L.
 
     Parameters
     ----------
@@ -101,18 +106,26 @@ def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float
     dict of str to float
         ``size`` L (m), ``rate`` w (rad/s), ``angular_acceleration`` a
         (rad/s^2), and per quantity of :data:`BODY_QUANTITIES`: position L,
-        angle 1 rad, omega w, alpha a, velocity w L (m/s), acceleration a L (m/s^2).
+        angle 1 rad, omega w, alpha a, velocity (m/s) and acceleration (m/s^2)
+        as above.
     """
     size = mechanism.size
     per = np.array([1.0 if d.quantity == "angle" else 1.0 / size for d in mechanism.drivers])
+    reach = np.array([driver_reach(mechanism, d) for d in mechanism.drivers])
     rates = np.abs(np.asarray(input_rates, dtype=float).reshape(-1, len(per))) * per
     accelerations = np.abs(np.asarray(input_accelerations, dtype=float).reshape(-1, len(per))) * per
-    a_in = float(np.nanmax(accelerations, initial=0.0))
-    w = float(np.nanmax(rates, initial=0.0))
+    w_each = np.nanmax(rates, axis=0, initial=0.0)
+    a_each = np.maximum(w_each**2, np.nanmax(accelerations, axis=0, initial=0.0))
+    w = float(np.max(w_each, initial=0.0))
     if w == 0.0:  # inputs at rest: accelerating from rest, or static
+        a_in = float(np.max(a_each, initial=0.0))
         g = float(np.hypot(*mechanism.gravity)) or STANDARD_GRAVITY
         w = math.sqrt(a_in) if a_in > 0.0 else math.sqrt(g / size)
-    a = max(w * w, a_in)
+        a = max(w * w, a_in)
+        velocity, acceleration = w * size, a * size
+    else:
+        a = float(np.max(a_each))
+        velocity, acceleration = float(np.max(w_each * reach)), float(np.max(a_each * reach))
     return {
         "size": size,
         "rate": w,
@@ -121,9 +134,30 @@ def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float
         "angle": 1.0,
         "omega": w,
         "alpha": a,
-        "velocity": w * size,
-        "acceleration": a * size,
+        "velocity": velocity,
+        "acceleration": acceleration,
     }
+
+
+def driver_reach(mechanism, driver) -> float:
+    """The length (m) over which a driver's rate becomes a speed.
+
+    A revolute input's reach is the largest distance from its joint to a point
+    of the moving bodies it joins (its crank's length); a sliding input's, and
+    a revolute one whose bodies have no point off the joint, the mechanism's
+    size (a sliding rate is divided by the size in :func:`scale_floors`).
+    """
+    joint = mechanism.joint(driver.joint)
+    if driver.quantity != "angle" or not hasattr(joint, "point_a"):
+        return mechanism.size
+    reach = 0.0
+    for body_name, label in ((joint.body_a, joint.point_a), (joint.body_b, joint.point_b)):
+        body = mechanism.body(body_name)
+        if body is mechanism.ground:
+            continue
+        points = np.array(list(body.points.values())) - body.points[label]
+        reach = max(reach, float(np.max(np.hypot(points[:, 0], points[:, 1]), initial=0.0)))
+    return reach if reach > 0.0 else mechanism.size
 
 
 @dataclass

@@ -45,7 +45,7 @@ from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
 from .motion import law_states, simulation_window, sweep_span
-from .tolerances import Tolerance, conditioned_round_off, convergence_round_off, length_ratio, power_round_off
+from .tolerances import Tolerance, convergence_round_off, length_ratio, power_round_off
 
 __all__ = [
     "is_static",
@@ -546,11 +546,12 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     condition = _condition(states)
     run.forces = compare_forces(kinematics, sources, branch)
     table = force_summary(run.forces)
-    table["tolerance"] = [force_tolerance(source, condition) for source in table.engine]
+    ratio = length_ratio(kinematics.mechanism)
+    table["tolerance"] = [force_tolerance(source, condition, ratio) for source in table.engine]
     table["passed"] = table.ok & (table.max_rel <= table.tolerance)
     run.force_table = table
     energy = energy_summary(kinematics, branch)
-    energy["tolerance"] = energy_tolerance(condition, length_ratio(kinematics.mechanism))
+    energy["tolerance"] = energy_tolerance(condition, ratio)
     energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
     run.energy = energy
 
@@ -572,12 +573,18 @@ def energy_tolerance(condition: float = 1.0, ratio: float = 1.0) -> float:
     return max(ENERGY_TOLERANCE, power_round_off(condition, ratio))
 
 
-def force_tolerance(source: str, condition: float = 1.0) -> float:
+def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> float:
     """The bound on a force source's reactions and efforts relative to the native
     ones: the source's own, but at least the round-off of accelerations at the
-    states' conditioning ``condition`` (10 eps kappa^2,
-    :func:`~xcheck.tolerances.conditioned_round_off`), since the reactions come
-    from the accelerations. Measured (xcheck fuzz, seed 1): on a slider-crank
+    states' conditioning ``condition`` and the mechanism's length ratio
+    ``ratio`` (10 eps kappa^2 ratio, :func:`~xcheck.tolerances.power_round_off`),
+    since the reactions come from the accelerations and a body ``ratio`` times
+    longer than the crank carries its angular acceleration's round-off (eps
+    kappa^2 of the crank's) into forces with its length, while the force scale
+    follows the crank's tip (:func:`~xcheck.compare.scale_floors`). Measured on a
+    rod 1000 times its crank (tests/data/ratio-1000.toml): the ground pin's
+    reaction from Newton-Euler, MuJoCo and Pinocchio 3.0e-12 to 3.4e-12 off the
+    native multipliers, 15 eps ratio. Measured (xcheck fuzz, seed 1): on a slider-crank
     near its dead centre (kappa = 163) MuJoCo's reactions 5.1e-11 (8.6 eps
     kappa^2), Pinocchio's 1.5e-12 (3.7e-11 before its solves were
     equilibrated); on a near-parallelogram (kappa = 4326) Pinocchio's 1.3e-14
@@ -588,7 +595,7 @@ def force_tolerance(source: str, condition: float = 1.0) -> float:
         bound: float | None = NEWTON_EULER_TOLERANCE
     else:
         bound = engines.engine(source).force_tolerance
-    return math.nan if bound is None else max(bound, conditioned_round_off("acceleration", condition))
+    return math.nan if bound is None else max(bound, power_round_off(condition, ratio))
 
 
 def versions() -> dict[str, str]:
