@@ -154,7 +154,16 @@ class FreeToy(engines.Engine):
 def test_a_free_mode_from_a_test_module_runs_in_simulate():
     engines.register(FreeToy)
     try:
-        done = _cli("simulate", str(DATA / "spring-block.toml"), "--duration", "0.2", "--engines", "freetoy", "--json")
+        done = _cli(
+            "simulate",
+            str(DATA / "spring-block.toml"),
+            "--duration",
+            "0.2",
+            "--engines",
+            "freetoy",
+            "--json",
+            "--no-report",
+        )
         run = _cli("run", "fourbar", "--engines", "freetoy")  # a free mode is not a mode of `run`
     finally:
         engines.unregister("freetoy")
