@@ -1,8 +1,14 @@
-"""Drake in free motion (drake-free) against the native reference: the converter
+"""Drake in free motion (drake-free) against the native reference, and in driven
+dynamics (drake-dynamic) against the native solution: the converter
 on every joint and force it holds (revolute tree joints and ball-constrained
 revolute cuts, prismatic joints with the line on the parent or on the child,
 linear spring-dampers, rotational spring-dampers, constant and time-law loads),
 the refusal of what it does not hold, and the measured first-order ladders.
+Driven (:mod:`xcheck.engines.drake.dynamic`, ``benchmarks/drake_pd_gain.py``):
+fourbar's positions 7.18e-6, 1.82e-6, 4.58e-7 m at 25, 50, 100 steps per sample
+(order 1.98, 1.99: the loops' opening, 3.0e-6 .. 1.9e-7 m), velocities 3.00e-3,
+1.47e-3, 7.26e-4 relative (order 1.03, 1.02), the PD's lag 5.24e-9, 1.36e-9,
+3.45e-10 rad, the same to four digits for Kp dt^2 / M from 1e4 to 1e10.
 
 Measured here with pydrake 1.51.1 (2026-11-25), default setting, dt = 1, 0.5,
 0.25 ms: A01 over 2 s 2.215e-3, 1.107e-3, 5.54e-4 m (order 1.00, Drake's
@@ -22,10 +28,11 @@ pytest.importorskip("pydrake")
 
 from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
-from xcheck.engines import NotApplicable  # noqa: E402
-from xcheck.engines.drake import free, sdf  # noqa: E402
+from xcheck.engines import NotApplicable, with_unit_mass  # noqa: E402
+from xcheck.engines.drake import dynamic, free, sdf  # noqa: E402
 from xcheck.kinematics import rotate  # noqa: E402
 from xcheck.model import Prismatic, Spring, parse_mechanism  # noqa: E402
+from xcheck.motion import simulation_window  # noqa: E402
 from xcheck.simulation import simulate_all  # noqa: E402
 from xcheck.topology import Topology, spanning_tree  # noqa: E402
 
@@ -42,9 +49,10 @@ def _errors(summary) -> list[float]:
     return list(summary.sort_values("timestep", ascending=False)["position_error"])
 
 
-def test_registered_as_a_free_mode():
+def test_registered_as_a_driven_and_a_free_mode():
     engine = engines.engine("drake")
-    assert [(m.name, m.kind) for m in engine.modes] == [("drake-free", "free")]
+    assert [(m.name, m.kind) for m in engine.modes] == [("drake-dynamic", "dynamic"), ("drake-free", "free")]
+    assert engines.engine_of("drake-dynamic").name == "drake"
     assert engine.available() == ""
     assert [e.name for e in engines.engines()].index("drake") == [e.name for e in engines.engines()].index(
         "pybullet"
@@ -224,3 +232,61 @@ def test_sdf_files_are_current_and_a_pin_in_slot_is_skipped():
     assert "skipped sdf of task-2-2: joint 'guide B' is a pin-in-slot" in done.stdout
     with pytest.raises(NotApplicable, match="pin-in-slot"):
         sdf.sdf_text(_kinematics(MODELS / "task-2-3.toml"))
+
+
+def _orders(summary, column: str) -> list[float]:
+    errors = list(summary.sort_values("timestep", ascending=False)[column])
+    return [math.log2(errors[i] / errors[i + 1]) for i in range(len(errors) - 1)]
+
+
+def test_driven_fourbar_positions_at_second_order_velocities_at_first():
+    """Measured 7.18e-6, 1.82e-6, 4.58e-7 m (order 1.98, 1.99), loops open by 1.94e-7 m at
+    the finest step; velocities order 1.03, 1.02; the lag 3.45e-10 rad at the finest."""
+    result = dynamic.run_dynamic(_kinematics(MODELS / "fourbar.toml"))
+    assert result.ok, result.reason
+    summary = result.summary
+    assert (summary["status"] == "ok").all(), summary
+    assert all(1.8 <= o <= 2.2 for o in _orders(summary, "position_error")), summary
+    assert all(1.8 <= o <= 2.2 for o in _orders(summary, "angle_error")), summary
+    assert all(0.9 <= o <= 1.2 for o in _orders(summary, "velocity_error")), summary
+    finest = summary.loc[summary["timestep"].idxmin()]
+    assert finest["position_error"] <= 1e-6  # measured 4.58e-7 m (size about 1 m)
+    assert finest["loop_gap"] <= 4e-7  # measured 1.94e-7 m: the position error is the loops' opening
+    assert finest["input_error"] <= 1e-9  # measured 3.45e-10 rad: the lag far below the position error
+    assert "acceleration_error" not in summary  # Drake's accelerations are not compared
+
+
+def test_driven_slide_on_a_prismatic_tree_joint():
+    """tests/data/slider-driven.toml, driven by its slide (harmonic): measured 2.76e-6,
+    6.90e-7, 1.73e-7 m (order 2.00), the lag 1.58e-6, 3.95e-7, 9.87e-8 m (order 2.00)."""
+    result = dynamic.run_dynamic(_kinematics(DATA / "slider-driven.toml"))
+    assert result.ok, result.reason
+    summary = result.summary
+    assert all(1.8 <= o <= 2.2 for o in _orders(summary, "position_error")), summary
+    assert all(1.8 <= o <= 2.2 for o in _orders(summary, "input_error")), summary
+    assert summary["position_error"].min() <= 4e-7  # measured 1.73e-7 m
+
+
+def test_driven_lag_is_the_steps_not_the_gains():
+    """Fourbar at 25 steps per sample: Kp dt^2 / M = 1e4 and 1e10 realise the same inputs
+    (measured lag 5.244e-9 rad for both, to four digits), while 1 lags by the gain
+    (measured 4.04e-6 rad): above 1e4 SAP's implicit PD is limited by the step."""
+    kin = _kinematics(MODELS / "fourbar.toml")
+    massive = Kinematics(with_unit_mass(kin.mechanism))
+    window = simulation_window(kin)
+    q, qd, qdd = window.inputs(kin, np.zeros(1))
+    start = kin.solve(q, qd, qdd)
+    dt = window.duration / (dynamic.SAMPLES * 25)
+    lags = []
+    for stiffness in (1.0, 1e4, 1e10):
+        pd = dynamic.gains(massive, dt, stiffness)
+        row, trajectory = dynamic.simulate(kin, massive, window, start.q[0], start.qd[0], 25, pd)
+        assert trajectory is not None, row
+        lags.append(float(np.max(np.abs(trajectory.diagnostics["input_error"]))))
+    assert lags[1] == pytest.approx(lags[2], rel=1e-3) and lags[1] < 1e-8, lags
+    assert lags[0] > 100.0 * lags[1], lags
+
+
+def test_driven_pin_in_slot_is_refused():
+    with pytest.raises(NotApplicable, match="pin-in-slot"):
+        dynamic.run_dynamic(_kinematics(MODELS / "task-2-2.toml"))

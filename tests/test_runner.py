@@ -42,20 +42,23 @@ def test_every_mode_within_tolerance(kinematics, name):
     ran = set(run.outcomes) | set(run.not_applicable)
     assert ran == set(ALL_MODES)
     # formulation II applies to every model here; Exudyn's driven mode drives angles only;
-    # PyBullet's model holds no pin-in-slot
+    # PyBullet's and Drake's models hold no pin-in-slot
     mech = run.kinematics.mechanism
     slides = any(d.quantity == "slide" for d in mech.drivers)
     slots = any(type(j).__name__ == "PinInSlot" for j in mech.joints)
     assert set(run.not_applicable) <= (
-        {"formulation-I"} | ({"exudyn-dynamic"} if slides else set()) | ({"pybullet-dynamic"} if slots else set())
+        {"formulation-I"}
+        | ({"exudyn-dynamic"} if slides else set())
+        | ({"pybullet-dynamic", "drake-dynamic"} if slots else set())
     )
     if "exudyn-dynamic" in run.not_applicable:
         assert "slide" in run.not_applicable["exudyn-dynamic"]
-    if "pybullet-dynamic" in run.not_applicable:
-        assert "pin-in-slot" in run.not_applicable["pybullet-dynamic"]
+    for mode in ("pybullet-dynamic", "drake-dynamic"):
+        if mode in run.not_applicable:
+            assert "pin-in-slot" in run.not_applicable[mode]
     for outcome in run.outcomes.values():
         expected = {"position", "velocity", "acceleration"} if outcome.mode == "native" else set(CATEGORIES)
-        if outcome.mode == "pybullet-dynamic":  # PyBullet gives no accelerations
+        if outcome.mode in ("pybullet-dynamic", "drake-dynamic"):  # PyBullet gives none, Drake's not compared
             expected -= {"acceleration", "alpha"}
         assert set(outcome.categories.category) == expected
 
@@ -69,7 +72,8 @@ def test_json_summary_shape():
     for mode, entry in doc["engines"].items():
         assert entry["pass"] is True and entry["reason"] is None
         for category in ("position", "velocity", "acceleration"):
-            if mode == "pybullet-dynamic" and category == "acceleration":  # PyBullet gives none
+            # PyBullet gives no accelerations; Drake's are not compared
+            if mode in ("pybullet-dynamic", "drake-dynamic") and category == "acceleration":
                 assert entry[category] is None
                 continue
             assert isinstance(entry[category], float) and entry[category] >= 0.0

@@ -138,6 +138,7 @@ def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
         "pymunk-dynamic",
         "exudyn-dynamic",
         "pybullet-dynamic",
+        "drake-dynamic",
     }
 
 
@@ -336,10 +337,12 @@ def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path
     assert set(document["engines"]) | set(document["not_applicable"]) == set(all_modes())
     # Exudyn's driven mode drives joint angles only (the trammel's and the wedge's inputs are slides)
     slides = name in ("elliptic-trammel", "wedge")
-    # PyBullet's model holds no pin-in-slot (the yoke's and the wedge's slots)
+    # PyBullet's and Drake's models hold no pin-in-slot (the yoke's and the wedge's slots)
     slots = 'type = "pin-in-slot"' in (DATA / f"{name}.toml").read_text(encoding="utf-8")
     assert set(document["not_applicable"]) <= (
-        {"formulation-I"} | ({"exudyn-dynamic"} if slides else set()) | ({"pybullet-dynamic"} if slots else set())
+        {"formulation-I"}
+        | ({"exudyn-dynamic"} if slides else set())
+        | ({"pybullet-dynamic", "drake-dynamic"} if slots else set())
     )
 
 

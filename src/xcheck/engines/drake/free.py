@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -196,9 +197,17 @@ def refuse(mech: Mechanism, topology: Topology) -> None:
         )
 
 
-def build(kinematics: Kinematics, dt: float) -> DrakeModel:
+def build(kinematics: Kinematics, dt: float, pd: Mapping[str, tuple[float, float]] | None = None) -> DrakeModel:
     """The mechanism as a finalized MultibodyPlant with time step ``dt`` (s) and a
     default context (see the module's notes).
+
+    Parameters
+    ----------
+    pd : mapping of str to (float, float), optional
+        Tree joint name -> (Kp, Kd): a ``JointActuator`` of that name on the joint, no
+        effort limit, with SAP's implicit PD controller of these gains (N m/rad and
+        N m s/rad, or N/m and N s/m), its desired state on the plant's desired-state
+        input port (the driven mode's drivers).
 
     Raises
     ------
@@ -273,6 +282,9 @@ def build(kinematics: Kinematics, dt: float) -> DrakeModel:
                 )
             joint = tree_module.PrismaticJoint(j.name, on_parent, on_child, xyz(axis))
         joints[tj.child] = plant.AddJoint(joint)
+        if pd and j.name in pd:
+            actuator = plant.AddJointActuator(j.name, joints[tj.child])
+            actuator.set_controller_gains(tree_module.PdControllerGains(p=pd[j.name][0], d=pd[j.name][1]))
         parents[tj.child] = tj.parent
         turns[tj.child] = float(turn)
     bodies = {name: bodies[name] for name in joints}  # tree order: parents first
