@@ -134,3 +134,22 @@ def test_mujoco_simulation_across_the_dead_centre_says_it_left_the_branch():
     assert "left the assembly branch at t = " in result.reason
     t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
     assert math.radians(270.0 - 200.3) / 10.0 <= t <= 0.2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("engine", ["pybullet", "drake"])
+def test_driven_engines_across_the_dead_centre_say_they_left_the_branch(engine):
+    """PyBullet's motor and Drake's PD carry tests/data/near-dead-centre.toml onto the
+    other branch near the dead centre as MuJoCo does: their driven modes fail with that
+    reason (engines._driven.left_branch), not with a disagreement of 2 sizes that
+    xcheck would own."""
+    import importlib
+
+    pytest.importorskip({"pybullet": "pybullet", "drake": "pydrake"}[engine])
+    run_dynamic = importlib.import_module(f"xcheck.engines.{engine}.dynamic").run_dynamic
+    kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
+    result = run_dynamic(kinematics)
+    assert not result.ok
+    assert "left the assembly branch at t = " in result.reason, result.reason
+    t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
+    assert math.radians(270.0 - 200.3) / 10.0 <= t <= 0.2

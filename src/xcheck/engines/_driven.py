@@ -9,10 +9,45 @@ import math
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences
-from xcheck.kinematics import Kinematics
+from xcheck import engines
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at
+from xcheck.kinematics import Kinematics, Status
 
-__all__ = ["driven_result"]
+__all__ = ["LEFT_BRANCH", "driven_result", "left_branch"]
+
+#: A driven run with a named point farther than this fraction of the mechanism's size from
+#: the native configuration at the inputs the engine realised has left the assembly branch.
+LEFT_BRANCH = 0.1
+
+
+def left_branch(kinematics: Kinematics, branch: str | None, trajectory: Trajectory, engine: str) -> str:
+    """ "" if every named point of a driven run stays within :data:`LEFT_BRANCH` of the
+    size of the native configuration at the inputs the engine realised, else when and
+    how far it left. An engine's soft or lagging loops can carry a mechanism across a
+    near dead centre onto the other branch (fuzz s1-00018: MuJoCo, PyBullet, Drake), a
+    stated result of the engine rather than a disagreement in a quantity.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The run's states (``times`` in s, or None: the sample index is reported).
+    engine : str
+        The engine's title, for the message ("MuJoCo").
+    """
+    native = native_at(kinematics, trajectory, branch)
+    good = native.status <= Status.NEAR_SINGULAR
+    gaps = np.zeros(len(trajectory.inputs))
+    for label, states in trajectory.points.items():
+        gaps = np.maximum(gaps, np.hypot(*(states["position"] - native.point(label)["position"]).T))
+    off = np.flatnonzero(good & (gaps > LEFT_BRANCH * kinematics.mechanism.size))
+    if not off.size:
+        return ""
+    i = int(off[0])
+    when = f"t = {float(trajectory.times[i]):.6g} s" if trajectory.times is not None else f"sample {i}"
+    return (
+        f"left the assembly branch at {when}: a point {gaps[i]:.3g} m from the native configuration "
+        f"at the inputs {engine} realised"
+    )
 
 
 def driven_result(
@@ -43,6 +78,15 @@ def driven_result(
         have no order: the drivers fix the positions exactly there).
     """
     mech = kinematics.mechanism
+    title = engines.engine(mode.split("-")[0]).title
+    kept: list[tuple[dict, Trajectory | None]] = []
+    for row, trajectory in runs:
+        status = "" if trajectory is None else left_branch(kinematics, branch, trajectory, title)
+        if status:  # a run on the other branch is the engine's result, not a quantity's error
+            row["status"] = status
+            trajectory = None
+        kept.append((row, trajectory))
+    runs = kept
     rows = []
     for row, trajectory in runs:
         if trajectory is not None:
@@ -65,5 +109,7 @@ def driven_result(
     study = convergence_study(summary["setting"], summary["timestep"], position, summary["status"], floor)
     trajectories = [t for _, t in runs if t is not None]
     if runs[0][1] is None:
-        return ModeResult(mode, mech.name, False, f"{mode}: {runs[0][0]['status']}", trajectories, summary, study)
+        first = runs[0][0]
+        reason = f"{first['setting']} dt = {first['timestep']:.4g} s: {first['status']}"
+        return ModeResult(mode, mech.name, False, reason, trajectories, summary, study)
     return ModeResult(mode, mech.name, True, "", trajectories, summary, study)

@@ -14,14 +14,15 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at, observed_order
+from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.engines._driven import left_branch
 from xcheck.errors import InputError, XcheckError
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import Mechanism
 from xcheck.motion import law_states, simulation_window, sweep_span
 
 from .dynamic import DEFAULT, TIGHT, Run, simulate
-from .free import LEFT_BRANCH, run_free  # noqa: F401
+from .free import run_free  # noqa: F401
 from .inverse import inverse_forces
 from .mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
 from .oracle import Oracle
@@ -378,7 +379,7 @@ def run_dynamic(
             trajectory, oracle_trajectory = _run_trajectories(
                 oracle, run, setting, duration, violation, tracking, with_oracle=is_primary
             )
-            status = _left_branch(kinematics, branch, trajectory)
+            status = left_branch(kinematics, branch, trajectory, "MuJoCo")
             if status:
                 trajectory = oracle_trajectory = None
         rows.append(_summary_row(kinematics, branch, run, trajectory, oracle_trajectory, violation, tracking, status))
@@ -402,27 +403,6 @@ def run_dynamic(
     if primary_failure:
         return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary, study)
     return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary, study)
-
-
-def _left_branch(kinematics: Kinematics, branch: str | None, trajectory: Trajectory) -> str:
-    """ "" if every named point of the run stays within LEFT_BRANCH of the size of the
-    native configuration at the inputs MuJoCo realised, else when and how far it left:
-    MuJoCo's soft loops can carry a mechanism across a near dead centre onto the other
-    branch (fuzz s1-00018), a stated result rather than a disagreement."""
-    native = native_at(kinematics, trajectory, branch)
-    good = native.status <= Status.NEAR_SINGULAR
-    gaps = np.zeros(len(trajectory.inputs))
-    for label, states in trajectory.points.items():
-        gaps = np.maximum(gaps, np.hypot(*(states["position"] - native.point(label)["position"]).T))
-    off = np.flatnonzero(good & (gaps > LEFT_BRANCH * kinematics.mechanism.size))
-    if not off.size:
-        return ""
-    i = int(off[0])
-    t = float(trajectory.times[i]) if trajectory.times is not None else float(i)
-    return (
-        f"left the assembly branch at t = {t:.6g} s: a point {gaps[i]:.3g} m from the native configuration "
-        "at the inputs MuJoCo realised"
-    )
 
 
 def _run_trajectories(
