@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import DATA, ROOT
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.engines._continuation import follow
@@ -153,3 +153,25 @@ def test_driven_engines_across_the_dead_centre_say_they_left_the_branch(engine):
     assert "left the assembly branch at t = " in result.reason, result.reason
     t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
     assert math.radians(270.0 - 200.3) / 10.0 <= t <= 0.2
+
+
+def test_branch_gap_status_names_the_first_sample_off_the_branch():
+    """engines._driven.branch_gap_status (pymunk's forces, every driven mode): points on
+    the native configuration give "", a point moved 0.2 of the size from sample 3 on
+    gives that sample's time and gap; a move of 0.05 of the size is a gap, not a branch."""
+    from xcheck.engines._driven import LEFT_BRANCH, branch_gap_status
+
+    kinematics = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
+    inputs = np.linspace(-1.0, 1.0, 7)[:, None]
+    native = kinematics.solve(inputs)
+    size = kinematics.mechanism.size
+    points = {label: native.point(label)["position"].copy() for label in ("B", "C")}
+    times = np.arange(7) * 0.5
+    assert branch_gap_status(kinematics, native, points, times, "Toy") == ""
+    points["C"][3:, 1] += 0.5 * LEFT_BRANCH * size
+    assert branch_gap_status(kinematics, native, points, times, "Toy") == ""
+    points["C"][3:, 1] += 1.5 * LEFT_BRANCH * size
+    status = branch_gap_status(kinematics, native, points, times, "Toy")
+    assert status.startswith("left the assembly branch at t = 1.5 s: a point ")
+    assert status.endswith("m from the native configuration at the inputs Toy realised")
+    assert float(status.split("a point ")[1].split(" m")[0]) == pytest.approx(2.0 * LEFT_BRANCH * size, rel=1e-3)

@@ -11,9 +11,9 @@ import pandas as pd
 
 from xcheck import engines
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at
-from xcheck.kinematics import Kinematics, Status
+from xcheck.kinematics import Kinematics, Solution, Status
 
-__all__ = ["LEFT_BRANCH", "driven_result", "left_branch"]
+__all__ = ["LEFT_BRANCH", "branch_gap_status", "driven_result", "left_branch"]
 
 #: A driven run with a named point farther than this fraction of the mechanism's size from
 #: the native configuration at the inputs the engine realised has left the assembly branch.
@@ -34,16 +34,34 @@ def left_branch(kinematics: Kinematics, branch: str | None, trajectory: Trajecto
     engine : str
         The engine's title, for the message ("MuJoCo").
     """
+    points = {label: states["position"] for label, states in trajectory.points.items()}
     native = native_at(kinematics, trajectory, branch)
+    return branch_gap_status(kinematics, native, points, trajectory.times, engine)
+
+
+def branch_gap_status(
+    kinematics: Kinematics, native: Solution, points: dict[str, np.ndarray], times: np.ndarray | None, engine: str
+) -> str:
+    """:func:`left_branch` for states given as named points' positions.
+
+    Parameters
+    ----------
+    native : Solution
+        The native solution at the engine's realised inputs (N samples).
+    points : dict of str to ndarray, shape (N, 2)
+        Positions (m) of named points as the engine has them.
+    times : ndarray, shape (N,), or None
+        The samples' times (s).
+    """
     good = native.status <= Status.NEAR_SINGULAR
-    gaps = np.zeros(len(trajectory.inputs))
-    for label, states in trajectory.points.items():
-        gaps = np.maximum(gaps, np.hypot(*(states["position"] - native.point(label)["position"]).T))
+    gaps = np.zeros(len(native.status))
+    for label, positions in points.items():
+        gaps = np.maximum(gaps, np.hypot(*(positions - native.point(label)["position"]).T))
     off = np.flatnonzero(good & (gaps > LEFT_BRANCH * kinematics.mechanism.size))
     if not off.size:
         return ""
     i = int(off[0])
-    when = f"t = {float(trajectory.times[i]):.6g} s" if trajectory.times is not None else f"sample {i}"
+    when = f"t = {float(times[i]):.6g} s" if times is not None else f"sample {i}"
     return (
         f"left the assembly branch at {when}: a point {gaps[i]:.3g} m from the native configuration "
         f"at the inputs {engine} realised"

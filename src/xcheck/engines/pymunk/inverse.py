@@ -29,6 +29,7 @@ import numpy as np
 import pymunk as pm
 
 from xcheck.dynamics import Forces
+from xcheck.engines._driven import branch_gap_status
 from xcheck.kinematics import Kinematics
 from xcheck.model import Prismatic, Revolute
 
@@ -105,6 +106,8 @@ def inverse_forces(
     for driver in mech.drivers:
         sources.append(("driver", driver.name, "|effort|", scene.constraints[f"driver:{driver.name}"][0]))
     gap_bound = 0.05 * mech.size
+    ground = mech.ground.name
+    owners = [(body, label) for label, body in mech.point_owners.items() if body != ground]
     for n in range(1, int(sample_steps[-1]) + 2):
         scene.step((n - 1) * dt, dt)
         if n not in wanted:
@@ -120,7 +123,7 @@ def inverse_forces(
                 f"the pymunk scene came apart at t = {n * dt:.6g} s: joints {gap:.3g} m apart "
                 f"(bound {gap_bound:.3g} m)" + (f" ({skew})" if skew else "")
             )
-        recorded[n] = (q, qd, impulses, gap)
+        recorded[n] = (q, qd, impulses, gap, [scene.world_point(body, label) for body, label in owners])
     inputs = np.array([recorded[int(n)][0] for n in sample_steps]).reshape(samples, k)
     rates = np.array([recorded[int(n)][1] for n in sample_steps]).reshape(samples, k)
     accelerations = np.array(
@@ -128,6 +131,12 @@ def inverse_forces(
     ).reshape(samples, k)
     forces = np.array([(recorded[int(n)][2] + recorded[int(n) + 1][2]) / (2.0 * dt) for n in sample_steps])
     gaps = np.array([recorded[int(n)][3] for n in sample_steps])
+    points = {label: np.array([recorded[int(n)][4][i] for n in sample_steps]) for i, (_, label) in enumerate(owners)}
+    left = branch_gap_status(
+        kinematics, kinematics.solve(inputs, rates, branch=branch), points, sample_steps * dt, "pymunk"
+    )
+    if left:  # its forces would be the other branch's, not an error in them
+        raise ValueError(f"the pymunk scene {left}")
     joints: dict = {j.name: {} for j in mech.joints}
     drivers: dict = {d.name: {} for d in mech.drivers}
     for column, (kind, name, quantity, _) in enumerate(sources):
