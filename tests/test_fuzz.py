@@ -222,3 +222,21 @@ def test_reactions_of_a_near_parallelogram_are_judged_at_its_conditioning():
     row = run.force_table.set_index("engine").loc["pinocchio"]
     assert row.ok and row.max_rel <= min(row.tolerance, 1e-13)
     assert row.tolerance > 1e-12  # the conditioned bound, 10 eps kappa^2
+
+
+def test_a_fixed_bound_of_a_stated_non_converging_quantity_is_the_engines():
+    """MuJoCo's qacc carries its constraint stabilisation and is judged by a fixed bound
+    (its mode's orders say None): beyond it, the failure is the engine's, while an
+    observed order short of the expected one stays a disagreement."""
+    import pandas as pd
+
+    from xcheck.fuzz import _beyond_stated_bound
+
+    fixed = pd.DataFrame(
+        {"category": ["acceleration"], "basis": ["fixed bound 0.015 (the quantity does not converge)"]}
+    )
+    order = pd.DataFrame({"category": ["velocity"], "basis": ["observed order 0.328 (expected 1; ...)"]})
+    assert _beyond_stated_bound(fixed)
+    assert not _beyond_stated_bound(order)
+    assert not _beyond_stated_bound(pd.concat([fixed, order]))
+    assert not _beyond_stated_bound(fixed.iloc[:0])

@@ -495,6 +495,12 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
             unobserved = _unobserved_order(outcome, failing)
             if unobserved:  # the engine's own coarser runs broke down: no verdict is possible
                 origin, text = "engine", unobserved
+            elif _beyond_stated_bound(failing):
+                origin = "engine"
+                text = (
+                    f"{categories}: beyond the fixed bound of a quantity the mode states does not converge "
+                    "with the step (its tolerance's reason, `xcheck engines`)"
+                )
             rows.append(row(mode, "failed", origin, text, seconds=outcome.seconds, **worst))
     if not run.force_table.empty:
         for _, forces in run.force_table.iterrows():
@@ -536,6 +542,13 @@ def _unobserved_order(outcome, failing: pd.DataFrame) -> str:
         statuses = [str(s) for s in study.status if str(s) != "ok"]
         broken = f" ({statuses[0]})" if statuses else ""
     return f"no coarser run of the compared series ran through{broken}: the order cannot be observed"
+
+
+def _beyond_stated_bound(failing: pd.DataFrame) -> bool:
+    """Whether every failing category of a dynamic mode is one its engine states does
+    not converge (judged by a fixed bound measured on the models, such as MuJoCo's qacc,
+    which carries its constraint stabilisation): the engine's limitation, measured."""
+    return not failing.empty and "basis" in failing and bool(failing.basis.str.startswith("fixed bound").all())
 
 
 def _worst(categories: pd.DataFrame) -> dict:
