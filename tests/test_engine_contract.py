@@ -103,7 +103,7 @@ def test_toy_engines_are_listed_and_selectable(toys):
     listed = CliRunner().invoke(app, ["engines", "--json"])
     assert listed.exit_code == 0, listed.output
     by_name = {e["name"]: e for e in json.loads(listed.stdout)["engines"]}
-    assert by_name["toy"]["modes"] == [{"name": "toy-kinematic", "kind": "kinematic"}]
+    assert by_name["toy"]["modes"] == [{"name": "toy-kinematic", "kind": "kinematic", "on_request": False}]
     assert by_name["absent"]["available"] is False
     assert "toy (toy-kinematic)" in " ".join(_cli("list").stdout.split())  # however the line wraps
     kinematic = _cli("run", "fourbar", "--engines", "kinematic", "--json", "--no-report", "--samples", "11")

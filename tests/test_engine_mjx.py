@@ -38,7 +38,7 @@ def _kinematics(path) -> Kinematics:
 
 def test_registered_as_a_free_mode():
     engine = engines.engine("mjx")
-    assert [(m.name, m.kind) for m in engine.modes] == [("mjx-free", "free")]
+    assert [(m.name, m.kind) for m in engine.modes] == [("mjx-dynamic", "dynamic"), ("mjx-free", "free")]
     assert engine.available() == ""
     names = [e.name for e in engines.engines()]
     assert names.index("mjx") > names.index("pybullet")  # the optional engines after the core ones
@@ -179,3 +179,83 @@ def test_mjx_constraint_lacks_mujoco_4s_velocity_term():
             assert np.max(np.abs(np.asarray(out.qacc) - data.qacc)) <= 1e-9 * np.max(np.abs(data.qacc))
         else:
             assert np.max(np.abs(drift)) > 1e-3  # measured 4.5e-3, 7.8e-3 m/s^2: the term is there
+
+
+# mjx-dynamic: MuJoCo's driven mode (tight setting, RK4 + Newton) on MJX, run on request.
+# Measured (2026-11-26, 2 shared cores under a fuzz campaign, mujoco 4.0.0, mujoco-mjx 3.17.0,
+# jax 0.10.2, CPU) on models/fourbar.toml over its whole window (1.64 s) at 1, 0.5, 0.25,
+# 0.125 ms: position error 1.0e-5, 2.6e-6, 6.7e-7, 1.7e-7 m (orders 1.96, 1.98, 1.99), MuJoCo (C)
+# 1.5e-8 .. 2.1e-10 m, the two within 1.0e-5 .. 1.7e-7 m; one compilation 39 CPU s. Over the
+# fixture's 0.2 s at 1, 0.5, 0.25 ms: 4.5e-6, 1.2e-6, 3.0e-7 m (orders 1.97, 1.96), 37 CPU s
+# of compilation.
+
+
+@pytest.fixture(scope="module")
+def fourbar_dynamic():
+    """mjx-dynamic on the four-bar over 0.2 s at 1, 0.5 and 0.25 ms, with MuJoCo (C) beside it
+    (one compilation: about 40 CPU s here)."""
+    from xcheck.engines.mjx import dynamic
+
+    return dynamic.run_dynamic(_kinematics(MODELS / "fourbar.toml"), duration=0.2, timesteps=(1e-3, 5e-4, 2.5e-4))
+
+
+def test_driven_mode_runs_only_on_request():
+    """mjx-dynamic is left out of the default selection and of the kind's group, and
+    runs when its engine or its name is named."""
+    import xcheck
+
+    assert engines.mode("mjx-dynamic").on_request and engines.mode("mjx-dynamic").kind == "dynamic"
+    assert "mjx-dynamic" not in xcheck.select_modes(None)
+    assert "mjx-dynamic" not in xcheck.select_modes("dynamic")
+    assert "mujoco-dynamic" in xcheck.select_modes("dynamic")
+    assert xcheck.select_modes("mjx") == ("native", "mjx-dynamic")
+    assert xcheck.select_modes("mjx-dynamic,mujoco") == (
+        "native",
+        "mjx-dynamic",
+        "mujoco-kinematic",
+        "mujoco-dynamic",
+    )
+    assert "mjx-dynamic" not in engines.groups()["dynamic"]
+    assert "mjx-dynamic" in engines.groups()["mjx"]
+    import json
+
+    from typer.testing import CliRunner
+
+    from xcheck.cli import app
+
+    listed = CliRunner().invoke(app, ["engines", "--json"])  # the listing says so
+    modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
+    assert modes["mjx-dynamic"]["on_request"] and not modes["mjx-free"]["on_request"]
+
+
+def test_driven_fourbar_converges_at_second_order_and_follows_mujoco(fourbar_dynamic):
+    """Positions at order 2 (the mode's order), every run on the branch, and within a measured
+    bound of MuJoCo (C) at the same setting: one compilation served the ladder."""
+    result = fourbar_dynamic
+    summary = result.summary
+    assert result.ok and (summary.status == "ok").all(), result.reason
+    assert (summary.setting == "tight").all() and (summary.integrator == "RK4").all()
+    assert (summary.solver == "Newton").all()
+    assert summary.compile_seconds.nunique() == 1
+    errors = summary.position_error.to_numpy()
+    orders = np.log2(errors[:-1] / errors[1:])
+    expected = engines.mode("mjx-dynamic").orders["position"]
+    assert np.all(np.abs(orders - expected) <= 0.25), orders  # measured 1.97, 1.96 over 0.2 s
+    # measured 4.5e-6, 1.2e-6, 3.0e-7 m: MJX's loops held open by about J-dot qd (2 dt)^2, MuJoCo (C)'s not
+    assert summary.mujoco_difference.iloc[-1] <= 4.5e-7
+    assert (summary.mujoco_position_error < summary.position_error).all()  # C is the more accurate
+    limit = engines.mode("mjx-dynamic").tolerance.acceleration
+    assert summary.acceleration_error.iloc[-1] <= limit  # measured 0.35 (t = 0: J-dot qd missing)
+    assert result.trajectories[0].source == "mjx-dynamic" and result.trajectories[0].settings["timestep"] == 2.5e-4
+
+
+def test_driven_mode_refuses_what_mjx_does_not_implement(monkeypatch):
+    """A file MJX cannot hold (mjx.put_model's NotImplementedError) makes the mode not applicable."""
+    from xcheck.engines.mjx import dynamic
+
+    def refuse(model, integrator, solver):
+        raise NotImplementedError("this geometry")
+
+    monkeypatch.setattr(dynamic, "mjx_model", refuse)
+    with pytest.raises(NotApplicable, match="MJX does not implement this geometry"):
+        dynamic.run_dynamic(_kinematics(MODELS / "fourbar.toml"), duration=0.01, timesteps=(1e-3,), compare=False)

@@ -539,7 +539,10 @@ def select_modes(
     chosen : str or sequence of str, optional
         Modes or groups (an engine's name such as ``"mujoco"``, or a kind:
         ``"kinematic"``, ``"dynamic"``; :func:`xcheck.engines.groups`), as a
-        comma-separated string (``--engines``) or a sequence; None: every mode.
+        comma-separated string (``--engines``) or a sequence; None: every mode
+        but those run only on request (:attr:`xcheck.engines.Mode.on_request`,
+        e.g. ``mjx-dynamic``), which run when named, or their engine is
+        (``"mjx"``), and not with a kind (``"dynamic"``).
     kinds : tuple of str
         The kinds of mode to choose from: the driven ones (``xcheck run``,
         default) or ``("free",)`` (``xcheck simulate``).
@@ -552,7 +555,7 @@ def select_modes(
     every = ("native", *(m.name for m in engines.modes(kinds)))
     groups = engines.groups(kinds)
     if chosen is None:
-        return every
+        return tuple(name for name in every if name == "native" or not engines.mode(name).on_request)
     text = chosen if isinstance(chosen, str) else ",".join(chosen)
     picked: list[str] = []
     for item in (part.strip() for part in text.split(",") if part.strip()):

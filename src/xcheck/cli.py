@@ -218,7 +218,7 @@ def engines_command(
             "title": e.title,
             "available": not e.available(),
             "reason": e.available() or None,
-            "modes": [{"name": m.name, "kind": m.kind} for m in e.modes],
+            "modes": [{"name": m.name, "kind": m.kind, "on_request": m.on_request} for m in e.modes],
             "forces": e.force_tolerance is not None,
             "export_format": e.export_format,
             "notes": e.notes,
@@ -235,7 +235,12 @@ def engines_command(
     for row in rows:
         table.add_row(
             escape(row["name"]),
-            escape("\n".join(f"{m['name']} ({m['kind']})" for m in row["modes"])),
+            escape(
+                "\n".join(
+                    f"{m['name']} ({m['kind']}{', on request: --engines ' + m['name'] if m['on_request'] else ''})"
+                    for m in row["modes"]
+                )
+            ),
             "ready" if row["available"] else escape(row["reason"]),
             "yes" if row["forces"] else "no",
             escape(row["export_format"] or "-"),
@@ -438,7 +443,8 @@ def run_command(
         typer.Option(
             "--engines",
             metavar="MODE[,MODE…]",
-            help="Modes to run (default: all; `xcheck engines` lists them): native, the engines' modes (e.g. "
+            help="Modes to run (default: all but those run on request, mjx-dynamic; `xcheck engines` lists them): "
+            "native, the engines' modes (e.g. "
             "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
             "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).",
         ),
@@ -1019,7 +1025,8 @@ def fuzz_command(
         str, typer.Option("--kinds", help="Comma-separated kinds: fourbar, slider-crank, scotch-yoke.")
     ] = "fourbar,slider-crank,scotch-yoke",
     engines: Annotated[
-        Optional[str], typer.Option("--engines", help="Comma-separated modes or groups (default: all).")
+        Optional[str],
+        typer.Option("--engines", help="Comma-separated modes or groups (default: all but those run on request)."),
     ] = None,
     samples: Annotated[int, typer.Option("--samples", help=f"Samples of the sweeps (3 to {MAX_SAMPLES}).")] = 181,
     scheduler: Annotated[

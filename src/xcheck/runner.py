@@ -480,7 +480,8 @@ def run_mechanism(
     Parameters
     ----------
     modes : sequence of str
-        Names from :func:`all_modes` (default: all); "native" always runs.
+        Names from :func:`all_modes` (default: all but those run only on
+        request, :attr:`xcheck.engines.Mode.on_request`); "native" always runs.
     samples : int
         Samples of the native sweep and of the kinematic modes' sweeps.
     textbook : list of dict, optional
@@ -497,7 +498,9 @@ def run_mechanism(
     floors = scale_floors(kinematics.mechanism, rates, accelerations)
     outcomes = {"native": _native_self_check(kinematics, native, NATIVE_TOLERANCE, floors)}
     not_applicable = {}
-    modes = all_modes() if modes is None else tuple(modes)
+    if modes is None:
+        modes = tuple(m for m in all_modes() if m == "native" or not engines.mode(m).on_request)
+    modes = tuple(modes)
     for mode in modes:
         if mode == "native":
             continue

@@ -121,6 +121,12 @@ class Mode:
         per category (None: judged by the fixed bound of ``tolerance``).
     style : mapping
         Matplotlib line style of the mode in plots.
+    on_request : bool
+        Run only when asked for by name, or by its engine's name
+        (``--engines mjx``): not in the default selection, nor in a kind's
+        group (``--engines dynamic``); for a mode too costly to run every time
+        (MJX's driven mode: a compilation of tens of CPU seconds per mechanism).
+        See :func:`xcheck.select_modes` and :func:`xcheck.engines.groups`.
     """
 
     name: str
@@ -128,6 +134,7 @@ class Mode:
     tolerance: Tolerance
     orders: Mapping[str, float | None] = field(default_factory=dict)
     style: Mapping[str, object] = field(default_factory=dict)
+    on_request: bool = False
 
 
 class Engine:

@@ -146,11 +146,12 @@ def engine_of(mode_name: str) -> Engine:
 
 def groups(kinds: tuple[str, ...] = KINDS) -> dict[str, tuple[str, ...]]:
     """``--engines`` shortcuts: each engine's name, and each kind, to its modes
-    of these kinds (default: all)."""
+    of these kinds (default: all). An engine's group has every mode of it; a
+    kind's leaves out the modes run only on request (:attr:`Mode.on_request`)."""
     found = {e.name: tuple(m.name for m in e.modes if m.kind in kinds) for e in engines()}
     found = {name: chosen for name, chosen in found.items() if chosen}
     for kind in kinds:
-        found.setdefault(kind, tuple(m.name for m in modes((kind,))))
+        found.setdefault(kind, tuple(m.name for m in modes((kind,)) if not m.on_request))
     return found
 
 

@@ -87,6 +87,9 @@ class Run:
         (an unstable simulation, after which MuJoCo resets the state).
     settings : dict
     steps : int
+    columns : dict
+        Further columns of the run's summary row (e.g. MJX's compile and run CPU
+        seconds); none for MuJoCo's.
     """
 
     times: np.ndarray
@@ -97,6 +100,7 @@ class Run:
     failure: str = ""
     settings: dict = field(default_factory=dict)
     steps: int = 0
+    columns: dict = field(default_factory=dict)
 
 
 def simulate(

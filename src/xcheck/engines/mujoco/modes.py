@@ -242,6 +242,7 @@ def _summary_row(kinematics, branch, run: Run, trajectory, oracle_trajectory, vi
         "observed_order": np.nan,
         "constraint_violation": float(np.max(violation)) if violation.size else np.nan,
         "input_tracking": float(np.max(tracking)) if tracking.size else np.nan,
+        **run.columns,
     }
     if status:
         return row
@@ -290,6 +291,9 @@ def run_dynamic(
     duration: float | None = None,
     violation_bound: float = 0.05,
     xml: str | None = None,
+    simulator=simulate,
+    mode: str = DYNAMIC_MODE,
+    title: str = "MuJoCo",
 ) -> ModeResult:
     """MuJoCo simulating the mechanism with its inputs driven by the file's servos.
 
@@ -316,6 +320,15 @@ def run_dynamic(
         size counts as diverged.
     xml : str, optional
         MJCF text to use instead of the writer's.
+    simulator : callable
+        What integrates one run: :func:`~xcheck.engines.mujoco.dynamic.simulate`
+        (MuJoCo's C library, default) or another implementation of MuJoCo with
+        its signature returning a :class:`~xcheck.engines.mujoco.dynamic.Run`
+        (MJX: :class:`xcheck.engines.mjx.dynamic.Simulator`); the run's
+        ``columns`` join its summary row.
+    mode, title : str
+        The mode's name (the result's and the trajectories' source) and the
+        engine's title (in messages and notes).
 
     Returns
     -------
@@ -336,16 +349,16 @@ def run_dynamic(
     mech = kinematics.mechanism
     model, lay, failure = _compile(kinematics, xml)
     if failure:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, failure)
+        return ModeResult(mode, mech.name, False, failure)
     duration, failure = _simulated_duration(kinematics, branch, duration)
     if failure:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, failure)
+        return ModeResult(mode, mech.name, False, failure)
     oracle = Oracle(model, mech, lay)
     c0, cd0 = (np.array([float(d.law.at_time(0.0)[i]) for d in mech.drivers]) for i in (0, 1))
     native = kinematics.solve(c0[None], cd0[None], branch=branch)
     if native.status[0] > Status.NEAR_SINGULAR:
         return ModeResult(
-            DYNAMIC_MODE,
+            mode,
             mech.name,
             False,
             f"the mechanism has no determined state at t = 0 ({Status(native.status[0]).message})",
@@ -356,12 +369,12 @@ def run_dynamic(
 
     plan = [(DEFAULT, dt) for dt in default_timesteps] + [(TIGHT, dt) for dt in tight_timesteps]
     if not plan:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, "expected at least one time step to run, found none")
+        return ModeResult(mode, mech.name, False, "expected at least one time step to run, found none")
     primary = (TIGHT, min(tight_timesteps)) if tight_timesteps else plan[-1]
     rows, primary_failure = [], ""
     trajectories: list[Trajectory] = []
     for setting, dt in plan:
-        run = simulate(copy.deepcopy(model), mech, lay, setting, dt, duration, qpos0, qvel0, samples)
+        run = simulator(copy.deepcopy(model), mech, lay, setting, dt, duration, qpos0, qvel0, samples)
         violation = np.array([oracle.violation(q) for q in run.qpos])
         tracking = np.abs(run.qpos[:, dofs] - run.law)
         status = run.failure
@@ -377,9 +390,9 @@ def run_dynamic(
         oracle_trajectory: Trajectory | None = None
         if not status:
             trajectory, oracle_trajectory = _run_trajectories(
-                oracle, run, setting, duration, violation, tracking, with_oracle=is_primary
+                oracle, run, setting, duration, violation, tracking, with_oracle=is_primary, mode=mode, title=title
             )
-            status = left_branch(kinematics, branch, trajectory, "MuJoCo")
+            status = left_branch(kinematics, branch, trajectory, title)
             if status:
                 trajectory = oracle_trajectory = None
         rows.append(_summary_row(kinematics, branch, run, trajectory, oracle_trajectory, violation, tracking, status))
@@ -401,12 +414,20 @@ def run_dynamic(
         summary.setting + " " + summary.integrator, summary.timestep, summary.position_error, summary.status
     )
     if primary_failure:
-        return ModeResult(DYNAMIC_MODE, mech.name, False, primary_failure, trajectories, summary, study)
-    return ModeResult(DYNAMIC_MODE, mech.name, True, "", trajectories, summary, study)
+        return ModeResult(mode, mech.name, False, primary_failure, trajectories, summary, study)
+    return ModeResult(mode, mech.name, True, "", trajectories, summary, study)
 
 
 def _run_trajectories(
-    oracle: Oracle, run: Run, setting, duration: float, violation: np.ndarray, tracking: np.ndarray, with_oracle: bool
+    oracle: Oracle,
+    run: Run,
+    setting,
+    duration: float,
+    violation: np.ndarray,
+    tracking: np.ndarray,
+    with_oracle: bool,
+    mode: str = DYNAMIC_MODE,
+    title: str = "MuJoCo",
 ) -> tuple[Trajectory, Trajectory | None]:
     """The trajectory of a run (accelerations from qacc) and, if asked, the same
     states with the kinematic oracle's accelerations (else None)."""
@@ -425,7 +446,7 @@ def _run_trajectories(
     drive = (
         f"{setting.name} setting ({setting.integrator}, dt = {run.settings['timestep']:g} s). Inputs driven "
         "by the file's servos, controls = the laws' value and rate at each step's start; the native solver "
-        "is evaluated at the inputs as MuJoCo realised them (input joints' qpos, qvel, qacc). "
+        f"is evaluated at the inputs as {title} realised them (input joints' qpos, qvel, qacc). "
     )
     defaults = [name for name, props in mass_properties(oracle.mechanism).items() if props.default]
     if defaults:
@@ -437,7 +458,7 @@ def _run_trajectories(
     drive += f"{note} " if note else ""
     bodies, points = oracle.states(run.qpos, run.qvel, run.qacc)
     trajectory = Trajectory(
-        DYNAMIC_MODE,
+        mode,
         inputs,
         rates,
         accelerations,
@@ -446,8 +467,8 @@ def _run_trajectories(
         run.times,
         settings,
         diagnostics,
-        drive + "Accelerations: qacc from mj_forward at each sampled state (what "
-        "the integrator uses, including MuJoCo's constraint stabilisation); the comparison "
+        drive + f"Accelerations: qacc from {title}'s forward dynamics at each sampled state (what "
+        f"the integrator uses, including {title}'s constraint stabilisation); the comparison "
         "uses these.",
     )
     if not with_oracle:
@@ -455,7 +476,7 @@ def _run_trajectories(
     qacc = np.array([oracle.acceleration(q, v, a) for q, v, a in zip(run.qpos, run.qvel, accelerations)])
     bodies, points = oracle.states(run.qpos, run.qvel, qacc)
     return trajectory, Trajectory(
-        DYNAMIC_MODE,
+        mode,
         inputs,
         rates,
         accelerations,

@@ -1,0 +1,265 @@
+"""MJX in driven dynamics (mode ``mjx-dynamic``, run on request): the MuJoCo
+engine's MJCF file with its position and velocity servos, stepped on MJX's JAX
+back end in float64 by MuJoCo's own driven mode
+(:func:`xcheck.engines.mujoco.modes.run_dynamic`) with :class:`Simulator` in
+place of MuJoCo's C loop, and compared with MuJoCo (C) at the same settings.
+
+One setting: MuJoCo's tight one (:data:`xcheck.engines.mujoco.dynamic.TIGHT`:
+RK4, stiff loops, solref 2 dt, solimp 0.9999, tolerance 1e-12) with the Newton
+solver, over its step ladder; MuJoCo's default setting is not run (it is
+MuJoCo's own, Euler: a second compilation). The rollout (:func:`rollout`) is
+one ``jax.jit`` compilation per mechanism: the time step, solref, solimp and
+tolerance are data, and so are the controls (the drivers' laws at each step's
+start, zero-order hold, as MuJoCo's C loop feeds them), indexed per step from
+an array padded to the finest step's length; a ``jax.lax.scan`` over the
+samples runs each sample's steps in a ``jax.lax.fori_loop`` whose bounds are
+data. Accelerations are MJX's own ``qacc`` (``mjx.forward`` at each sampled
+state with that step's controls), as MuJoCo's driven mode samples its own.
+(MuJoCo's (C) ``qacc`` at MJX's states would count the loops' J-dot qd twice:
+MJX's constraint lacks the term and its stabilisation holds the loops open by
+what makes up for it, so C's stabilisation adds it again; measured on the
+four-bar at 1 and 0.5 ms: 0.087 and 0.20 relative acceleration error.)
+
+Measured: see :data:`xcheck.engines.mjx.MJX`'s notes and the mode's tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from xcheck.compare import ModeResult
+from xcheck.engines import NotApplicable
+from xcheck.engines.mujoco import modes as mujoco_modes
+from xcheck.engines.mujoco.dynamic import Run, Setting, simulate
+from xcheck.engines.mujoco.mjcf import Layout
+from xcheck.kinematics import Kinematics
+from xcheck.model import Mechanism
+
+from .free import MAX_VALUE, _difference, load_mjx, mjx_model
+
+__all__ = ["DYNAMIC_MODE", "SOLVER", "TIMESTEPS", "Simulator", "rollout", "run_dynamic"]
+
+DYNAMIC_MODE = "mjx-dynamic"
+#: MJX's solver (MuJoCo's default; MJX has Newton and CG, not PGS).
+SOLVER = "Newton"
+#: MuJoCo's tight ladder, s.
+TIMESTEPS = (1e-3, 5e-4, 2.5e-4, 1.25e-4)
+
+
+def rollout(m, parameters: dict, qpos0, qvel0, ctrl, bounds):
+    """MJX's driven motion from (qpos0, qvel0) at t = 0: the states at the sample steps.
+
+    Parameters
+    ----------
+    m : mjx.Model
+    parameters : dict of arrays
+        ``timestep`` (s), ``tolerance``, ``solref`` (2,), ``solimp`` (5,)
+        (every equality alike): data, not constants of the compilation.
+    qpos0, qvel0 : array, shape (nq,), (nv,)
+    ctrl : array, shape (L, nu)
+        The controls of step k (0-based) in row k (zero-order hold); rows past
+        the run's last step are padding, never read.
+    bounds : int array, shape (S,)
+        The step index of each sample, ascending, ``bounds[0] == 0``; a repeated
+        index is a sample of no further step.
+
+    Returns
+    -------
+    qpos, qvel, qacc : arrays, shape (S, nq), (S, nv), (S, nv)
+        The states at ``bounds`` (rad or m, per s, per s^2); ``qacc`` from
+        ``mjx.forward`` with that step's controls, including MJX's constraint
+        stabilisation, as MuJoCo's driven mode samples its own.
+    """
+    jax, jnp, mjx = load_mjx()
+    m = m.replace(
+        opt=m.opt.replace(timestep=parameters["timestep"], tolerance=parameters["tolerance"]),
+        eq_solref=jnp.broadcast_to(parameters["solref"], m.eq_solref.shape),
+        eq_solimp=jnp.broadcast_to(parameters["solimp"], m.eq_solimp.shape),
+    )
+    d = mjx.make_data(m).replace(qpos=qpos0, qvel=qvel0, ctrl=ctrl[0])
+    types = jax.eval_shape(lambda d: mjx.step(m, d), d)  # step's own dtypes (see free.rollout)
+    d = jax.tree_util.tree_map(lambda x, t: x.astype(t.dtype), d, types)
+
+    def one_step(k, d):
+        return mjx.step(m, d.replace(ctrl=ctrl[k]))
+
+    def sample(d, interval):
+        d = d.replace(ctrl=ctrl[interval[0]])
+        state = mjx.forward(m, d)  # qacc at the sample, with that step's controls
+        d = jax.lax.fori_loop(interval[0], interval[1], one_step, d)
+        return d, (state.qpos, state.qvel, state.qacc)
+
+    intervals = jnp.stack([bounds, jnp.concatenate([bounds[1:], bounds[-1:]])], axis=1)
+    _, states = jax.lax.scan(sample, d, intervals)
+    return states
+
+
+class Simulator:
+    """MJX in place of :func:`xcheck.engines.mujoco.dynamic.simulate` (same call, same
+    :class:`~xcheck.engines.mujoco.dynamic.Run`), compiling :func:`rollout` once for
+    every run of a ladder.
+
+    Parameters
+    ----------
+    finest : float
+        The ladder's smallest time step (s): the controls are padded to its
+        number of steps, so every step of the ladder has the same shapes.
+
+    Attributes
+    ----------
+    compile_seconds : float
+        CPU s of the one compilation (NaN before the first run).
+    """
+
+    def __init__(self, finest: float):
+        self.finest = finest
+        self.compile_seconds = math.nan
+        self._compiled: tuple[Any, Any] | None = None  # (mjx.Model, the compiled rollout)
+
+    def __call__(
+        self,
+        model: mujoco.MjModel,
+        mechanism: Mechanism,
+        layout: Layout,
+        setting: Setting,
+        timestep: float,
+        duration: float,
+        qpos0: np.ndarray,
+        qvel0: np.ndarray,
+        samples: int,
+    ) -> Run:
+        """One run, as :func:`xcheck.engines.mujoco.dynamic.simulate`; ``Run.columns``:
+        compile_seconds (shared by the ladder), cpu_seconds (the run alone) and
+        cpu_per_simulated_second. A non-finite state, or one beyond 1e10, is a
+        failure (MJX does not warn as MuJoCo's C library does).
+
+        Raises
+        ------
+        NotApplicable
+            What of the file or the setting MJX does not implement
+            (``mjx.put_model``'s NotImplementedError).
+        """
+        jax, _, _ = load_mjx()
+        settings = setting.apply(model, timestep)
+        settings["solver"] = SOLVER
+        steps = int(np.floor(duration / timestep + 1e-9))
+        length = max(int(np.floor(duration / self.finest + 1e-9)), steps) + 1
+        sample_steps = np.unique(np.round(np.linspace(0, steps, samples)).astype(int))
+        bounds = np.concatenate([sample_steps, np.full(samples - len(sample_steps), steps)]).astype(np.int64)
+        step_times = np.arange(steps + 1) * timestep
+        laws = [d.law.at_time(step_times) for d in mechanism.drivers]
+        ctrl = np.zeros((length, model.nu))
+        for driver, law in zip(mechanism.drivers, laws):
+            ctrl[: steps + 1, model.actuator(f"{driver.name}.position").id] = law[0]
+            ctrl[: steps + 1, model.actuator(f"{driver.name}.velocity").id] = law[1]
+        parameters = {
+            "timestep": np.float64(timestep),
+            "tolerance": np.float64(model.opt.tolerance),
+            "solref": np.asarray(model.eq_solref[0] if model.neq else [0.02, 1.0], dtype=float),
+            "solimp": np.asarray(model.eq_solimp[0] if model.neq else [0.9, 0.95, 0.001, 0.5, 2.0], dtype=float),
+        }
+        arguments = (parameters, np.asarray(qpos0, float), np.asarray(qvel0, float), ctrl, bounds)
+        if self._compiled is None:
+            try:
+                m = mjx_model(model, setting.integrator, SOLVER)
+            except NotImplementedError as error:
+                raise NotApplicable(f"MJX does not implement {error}") from error
+            begin = time.process_time()
+            self._compiled = (m, jax.jit(rollout).lower(m, *arguments).compile())
+            self.compile_seconds = time.process_time() - begin
+        m, compiled = self._compiled
+        begin = time.process_time()
+        qpos, qvel, qacc = (np.asarray(a) for a in jax.block_until_ready(compiled(m, *arguments)))
+        cpu = time.process_time() - begin
+        n = len(sample_steps)
+        qpos, qvel, qacc = qpos[:n], qvel[:n], qacc[:n]
+        bad = ~(np.all(np.isfinite(qpos), axis=1) & np.all(np.isfinite(qvel), axis=1))
+        bad |= np.any(np.abs(qpos) > MAX_VALUE, axis=1) | np.any(np.abs(qvel) > MAX_VALUE, axis=1)
+        s = int(np.argmax(bad)) if bad.any() else n
+        failure = f"non-finite state, or beyond 1e10, at t = {step_times[sample_steps[s]]:.6g} s" if s < n else ""
+        law = np.stack([law[0][sample_steps] for law in laws], axis=1)
+        columns = {
+            "compile_seconds": self.compile_seconds,
+            "cpu_seconds": cpu,
+            "cpu_per_simulated_second": cpu / max(duration, 1e-300),
+        }
+        return Run(
+            step_times[sample_steps][:s], qpos[:s], qvel[:s], qacc[:s], law[:s], failure, settings, steps, columns
+        )
+
+
+def run_dynamic(
+    kinematics: Kinematics,
+    branch: str | None = None,
+    samples: int = 101,
+    timesteps=TIMESTEPS,
+    duration: float | None = None,
+    compare: bool = True,
+) -> ModeResult:
+    """MJX simulating the mechanism with its inputs driven by the file's servos:
+    MuJoCo's driven mode (:func:`xcheck.engines.mujoco.modes.run_dynamic`) with
+    its tight setting (RK4, Newton) only, each run on MJX.
+
+    Parameters
+    ----------
+    kinematics : Kinematics
+    branch : str, optional
+    samples : int
+        States sampled per run, evenly in time.
+    timesteps : sequence of float
+        The ladder's time steps, s (MuJoCo's tight ladder).
+    duration : float, optional
+        Simulated time (s); default the simulation window.
+    compare : bool
+        Also run MuJoCo (C) over the same ladder and setting; adds the columns
+        ``mujoco_position_error`` (m), ``mujoco_cpu_per_simulated_second`` (s)
+        and ``mujoco_difference`` (m, the largest distance between a named
+        point of the two runs at the same sample).
+
+    Returns
+    -------
+    ModeResult
+        As :func:`xcheck.engines.mujoco.modes.run_dynamic`; ``summary`` also
+        has solver, compile_seconds (CPU s, once per mechanism), cpu_seconds
+        and cpu_per_simulated_second (the run alone), and the MuJoCo columns.
+    """
+    simulator = Simulator(min(timesteps) if timesteps else 1.0)
+    options: dict[str, Any] = dict(
+        branch=branch, samples=samples, default_timesteps=(), tight_timesteps=timesteps, duration=duration
+    )
+    result = mujoco_modes.run_dynamic(kinematics, **options, simulator=simulator, mode=DYNAMIC_MODE, title="MJX")
+    summary = result.summary
+    if summary is None or summary.empty:
+        return result
+    summary.insert(list(summary.columns).index("integrator") + 1, "solver", SOLVER)
+    if not compare:
+        return result
+    reference = mujoco_modes.run_dynamic(kinematics, **options, simulator=_timed)
+    theirs = reference.summary.set_index("timestep") if reference.summary is not None else None
+    ours, mine = (  # each run's trajectory, not the oracle's accelerations at the compared run's states
+        {t.settings["timestep"]: t for t in r.trajectories if t.settings["accelerations"] == "qacc"}
+        for r in (result, reference)
+    )
+    for column in ("mujoco_position_error", "mujoco_cpu_per_simulated_second", "mujoco_difference"):
+        summary[column] = math.nan
+    for i, timestep in summary.timestep.items():
+        if theirs is not None and timestep in theirs.index:
+            summary.loc[i, "mujoco_position_error"] = theirs.loc[timestep, "position_error"]
+            summary.loc[i, "mujoco_cpu_per_simulated_second"] = theirs.loc[timestep, "cpu_per_simulated_second"]
+        if timestep in ours and timestep in mine:
+            summary.loc[i, "mujoco_difference"] = _difference(ours[timestep], mine[timestep])
+    return result
+
+
+def _timed(model: mujoco.MjModel, *args) -> Run:
+    """MuJoCo's (C) :func:`~xcheck.engines.mujoco.dynamic.simulate`, with its CPU s per
+    simulated second as the column ``cpu_per_simulated_second``."""
+    begin = time.process_time()
+    run = simulate(model, *args)
+    run.columns["cpu_per_simulated_second"] = (time.process_time() - begin) / max(float(args[4]), 1e-300)
+    return run
