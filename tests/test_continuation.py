@@ -188,3 +188,63 @@ def test_pymunk_across_a_change_point_says_it_left_the_branch():
     result = run_dynamic(kinematics)
     assert not result.ok
     assert "the scene left the assembly branch at t = " in result.reason, result.reason
+
+
+def _crank_point(q: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """A crank's angle q[0] and its tip (q[1], q[2]) on the unit circle, driven by the angle."""
+    return np.array([q[1] - math.cos(q[0]), q[2] - math.sin(q[0]), q[0] - c[0]])
+
+
+def _crank_point_matrix(q: np.ndarray) -> np.ndarray:
+    return np.array([[math.sin(q[0]), 1.0, 0.0], [-math.cos(q[0]), 0.0, 1.0], [1.0, 0.0, 0.0]])
+
+
+def _half_winding(q: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """A coordinate q[1] = q[0] / 2: after a turn of the input it has changed by half a turn."""
+    return np.array([q[1] - 0.5 * q[0], q[0] - c[0]])
+
+
+def _half_winding_matrix(q: np.ndarray) -> np.ndarray:
+    return np.array([[-0.5, 1.0], [1.0, 0.0]])
+
+
+def test_a_walk_over_a_hundred_turns_skips_the_whole_turns():
+    """From 0 to 100 turns + 0.5 rad in one sample: the walk goes one turn in steps of
+    at most 2 deg (180 steps), sees the configuration repeat, skips 99 turns, and walks
+    the last 0.5 rad; it lands on (cos, sin) of the target with the angle continuous."""
+    target = 200.0 * math.pi + 0.5
+    walk = follow(
+        _newton(_crank_point, _crank_point_matrix),
+        _crank_point_matrix,
+        2,
+        np.array([0.0, 1.0, 0.0]),
+        np.array([0.0]),
+        np.array([[target]]),
+        np.ones(1),
+        np.ones(3),
+        period=2.0 * math.pi,
+    )
+    assert walk.stopped is None, walk.reason
+    assert walk.steps[0] <= 180 + 15 + 5  # one turn, 0.5 rad at <= 2 deg, a few halvings
+    assert walk.qpos[0, 0] == pytest.approx(target, rel=1e-14)
+    assert walk.qpos[0, 1:] == pytest.approx([math.cos(target), math.sin(target)], abs=1e-12)
+
+
+def test_a_walk_whose_configuration_does_not_repeat_after_a_turn_goes_all_the_way():
+    """A coordinate that changes by half a turn per turn of the input: no skip, every
+    step walked (10 turns at <= 2 deg: at least 1800 steps), and the answer exact."""
+    target = 20.0 * math.pi
+    walk = follow(
+        _newton(_half_winding, _half_winding_matrix),
+        _half_winding_matrix,
+        1,
+        np.array([0.0, 0.0]),
+        np.array([0.0]),
+        np.array([[target]]),
+        np.ones(1),
+        np.ones(2),
+        period=2.0 * math.pi,
+    )
+    assert walk.stopped is None, walk.reason
+    assert walk.steps[0] >= 1800
+    assert walk.qpos[0] == pytest.approx([target, 0.5 * target], rel=1e-13)

@@ -15,7 +15,7 @@ import numpy as np
 
 from xcheck.model import Mechanism
 
-from .._continuation import follow
+from .._continuation import crank_period, follow
 from .mjcf import Layout
 
 __all__ = ["STOP_TOLERANCE", "CONVERGED_TOLERANCE", "Oracle", "Projection"]
@@ -209,6 +209,7 @@ class Oracle:
             np.asarray(inputs, dtype=float),
             self.coordinate_scale[self.input_dofs],
             self.coordinate_scale,
+            crank_period(self.mechanism),
         )
         return Projection(
             walk.qpos, walk.residual, walk.iterations, walk.converged, walk.steps, walk.stopped, walk.reason

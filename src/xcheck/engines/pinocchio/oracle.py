@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from .._continuation import Walk, follow
+from .._continuation import Walk, crank_period, follow
 from .model import PinocchioMechanism
 
 __all__ = ["Oracle", "NEWTON_TOLERANCE", "CONVERGED_TOLERANCE", "frame_states", "one_line"]
@@ -162,6 +162,7 @@ class Oracle:
             np.asarray(inputs, dtype=float),
             selected,
             scale,
+            crank_period(self.pm.mechanism),
         )
 
     def rates(self, q: np.ndarray, right: np.ndarray) -> np.ndarray:
