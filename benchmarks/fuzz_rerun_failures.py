@@ -6,7 +6,7 @@ running the whole campaign again: the same seed and index give the same mechanis
 file (:func:`xcheck.fuzz.generate`), every mode runs on it, and the new rows go to
 ``NEW/results`` (Parquet, as ``xcheck fuzz`` writes them), with ``NEW/failures.md``.
 
-Usage: python benchmarks/fuzz_rerun_failures.py OLD NEW [--workers N]
+Usage: python benchmarks/fuzz_rerun_failures.py OLD NEW [--workers N] [--disagreements]
 """
 
 from __future__ import annotations
@@ -28,9 +28,11 @@ def main() -> int:
     parser.add_argument("old", type=Path)
     parser.add_argument("new", type=Path)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--disagreements", action="store_true", help="only cases with a disagreement row")
     args = parser.parse_args()
     rows = read_rows(args.old)
-    bad = rows[rows.outcome.isin(BAD)][["seed", "index", "kind"]].drop_duplicates()
+    chosen = rows.outcome.isin(BAD) & ((rows.origin == "disagreement") | (not args.disagreements))
+    bad = rows[chosen][["seed", "index", "kind"]].drop_duplicates()
     if bad.empty:
         print(f"{args.old}: no failed case")
         return 0
