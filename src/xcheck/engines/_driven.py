@@ -13,11 +13,48 @@ from xcheck import engines
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at
 from xcheck.kinematics import Kinematics, Solution, Status
 
-__all__ = ["LEFT_BRANCH", "branch_gap_status", "driven_result", "left_branch"]
+__all__ = ["LEFT_BRANCH", "branch_gap_status", "driven_result", "empty_states", "left_branch"]
 
 #: A driven run with a named point farther than this fraction of the mechanism's size from
 #: the native configuration at the inputs the engine realised has left the assembly branch.
 LEFT_BRANCH = 0.1
+
+
+def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray]:
+    """The NaN arrays a driven run fills sample by sample (PyBullet's, Drake's).
+
+    Parameters
+    ----------
+    samples : int
+        N, the samples of the run.
+    quantities : iterable of str
+        The body quantities kept: ``position`` and ``velocity`` (N, 2), the others (N,).
+
+    Returns
+    -------
+    bodies : dict of str to dict of str to ndarray
+        Per moving body, per quantity.
+    points : dict of str to dict of str to ndarray
+        Per named point off the ground, ``position`` and ``velocity`` (N, 2), m and m/s.
+    inputs, rates : ndarray, shape (N, k)
+        The drivers' realised values (rad or m) and rates.
+    gaps : ndarray, shape (N,)
+        The loops' largest opening (m), zeros.
+    """
+    bodies = {
+        body.name: {
+            key: np.full((samples, 2) if key in ("position", "velocity") else samples, np.nan) for key in quantities
+        }
+        for body in mechanism.moving_bodies
+    }
+    ground = mechanism.ground.name
+    points = {
+        label: {"position": np.full((samples, 2), np.nan), "velocity": np.full((samples, 2), np.nan)}
+        for label, owner in mechanism.point_owners.items()
+        if owner != ground
+    }
+    inputs = np.full((samples, len(mechanism.drivers)), np.nan)
+    return bodies, points, inputs, np.full_like(inputs, np.nan), np.zeros(samples)
 
 
 def left_branch(kinematics: Kinematics, branch: str | None, trajectory: Trajectory, engine: str) -> str:

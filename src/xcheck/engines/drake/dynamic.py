@@ -37,7 +37,7 @@ import numpy as np
 
 from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result
+from xcheck.engines._driven import driven_result, empty_states
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
@@ -121,18 +121,7 @@ def simulate(
     pd = gains(massive, dt) if pd is None else pd
     row = {"setting": "default", "integrator": "discrete SAP, implicit PD", "timestep": dt, "status": "ok"}
     moving = [b.name for b in mech.moving_bodies]
-    bodies = {
-        name: {key: np.full((SAMPLES, 2) if key in ("position", "velocity") else SAMPLES, np.nan) for key in ERRORS}
-        for name in moving
-    }
-    points = {
-        label: {"position": np.full((SAMPLES, 2), np.nan), "velocity": np.full((SAMPLES, 2), np.nan)}
-        for label, owner in mech.point_owners.items()
-        if owner != GROUND
-    }
-    inputs = np.full((SAMPLES, len(mech.drivers)), np.nan)
-    rates = np.full_like(inputs, np.nan)
-    gaps = np.zeros(SAMPLES)
+    bodies, points, inputs, rates, gaps = empty_states(mech, SAMPLES, ERRORS)
     begin = time.process_time()
     model = build(massive, dt, pd)
     set_state(model, massive, q0, qd0)
