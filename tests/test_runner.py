@@ -188,7 +188,9 @@ def test_forces_and_energy_in_the_json_summary():
     doc = json.loads(result.stdout)
     assert set(doc["forces"]) == {"newton-euler", "mujoco", "pinocchio"}
     for entry in doc["forces"].values():
-        assert entry["pass"] is True and entry["relative"] <= entry["tolerance"] == 1e-12
+        # 1e-12, or the round-off at the states' conditioning times the length ratio
+        # (10 eps kappa^2 ratio, runner.force_tolerance: 3.1e-12 on fourbar-dynamics)
+        assert entry["pass"] is True and entry["relative"] <= entry["tolerance"] <= 5e-12
     assert doc["energy"]["passed"] is True and doc["energy"]["relative"] <= 1e-12
     result = _cli("run", "task-2-3", "--json", "--no-report", "--samples", "21", "--engines", "formulations")
     doc = json.loads(result.stdout)

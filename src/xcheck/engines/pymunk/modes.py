@@ -25,7 +25,6 @@ import pandas as pd
 import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk.modes)
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
-from xcheck.engines._driven import left_branch
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
@@ -373,10 +372,6 @@ def run_dynamic(
         top = max(float(np.max(s)) for s in speeds)
         speed_bound = 10.0 * max(top, mech.size / window.duration)
         runs = [_simulate(kinematics, native, window, samples, s, fd_steps, bound, speed_bound) for s in settings]
-        for run in runs:  # a scene carried onto the other branch is pymunk's result, not a quantity's error
-            if run.trajectory is not None:
-                run.failure = left_branch(kinematics, branch, run.trajectory, "pymunk")
-                run.trajectory = None if run.failure else run.trajectory
         summary = _summary(kinematics, runs, branch)
     except Exception as err:  # the other modes still run: report, never raise
         reason = " ".join(str(err).split())
