@@ -224,19 +224,33 @@ def test_reactions_of_a_near_parallelogram_are_judged_at_its_conditioning():
     assert row.tolerance > 1e-12  # the conditioned bound, 10 eps kappa^2
 
 
-def test_a_fixed_bound_of_a_stated_non_converging_quantity_is_the_engines():
+def test_a_failure_is_the_engines_only_where_it_is_a_stated_or_refined_limitation():
     """MuJoCo's qacc carries its constraint stabilisation and is judged by a fixed bound
-    (its mode's orders say None): beyond it, the failure is the engine's, while an
-    observed order short of the expected one stays a disagreement."""
+    (its mode's orders say None): beyond it, the failure is the engine's. An observed
+    order short of the expected one is the engine's only once the runner's finer runs
+    (REFINEMENTS) kept it short or broke down; before that, and for a round-off
+    verdict, it stays a disagreement."""
     import pandas as pd
 
-    from xcheck.fuzz import _beyond_stated_bound
+    from xcheck.fuzz import _engine_limitation
+    from xcheck.runner import REFINEMENTS
 
     fixed = pd.DataFrame(
         {"category": ["acceleration"], "basis": ["fixed bound 0.015 (the quantity does not converge)"]}
     )
     order = pd.DataFrame({"category": ["velocity"], "basis": ["observed order 0.328 (expected 1; ...)"]})
-    assert _beyond_stated_bound(fixed)
-    assert not _beyond_stated_bound(order)
-    assert not _beyond_stated_bound(pd.concat([fixed, order]))
-    assert not _beyond_stated_bound(fixed.iloc[:0])
+    assert "fixed bound" in _engine_limitation(fixed, "mujoco-dynamic")
+    assert _engine_limitation(order, "drake-dynamic") == ""
+    assert _engine_limitation(pd.concat([fixed, order]), "mujoco-dynamic") == ""
+    assert _engine_limitation(fixed.iloc[:0], "mujoco-dynamic") == ""
+    once = order.assign(refinements=REFINEMENTS - 1)
+    assert _engine_limitation(once, "drake-dynamic") == ""
+    refined = order.assign(refinements=REFINEMENTS)
+    assert f"halved {REFINEMENTS} times" in _engine_limitation(refined, "drake-dynamic")
+    both = pd.concat([fixed, refined]).reset_index(drop=True)
+    assert "fixed bound" in _engine_limitation(both, "mujoco-dynamic")
+    assert "stated order" in _engine_limitation(both, "mujoco-dynamic")
+    broke = order.assign(refinement_failure="diverged: a point moves at 2.8e4 m/s")
+    assert "diverged" in _engine_limitation(broke, "pymunk-dynamic")
+    round_off = pd.DataFrame({"category": ["alpha"], "basis": ["within the engine's round-off bound ..."]})
+    assert _engine_limitation(round_off.assign(refinements=REFINEMENTS), "pinocchio-dynamic") == ""

@@ -495,12 +495,9 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
             unobserved = _unobserved_order(outcome, failing)
             if unobserved:  # the engine's own coarser runs broke down: no verdict is possible
                 origin, text = "engine", unobserved
-            elif _beyond_stated_bound(failing):
-                origin = "engine"
-                text = (
-                    f"{categories}: beyond the fixed bound of a quantity the mode states does not converge "
-                    "with the step (its tolerance's reason, `xcheck engines`)"
-                )
+            else:
+                limitation = _engine_limitation(failing, mode)
+                origin, text = ("engine", limitation) if limitation else (origin, text)
             rows.append(row(mode, "failed", origin, text, seconds=outcome.seconds, **worst))
     if not run.force_table.empty:
         for _, forces in run.force_table.iterrows():
@@ -518,9 +515,9 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
                 rows.append(row(label, "error", "engine", str(forces.reason), **figures))
             else:
                 passed = bool(forces.passed)
-                rows.append(
-                    row(label, "passed" if passed else "failed", "" if passed else "disagreement", "", **figures)
-                )
+                origin = "" if passed else _force_origin(forces)
+                text = "" if passed else str(forces.get("basis", "") or "")
+                rows.append(row(label, "passed" if passed else "failed", origin, text, **figures))
     if run.energy is not None:
         energy = run.energy
         relative, bound = float(energy["relative"]), float(energy["tolerance"])
@@ -544,11 +541,55 @@ def _unobserved_order(outcome, failing: pd.DataFrame) -> str:
     return f"no coarser run of the compared series ran through{broken}: the order cannot be observed"
 
 
-def _beyond_stated_bound(failing: pd.DataFrame) -> bool:
-    """Whether every failing category of a dynamic mode is one its engine states does
-    not converge (judged by a fixed bound measured on the models, such as MuJoCo's qacc,
-    which carries its constraint stabilisation): the engine's limitation, measured."""
-    return not failing.empty and "basis" in failing and bool(failing.basis.str.startswith("fixed bound").all())
+def _engine_limitation(failing: pd.DataFrame, mode: str) -> str:
+    """Why a dynamic mode's failure is its engine's measured limitation, or "" if it
+    is not: every failing category either beyond the fixed bound of a quantity the
+    mode states does not converge (such as MuJoCo's qacc, which carries its
+    constraint stabilisation), or short of its stated order after the runner's
+    :data:`~xcheck.runner.REFINEMENTS` finer runs, or where a finer run failed."""
+    from .runner import REFINEMENTS
+
+    if failing.empty or "basis" not in failing:
+        return ""
+    fixed = failing.basis.str.startswith("fixed bound")
+    by_order = failing.basis.str.startswith("observed order")
+    broke = ""
+    if "refinement_failure" in failing and by_order.any():
+        broke = str(failing.refinement_failure[by_order].iloc[0])
+    refined = "refinements" in failing and bool((failing.refinements[by_order] == REFINEMENTS).all())
+    if not (fixed | by_order).all() or (by_order.any() and not (broke or refined)):
+        return ""
+    parts = []
+    if fixed.any():
+        parts.append(
+            f"{', '.join(failing.category[fixed])}: beyond the fixed bound of a quantity the mode states does not "
+            "converge with the step (its tolerance's reason, `xcheck engines`)"
+        )
+    if by_order.any():
+        parts.append(
+            f"{', '.join(failing.category[by_order])}: the error falls short of the mode's stated order"
+            + (
+                f", and a finer run failed ({broke})"
+                if broke
+                else f" even with its finest step halved {REFINEMENTS} times"
+            )
+            + f" (observed orders: `xcheck run FILE --engines {mode}`, basis)"
+        )
+    return "; ".join(parts)
+
+
+def _force_origin(forces: pd.Series) -> str:
+    """A failed force source's origin: its engine's where the runner halved its
+    step (:func:`xcheck.runner._refine_forces`) :data:`~xcheck.runner.REFINEMENTS`
+    times and the error still fell short of its order, or a finer run failed;
+    else a disagreement."""
+    from .runner import REFINEMENTS
+
+    failure = forces.get("refinement_failure")
+    if isinstance(failure, str) and failure:
+        return "engine"
+    refinements = forces.get("refinements")
+    return "engine" if refinements is not None and refinements == REFINEMENTS else "disagreement"
 
 
 def _worst(categories: pd.DataFrame) -> dict:

@@ -160,6 +160,11 @@ class Engine:
         no inverse dynamics).
     force_basis : str
         Where that bound comes from.
+    force_order : float or None
+        Where the reactions converge with a time step (pymunk's impulses: 1),
+        their order: beyond the bound, the runner halves the step
+        (``inverse_dynamics(..., refine=k)``) and judges the error's fall, as
+        a dynamic mode's (None: the bound alone).
     export_format, export_directory : str or None
         The file format :meth:`export_files` writes and its folder under ``models/``.
     color : str
@@ -171,7 +176,7 @@ class Engine:
     implementation : str
         The module (imported when a mode runs) whose functions the default
         methods call: ``run_kinematic(kinematics, samples=, branch=)``,
-        ``run_dynamic(kinematics, branch=)``, ``inverse_dynamics`` and
+        ``run_dynamic(kinematics, branch=[, refine=])``, ``inverse_dynamics`` and
         ``export_files``; an engine may override the methods instead.
     """
 
@@ -183,6 +188,7 @@ class Engine:
     modes: ClassVar[tuple[Mode, ...]] = ()
     force_tolerance: ClassVar[float | None] = None
     force_basis: ClassVar[str] = ""
+    force_order: ClassVar[float | None] = None
     export_format: ClassVar[str | None] = None
     export_directory: ClassVar[str | None] = None
     color: ClassVar[str] = "tab:gray"
@@ -198,7 +204,14 @@ class Engine:
         return ""
 
     def run(
-        self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int, branch: str | None = None
+        self,
+        mode: str,
+        kinematics: Kinematics,
+        *,
+        native: Solution,
+        samples: int,
+        branch: str | None = None,
+        refine: int = 0,
     ) -> ModeResult:
         """Run one of the engine's modes on a mechanism.
 
@@ -211,6 +224,11 @@ class Engine:
             states); a mode may take its inputs or make its own sweep.
         samples : int
             Samples of a kinematic mode's sweep.
+        refine : int
+            A dynamic mode only: 0 runs its ladder of time steps; k > 0 runs
+            just the compared series at its finest step halved k times
+            (``run_dynamic(..., refine=k)``), for the runner to tell a ladder
+            not yet in its asymptotic range from a lower order.
 
         Returns
         -------
@@ -227,6 +245,8 @@ class Engine:
         function = self._function(f"run_{kind}")
         if kind == "kinematic":
             return function(kinematics, samples=samples, branch=branch)
+        if refine:
+            return function(kinematics, branch=branch, refine=refine)
         return function(kinematics, branch=branch)
 
     def run_free(

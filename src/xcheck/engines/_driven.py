@@ -13,11 +13,33 @@ from xcheck import engines
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at
 from xcheck.kinematics import Kinematics, Solution, Status
 
-__all__ = ["LEFT_BRANCH", "branch_gap_status", "driven_result", "empty_states", "left_branch"]
+__all__ = [
+    "LEFT_BRANCH",
+    "branch_gap_status",
+    "driven_result",
+    "empty_states",
+    "left_branch",
+    "refined_steps",
+    "refined_timesteps",
+]
 
 #: A driven run with a named point farther than this fraction of the mechanism's size from
 #: the native configuration at the inputs the engine realised has left the assembly branch.
 LEFT_BRANCH = 0.1
+
+
+def refined_steps(finest: int, refine: int) -> tuple[int]:
+    """The steps per sample of a refinement (``refine`` k > 0, see
+    :meth:`xcheck.engines.Engine.run`): one run at ``finest`` 2^k."""
+    if refine < 1:
+        raise ValueError(f"expected a refinement of at least 1, found {refine}")
+    return (finest * 2**refine,)
+
+
+def refined_timesteps(smallest: float, refine: int) -> tuple[float]:
+    """The time step (s) of a refinement: one run at ``smallest`` / 2^k."""
+    (factor,) = refined_steps(1, refine)
+    return (smallest / factor,)
 
 
 def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray]:

@@ -30,7 +30,14 @@ class Formulations(Engine):
     )
 
     def run(
-        self, mode: str, kinematics: Kinematics, *, native: Solution, samples: int, branch: str | None = None
+        self,
+        mode: str,
+        kinematics: Kinematics,
+        *,
+        native: Solution,
+        samples: int,
+        branch: str | None = None,
+        refine: int = 0,  # kinematic modes: no time step to refine
     ) -> ModeResult:
         from xcheck.compare import ModeResult
         from xcheck.formulations import NotApplicable as Outside

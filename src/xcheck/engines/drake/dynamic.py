@@ -37,7 +37,7 @@ import numpy as np
 
 from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states
+from xcheck.engines._driven import driven_result, empty_states, refined_steps
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
@@ -196,9 +196,12 @@ def simulate(
     return row, trajectory
 
 
-def run_dynamic(kinematics: Kinematics, branch: str | None = None, steps=STEPS_PER_SAMPLE) -> ModeResult:
+def run_dynamic(
+    kinematics: Kinematics, branch: str | None = None, steps=STEPS_PER_SAMPLE, refine: int = 0
+) -> ModeResult:
     """Simulate the driven mechanism in Drake at :data:`STEPS_PER_SAMPLE` and compare
-    each run with the native solution.
+    each run with the native solution; ``refine`` k > 0 runs only ``steps[0]`` 2^k
+    steps per sample (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -244,6 +247,8 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, steps=STEPS_P
     with a pin-in-slot (task-2-2, -3, -5, -6) are not applicable.
     """
     mech = kinematics.mechanism
+    if refine:
+        steps = refined_steps(steps[0], refine)
     massive = Kinematics(with_unit_mass(mech))
     refuse(mech, spanning_tree(mech))
     _drake()  # pydrake imported before the first run's clock starts

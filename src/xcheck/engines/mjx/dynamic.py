@@ -34,6 +34,7 @@ import numpy as np
 
 from xcheck.compare import ModeResult
 from xcheck.engines import NotApplicable
+from xcheck.engines._driven import refined_timesteps
 from xcheck.engines.mujoco import modes as mujoco_modes
 from xcheck.engines.mujoco.dynamic import Run, Setting, simulate
 from xcheck.engines.mujoco.mjcf import Layout
@@ -200,6 +201,7 @@ def run_dynamic(
     timesteps=TIMESTEPS,
     duration: float | None = None,
     compare: bool = True,
+    refine: int = 0,
 ) -> ModeResult:
     """MJX simulating the mechanism with its inputs driven by the file's servos:
     MuJoCo's driven mode (:func:`xcheck.engines.mujoco.modes.run_dynamic`) with
@@ -220,6 +222,9 @@ def run_dynamic(
         ``mujoco_position_error`` (m), ``mujoco_cpu_per_simulated_second`` (s)
         and ``mujoco_difference`` (m, the largest distance between a named
         point of the two runs at the same sample).
+    refine : int
+        k > 0: only the smallest time step / 2^k
+        (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -228,6 +233,8 @@ def run_dynamic(
         has solver, compile_seconds (CPU s, once per mechanism), cpu_seconds
         and cpu_per_simulated_second (the run alone), and the MuJoCo columns.
     """
+    if refine:
+        timesteps = refined_timesteps(min(timesteps), refine)
     simulator = Simulator(min(timesteps) if timesteps else 1.0)
     options: dict[str, Any] = dict(
         branch=branch, samples=samples, default_timesteps=(), tight_timesteps=timesteps, duration=duration

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
-from xcheck.engines._driven import left_branch
+from xcheck.engines._driven import left_branch, refined_timesteps
 from xcheck.errors import InputError, XcheckError
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import Mechanism
@@ -294,6 +294,7 @@ def run_dynamic(
     simulator=simulate,
     mode: str = DYNAMIC_MODE,
     title: str = "MuJoCo",
+    refine: int = 0,
 ) -> ModeResult:
     """MuJoCo simulating the mechanism with its inputs driven by the file's servos.
 
@@ -329,6 +330,9 @@ def run_dynamic(
     mode, title : str
         The mode's name (the result's and the trajectories' source) and the
         engine's title (in messages and notes).
+    refine : int
+        k > 0: only the tight setting at its smallest time step / 2^k
+        (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -347,6 +351,8 @@ def run_dynamic(
         |input - law|, rad or m). Errors are empty for a failed run.
     """
     mech = kinematics.mechanism
+    if refine:
+        default_timesteps, tight_timesteps = (), refined_timesteps(min(tight_timesteps), refine)
     model, lay, failure = _compile(kinematics, xml)
     if failure:
         return ModeResult(mode, mech.name, False, failure)

@@ -26,6 +26,7 @@ import pandas as pd
 import pinocchio as pin
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.engines._driven import refined_steps
 from xcheck.kinematics import Kinematics
 from xcheck.motion import simulation_window
 
@@ -296,6 +297,7 @@ def run_dynamic(
     branch: str | None = None,
     integrators=tuple(INTEGRATORS),
     baumgarte: float = BAUMGARTE,
+    refine: int = 0,
 ) -> ModeResult:
     """Simulate the mechanism with its inputs driven over the simulation window.
 
@@ -312,6 +314,9 @@ def run_dynamic(
         Keys of :data:`INTEGRATORS`.
     baumgarte : float
         Baumgarte gains per step (see :data:`BAUMGARTE`).
+    refine : int
+        k > 0: only RK4 (or the first integrator) at the largest step count
+        times 2^k (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -327,6 +332,9 @@ def run_dynamic(
         fails only when the comparison run does.
     """
     mech = kinematics.mechanism
+    if refine:
+        integrators = ("rk4",) if "rk4" in integrators else tuple(integrators)[:1]
+        steps = refined_steps(max(int(n) for n in steps), refine)
     try:
         steps = sorted(int(n) for n in steps)
         if samples < 2 or any(n % (samples - 1) for n in steps):

@@ -26,7 +26,7 @@ import numpy as np
 
 from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states
+from xcheck.engines._driven import driven_result, empty_states, refined_steps
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
@@ -181,9 +181,11 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, sett
     return row, trajectory
 
 
-def run_dynamic(kinematics: Kinematics, branch: str | None = None) -> ModeResult:
+def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int = 0) -> ModeResult:
     """Simulate the driven mechanism in PyBullet at :data:`SETTINGS` x
-    :data:`STEPS_PER_SAMPLE` and compare each run with the native solution.
+    :data:`STEPS_PER_SAMPLE` and compare each run with the native solution;
+    ``refine`` k > 0 runs only the first setting at 2^k times its finest step
+    count (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -213,13 +215,20 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None) -> ModeResult
         start = kinematics.solve(q, qd, qdd, branch=branch)
         if start.status[0] > Status.NEAR_SINGULAR:
             raise ValueError("the native solver does not assemble the mechanism at t = 0")
+        ladder = _ladder(refine)
         runs = [
-            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
-            for setting in SETTINGS
-            for per in (STEPS_PER_SAMPLE if setting is SETTINGS[0] else STEPS_PER_SAMPLE[:1])
+            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per) for setting, per in ladder
         ]
     except NotApplicable:
         raise
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
     return driven_result(MODE, kinematics, runs, _ERRORS, branch)
+
+
+def _ladder(refine: int) -> list[tuple[FreeSetting, int]]:
+    """(setting, steps per sample) of each run, the compared one first: every step
+    count of the first setting and the finest of the others, or a refinement's one."""
+    if refine:
+        return [(SETTINGS[0], per) for per in refined_steps(STEPS_PER_SAMPLE[0], refine)]
+    return [(SETTINGS[0], per) for per in STEPS_PER_SAMPLE] + [(s, STEPS_PER_SAMPLE[0]) for s in SETTINGS[1:]]

@@ -40,6 +40,7 @@ class Pymunk(Engine):
         Mode("pymunk-free", "free", FREE_MOTION, style=dict(color="tab:green", lw=1, ls="-.")),
     )
     force_tolerance = 7e-2
+    force_order = 1.0
     force_basis = (
         "impulses over a step of the driven simulation, first order in the time step (measured at "
         "most 3.2e-2, about half the bound)"

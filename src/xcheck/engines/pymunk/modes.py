@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk.modes)
 
 from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.engines._driven import refined_steps
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
@@ -319,6 +320,7 @@ def run_dynamic(
     fd_steps: int = 1,
     gap_bound: float | None = None,
     branch: str | None = None,
+    refine: int = 0,
 ) -> ModeResult:
     """Simulate the mechanism in pymunk and compare it with the native solution.
 
@@ -346,6 +348,9 @@ def run_dynamic(
         faster than 10 times the native top speed has failed too.
     branch : str, optional
         Assembly branch.
+    refine : int
+        k > 0: only the first setting at 2^k times its steps per
+        sample (:meth:`xcheck.engines.Engine.run`).
 
     Returns
     -------
@@ -363,6 +368,9 @@ def run_dynamic(
     """
     mech = kinematics.mechanism
     settings = tuple(settings)
+    if refine and settings:
+        first = settings[0]
+        settings = tuple(replace(first, steps_per_sample=n) for n in refined_steps(first.steps_per_sample, refine))
     try:
         if not settings:
             raise ValueError("expected at least one setting, found none")
@@ -410,10 +418,12 @@ def inverse_dynamics(
     steps_per_sample: int = STEPS_PER_SAMPLE,
     iterations: int = ITERATIONS,
     error_bias: float | None = 0.0,
+    refine: int = 0,
 ):
     """Magnitudes of the joint reactions and input efforts in a driven pymunk
     simulation: constraint impulses over the time step (see
-    :mod:`.inverse`).
+    :mod:`.inverse`); ``refine`` k > 0 takes 2^k times ``steps_per_sample``
+    (:attr:`xcheck.engines.Engine.force_order`).
 
     Parameters
     ----------
@@ -435,7 +445,7 @@ def inverse_dynamics(
     ValueError
         If the scene cannot be built, comes apart or goes non-finite.
     """
-    return inverse_forces(kinematics, branch, samples, steps_per_sample, iterations, error_bias)
+    return inverse_forces(kinematics, branch, samples, steps_per_sample * 2**refine, iterations, error_bias)
 
 
 def scene_figure(
