@@ -13,7 +13,16 @@ import numpy as np
 
 from ..errors import ModelError
 from ..model import Mechanism
-from ._newton import CONVERGED_TOLERANCE, MAX_CORRECTION, STOP_TOLERANCE, continue_to, det_sign, newton, tangent
+from ._newton import (
+    CONVERGED_TOLERANCE,
+    MAX_CORRECTION,
+    STOP_TOLERANCE,
+    continue_to,
+    det_sign,
+    newton,
+    polish,
+    tangent,
+)
 from ._system import ConstraintSystem, _perp, rotate
 
 __all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
@@ -620,6 +629,8 @@ class Kinematics:
         singularity = np.zeros(n_samples)
         done = np.flatnonzero(status == Status.OK)
         if done.size:
+            q[done] = polish(system, q[done], c[done])
+            jac[done] = system.jacobian(q[done])
             # with the dimensionless Jacobian S = D_r J C^-1 (rows per size,
             # coordinates per size), J^-1 b = C^-1 S^-1 D_r b
             inverse, singularity[done] = _inverse_with_condition(system.scaled_jacobian(jac[done]))
@@ -698,6 +709,8 @@ class Kinematics:
                 q[idx] = qd[idx] = prediction[1]
                 base_sign[idx] = prediction[4]
         fast.newton_rounds(q, c, attempt, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
+        converged = np.flatnonzero(attempt & (residual <= CONVERGED_TOLERANCE * system.size))
+        q[converged] = polish(system, q[converged], c[converged])
         kernel_terms = (*terms[:6], *terms[7:])  # no angle offsets
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
@@ -717,7 +730,7 @@ class Kinematics:
             for j, i in enumerate(failed):
                 q_new, _, ok, _ = continue_to(system, base_q[j], base_c[j], c[i])
                 if ok:
-                    q[i], status[i] = q_new, Status.OK
+                    q[i], status[i] = polish(system, q_new[None], c[i][None])[0], Status.OK
                     residual[i] = system.residual_metres(system.residual(q_new[None], c[i][None]))[0]
                     reached.append(i)
             fast.finish(q, qd, qdd, cd, cdd, np.array(reached, dtype=np.intp), *rest, *limits)

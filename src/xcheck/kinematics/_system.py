@@ -29,7 +29,7 @@ def rotate(phi, s) -> np.ndarray:
 
 
 def _rotate_cs(c: np.ndarray, sn: np.ndarray, s: np.ndarray) -> np.ndarray:
-    out = np.empty(c.shape + (2,))
+    out = np.empty(c.shape + (2,), dtype=np.result_type(c, sn, s))  # long double stays long (polishing)
     out[..., 0] = c * s[0] - sn * s[1]
     out[..., 1] = sn * s[0] + c * s[1]
     return out
