@@ -471,6 +471,35 @@ def newton_rounds(
 
 
 @njit(cache=True)
+def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row):
+    """One Newton step with a given right-hand side, in place: q[i] -= Phi_q(q[i])^-1
+    rhs[j] for i = samples[j] (the long-double residuals of :func:`._newton.polish`);
+    a sample whose Jacobian is exactly singular, or whose step is not finite, is left."""
+    n = q.shape[1]
+    jac = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    step = np.empty(n)
+    pose = _new_pose(n)
+    for j in range(len(samples)):
+        i = samples[j]
+        _pose(q[i], pose)
+        _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
+        sign = _lu(jac, piv)
+        if sign == 0.0 or sign != sign:
+            continue
+        for r in range(n):
+            step[r] = rhs[j, r]
+        _lu_solve(jac, piv, step)
+        finite = True
+        for r in range(n):
+            if not np.isfinite(step[r]):
+                finite = False
+        if finite:
+            for r in range(n):
+                q[i, r] -= step[r]
+
+
+@njit(cache=True)
 def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, out):
     _jacobian(pose, kind, ta, tb, s1, s2, w, row, out)
     for r in range(out.shape[0]):

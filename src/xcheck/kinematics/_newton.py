@@ -126,13 +126,19 @@ def polish(system: ConstraintSystem, q: np.ndarray, c: np.ndarray) -> np.ndarray
     out = np.array(q, dtype=float, copy=True)
     for start in range(0, q.shape[0], POLISH_CHUNK):
         rows = slice(start, start + POLISH_CHUNK)
-        wide = out[rows].astype(np.longdouble)
-        residual = system.residual(wide, np.asarray(c[rows], dtype=np.longdouble))
-        step = solve_linear(system.jacobian(out[rows]), residual.astype(float))
+        step = solve_linear(system.jacobian(out[rows]), long_double_residual(system, out[rows], c[rows]))
         with np.errstate(all="ignore"):
-            polished = (wide - step).astype(float)
+            polished = out[rows] - step
         out[rows] = np.where(np.isfinite(polished), polished, out[rows])
     return out
+
+
+def long_double_residual(system: ConstraintSystem, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Phi(q, c) evaluated in long double and rounded to double, shape (N, rows):
+    at a converged q it is the exact residual to double precision, not round-off.
+    (q - step is then one rounding: the step needs no long double itself.)"""
+    wide = system.residual(np.asarray(q, dtype=np.longdouble), np.asarray(c, dtype=np.longdouble))
+    return wide.astype(float)
 
 
 def tangent(system: ConstraintSystem, q: np.ndarray, jac: np.ndarray | None = None) -> np.ndarray:

@@ -16,9 +16,11 @@ from ..model import Mechanism
 from ._newton import (
     CONVERGED_TOLERANCE,
     MAX_CORRECTION,
+    POLISH_CHUNK,
     STOP_TOLERANCE,
     continue_to,
     det_sign,
+    long_double_residual,
     newton,
     polish,
     tangent,
@@ -710,7 +712,9 @@ class Kinematics:
                 base_sign[idx] = prediction[4]
         fast.newton_rounds(q, c, attempt, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
         converged = np.flatnonzero(attempt & (residual <= CONVERGED_TOLERANCE * system.size))
-        q[converged] = polish(system, q[converged], c[converged])
+        for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
+            chunk = converged[start : start + POLISH_CHUNK]
+            fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms)
         kernel_terms = (*terms[:6], *terms[7:])  # no angle offsets
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
