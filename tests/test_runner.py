@@ -187,10 +187,12 @@ def test_forces_and_energy_in_the_json_summary():
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     assert set(doc["forces"]) == {"newton-euler", "mujoco", "pinocchio"}
-    for entry in doc["forces"].values():
+    for source, entry in doc["forces"].items():
         # 1e-12, or the round-off at the states' conditioning times the length ratio
-        # (10 eps kappa^2 ratio, runner.force_tolerance: 3.1e-12 on fourbar-dynamics)
-        assert entry["pass"] is True and entry["relative"] <= entry["tolerance"] <= 5e-12
+        # (runner.force_tolerance on fourbar-dynamics: 10 eps kappa^2 ratio = 3.1e-12 for
+        # Newton-Euler at the native states, 100 eps kappa^2 ratio = 3.1e-11 for an engine)
+        bound = 5e-12 if source == "newton-euler" else 5e-11
+        assert entry["pass"] is True and entry["relative"] <= entry["tolerance"] <= bound
     assert doc["energy"]["passed"] is True and doc["energy"]["relative"] <= 1e-12
     result = _cli("run", "task-2-3", "--json", "--no-report", "--samples", "21", "--engines", "formulations")
     doc = json.loads(result.stdout)

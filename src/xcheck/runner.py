@@ -47,7 +47,14 @@ from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
 from .motion import law_states, simulation_window, sweep_span
-from .tolerances import Tolerance, convergence_round_off, length_ratio, power_round_off
+from .tolerances import (
+    CONDITIONING_FACTOR,
+    ENGINE_CONDITIONING_FACTOR,
+    Tolerance,
+    convergence_round_off,
+    length_ratio,
+    power_round_off,
+)
 
 __all__ = [
     "is_static",
@@ -730,7 +737,9 @@ def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> 
     """The bound on a force source's reactions and efforts relative to the native
     ones: the source's own, but at least the round-off of accelerations at the
     states' conditioning ``condition`` and the mechanism's length ratio
-    ``ratio`` (10 eps kappa^2 ratio, :func:`~xcheck.tolerances.power_round_off`),
+    ``ratio`` (10 eps kappa^2 ratio for Newton-Euler at the native states, 100
+    for an engine's own double-precision computation:
+    :data:`~xcheck.tolerances.ENGINE_CONDITIONING_FACTOR`, :func:`~xcheck.tolerances.power_round_off`),
     since the reactions come from the accelerations and a body ``ratio`` times
     longer than the crank carries its angular acceleration's round-off (eps
     kappa^2 of the crank's) into forces with its length, while the force scale
@@ -744,11 +753,13 @@ def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> 
     (3.2e-12 unequilibrated). Over the models with mass data kappa is 2 to 156
     (task-2-1): the bound stays 1e-12 up to kappa = 21 (fourbar) and is 5.4e-11
     at task-2-1."""
-    if source == "newton-euler":
+    if source == "newton-euler":  # the native states themselves
         bound: float | None = NEWTON_EULER_TOLERANCE
-    else:
+        factor = CONDITIONING_FACTOR
+    else:  # the engine's own double-precision computation (MuJoCo 14 eps kappa^2 ratio at s1-00158)
         bound = engines.engine(source).force_tolerance
-    return math.nan if bound is None else max(bound, power_round_off(condition, ratio))
+        factor = ENGINE_CONDITIONING_FACTOR
+    return math.nan if bound is None else max(bound, power_round_off(condition, ratio, factor))
 
 
 def versions() -> dict[str, str]:

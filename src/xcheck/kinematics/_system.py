@@ -29,7 +29,9 @@ def rotate(phi, s) -> np.ndarray:
 
 
 def _rotate_cs(c: np.ndarray, sn: np.ndarray, s: np.ndarray) -> np.ndarray:
-    out = np.empty(c.shape + (2,), dtype=np.result_type(c, sn, s))  # long double stays long (polishing)
+    # long double stays long double (polishing), anything else is double
+    wide = any(np.asarray(v).dtype == np.longdouble for v in (c, sn, s))
+    out = np.empty(np.shape(c) + (2,), dtype=np.longdouble if wide else float)
     out[..., 0] = c * s[0] - sn * s[1]
     out[..., 1] = sn * s[0] + c * s[1]
     return out
