@@ -114,6 +114,19 @@ def test_pymunk_reactions_beyond_their_bound_pass_by_their_convergence():
     assert 0.07 < row.max_rel < row.tolerance
 
 
+def test_the_report_says_why_the_reactions_passed(tmp_path):
+    from typer.testing import CliRunner
+
+    from xcheck.cli import app
+
+    path = DATA / "fuzz-scotch-yoke-pymunk-reactions.toml"
+    args = ["run", str(path), "--engines", "pymunk-dynamic", "--samples", "21", "--no-gif", "--out", str(tmp_path)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = (tmp_path / "fuzz-scotch-yoke-pymunk-reactions.md").read_text(encoding="utf-8")
+    assert "`pymunk`: beyond its bound 0.07 at its step; the error with the step halved once: 0.248, 0.122" in report
+
+
 def test_pymunk_reactions_that_break_down_when_refined_are_its_limitation():
     """Fuzz case s1-00083 (a slider-crank whose rod is far longer than its crank):
     pymunk's reactions 8.6e6 times the native scale, and its scene comes apart at

@@ -751,8 +751,8 @@ def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> 
     kappa^2), Pinocchio's 1.5e-12 (3.7e-11 before its solves were
     equilibrated); on a near-parallelogram (kappa = 4326) Pinocchio's 1.3e-14
     (3.2e-12 unequilibrated). Over the models with mass data kappa is 2 to 156
-    (task-2-1): the bound stays 1e-12 up to kappa = 21 (fourbar) and is 5.4e-11
-    at task-2-1."""
+    (task-2-1): Newton-Euler's bound stays 1e-12 up to kappa = 21 and is 5.4e-11
+    at task-2-1, an engine's 1e-12 up to kappa = 6.7 and 5.4e-10 at task-2-1."""
     if source == "newton-euler":  # the native states themselves
         bound: float | None = NEWTON_EULER_TOLERANCE
         factor = CONDITIONING_FACTOR

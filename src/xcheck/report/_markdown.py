@@ -254,6 +254,9 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
         "mass).\n\n"
     )
     text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows, "llrrlr")
+    for r in run.force_table.itertuples():
+        if getattr(r, "basis", ""):
+            text += f"\n\n`{r.engine}`: {r.basis}."
     text += (
         f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
         f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
