@@ -105,7 +105,13 @@ class _Driven:
         wanted = cdd + self.kd * (cd - s @ v) + self.kp * (c - s @ q)
         free = self._forward(q, v, np.zeros(self.model.nv))
         gain = np.column_stack([self._forward(q, v, row) - free for row in s])  # (nv, k)
-        force = np.linalg.solve(s @ gain, wanted - s @ free)
+        try:
+            force = np.linalg.solve(s @ gain, wanted - s @ free)
+        except np.linalg.LinAlgError as err:
+            raise ValueError(
+                f"at t = {t:.6g} s the driven joints' accelerations do not respond to their torques "
+                "(Pinocchio's constraint dynamics gives an exactly singular response there)"
+            ) from err
         return self._forward(q, v, s.T @ force).copy(), force
 
 
