@@ -155,7 +155,7 @@ def driven_result(
         have no order: the drivers fix the positions exactly there).
     """
     mech = kinematics.mechanism
-    title = engines.engine(mode.split("-")[0]).title
+    title = engines.engine_of(mode).title
     kept: list[tuple[dict, Trajectory | None]] = []
     for row, trajectory in runs:
         status = "" if trajectory is None else left_branch(kinematics, branch, trajectory, title)
