@@ -15,10 +15,10 @@ import pytest
 from conftest import MODELS
 from typer.testing import CliRunner
 
-from xcheck import Kinematics, engines, load_mechanism
+from xcheck import Kinematics, load_mechanism
 from xcheck.cli import app
 from xcheck.model import parse_mechanism
-from xcheck.runner import all_modes, sweep_inputs
+from xcheck.runner import default_modes, sweep_inputs
 from xcheck.units import evaluate_expression
 
 DATA = Path(__file__).parent / "data"
@@ -334,7 +334,7 @@ def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path
     document = json.loads(result.stdout)
     failed = {m: e for m, e in document["engines"].items() if not e.get("pass")}
     assert result.exit_code == 0 and not failed, failed
-    default = {m for m in all_modes() if m == "native" or not engines.mode(m).on_request}  # not mjx-dynamic
+    default = set(default_modes())  # not mjx-dynamic, which runs on request
     assert set(document["engines"]) | set(document["not_applicable"]) == default
     # Exudyn's driven mode drives joint angles only (the trammel's and the wedge's inputs are slides)
     slides = name in ("elliptic-trammel", "wedge")

@@ -555,7 +555,9 @@ def select_modes(
     every = ("native", *(m.name for m in engines.modes(kinds)))
     groups = engines.groups(kinds)
     if chosen is None:
-        return tuple(name for name in every if name == "native" or not engines.mode(name).on_request)
+        from .runner import default_modes
+
+        return default_modes(kinds)
     text = chosen if isinstance(chosen, str) else ",".join(chosen)
     picked: list[str] = []
     for item in (part.strip() for part in text.split(",") if part.strip()):

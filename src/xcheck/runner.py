@@ -59,6 +59,7 @@ from .tolerances import (
 __all__ = [
     "is_static",
     "all_modes",
+    "default_modes",
     "tolerance",
     "CATEGORIES",
     "NATIVE_TOLERANCE",
@@ -82,6 +83,13 @@ def all_modes() -> tuple[str, ...]:
     (:func:`xcheck.engines.modes`: kinematic modes, then dynamic ones; free
     motion runs in ``xcheck simulate``)."""
     return ("native", *(m.name for m in engines.modes(engines.DRIVEN_KINDS)))
+
+
+def default_modes(kinds: tuple[str, ...] = engines.DRIVEN_KINDS) -> tuple[str, ...]:
+    """The modes a run takes when none are named: "native" and every mode of
+    ``kinds`` but those run only on request (:attr:`xcheck.engines.Mode.on_request`,
+    such as ``mjx-dynamic``), in the order of :func:`all_modes`."""
+    return ("native", *(m.name for m in engines.modes(kinds) if not m.on_request))
 
 
 #: quantity categories of the tables; body positions count with point positions
@@ -602,7 +610,7 @@ def run_mechanism(
     outcomes = {"native": _native_self_check(kinematics, native, NATIVE_TOLERANCE, floors)}
     not_applicable = {}
     if modes is None:
-        modes = tuple(m for m in all_modes() if m == "native" or not engines.mode(m).on_request)
+        modes = default_modes()
     modes = tuple(modes)
     for mode in modes:
         if mode == "native":
