@@ -84,8 +84,13 @@ def test_double_fourbar_passes_the_singular_positions_on_its_branch():
     assert (default["status"] == "ok").all(), default
     assert all(1.9 <= p <= 2.1 for p in _orders(default)), list(default["position_error"])
     assert _row(summary, "default", 2.5e-4)["position_error"] <= 2e-6  # measured 1.86e-6 m
-    for row in summary[summary["setting"] == "newton-1e-12"].itertuples():  # Newton cannot reach 1e-12 there
-        assert row.status.startswith("Newton failed at t = 0.71"), row.status
+    # Newton cannot reach 1e-12 at the first singular pass at 0.5 and 0.25 ms; at 1 ms it depends on the
+    # initial state's last bits (it fails from the native state before polishing, and runs through from
+    # the polished one, 2.97e-5 m off as the default setting): a fragile setting, not a converging one
+    newton = summary[summary["setting"] == "newton-1e-12"]
+    failed = newton[newton["status"] != "ok"]
+    assert {5e-4, 2.5e-4} <= set(failed["timestep"]), newton
+    assert all(status.startswith("Newton failed at t = 0.71") for status in failed["status"]), newton
     assert result.study[result.study["series"] == "newton-1e-12"]["order"].isna().all()
 
 
