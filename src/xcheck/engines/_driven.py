@@ -5,6 +5,8 @@ solution at the inputs each engine realised, as one :class:`~xcheck.compare.Mode
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TypeVar
 
 import numpy as np
 import pandas as pd
@@ -18,10 +20,14 @@ __all__ = [
     "branch_gap_status",
     "driven_result",
     "empty_states",
+    "ladder",
     "left_branch",
     "refined_steps",
     "refined_timesteps",
 ]
+
+#: a driven ladder's setting type (PyBullet's, Exudyn's)
+S = TypeVar("S")
 
 #: A driven run with a named point farther than this fraction of the mechanism's size from
 #: the native configuration at the inputs the engine realised has left the assembly branch.
@@ -40,6 +46,16 @@ def refined_timesteps(smallest: float, refine: int) -> tuple[float]:
     """The time step (s) of a refinement: one run at ``smallest`` / 2^k."""
     (factor,) = refined_steps(1, refine)
     return (smallest / factor,)
+
+
+def ladder(settings: Sequence[S], steps_per_sample: Sequence[int], refine: int = 0) -> list[tuple[S, int]]:
+    """(setting, steps per sample) of each run of a driven ladder, the compared one
+    first (PyBullet's, Exudyn's): every step count of the first setting and the
+    finest (the first) of the others; with ``refine`` k > 0 the first setting's
+    refinement alone (:func:`refined_steps`)."""
+    if refine:
+        return [(settings[0], per) for per in refined_steps(steps_per_sample[0], refine)]
+    return [(settings[0], per) for per in steps_per_sample] + [(s, steps_per_sample[0]) for s in settings[1:]]
 
 
 def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, refined_steps
+from xcheck.engines._driven import driven_result, ladder
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
 from xcheck.motion import simulation_window
@@ -212,20 +212,12 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int =
         if start.status[0] > Status.NEAR_SINGULAR:
             raise ValueError("the native solver does not assemble the mechanism at t = 0")
         massive = with_unit_mass(mech)
-        ladder = _ladder(refine)
         runs = [
-            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per) for setting, per in ladder
+            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
+            for setting, per in ladder(SETTINGS, STEPS_PER_SAMPLE, refine)
         ]
     except NotApplicable:
         raise
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
     return driven_result(MODE, kinematics, runs, _ERRORS, branch)
-
-
-def _ladder(refine: int) -> list[tuple[FreeSetting, int]]:
-    """(setting, steps per sample) of each run, the compared one first: every step
-    count of the first setting and the finest of the others, or a refinement's one."""
-    if refine:
-        return [(SETTINGS[0], per) for per in refined_steps(STEPS_PER_SAMPLE[0], refine)]
-    return [(SETTINGS[0], per) for per in STEPS_PER_SAMPLE] + [(s, STEPS_PER_SAMPLE[0]) for s in SETTINGS[1:]]
