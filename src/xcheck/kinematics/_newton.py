@@ -99,7 +99,7 @@ def newton(system: ConstraintSystem, q0: np.ndarray, c: np.ndarray, max_iter: in
 POLISH_CHUNK = 8192
 
 
-def polish(system: ConstraintSystem, q: np.ndarray, c: np.ndarray) -> np.ndarray:
+def polish(system: ConstraintSystem, q: np.ndarray, c: np.ndarray, jac: np.ndarray | None = None) -> np.ndarray:
     """One more Newton step from converged configurations, with Phi(q, c) in long double.
 
     Newton in double precision stops where the residual is a few eps * size of
@@ -118,6 +118,8 @@ def polish(system: ConstraintSystem, q: np.ndarray, c: np.ndarray) -> np.ndarray
         Converged configurations.
     c : ndarray, shape (N, k)
         Their inputs (rad or m).
+    jac : ndarray, shape (N, rows, n), optional
+        Phi_q at q, where the caller has it.
 
     Returns
     -------
@@ -126,7 +128,8 @@ def polish(system: ConstraintSystem, q: np.ndarray, c: np.ndarray) -> np.ndarray
     out = np.array(q, dtype=float, copy=True)
     for start in range(0, q.shape[0], POLISH_CHUNK):
         rows = slice(start, start + POLISH_CHUNK)
-        step = solve_linear(system.jacobian(out[rows]), long_double_residual(system, out[rows], c[rows]))
+        matrices = system.jacobian(out[rows]) if jac is None else jac[rows]
+        step = solve_linear(matrices, long_double_residual(system, out[rows], c[rows]))
         with np.errstate(all="ignore"):
             polished = out[rows] - step
         out[rows] = np.where(np.isfinite(polished), polished, out[rows])

@@ -631,7 +631,7 @@ class Kinematics:
         singularity = np.zeros(n_samples)
         done = np.flatnonzero(status == Status.OK)
         if done.size:
-            q[done] = polish(system, q[done], c[done])
+            q[done] = polish(system, q[done], c[done], jac[done])
             jac[done] = system.jacobian(q[done])
             # with the dimensionless Jacobian S = D_r J C^-1 (rows per size,
             # coordinates per size), J^-1 b = C^-1 S^-1 D_r b
