@@ -34,7 +34,8 @@ import numpy as np
 
 from . import __version__
 from .fileio import write_atomic
-from .kinematics import CONVERGED_TOLERANCE, InputRange, Kinematics
+from .kinematics import InputRange, Kinematics
+from .kinematics._newton import converged_tolerance
 
 __all__ = ["CACHE_ENV", "cache_dir", "entry_path", "restore", "store", "cached_kinematics"]
 
@@ -186,7 +187,7 @@ def _parse(kin: Kinematics, payload: dict[str, Any]):
 
     def closed(q: np.ndarray, c: np.ndarray) -> None:
         gap = system.residual_metres(system.residual(q, c))
-        if not np.all(gap <= CONVERGED_TOLERANCE * system.size):
+        if not np.all(gap <= converged_tolerance(system, q)):
             raise ValueError("configurations that do not close the loops")
 
     assembled = {}

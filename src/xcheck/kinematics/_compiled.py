@@ -636,6 +636,7 @@ def check_and_finish(
     determinant's sign of its anchor; its scaled Jacobian is then factorised
     once for the sign, the condition number, qd and qdd. Rejected samples get
     NaN rows and the status branch-jump (converged) or not-converged.
+    ``converged_tolerance`` is per sample (N,), in metres.
     """
     n = q.shape[1]
     scaled = np.empty((n, n))
@@ -647,7 +648,7 @@ def check_and_finish(
     for i in range(len(attempt)):
         if not attempt[i]:
             continue
-        converged = residual[i] <= converged_tolerance
+        converged = residual[i] <= converged_tolerance[i]
         correction = -np.inf
         for j in range(n):
             v = abs(q[i, j] - guess[i, j]) * coordinate_scale[j]

@@ -13,12 +13,19 @@ import numpy as np
 
 from ._system import ConstraintSystem
 
-__all__ = ["solve_linear", "newton", "tangent", "det_sign", "continue_to"]
+__all__ = ["solve_linear", "newton", "tangent", "det_sign", "continue_to", "converged_tolerance"]
 
 #: Newton stops once the violation is below this fraction of the mechanism's size.
 STOP_TOLERANCE = 1e-15
 #: A sample counts as assembled when its violation is below this fraction.
 CONVERGED_TOLERANCE = 1e-10
+#: ... or below this many units of round-off of its largest body angle, where
+#: that is larger. Angles are continuous, never wrapped, and a double holds an
+#: angle phi only to eps |phi|: the loops cannot close better than about that
+#: times a length (measured on the four-bar of fuzz case s1-00419, 3000 inputs
+#: from 1e3 to 1e9 rad: at most 0.36 eps |phi| size), so past some 10^4 turns
+#: the fixed fraction above would reject every exact solution.
+ANGLE_ROUNDOFF = 16 * np.finfo(float).eps
 #: Largest accepted correction from the predicted configuration (scaled units:
 #: radians, or lengths per mechanism size) before a step counts as a jump.
 MAX_CORRECTION = 0.1
@@ -91,8 +98,25 @@ def newton(system: ConstraintSystem, q0: np.ndarray, c: np.ndarray, max_iter: in
             iterations[active] += 1
             if np.all(stalled | ~finite):
                 break
-    converged = residual <= CONVERGED_TOLERANCE * system.size
+    converged = residual <= converged_tolerance(system, q)
     return q, residual, iterations, converged
+
+
+def converged_tolerance(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
+    """Largest violation (m) at which configurations count as assembled, shape (N,).
+
+    :data:`CONVERGED_TOLERANCE` of the mechanism's size, or the round-off of
+    the largest body angle (:data:`ANGLE_ROUNDOFF`) where that is larger.
+
+    Parameters
+    ----------
+    q : ndarray, shape (N, n)
+        Configurations (x, y in m and phi in rad per body); NaN rows give the
+        fixed fraction.
+    """
+    angles = np.abs(q[:, 2::3])
+    largest = np.max(np.where(np.isfinite(angles), angles, 0.0), axis=1, initial=0.0)
+    return system.size * np.maximum(CONVERGED_TOLERANCE, ANGLE_ROUNDOFF * largest)
 
 
 #: Samples per batch of :func:`polish` (bounds its (N, n, n) Jacobians' memory).
@@ -192,7 +216,8 @@ def continue_to(
         The configuration and inputs reached (target if reached).
     reached : bool
         False when the walk stopped at a limit position or singularity; c is
-        then within about ``min_step`` of it.
+        then within about ``min_step`` of it (or of 64 units in the last place
+        of the inputs, where that is more).
     trail : list of (fraction, q)
         Every accepted step: the fraction of the way from c to target, and
         the configuration there. Steps are short where the mechanism moves
@@ -233,5 +258,7 @@ def continue_to(
             step = min(max_step, step * 1.5)
         else:
             step *= 0.5
-            if step < min_step:
+            # steps of a few units in the last place of the inputs make no headway
+            # (an input of 3.4e6 rad is held to 4.7e-10 rad): stop there too
+            if step < max(min_step, 64.0 * float(np.max(np.spacing(np.abs(c * scale))))):
                 return q, c, False, trail
