@@ -20,7 +20,8 @@ from . import engines
 from .compare import ModeResult, Trajectory
 from .dynamics._free import FreeReference, simulate
 from .engines import NotApplicable
-from .kinematics import Kinematics
+from .kinematics import Kinematics, rotate
+from .model import GROUND
 
 __all__ = [
     "SimulationResult",
@@ -29,6 +30,9 @@ __all__ = [
     "free_row",
     "outputs_per_step",
     "empty_path",
+    "FrameRecorder",
+    "world_point",
+    "loop_gap",
     "finish_free_run",
     "LADDER_COLUMNS",
     "ladder_steps",
@@ -195,6 +199,71 @@ def empty_path(mechanism, count: int) -> tuple[dict, dict]:
     }
     points = {label: {"position": np.full((count, 2), np.nan)} for label in mechanism.point_owners}
     return bodies, points
+
+
+def world_point(frames, body: str, point: np.ndarray) -> np.ndarray:
+    """A point fixed in ``body`` (its local coordinates (2,), m) in the world, m.
+
+    ``frames`` maps each moving body's name to its origin (2,) and angle (rad),
+    as an engine reports them; the ground's points are their own.
+    """
+    if body == GROUND:
+        return point
+    origin, phi = frames[body][:2]
+    return origin + rotate(phi, point)
+
+
+def loop_gap(frames, cuts) -> float:
+    """The widest gap (m) of the joints an engine holds as loop constraints: ``cuts`` is
+    (body, point (2,), body, point (2,)) per joint, ``frames`` as :func:`world_point`'s."""
+    return max(
+        (float(np.hypot(*(world_point(frames, a, pa) - world_point(frames, b, pb)))) for a, pa, b, pb in cuts),
+        default=0.0,
+    )
+
+
+class FrameRecorder:
+    """A free run's outputs, from the body frames an engine reports at each.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    count : int
+        Outputs to record.
+    cuts : sequence of (body, point (2,), body, point (2,))
+        The joints the engine holds as loop constraints: their gap is the loop drift.
+    apart : float
+        Gap (m) beyond which the run counts as come apart.
+    """
+
+    def __init__(self, mechanism, count: int, cuts, apart: float) -> None:
+        self.bodies, self.points = empty_path(mechanism, count)
+        self.owners = mechanism.point_owners
+        self.local = {label: np.asarray(mechanism.body(o).points[label], float) for label, o in self.owners.items()}
+        self.cuts, self.apart = cuts, apart
+        #: largest loop gap recorded so far, m
+        self.drift = 0.0
+
+    @property
+    def path(self) -> tuple[dict, dict]:
+        """``(bodies, points)`` as :func:`empty_path` makes them, NaN where not recorded."""
+        return self.bodies, self.points
+
+    def record(self, frames, j: int, t: float) -> str:
+        """Store output ``j`` (at ``t``, s) from ``frames`` (body name to origin (2,), angle);
+        "" or why the run stops here (went non-finite, came apart)."""
+        if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
+            return f"went non-finite at t = {t:.6g} s"
+        for name, states in self.bodies.items():
+            states["position"][j] = frames[name][0]
+            states["angle"][j] = frames[name][1]
+        for label, owner in self.owners.items():
+            self.points[label]["position"][j] = world_point(frames, owner, self.local[label])
+        gap = loop_gap(frames, self.cuts)
+        self.drift = max(self.drift, gap)
+        if gap > self.apart:
+            return f"came apart at t = {t:.6g} s (loops {gap:.3g} m open)"
+        return ""
 
 
 def finish_free_run(

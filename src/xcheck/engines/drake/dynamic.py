@@ -41,9 +41,10 @@ from xcheck.engines._driven import driven_result, empty_states, refined_steps
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
+from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
-from .free import DrakeModel, _drake, _world, apply_loads, build, refuse, set_state
+from .free import DrakeModel, _drake, apply_loads, build, refuse, set_state
 
 __all__ = ["MODE", "STIFFNESS", "STEPS_PER_SAMPLE", "SAMPLES", "ERRORS", "gains", "simulate", "run_dynamic"]
 
@@ -100,7 +101,7 @@ def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
     if name == GROUND:
         return np.zeros(2)
     origin, _, velocity, omega = frames[name]
-    arm = _world(frames, name, point) - origin
+    arm = world_point(frames, name, point) - origin
     return velocity + omega * np.array([-arm[1], arm[0]])
 
 
@@ -165,15 +166,12 @@ def simulate(
         for label in points:
             owner = mech.point_owners[label]
             local = np.asarray(mech.body(owner).points[label], dtype=float)
-            points[label]["position"][j] = _world(frames, owner, local)
+            points[label]["position"][j] = world_point(frames, owner, local)
             points[label]["velocity"][j] = _velocity(frames, owner, local)
         for k, (child, sign) in enumerate(drivers):
             value, rate = _coordinate(model, child)
             inputs[j, k], rates[j, k] = sign * value, sign * rate
-        gaps[j] = max(
-            (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in model.cuts),
-            default=0.0,
-        )
+        gaps[j] = loop_gap(frames, model.cuts)
     row["cpu_seconds"] = time.process_time() - begin
     if row["status"] != "ok":
         return row, None

@@ -71,7 +71,7 @@ from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from xcheck.simulation import empty_path, finish_free_run, free_row, ladder_steps, outputs_per_step
+from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
 from xcheck.topology import Topology, spanning_tree
 
 __all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "DrakeModel", "build", "set_state", "run_free"]
@@ -410,13 +410,6 @@ def set_state(model: DrakeModel, kinematics: Kinematics, q: np.ndarray, qd: np.n
             raise RuntimeError(f"Drake's {name} starts with a velocity {off:.3g} m/s from the native one")
 
 
-def _world(frames, name: str, point: np.ndarray) -> np.ndarray:
-    if name == GROUND:
-        return point
-    origin, phi = frames[name][:2]
-    return origin + rotate(phi, point)
-
-
 def energy(model: DrakeModel, frames) -> float:
     """Drake's kinetic and potential energy (gravity, springs) minus the constant loads'
     potential -(F . r + tau phi), J."""
@@ -424,7 +417,7 @@ def energy(model: DrakeModel, frames) -> float:
     names = {body.index(): name for name, body in model.bodies.items()}
     for index, point, force, torque, _ in model.loads:
         name = names[index]
-        total -= float(force @ _world(frames, name, point[:2])) + torque * frames[name][1]
+        total -= float(force @ world_point(frames, name, point[:2])) + torque * frames[name][1]
     return total
 
 
@@ -509,11 +502,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     if why:
         row["status"] = why
         return row, None
-    moving = [b.name for b in mech.moving_bodies]
-    owners = mech.point_owners
-    bodies, points = empty_path(mech, len(index))
-    local = {label: np.asarray(mech.body(owner).points[label], float) for label, owner in owners.items()}
-    drift, energy_drift, energy0 = 0.0, 0.0, math.nan
+    energy_drift, energy0 = 0.0, math.nan
     # E less the loads' potential is conserved without dampers and time laws
     damped = any(s.damping for s in (*mech.springs, *mech.rotational_springs)) or any(
         load.law is not None for load in mech.loads
@@ -528,6 +517,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
 
     simulator = Simulator(model.plant, model.context)
     model.context = simulator.get_mutable_context()
+    recorder = FrameRecorder(mech, len(index), model.cuts, APART * mech.size)
     done = 0  # steps taken
     for j, i in enumerate(index):
         n = int(i) * per_output
@@ -541,21 +531,9 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
             simulator.AdvanceTo((n - 0.5) * dt)
         done = n
         frames = model.frames()
-        if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
-            row["status"] = f"went non-finite at t = {n * dt:.6g} s"
-            break
-        for name in moving:
-            bodies[name]["position"][j] = frames[name][0]
-            bodies[name]["angle"][j] = frames[name][1]
-        for label, owner in owners.items():
-            points[label]["position"][j] = _world(frames, owner, local[label])
-        gap = max(
-            (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in model.cuts),
-            default=0.0,
-        )
-        drift = max(drift, gap)
-        if gap > APART * mech.size:
-            row["status"] = f"came apart at t = {n * dt:.6g} s (loops {gap:.3g} m open)"
+        stop = recorder.record(frames, j, n * dt)
+        if stop:
+            row["status"] = stop
             break
         if not damped:
             e = energy(model, frames)
@@ -566,7 +544,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         steps=total,
         cpu_seconds=seconds,
         cpu_per_simulated_second=seconds / max(float(motion.times[-1]), 1e-300),
-        loop_drift=drift,
+        loop_drift=recorder.drift,
         energy_drift=math.nan if damped else energy_drift,
     )
     if row["status"] != "ok":
@@ -579,4 +557,4 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         "refine": setting.refine,
     }
     notes = f"Drake free motion, {setting.integrator}, dt = {dt:g} s."
-    return finish_free_run(MODE, reference, index, (bodies, points), settings, notes, row, APART * mech.size)
+    return finish_free_run(MODE, reference, index, recorder.path, settings, notes, row, APART * mech.size)

@@ -30,9 +30,10 @@ from xcheck.engines._driven import driven_result, empty_states, ladder
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
+from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
-from .free import FreeSetting, Multibody, _velocity, _world, build, p, set_state
+from .free import FreeSetting, Multibody, _velocity, build, p, set_state
 
 __all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
 
@@ -83,7 +84,7 @@ def _inputs(kinematics: Kinematics, frames) -> tuple[np.ndarray, np.ndarray]:
         point = np.asarray(mech.body(joint.body_b).points[joint.point], dtype=float)
         phi_a, omega_a = state(joint.body_a)
         u = rotate(phi_a, joint.direction)
-        gap = _world(frames, joint.body_b, point) - _world(frames, joint.body_a, line)
+        gap = world_point(frames, joint.body_b, point) - world_point(frames, joint.body_a, line)
         values.append(float(u @ gap))
         rates.append(
             float(
@@ -151,13 +152,10 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, sett
             for label in points:
                 owner = mech.point_owners[label]
                 local = np.asarray(mech.body(owner).points[label], dtype=float)
-                points[label]["position"][j] = _world(frames, owner, local)
+                points[label]["position"][j] = world_point(frames, owner, local)
                 points[label]["velocity"][j] = _velocity(frames, owner, local)
             inputs[j], rates[j] = _inputs(kinematics, frames)
-            gaps[j] = max(
-                (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in mb.cuts),
-                default=0.0,
-            )
+            gaps[j] = loop_gap(frames, mb.cuts)
     finally:
         p.disconnect(client)
     row["cpu_seconds"] = time.process_time() - begin

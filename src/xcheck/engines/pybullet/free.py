@@ -67,7 +67,7 @@ from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
-from xcheck.simulation import empty_path, finish_free_run, free_row, ladder_steps, outputs_per_step
+from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
 from xcheck.topology import spanning_tree
 
 
@@ -371,13 +371,6 @@ def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarr
             raise RuntimeError(f"PyBullet's {name} starts with a velocity {off:.3g} m/s from the native one")
 
 
-def _world(frames, name: str, point: np.ndarray) -> np.ndarray:
-    if name == GROUND:
-        return point
-    origin, phi = frames[name][:2]
-    return origin + rotate(phi, point)
-
-
 class _Forces:
     """The loads (time laws at the step's start), the springs and the rotational springs,
     applied before every step (PyBullet clears them after it)."""
@@ -414,7 +407,7 @@ class _Forces:
                 factor = float(law.factor(t))
                 force, torque = factor * force, factor * torque
             if np.any(force):
-                at = _world(frames, name, point)
+                at = world_point(frames, name, point)
                 p.applyExternalForce(
                     mb.uid, mb.links[name], [*force, 0.0], [*at, 0.0], p.WORLD_FRAME, physicsClientId=mb.client
                 )
@@ -423,7 +416,7 @@ class _Forces:
                     mb.uid, mb.links[name], [0.0, 0.0, torque], p.WORLD_FRAME, physicsClientId=mb.client
                 )
         for first, s1, second, s2, stiffness, rest, damping in self.springs:
-            r1, r2 = _world(frames, first, s1), _world(frames, second, s2)
+            r1, r2 = world_point(frames, first, s1), world_point(frames, second, s2)
             d = r2 - r1
             length = float(np.hypot(d[0], d[1]))
             unit = d / length if length > 0.0 else np.zeros(2)
@@ -451,7 +444,7 @@ def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
     if name == GROUND:
         return np.zeros(2)
     _, _, v_com, omega, com = frames[name]
-    arm = _world(frames, name, point) - com
+    arm = world_point(frames, name, point) - com
     return v_com + omega * np.array([-arm[1], arm[0]])
 
 
@@ -513,12 +506,11 @@ def _energy(kinematics: Kinematics, mb: Multibody, frames, turned: dict[str, flo
         total -= mass * float(g @ (origin + rotate(phi, com)))
     for load in mech.loads:
         if load.body in mb.links:
-            at = _world(frames, load.body, np.asarray(load.point, float))
+            at = world_point(frames, load.body, np.asarray(load.point, float))
             total -= float(np.asarray(load.force, float) @ at) + float(load.torque) * turned[load.body]
     owners = mech.point_owners
     for s in mech.springs:
-        a = _world(frames, owners[s.points[0]], np.asarray(mech.body(owners[s.points[0]]).points[s.points[0]], float))
-        b = _world(frames, owners[s.points[1]], np.asarray(mech.body(owners[s.points[1]]).points[s.points[1]], float))
+        a, b = (world_point(frames, owners[x], np.asarray(mech.body(owners[x]).points[x], float)) for x in s.points)
         total += 0.5 * s.stiffness * (float(np.hypot(*(b - a))) - s.rest_length) ** 2
     for t in mech.rotational_springs:
         angle = (turned[t.body_b] if t.body_b != GROUND else 0.0) - (turned[t.body_a] if t.body_a != GROUND else 0.0)
@@ -541,10 +533,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         row["status"] = why
         return row, None
     moving = [b.name for b in mech.moving_bodies]
-    owners = mech.point_owners
-    bodies, points = empty_path(mech, len(index))
-    local = {label: np.asarray(mech.body(owner).points[label], float) for label, owner in owners.items()}
-    drift, energy_drift, energy0 = 0.0, 0.0, math.nan
+    energy_drift, energy0 = 0.0, math.nan
     # E less the loads' potential is conserved without dampers and time laws
     damped = any(s.damping for s in (*mech.springs, *mech.rotational_springs)) or any(
         load.law is not None for load in mech.loads
@@ -567,28 +556,15 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
         set_state(mb, kinematics, motion.q[0], motion.qd[0])
         forces = _Forces(kinematics, mb)
+        recorder = FrameRecorder(mech, len(index), mb.cuts, APART * mech.size)
         for n in range(total + 1):
             sample = n % per_output == 0 and n // per_output in wanted
             frames = mb.frames() if (sample or forces.active) else None
             if sample:
                 assert frames is not None
-                j = wanted[n // per_output]
-                finite = all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values())
-                if not finite:
-                    row["status"] = f"went non-finite at t = {n * dt:.6g} s"
-                    break
-                for name in moving:
-                    bodies[name]["position"][j] = frames[name][0]
-                    bodies[name]["angle"][j] = frames[name][1]
-                for label, owner in owners.items():
-                    points[label]["position"][j] = _world(frames, owner, local[label])
-                gap = max(
-                    (float(np.hypot(*(_world(frames, a, pa) - _world(frames, b, pb)))) for a, pa, b, pb in mb.cuts),
-                    default=0.0,
-                )
-                drift = max(drift, gap)
-                if gap > APART * mech.size:
-                    row["status"] = f"came apart at t = {n * dt:.6g} s (loops {gap:.3g} m open)"
+                stop = recorder.record(frames, wanted[n // per_output], n * dt)
+                if stop:
+                    row["status"] = stop
                     break
                 if not damped:
                     turned = {name: frames[name][1] for name in moving}
@@ -606,7 +582,7 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         steps=total,
         cpu_seconds=seconds,
         cpu_per_simulated_second=seconds / max(float(motion.times[-1]), 1e-300),
-        loop_drift=drift,
+        loop_drift=recorder.drift,
         energy_drift=math.nan if damped else energy_drift,
     )
     if row["status"] != "ok":
@@ -621,4 +597,4 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         "erp": setting.erp,
     }
     notes = f"PyBullet free motion, {setting.name} solver, dt = {dt:g} s."
-    return finish_free_run(MODE, reference, index, (bodies, points), settings, notes, row, APART * mech.size)
+    return finish_free_run(MODE, reference, index, recorder.path, settings, notes, row, APART * mech.size)
