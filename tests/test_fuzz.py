@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -257,3 +258,30 @@ def test_a_failure_is_the_engines_only_where_it_is_a_stated_or_refined_limitatio
     assert "diverged" in _engine_limitation(broke, "pymunk-dynamic")
     round_off = pd.DataFrame({"category": ["alpha"], "basis": ["within the engine's round-off bound ..."]})
     assert _engine_limitation(round_off.assign(refinements=REFINEMENTS), "pinocchio-dynamic") == ""
+
+
+def test_a_mode_with_unobserved_orders_and_a_fixed_bound_failure_is_the_engines():
+    """Fuzz case s3-00052 (a slider-crank through its change point): MuJoCo's coarser
+    runs leave the branch, so its positions and rates have no order to observe, and its
+    qacc is beyond the fixed bound. Each failing category is the engine's stated
+    result, so the row is too (it was labelled a disagreement when the two met)."""
+    import pandas as pd
+
+    from xcheck.fuzz import Case, _engine_explanation, run_case
+
+    fixed = pd.DataFrame({"category": ["alpha"], "basis": ["fixed bound 0.015 (the quantity does not converge)"]})
+    unobserved = pd.DataFrame(
+        {"category": ["position"], "basis": ["no coarser run of the same settings ran through: the order ..."]}
+    )
+    round_off = pd.DataFrame({"category": ["omega"], "basis": ["within the engine's round-off bound ..."]})
+    no_result = SimpleNamespace(result=None)
+    mixed = _engine_explanation(no_result, pd.concat([unobserved, fixed]), "mujoco-dynamic")
+    assert mixed.startswith("position: no coarser run") and "fixed bound" in mixed
+    assert _engine_explanation(no_result, unobserved, "mujoco-dynamic").startswith("no coarser run")
+    assert _engine_explanation(no_result, pd.concat([unobserved, round_off]), "mujoco-dynamic") == ""
+
+    path = DATA / "fuzz-slider-crank-unobserved-and-fixed-bound.toml"
+    case = Case(3, 52, "slider-crank", "near-dead-centre", "constant-acceleration", False, 20.35, {}, path.read_text())
+    (row,) = run_case(case, str(path), ["mujoco-dynamic"], 181)
+    assert row["outcome"] == "failed" and row["origin"] == "engine", row
+    assert "no coarser run" in row["reason"] and "fixed bound" in row["reason"], row["reason"]
