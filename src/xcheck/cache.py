@@ -34,8 +34,7 @@ import numpy as np
 
 from . import __version__
 from .fileio import write_atomic
-from .kinematics import InputRange, Kinematics
-from .kinematics._newton import converged_tolerance
+from .kinematics import InputRange, Kinematics, converged_tolerance
 
 __all__ = ["CACHE_ENV", "cache_dir", "entry_path", "restore", "store", "cached_kinematics"]
 

@@ -1,6 +1,6 @@
 """Native planar kinematics in Cartesian body coordinates (the general method)."""
 
-from ._newton import CONVERGED_TOLERANCE
+from ._newton import CONVERGED_TOLERANCE, converged_tolerance
 from ._solve import NEAR_SINGULAR, SINGULAR, InputRange, Kinematics, Solution, Status
 from ._system import ConstraintSystem, rotate
 
@@ -13,5 +13,6 @@ __all__ = [
     "Kinematics",
     "Solution",
     "Status",
+    "converged_tolerance",
     "rotate",
 ]

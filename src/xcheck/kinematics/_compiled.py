@@ -399,6 +399,20 @@ def predict_atlas(inputs, c_atlas, q_atlas, tangents, period, periodic, scale, t
 
 
 @njit(cache=True)
+def assembled(q, residual, attempt, fixed, per_radian, out):
+    """Which attempted samples count as assembled, as :func:`._newton.converged_tolerance`
+    decides, without its (N, bodies) temporaries: ``out[i]`` (bool) where the residual
+    (m) is at most ``max(fixed, per_radian * largest finite |phi|)`` (m)."""
+    for i in range(q.shape[0]):
+        largest = 0.0
+        for j in range(2, q.shape[1], 3):
+            v = abs(q[i, j])
+            if math.isfinite(v) and v > largest:
+                largest = v
+        out[i] = attempt[i] and residual[i] <= max(fixed, per_radian * largest)
+
+
+@njit(cache=True)
 def newton_rounds(
     q, inputs, attempt, kind, ta, tb, s1, s2, w, offset, driver, row, metres, stop, max_iter, residual, iterations
 ):
@@ -608,8 +622,7 @@ def check_and_finish(
     rates,
     cdd,
     attempt,
-    residual,
-    converged_tolerance,
+    converged,
     max_correction,
     base_sign,
     jacobian_scale,
@@ -636,7 +649,7 @@ def check_and_finish(
     determinant's sign of its anchor; its scaled Jacobian is then factorised
     once for the sign, the condition number, qd and qdd. Rejected samples get
     NaN rows and the status branch-jump (converged) or not-converged.
-    ``converged_tolerance`` is per sample (N,), in metres.
+    ``converged`` (N,) bool: the samples :func:`assembled` counts as assembled.
     """
     n = q.shape[1]
     scaled = np.empty((n, n))
@@ -648,7 +661,6 @@ def check_and_finish(
     for i in range(len(attempt)):
         if not attempt[i]:
             continue
-        converged = residual[i] <= converged_tolerance[i]
         correction = -np.inf
         for j in range(n):
             v = abs(q[i, j] - guess[i, j]) * coordinate_scale[j]
@@ -661,7 +673,7 @@ def check_and_finish(
         _copy(scaled, lu)
         sign = _lu(lu, piv)
         on_branch = correction <= max_correction and (sign == base_sign[i] or sign == 0.0)
-        if converged and on_branch:
+        if converged[i] and on_branch:
             status[i] = _OK
             _rates(
                 i,
@@ -694,7 +706,7 @@ def check_and_finish(
                 singularity,
             )
         else:
-            status[i] = _BRANCH_JUMP if converged else _NOT_CONVERGED
+            status[i] = _BRANCH_JUMP if converged[i] else _NOT_CONVERGED
             q[i, :] = np.nan
             guess[i, :] = np.nan
             qdd[i, :] = np.nan

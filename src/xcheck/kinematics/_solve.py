@@ -14,11 +14,12 @@ import numpy as np
 from ..errors import ModelError
 from ..model import Mechanism
 from ._newton import (
+    ANGLE_ROUNDOFF,
+    CONVERGED_TOLERANCE,
     MAX_CORRECTION,
     POLISH_CHUNK,
     STOP_TOLERANCE,
     continue_to,
-    converged_tolerance,
     det_sign,
     long_double_residual,
     newton,
@@ -711,8 +712,9 @@ class Kinematics:
                 q[idx] = qd[idx] = prediction[1]
                 base_sign[idx] = prediction[4]
         fast.newton_rounds(q, c, attempt, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
-        tolerance = converged_tolerance(system, q)
-        converged = np.flatnonzero(attempt & (residual <= tolerance))
+        assembled = np.empty(n_samples, dtype=bool)
+        fast.assembled(q, residual, attempt, CONVERGED_TOLERANCE * system.size, ANGLE_ROUNDOFF * system.size, assembled)
+        converged = np.flatnonzero(assembled)
         for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
             chunk = converged[start : start + POLISH_CHUNK]
             fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms)
@@ -720,7 +722,7 @@ class Kinematics:
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
         fast.check_and_finish(
-            q, qd, qdd, cd, cdd, attempt, residual, tolerance, MAX_CORRECTION, base_sign,
+            q, qd, qdd, cd, cdd, attempt, assembled, MAX_CORRECTION, base_sign,
             *rest, *limits
         )  # fmt: skip
         # the few rejected in the batch: walk to them from their anchor
