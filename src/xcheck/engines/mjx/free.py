@@ -29,9 +29,9 @@ Energy, loop drift and the sampled accelerations are MuJoCo's (C) at MJX's
 sampled states, with the same loads. Compile time is reported apart from run
 time (``compile_seconds``, CPU s of the executable a row ran, shared by the
 rows of one integrator and solver; ``cpu_seconds`` is the run alone). JAX's own
-persistent cache keeps compilations between runs where ``JAX_COMPILATION_CACHE_DIR``
-names a folder (measured: the A01 test of tests/test_engine_mjx.py, 11.3 CPU s,
-then 6.2 s).
+persistent cache keeps compilations between runs, in ``jax/`` of xcheck's cache
+directory unless ``JAX_COMPILATION_CACHE_DIR`` names another (:func:`load_mjx`;
+measured: the A01 test of tests/test_engine_mjx.py, 11.3 CPU s, then 6.2 s).
 
 Measured (2026-11-25, 2 shared cores, mujoco 4.0.0, mujoco-mjx 3.17.0, jax 0.10.2 on
 the CPU; ``ALL_SETTINGS`` on A02, Newton and CG Euler and Newton
@@ -74,6 +74,7 @@ import mujoco
 import numpy as np
 import pandas as pd
 
+from xcheck.cache import cache_dir
 from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.engines import NotApplicable
 from xcheck.engines.mujoco import dynamic as mujoco_dynamic
@@ -147,7 +148,8 @@ SETTINGS = tuple(s for s in ALL_SETTINGS if s.solver == "Newton" and s.integrato
 
 
 def load_mjx():
-    """``(jax, jax.numpy, mujoco.mjx)`` with float64 on, imported quietly.
+    """``(jax, jax.numpy, mujoco.mjx)`` with float64 on and the persistent
+    compilation cache set (:func:`_persistent_cache`), imported quietly.
 
     ``mujoco.mjx`` tries its Warp back end at import and, without the ``warp``
     package, prints "Failed to import warp: ..." twice to stdout (``print``, not
@@ -158,11 +160,31 @@ def load_mjx():
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    _persistent_cache(jax)
     with contextlib.redirect_stdout(io.StringIO()):
         from mujoco import mjx
     import jax.numpy as jnp
 
     return jax, jnp, mjx
+
+
+#: The largest the persistent compilation cache grows, bytes (JAX evicts the
+#: least recently used entries beyond it); an entry is about 1 to 4 MB here.
+CACHE_BYTES = 2**30
+
+
+def _persistent_cache(jax) -> None:
+    """Keep JAX's compilations between runs: its persistent cache in ``jax/`` of
+    xcheck's cache directory (:func:`xcheck.cache.cache_dir`), unless
+    ``$JAX_COMPILATION_CACHE_DIR`` already names one or xcheck's cache is off.
+    Set before JAX's first compilation, which fixes the cache for the process."""
+    if jax.config.jax_compilation_cache_dir:
+        return
+    directory = cache_dir()
+    if directory is None:
+        return
+    jax.config.update("jax_compilation_cache_dir", str(directory / "jax"))
+    jax.config.update("jax_compilation_cache_max_size", CACHE_BYTES)
 
 
 def mjx_model(model: mujoco.MjModel, integrator: str, solver: str):
