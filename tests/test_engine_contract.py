@@ -103,7 +103,9 @@ def test_toy_engines_are_listed_and_selectable(toys):
     listed = CliRunner().invoke(app, ["engines", "--json"])
     assert listed.exit_code == 0, listed.output
     by_name = {e["name"]: e for e in json.loads(listed.stdout)["engines"]}
-    assert by_name["toy"]["modes"] == [{"name": "toy-kinematic", "kind": "kinematic", "on_request": False}]
+    assert by_name["toy"]["modes"] == [
+        {"name": "toy-kinematic", "kind": "kinematic", "on_request": False, "findings": {}}
+    ]
     assert by_name["absent"]["available"] is False
     assert "toy (toy-kinematic)" in " ".join(_cli("list").stdout.split())  # however the line wraps
     kinematic = _cli("run", "fourbar", "--engines", "kinematic", "--json", "--no-report", "--samples", "11")
@@ -124,6 +126,86 @@ def test_a_taken_name_is_refused(toys):
         engines.register(Clash)
     with pytest.raises(ValueError, match="already registered"):
         engines.register(Shifted)
+
+
+class Known(Shifted):
+    """The toy's shifted positions judged at a bound below the shift: a failure in
+    position that its engine states as a finding (``known-kinematic``), and one
+    that states a finding elsewhere (``unknown-kinematic``: a plain failure)."""
+
+    name = "known"
+    modes = (
+        engines.Mode(
+            "known-kinematic",
+            "kinematic",
+            Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
+            findings={"position": "the toy moves every position by 3e-7 of the size"},
+        ),
+        engines.Mode(
+            "unknown-kinematic",
+            "kinematic",
+            Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
+            findings={"velocity": "a finding the toy does not show"},
+        ),
+    )
+
+
+class Costly(Shifted):
+    name = "costly"
+    modes = (
+        engines.Mode(
+            "costly-kinematic", "kinematic", Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "as the toy"), on_request=True
+        ),
+    )
+
+
+@pytest.fixture
+def findings():
+    registered = [engines.register(engine) for engine in (Known, Costly)]
+    yield registered
+    for engine in registered:
+        engines.unregister(engine.name)
+
+
+def test_a_stated_finding_fails_the_mode_but_not_the_run(findings, tmp_path):
+    """A mode failing only in its engine's stated findings: the mode does not pass, its
+    error and bound are shown with the finding, and the run exits 0; a failure in a
+    category the engine did not state is a failure of the run."""
+    args = ("run", "fourbar", "--json", "--samples", "21", "--out", str(tmp_path))
+    known = _cli(*args, "--engines", "known-kinematic,formulation-II", "--report")
+    assert known.exit_code == 0, known.output
+    doc = json.loads(known.stdout)
+    entry = doc["engines"]["known-kinematic"]
+    assert entry["pass"] is False and entry["finding"] == "the toy moves every position by 3e-7 of the size"
+    assert entry["relative"]["position"] == pytest.approx(SHIFT, rel=1e-6) and doc["pass"] is True
+    assert doc["engines"]["formulation-II"]["finding"] is None
+    report = (tmp_path / "fourbar.md").read_text(encoding="utf-8")
+    assert "all modes within tolerance but the stated findings of `known-kinematic`" in report
+    assert "`known-kinematic` fails (✗) only where its engine is known to be wrong: the toy moves" in report
+    table = _cli("run", "fourbar", "--engines", "known-kinematic", "--samples", "21", "--no-report")
+    assert table.exit_code == 0 and "finding" in table.stdout
+    assert "known-kinematic: the engine's stated finding: the toy moves every position" in " ".join(
+        table.stdout.split()
+    )
+    unknown = _cli(*args, "--engines", "unknown-kinematic", "--no-report")
+    assert unknown.exit_code == 1, unknown.output
+    entry = json.loads(unknown.stdout)["engines"]["unknown-kinematic"]
+    assert entry["pass"] is False and entry["finding"] is None
+
+
+def test_a_mode_on_request_runs_only_when_named(findings):
+    """A mode marked on_request is out of the default selection and of its kind's
+    group, and runs when its name or its engine's is given."""
+    import xcheck
+
+    assert "costly-kinematic" not in xcheck.select_modes(None) and "known-kinematic" in xcheck.select_modes(None)
+    assert "costly-kinematic" not in xcheck.select_modes("kinematic")
+    assert xcheck.select_modes("costly") == ("native", "costly-kinematic")
+    assert "costly-kinematic" not in engines.groups()["kinematic"] and "costly-kinematic" in engines.groups()["costly"]
+    listed = CliRunner().invoke(app, ["engines", "--json"])
+    modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
+    assert modes["costly-kinematic"]["on_request"] and not modes["known-kinematic"]["on_request"]
+    assert modes["known-kinematic"]["findings"] == {"position": "the toy moves every position by 3e-7 of the size"}
 
 
 class FreeToy(engines.Engine):

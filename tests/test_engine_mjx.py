@@ -181,51 +181,80 @@ def test_mjx_constraint_lacks_mujoco_4s_velocity_term():
             assert np.max(np.abs(drift)) > 1e-3  # measured 4.5e-3, 7.8e-3 m/s^2: the term is there
 
 
-# mjx-dynamic: MuJoCo's driven mode (tight setting, RK4 + Newton) on MJX, run on request.
+# mjx-dynamic: MuJoCo's driven mode (tight setting, RK4 + Newton) on MJX.
 # Measured (2026-11-26, 2 shared cores under a fuzz campaign, mujoco 4.0.0, mujoco-mjx 3.17.0,
 # jax 0.10.2, CPU) on models/fourbar.toml over its whole window (1.64 s) at 1, 0.5, 0.25,
 # 0.125 ms: position error 1.0e-5, 2.6e-6, 6.7e-7, 1.7e-7 m (orders 1.96, 1.98, 1.99), MuJoCo (C)
 # 1.5e-8 .. 2.1e-10 m, the two within 1.0e-5 .. 1.7e-7 m; one compilation 39 CPU s. Over the
 # fixture's 0.2 s at 1, 0.5, 0.25 ms: 4.5e-6, 1.2e-6, 3.0e-7 m (orders 1.97, 1.96), 37 CPU s
-# of compilation.
+# of compilation. With the one-pass RK4 step (xcheck.engines.mjx._rk4, 2026-11-26) the same
+# errors to the digits shown, and 17 CPU s of tracing and compilation (5 with JAX's cache).
 
 
 @pytest.fixture(scope="module")
 def fourbar_dynamic():
     """mjx-dynamic on the four-bar over 0.2 s at 1, 0.5 and 0.25 ms, with MuJoCo (C) beside it
-    (one compilation: about 40 CPU s here)."""
+    (one compilation: about 17 CPU s here, unless JAX's persistent cache has it)."""
     from xcheck.engines.mjx import dynamic
 
     return dynamic.run_dynamic(_kinematics(MODELS / "fourbar.toml"), duration=0.2, timesteps=(1e-3, 5e-4, 2.5e-4))
 
 
-def test_driven_mode_runs_only_on_request():
-    """mjx-dynamic is left out of the default selection and of the kind's group, and
-    runs when its engine or its name is named."""
-    import xcheck
-
-    assert engines.mode("mjx-dynamic").on_request and engines.mode("mjx-dynamic").kind == "dynamic"
-    assert "mjx-dynamic" not in xcheck.select_modes(None)
-    assert "mjx-dynamic" not in xcheck.select_modes("dynamic")
-    assert "mujoco-dynamic" in xcheck.select_modes("dynamic")
-    assert xcheck.select_modes("mjx") == ("native", "mjx-dynamic")
-    assert xcheck.select_modes("mjx-dynamic,mujoco") == (
-        "native",
-        "mjx-dynamic",
-        "mujoco-kinematic",
-        "mujoco-dynamic",
-    )
-    assert "mjx-dynamic" not in engines.groups()["dynamic"]
-    assert "mjx-dynamic" in engines.groups()["mjx"]
+def test_driven_mode_runs_by_default_and_states_its_finding():
+    """mjx-dynamic is in the default selection and in the kind's group; its accelerations
+    are its engine's stated finding (MJX's constraint lacks J-dot qd)."""
     import json
 
     from typer.testing import CliRunner
 
+    import xcheck
     from xcheck.cli import app
 
-    listed = CliRunner().invoke(app, ["engines", "--json"])  # the listing says so
+    mode = engines.mode("mjx-dynamic")
+    assert not mode.on_request and mode.kind == "dynamic"
+    assert "mjx-dynamic" in xcheck.select_modes(None) and "mjx-dynamic" in xcheck.select_modes("dynamic")
+    assert xcheck.select_modes("mjx") == ("native", "mjx-dynamic")
+    assert set(mode.findings) == {"acceleration", "alpha"} and "J-dot qd" in mode.findings["acceleration"]
+    listed = CliRunner().invoke(app, ["engines", "--json"])
     modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
-    assert modes["mjx-dynamic"]["on_request"] and not modes["mjx-free"]["on_request"]
+    assert not modes["mjx-dynamic"]["on_request"]
+
+
+def test_one_pass_rk4_is_mjx_rk4():
+    """xcheck's RK4 step (one forward pass in the graph) against mjx.step's RK4 on the
+    four-bar's driven model (tight setting, servos at fixed controls), 200 steps of 1 ms
+    each jit-compiled. Op by op (jax.disable_jit) the two are equal bit for bit (measured
+    over 3 steps); compiled, the graphs round differently and the Newton solver stops at
+    its tolerance (1e-12) on the differences: measured 4e-14 (positions), 2.8e-13 (rates)
+    and 2.7e-13 (the last stage's qacc) of the largest magnitude."""
+    from xcheck.engines.mjx import _rk4
+    from xcheck.engines.mjx.free import load_mjx, mjx_model
+    from xcheck.engines.mujoco import modes as mujoco_modes
+    from xcheck.engines.mujoco.dynamic import TIGHT
+
+    jax, jnp, mjx = load_mjx()
+    model, _, failure = mujoco_modes._compile(_kinematics(MODELS / "fourbar.toml"), None)
+    assert not failure and _rk4.applies(model)
+    TIGHT.apply(model, 1e-3)
+    m = mjx_model(model, "RK4", "Newton")
+    d = mjx.make_data(m).replace(ctrl=jnp.asarray([0.3, 0.5]))
+    types = jax.eval_shape(lambda d: mjx.step(m, d), d)
+    d = jax.tree_util.tree_map(lambda x, t: x.astype(t.dtype), d, types)
+
+    def trajectory(advance):
+        def step(d, _):
+            d = advance(d)
+            return d, (d.qpos, d.qvel, d.qacc_warmstart, d.time)
+
+        return [np.asarray(a) for a in jax.jit(lambda d: jax.lax.scan(step, d, None, length=200)[1])(d)]
+
+    theirs = trajectory(lambda d: mjx.step(m, d))
+    ours = trajectory(lambda d: _rk4.step(m, d)[0])
+    assert np.array_equal(ours[3], theirs[3])  # the same times
+    for a, b in zip(ours[:3], theirs[:3]):
+        assert np.abs(a - b).max() <= 1e-11 * np.abs(b).max()
+    model.jnt_type[0] = mujoco.mjtJoint.mjJNT_BALL  # what the step does not integrate
+    assert not _rk4.applies(model)
 
 
 def test_driven_fourbar_converges_at_second_order_and_follows_mujoco(fourbar_dynamic):

@@ -541,8 +541,8 @@ def select_modes(
         ``"kinematic"``, ``"dynamic"``; :func:`xcheck.engines.groups`), as a
         comma-separated string (``--engines``) or a sequence; None: every mode
         but those run only on request (:attr:`xcheck.engines.Mode.on_request`,
-        e.g. ``mjx-dynamic``), which run when named, or their engine is
-        (``"mjx"``), and not with a kind (``"dynamic"``).
+        none of the built-in ones), which run when named, or their engine is
+        (``"costly"``), and not with a kind (``"dynamic"``).
     kinds : tuple of str
         The kinds of mode to choose from: the driven ones (``xcheck run``,
         default) or ``("free",)`` (``xcheck simulate``).
@@ -642,11 +642,12 @@ SUMMARY_COLUMNS = ("engine", "mode", "kind", "verdict", "category", "error", "to
 
 def summary(result: "RunResult") -> pd.DataFrame:
     """One row per mode of a run: engine, mode, kind (native, kinematic,
-    dynamic), verdict ("pass", "fail", "failed": it did not run through, "not
+    dynamic), verdict ("pass", "fail", "finding": it fails only where its
+    engine is known to be wrong, "failed": it did not run through, "not
     applicable"), the category whose relative error is largest against its
     tolerance, that error and tolerance (relative: see
     :class:`xcheck.runner.ModeOutcome`), and the reason of a mode that failed
-    or does not apply."""
+    or does not apply, or its finding."""
     import pandas as pd
 
     rows = []
@@ -661,7 +662,7 @@ def summary(result: "RunResult") -> pd.DataFrame:
             ratio = relative / limit if limit > 0 else math.inf
             if worst is None or not ratio <= worst[0]:
                 worst = (ratio, str(category), relative, limit)
-        verdict = "failed" if not outcome.ok else ("pass" if outcome.passed else "fail")
+        verdict = "failed" if not outcome.ok else "pass" if outcome.passed else "finding" if outcome.finding else "fail"
         rows.append(
             {
                 "engine": "xcheck" if mode == "native" else engines.engine_of(mode).name,
@@ -671,7 +672,7 @@ def summary(result: "RunResult") -> pd.DataFrame:
                 "category": worst[1] if worst else None,
                 "error": worst[2] if worst else math.nan,
                 "tolerance": worst[3] if worst else math.nan,
-                "reason": outcome.reason or None,
+                "reason": outcome.reason or outcome.finding or None,
             }
         )
     for mode, reason in result.not_applicable.items():

@@ -218,7 +218,10 @@ def engines_command(
             "title": e.title,
             "available": not e.available(),
             "reason": e.available() or None,
-            "modes": [{"name": m.name, "kind": m.kind, "on_request": m.on_request} for m in e.modes],
+            "modes": [
+                {"name": m.name, "kind": m.kind, "on_request": m.on_request, "findings": dict(m.findings)}
+                for m in e.modes
+            ],
             "forces": e.force_tolerance is not None,
             "export_format": e.export_format,
             "notes": e.notes,
@@ -237,7 +240,8 @@ def engines_command(
             escape(row["name"]),
             escape(
                 "\n".join(
-                    f"{m['name']} ({m['kind']}{', on request: --engines ' + m['name'] if m['on_request'] else ''})"
+                    f"{m['name']} ({m['kind']}{', on request: --engines ' + m['name'] if m['on_request'] else ''}"
+                    f"{', stated finding: ' + ', '.join(m['findings']) if m['findings'] else ''})"
                     for m in row["modes"]
                 )
             ),
@@ -443,7 +447,7 @@ def run_command(
         typer.Option(
             "--engines",
             metavar="MODE[,MODE…]",
-            help="Modes to run (default: all but those run on request, mjx-dynamic; `xcheck engines` lists them): "
+            help="Modes to run (default: all but any marked on request; `xcheck engines` lists them): "
             "native, the engines' modes (e.g. "
             "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
             "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).",

@@ -380,7 +380,7 @@ def run_json(run) -> dict:
                     "estimate": _number(row.estimate),
                     "measured": _number(row.relative),
                 }
-        entry.update({"pass": outcome.passed, "reason": outcome.reason or None})
+        entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "finding": outcome.finding or None})
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
@@ -423,7 +423,13 @@ def print_run(console: Console, run) -> None:
     from .runner import CATEGORIES
 
     mech = run.mechanism
-    status = "[green]all modes within tolerance[/green]" if run.passed else "[red]some modes beyond tolerance[/red]"
+    status = (
+        "[red]some modes beyond tolerance[/red]"
+        if not run.passed
+        else "[green]all modes within tolerance[/green]"
+        if not run.findings
+        else "[green]all modes within tolerance[/green] but the engines' stated findings"
+    )
     console.print(f"[bold]{mech.name}[/bold] — {mech.title}: {status} ({run.seconds:.1f} s)")
     table = Table(box=None, pad_edge=False, header_style="bold")
     table.add_column("mode", no_wrap=True)
@@ -440,7 +446,7 @@ def print_run(console: Console, run) -> None:
     for mode, outcome in run.outcomes.items():
         if not outcome.ok:
             table.add_row(mode, "[red]failed[/red]", *["—"] * len(CATEGORIES))
-            failures.append(f"{mode}: {outcome.reason}")
+            failures.append(f"[red]{mode}: {outcome.reason}[/red]")
             continue
         cells = []
         rows = {r.category: r for r in outcome.categories.itertuples()}
@@ -449,14 +455,23 @@ def print_run(console: Console, run) -> None:
             if r is None:
                 cells.append("—")
                 continue
-            style = "green" if r.passed else "red"
+            style = "green" if r.passed else "yellow" if outcome.finding else "red"
             cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:.2g}")
             if not r.passed:
                 failures.append(
-                    f"{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
-                    f"{driver.name} = {r.worst_input / scale:.4g} {unit}"
+                    f"[{style}]{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
+                    f"{driver.name} = {r.worst_input / scale:.4g} {unit}[/{style}]"
                 )
-        table.add_row(mode, "[green]pass[/green]" if outcome.passed else "[red]FAIL[/red]", *cells)
+        if outcome.finding:
+            failures.append(f"[yellow]{mode}: the engine's stated finding: {escape(outcome.finding)}[/yellow]")
+        verdict = (
+            "[green]pass[/green]"
+            if outcome.passed
+            else "[yellow]finding[/yellow]"
+            if outcome.finding
+            else "[red]FAIL[/red]"
+        )
+        table.add_row(mode, verdict, *cells)
     console.print(table)
     console.print(
         "  largest difference from the native solution / tolerance: position per mechanism size, "
@@ -464,7 +479,7 @@ def print_run(console: Console, run) -> None:
         "is the largest error its own convergence at the expected order allows (basis: report, JSON)"
     )
     for failure in failures:
-        console.print(f"  [red]{failure}[/red]")
+        console.print(f"  {failure}")
     if run.not_applicable:
         console.print("  not applicable: " + "; ".join(f"{m} ({r})" for m, r in run.not_applicable.items()))
     if not run.force_table.empty:

@@ -87,8 +87,8 @@ def all_modes() -> tuple[str, ...]:
 
 def default_modes(kinds: tuple[str, ...] = engines.DRIVEN_KINDS) -> tuple[str, ...]:
     """The modes a run takes when none are named: "native" and every mode of
-    ``kinds`` but those run only on request (:attr:`xcheck.engines.Mode.on_request`,
-    such as ``mjx-dynamic``), in the order of :func:`all_modes`."""
+    ``kinds`` but those run only on request (:attr:`xcheck.engines.Mode.on_request`),
+    in the order of :func:`all_modes`."""
     return ("native", *(m.name for m in engines.modes(kinds) if not m.on_request))
 
 
@@ -177,6 +177,19 @@ class ModeOutcome:
     errors: dict = field(default_factory=dict)
     seconds: float = 0.0
 
+    @property
+    def finding(self) -> str:
+        """The engine's stated defect (:attr:`xcheck.engines.Mode.findings`) where
+        every category the mode fails is one of them; "" where it passed, did
+        not run, or fails a category that is not a stated finding."""
+        if not self.ok or self.passed or self.categories.empty or self.mode == "native":
+            return ""
+        findings = engines.mode(self.mode).findings
+        failing = self.categories.category[~self.categories.passed.astype(bool)]
+        if failing.empty or not all(category in findings for category in failing):
+            return ""
+        return "; ".join(dict.fromkeys(findings[category] for category in failing))
+
 
 @dataclass
 class RunResult:
@@ -202,15 +215,26 @@ class RunResult:
 
     @property
     def passed(self) -> bool:
+        """Every mode within its tolerance, or failing only where its engine's
+        stated findings say (:attr:`ModeOutcome.finding`), and the reactions
+        and the power balance within theirs: the run's exit status 0."""
         forces_pass = self.force_table.empty or bool(self.force_table.passed.all())
         energy_pass = self.energy is None or self.energy["passed"]
-        return all(o.passed for o in self.outcomes.values()) and forces_pass and energy_pass
+        return all(o.passed or o.finding for o in self.outcomes.values()) and forces_pass and energy_pass
+
+    @property
+    def findings(self) -> dict[str, str]:
+        """Mode name to its stated finding, for the modes that fail only there."""
+        return {mode: o.finding for mode, o in self.outcomes.items() if o.finding}
 
     def worst(self) -> tuple[str, str, float, float] | None:
         """(mode, category, relative error, tolerance) of the largest error
-        relative to its tolerance, over the modes that ran; None if none ran."""
+        relative to its tolerance, over the modes that ran, but those failing
+        only in their stated findings (:attr:`findings`); None if none."""
         best = None
         for outcome in self.outcomes.values():
+            if outcome.finding:
+                continue
             for _, row in outcome.categories.iterrows():
                 ratio = row.relative / row.tolerance if row.tolerance > 0 else math.inf
                 if best is None or ratio > best[0]:

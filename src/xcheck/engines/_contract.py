@@ -125,8 +125,14 @@ class Mode:
         Run only when asked for by name, or by its engine's name
         (``--engines mjx``): not in the default selection, nor in a kind's
         group (``--engines dynamic``); for a mode too costly to run every time
-        (MJX's driven mode: a compilation of tens of CPU seconds per mechanism).
+        (none of the built-in modes at present; MJX's driven mode was, before
+        its compilation fell to 16 to 20 CPU s).
         See :func:`xcheck.select_modes` and :func:`xcheck.engines.groups`.
+    findings : mapping of str to str
+        Categories in which the engine is known to be wrong, each with the
+        measured defect: the mode still fails them (``passed`` False, the
+        error and the bound shown), but a run whose only failures are stated
+        findings exits 0 (:attr:`xcheck.runner.ModeOutcome.finding`).
     """
 
     name: str
@@ -135,6 +141,7 @@ class Mode:
     orders: Mapping[str, float | None] = field(default_factory=dict)
     style: Mapping[str, object] = field(default_factory=dict)
     on_request: bool = False
+    findings: Mapping[str, str] = field(default_factory=dict)
 
 
 class Engine:

@@ -133,6 +133,7 @@ def index_entry(run: RunResult) -> dict:
         "name": run.mechanism.name,
         "title": run.mechanism.title,
         "passed": run.passed,
+        "findings": list(run.findings),
         "worst": worst_text(run),
         "textbook": textbook_text(run),
     }

@@ -67,11 +67,13 @@ def _comparison_section(run: RunResult) -> str:
             c = str(ratios.idxmax())
             x = float(table.at[c, "worst_input"])  # type: ignore[arg-type]  # pandas-stubs: a cell is any scalar
             worst = f"{c}: {table.at[c, 'worst']!s} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
-        result = "pass" if outcome.passed else "**FAIL**"
+        result = "pass" if outcome.passed else "finding" if outcome.finding else "**FAIL**"
         if outcome.reason:
             result += f" ({outcome.reason})"
         rows.append([f"`{mode}`", result] + cells + [worst])
     text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
+    for mode, finding in run.findings.items():
+        text += f"\n\n`{mode}` fails (✗) only where its engine is known to be wrong: {finding}."
     text += (
         "\n\nEach cell: the largest difference from the native solution / the tolerance. Positions are "
         "relative to the mechanism's size, angles in rad, rates relative to the largest magnitude of that "
@@ -272,7 +274,13 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
 def report_markdown(run: RunResult, images: dict[str, str], command: str) -> str:
     """The report of one mechanism; ``images`` maps figure keys to paths relative to the report."""
     mech = run.mechanism
-    verdict = "all modes within tolerance" if run.passed else "**some modes beyond tolerance**"
+    verdict = (
+        "**some modes beyond tolerance**"
+        if not run.passed
+        else "all modes within tolerance"
+        if not run.findings
+        else f"all modes within tolerance but the stated findings of {', '.join(f'`{m}`' for m in run.findings)}"
+    )
     sections = [
         f"# {mech.name}: {mech.title}",
         f"Source: {mech.source or '—'}. Result: {verdict}.",
@@ -299,7 +307,8 @@ def index_markdown(entries: list[dict], command: str) -> str:
             [
                 f"[{e['name']}]({e['name']}.md)",
                 e["title"],
-                "pass" if e["passed"] else "**FAIL**",
+                ("pass" if e["passed"] else "**FAIL**")
+                + (f" (findings: {', '.join(f'`{m}`' for m in e.get('findings', ()))})" if e.get("findings") else ""),
                 e["worst"],
                 e["textbook"],
             ]

@@ -1,6 +1,6 @@
 """MJX: MuJoCo's second implementation (MuJoCo XLA, in JAX), run on the same MJCF
 file as :mod:`xcheck.engines.mujoco`, in free motion (:mod:`.free`) and in driven
-dynamics (:mod:`.dynamic`, run on request)."""
+dynamics (:mod:`.dynamic`)."""
 
 from __future__ import annotations
 
@@ -25,8 +25,15 @@ _DYNAMIC = Tolerance(
 )
 
 
+#: MJX's driven accelerations, wrong by a known, measured amount (tests/test_engine_mjx.py).
+_ACCELERATIONS = (
+    "MJX's loop constraint (connect) leaves out the loops' J-dot qd, which MuJoCo's C implementation "
+    "has, so MJX's qacc is off by 0.09 to 0.48 of the largest acceleration and grows as the step falls"
+)
+
+
 class MJX(Engine):
-    """MJX (MuJoCo XLA, JAX on CPU in float64): driven dynamics (on request) and free motion."""
+    """MJX (MuJoCo XLA, JAX on CPU in float64): driven dynamics and free motion."""
 
     name = "mjx"
     title = "MJX"
@@ -41,7 +48,7 @@ class MJX(Engine):
             _DYNAMIC,
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:cyan", lw=1, ls="--"),
-            on_request=True,  # one compilation of 36 to 47 CPU s per mechanism (measured)
+            findings={"acceleration": _ACCELERATIONS, "alpha": _ACCELERATIONS},
         ),
         Mode("mjx-free", "free", FREE_MOTION, style=dict(color="tab:cyan", lw=1, ls="-.")),
     )
@@ -53,15 +60,17 @@ class MJX(Engine):
         "of mass, through xfrc_applied. Not converted (not applicable): loads with a time law or a force "
         "off the centre of mass, and rotational springs (MuJoCo's free mode applies them in the passive-force "
         "callback mjcb_passive, which MJX does not call). MJX refuses MuJoCo's implicit integrator, the PGS "
-        "solver and the energy flag (energy is MuJoCo's, at MJX's states). Driven dynamics (mjx-dynamic, run "
-        "only on request: --engines mjx): MuJoCo's driven mode with its servos, tight setting only (RK4, Newton, "
-        "stiff loops), controls as data of one jit-compiled rollout per mechanism; measured (2 shared cores, "
-        "1, 0.5, 0.25, 0.125 ms over the window) position errors at order 1.96 to 1.99 (fourbar: 1.0e-5 .. "
-        "1.7e-7 m), 1.28 to 1.96 (slider-crank: 6.1e-3 .. 1.8e-4 m) and 1.82 to 1.95 (task-2-1: 7.4e-4 .. "
-        "1.4e-5 m), 360 to 860 times MuJoCo (C)'s at the same setting and within 1.0e-5 .. 1.7e-7, 4.7e-3 .. "
-        "8.0e-5 and 6.2e-4 .. 1.2e-5 m of it (MJX's loop constraint lacks J-dot qd, so its loops stay open "
-        "by about J-dot qd (2 dt)^2); accelerations 0.19 to 0.48 relative (the same term), "
-        "which fail MuJoCo (C)'s bound of 1.5e-2. Compilation 36 to "
-        "47 CPU s per mechanism; run 0.5 to 5 CPU s per simulated second (1 to 0.125 ms), 8 to 16 times "
-        "MuJoCo (C)'s."
+        "solver and the energy flag (energy is MuJoCo's, at MJX's states). Driven dynamics (mjx-dynamic): "
+        "MuJoCo's driven mode with its servos, tight setting only (RK4, Newton, stiff loops), controls as data "
+        "of one jit-compiled rollout per mechanism, stepped by MJX's RK4 tableau with one forward pass in the "
+        "graph (xcheck.engines.mjx._rk4; mjx.step has four, and gives bit for bit the same steps op by op); "
+        "measured (2 shared cores, 1, 0.5, 0.25, 0.125 ms over the window) position errors at order 1.96 to "
+        "1.99 (fourbar: 1.0e-5 .. 1.7e-7 m), 1.28 to 1.96 (slider-crank: 6.1e-3 .. 1.8e-4 m) and 1.82 to 1.95 "
+        "(task-2-1: 7.4e-4 .. 1.4e-5 m), 360 to 860 times MuJoCo (C)'s at the same setting and within "
+        "1.0e-5 .. 1.7e-7, 4.7e-3 .. 8.0e-5 and 6.2e-4 .. 1.2e-5 m of it (MJX's loop constraint lacks J-dot "
+        "qd, so its loops stay open by about J-dot qd (2 dt)^2); accelerations 0.09 to 0.48 relative (the "
+        "same term), which fail MuJoCo (C)'s bound of 1.5e-2: the mode's stated finding. Tracing and "
+        "compilation 16 to 20 CPU s per mechanism, 5 to 5.5 s when JAX's persistent cache (in xcheck's cache "
+        "directory) has the compilation; run 0.2 to 2.4 CPU s per simulated second (1 to 0.125 ms), 3.3 to "
+        "7.5 times MuJoCo (C)'s."
     )
