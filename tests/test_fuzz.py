@@ -285,3 +285,43 @@ def test_a_mode_with_unobserved_orders_and_a_fixed_bound_failure_is_the_engines(
     (row,) = run_case(case, str(path), ["mujoco-dynamic"], 181)
     assert row["outcome"] == "failed" and row["origin"] == "engine", row
     assert "no coarser run" in row["reason"] and "fixed bound" in row["reason"], row["reason"]
+
+
+def test_a_stated_finding_is_the_engines_result():
+    """A mode failing only in its engine's stated findings (xcheck.engines.Mode.findings)
+    is an engine-stated row with the finding as its reason, not a disagreement."""
+    from xcheck import engines
+    from xcheck.compare import ModeResult, trajectory_from_solution
+    from xcheck.fuzz import Case, run_case
+    from xcheck.tolerances import Tolerance
+
+    class Shifted(engines.Engine):
+        """The native sweep, every position moved by 1e-6 of the size, judged at 1e-8."""
+
+        name = "fuzz-toy"
+        modes = (
+            engines.Mode(
+                "fuzz-toy-kinematic",
+                "kinematic",
+                Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
+                findings={"position": "the toy moves every position by 1e-6 of the size"},
+            ),
+        )
+
+        def run(self, mode, kinematics, *, native, samples, branch=None):
+            trajectory = trajectory_from_solution(native, source=mode)
+            for states in (*trajectory.bodies.values(), *trajectory.points.values()):
+                states["position"] = states["position"] + np.array([1e-6 * kinematics.system.size, 0.0])
+            return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+
+    engines.register(Shifted)
+    try:
+        path = DATA / "fuzz-slider-crank-unobserved-and-fixed-bound.toml"
+        case = Case(
+            3, 52, "slider-crank", "near-dead-centre", "constant-acceleration", False, 20.35, {}, path.read_text()
+        )
+        (row,) = run_case(case, str(path), ["fuzz-toy-kinematic"], 21)
+    finally:
+        engines.unregister("fuzz-toy")
+    assert row["outcome"] == "failed" and row["origin"] == "engine", row
+    assert row["reason"] == "the engine's stated finding: the toy moves every position by 1e-6 of the size"
