@@ -325,3 +325,16 @@ def test_a_stated_finding_is_the_engines_result():
         engines.unregister("fuzz-toy")
     assert row["outcome"] == "failed" and row["origin"] == "engine", row
     assert row["reason"] == "the engine's stated finding: the toy moves every position by 1e-6 of the size"
+
+
+def test_a_campaign_leaves_out_what_would_dominate_it():
+    """fuzz's default selection is run's, less the modes marked campaigns=False
+    (MJX's driven mode: a compilation for every random mechanism); named, they run."""
+    from xcheck import engines
+    from xcheck.fuzz import campaign_modes
+    from xcheck.runner import default_modes
+
+    left_out = set(default_modes()) - set(campaign_modes())
+    assert left_out == {m.name for m in engines.modes() if not m.campaigns} & set(default_modes())
+    assert "mjx-dynamic" in left_out and "mujoco-dynamic" in campaign_modes()
+    assert campaign_modes()[0] == "native"

@@ -1030,7 +1030,11 @@ def fuzz_command(
     ] = "fourbar,slider-crank,scotch-yoke",
     engines: Annotated[
         Optional[str],
-        typer.Option("--engines", help="Comma-separated modes or groups (default: all but those run on request)."),
+        typer.Option(
+            "--engines",
+            help="Comma-separated modes or groups (default: those of `xcheck run` but mjx-dynamic, "
+            "whose compilation for every random mechanism would cost four times the rest).",
+        ),
     ] = None,
     samples: Annotated[int, typer.Option("--samples", help=f"Samples of the sweeps (3 to {MAX_SAMPLES}).")] = 181,
     scheduler: Annotated[
@@ -1062,7 +1066,7 @@ def fuzz_command(
         raise InputError(f"--out {out}: expected a directory for the campaign, found a file")
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
     campaign.generate(seed, 0, chosen)  # checks the kinds
-    modes = select_modes(engines)
+    modes = campaign.campaign_modes() if engines is None else select_modes(engines)
     stderr = Console(stderr=True)
     progress = Progress(
         SpinnerColumn(),

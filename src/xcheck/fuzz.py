@@ -668,6 +668,16 @@ def read_rows(out: str | Path) -> pd.DataFrame:
     return frame
 
 
+def campaign_modes() -> tuple[str, ...]:
+    """The modes a campaign runs when none are named: :func:`xcheck.runner.default_modes`
+    but those whose cost on each random mechanism would dominate it
+    (:attr:`xcheck.engines.Mode.campaigns`); named, they run."""
+    from . import engines
+    from .runner import default_modes
+
+    return tuple(m for m in default_modes() if m == "native" or engines.mode(m).campaigns)
+
+
 def fuzz(
     out: str | Path,
     count: int = 100,
@@ -690,6 +700,8 @@ def fuzz(
 
     Parameters
     ----------
+    modes : sequence of str, optional
+        Modes or groups (:func:`xcheck.select_modes`); None: :func:`campaign_modes`.
     batch : int
         Cases per task and per Parquet part.
     progress : callable, optional
@@ -703,7 +715,7 @@ def fuzz(
     from .api import select_modes
 
     out = Path(out)
-    chosen = select_modes(modes)
+    chosen = campaign_modes() if modes is None else select_modes(modes)
     done = set(read_rows(out).case)
     cases = [generate(seed, i, kinds) for i in range(count)]
     todo = [c for c in cases if c.name not in done]

@@ -128,6 +128,10 @@ class Mode:
         (none of the built-in modes at present; MJX's driven mode was, before
         its compilation fell to 16 to 20 CPU s).
         See :func:`xcheck.select_modes` and :func:`xcheck.engines.groups`.
+    campaigns : bool
+        Run in a fuzz campaign's default selection (:func:`xcheck.fuzz.campaign_modes`);
+        False for a mode whose cost on each random mechanism would dominate
+        the campaign (MJX's driven mode: a compilation for every mechanism).
     findings : mapping of str to str
         Categories in which the engine is known to be wrong, each with the
         measured defect: the mode still fails them (``passed`` False, the
@@ -141,6 +145,7 @@ class Mode:
     orders: Mapping[str, float | None] = field(default_factory=dict)
     style: Mapping[str, object] = field(default_factory=dict)
     on_request: bool = False
+    campaigns: bool = True
     findings: Mapping[str, str] = field(default_factory=dict)
 
 
