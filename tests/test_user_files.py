@@ -473,3 +473,23 @@ def test_toml_nested_too_deeply_is_one_line(tmp_path):
 def test_no_engines_is_refused():
     result = _cli("run", FOURBAR_200, "--engines", "", "--no-report")
     assert result.exit_code == 2 and "--engines: expected at least one mode" in result.stderr
+
+
+def test_a_motion_through_a_singular_state_leaves_the_power_balance_out(tmp_path):
+    """The double four-bar driven a whole turn passes its change points, where the native
+    velocities are not determined: the power balance is not computed and says why
+    (it used to end `xcheck run all` with a traceback); the other files still run."""
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for name in ("double-fourbar", "fourbar-loaded"):
+        (folder / f"{name}.toml").write_text((DATA / f"{name}.toml").read_text())
+    result = _cli("run", "all", "--models", folder, "--engines", "formulations", "--samples", "21", "--json")
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    documents = {d["mechanism"]: d for d in json.loads(result.stdout)}
+    assert set(documents) == {"double-fourbar", "fourbar-loaded"}
+    double = documents["double-fourbar"]
+    assert double["energy"] is None and "not all determined" in double["energy_not_computed"]
+    assert double["engines"]["native"]["pass"] is False  # its sweep meets the undetermined samples too
+    assert (
+        documents["fourbar-loaded"]["energy"]["passed"] and documents["fourbar-loaded"]["energy_not_computed"] is None
+    )

@@ -409,6 +409,7 @@ def run_json(run) -> dict:
         "forces": forces,
         "energy": energy,
         "forces_not_computed": run.no_forces or None,
+        "energy_not_computed": run.no_energy or None,
         "textbook": textbook_json(run.textbook),
         "timings": {
             "seconds": round(run.seconds, 3),
@@ -492,10 +493,14 @@ def print_run(console: Console, run) -> None:
             parts.append(f"{row.engine} [{style}]{row.max_rel:.1e}[/{style}]/{row.tolerance:g}")
         console.print("  joint reactions and driving effort vs native: " + ", ".join(parts))
         e = run.energy
-        style = "green" if e["passed"] else "red"
-        console.print(
-            f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] of {e['scale']:.3g} W"
-        )
+        if e is None:
+            console.print(f"  power balance: not computed ({escape(run.no_energy)})")
+        else:
+            style = "green" if e["passed"] else "red"
+            console.print(
+                f"  power balance (drive + loads = d(T+V)/dt): [{style}]{e['relative']:.1e}[/{style}] "
+                f"of {e['scale']:.3g} W"
+            )
     elif run.no_forces and (
         mech.loads or mech.springs or mech.rotational_springs or len(mech.without_mass) < len(mech.moving_bodies)
     ):  # a file that asks for dynamics hears why there are no reactions; a kinematics-only one does not

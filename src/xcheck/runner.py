@@ -207,6 +207,7 @@ class RunResult:
     native_forces: Forces | None = None
     energy: dict | None = None
     no_forces: str = ""
+    no_energy: str = ""
     floors: dict = field(default_factory=dict)
 
     @property
@@ -691,7 +692,11 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     for i in table.index[table.ok & ~table.passed]:
         _refine_forces(run, table, i, branch)
     run.force_table = table
-    energy = energy_summary(kinematics, branch)
+    try:
+        energy = energy_summary(kinematics, branch)
+    except ValueError as err:  # the motion passes an undetermined state: a balance there means nothing
+        run.no_energy = f"over the simulation window, {err}"
+        return
     energy["tolerance"] = energy_tolerance(condition, ratio)
     energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
     run.energy = energy

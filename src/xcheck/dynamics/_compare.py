@@ -326,13 +326,14 @@ def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: i
     ------
     ModelError
         If a moving body has no mass data.
+    ValueError
+        If a state of the window did not assemble or is singular (the first
+        one, in one line: :func:`determined_states`).
     """
     require_mass_data(kinematics.mechanism)
     window = simulation_window(kinematics, branch)
     times = window.times(samples)
-    solution = kinematics.solve(*window.inputs(kinematics, times), branch=branch)
-    if not solution.success:
-        raise ValueError("the native solution does not assemble over the whole simulation window")
+    solution = determined_states(kinematics, branch, solution=window_states(kinematics, branch, samples))
     balance = energy_balance(solution, inverse_dynamics(solution))
     scale = float(balance[["drive", "loads", "kinetic_rate", "potential_rate"]].abs().to_numpy().max())
     residual = float(balance["residual"].abs().max())

@@ -245,7 +245,6 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
             ]
         )
     e = run.energy
-    assert e is not None  # computed with the forces
     text = (
         "Reactions (force of a joint's first body on its second, global frame), slider normal forces and "
         "couples, and driver efforts (in the sense that increases the input) over the simulation window, "
@@ -259,13 +258,16 @@ def _forces_section(run: RunResult, images: dict[str, str]) -> str:
     for r in run.force_table.itertuples():
         if getattr(r, "basis", ""):
             text += f"\n\n`{r.engine}`: {r.basis}."
-    text += (
-        f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
-        f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
-        f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 2)}); the work done since t = 0 matches the "
-        f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
-        f"energy swing {_g(e['energy_swing'], 3)} J)."
-    )
+    if e is None:
+        text += f"\n\nPower balance of the native solution: not computed ({run.no_energy})."
+    else:
+        text += (
+            f"\n\nPower balance of the native solution (driving power + power of loads = rate of change of "
+            f"kinetic + potential energy): largest residual {_g(e['residual'], 2)} W of {_g(e['scale'], 3)} W "
+            f"({_g(e['relative'], 2)}, tolerance {_g(e['tolerance'], 2)}); the work done since t = 0 matches the "
+            f"energy change within {_g(e['work_error'], 2)} J (trapezoidal rule over {e['samples']} states; "
+            f"energy swing {_g(e['energy_swing'], 3)} J)."
+        )
     if "forces" in images:
         text += f"\n\n![reactions and driving effort]({images['forces']})"
     return text
