@@ -76,3 +76,17 @@ def assert_first_order(result, finest: float) -> None:
         errors = part.sort_values("timestep")["position_error"].to_numpy()
         assert errors[0] <= finest
         assert all(1.8 <= coarse / fine <= 2.2 for fine, coarse in zip(errors[:-1], errors[1:]))
+
+
+def shifted_sweep(mode: str, kinematics, native, fraction: float):
+    """A toy engine's result: the native sweep with every body and point position
+    moved by ``fraction`` of the mechanism's size along x (a known error)."""
+    import numpy as np
+
+    from xcheck.compare import ModeResult, trajectory_from_solution
+
+    trajectory = trajectory_from_solution(native, source=mode)
+    shift = np.array([fraction * kinematics.system.size, 0.0])
+    for states in (*trajectory.bodies.values(), *trajectory.points.values()):
+        states["position"] = states["position"] + shift
+    return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])

@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import DATA, MODELS
+from conftest import DATA, MODELS, shifted_sweep
 from typer.testing import CliRunner
 
 from xcheck import engines
@@ -36,11 +36,7 @@ class Shifted(engines.Engine):
     )
 
     def run(self, mode, kinematics, *, native, samples, branch=None):
-        trajectory = trajectory_from_solution(native, source=mode)
-        shift = np.array([SHIFT * kinematics.system.size, 0.0])
-        for states in (*trajectory.bodies.values(), *trajectory.points.values()):
-            states["position"] = states["position"] + shift
-        return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+        return shifted_sweep(mode, kinematics, native, SHIFT)
 
 
 class Exploding(engines.Engine):

@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import invoke
+from conftest import invoke, shifted_sweep
 
 from xcheck import fuzz
 from xcheck.kinematics import Kinematics
@@ -291,7 +291,6 @@ def test_a_stated_finding_is_the_engines_result():
     """A mode failing only in its engine's stated findings (xcheck.engines.Mode.findings)
     is an engine-stated row with the finding as its reason, not a disagreement."""
     from xcheck import engines
-    from xcheck.compare import ModeResult, trajectory_from_solution
     from xcheck.fuzz import Case, run_case
     from xcheck.tolerances import Tolerance
 
@@ -309,10 +308,7 @@ def test_a_stated_finding_is_the_engines_result():
         )
 
         def run(self, mode, kinematics, *, native, samples, branch=None):
-            trajectory = trajectory_from_solution(native, source=mode)
-            for states in (*trajectory.bodies.values(), *trajectory.points.values()):
-                states["position"] = states["position"] + np.array([1e-6 * kinematics.system.size, 0.0])
-            return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+            return shifted_sweep(mode, kinematics, native, 1e-6)
 
     engines.register(Shifted)
     try:
