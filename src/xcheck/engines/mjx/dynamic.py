@@ -91,7 +91,7 @@ def rollout(m, parameters: dict, qpos0, qvel0, ctrl, bounds):
         eq_solimp=jnp.broadcast_to(parameters["solimp"], m.eq_solimp.shape),
     )
     d = mjx.make_data(m).replace(qpos=qpos0, qvel=qvel0, ctrl=ctrl[0])
-    types = jax.eval_shape(lambda d: mjx.step(m, d), d)  # step's own dtypes (see free.rollout)
+    types = jax.eval_shape(lambda d: _rk4.step(m, d)[0], d)  # the step's own dtypes (see free.rollout)
     d = jax.tree_util.tree_map(lambda x, t: x.astype(t.dtype), d, types)
 
     def sample(d, interval):
