@@ -662,13 +662,12 @@ def summary(result: "RunResult") -> pd.DataFrame:
             ratio = relative / limit if limit > 0 else math.inf
             if worst is None or not ratio <= worst[0]:
                 worst = (ratio, str(category), relative, limit)
-        verdict = "failed" if not outcome.ok else "pass" if outcome.passed else "finding" if outcome.finding else "fail"
         rows.append(
             {
                 "engine": "xcheck" if mode == "native" else engines.engine_of(mode).name,
                 "mode": mode,
                 "kind": "native" if mode == "native" else engines.mode(mode).kind,
-                "verdict": verdict,
+                "verdict": outcome.verdict,
                 "category": worst[1] if worst else None,
                 "error": worst[2] if worst else math.nan,
                 "tolerance": worst[3] if worst else math.nan,

@@ -491,9 +491,10 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
             failing = outcome.categories[~outcome.categories.passed.astype(bool)]
             categories = ", ".join(failing.category) if not failing.empty else "no categories"
             text = outcome.reason or f"outside the tolerance in {categories}"
+            finding = outcome.finding
             explanation = (
-                f"the engine's stated finding: {outcome.finding}" if outcome.finding else None
-            ) or _engine_explanation(outcome, failing, mode)
+                f"the engine's stated finding: {finding}" if finding else _engine_explanation(outcome, failing, mode)
+            )
             origin, text = ("engine", explanation) if explanation else ("disagreement", text)
             rows.append(row(mode, "failed", origin, text, seconds=outcome.seconds, **worst))
     if not run.force_table.empty:

@@ -465,14 +465,8 @@ def print_run(console: Console, run) -> None:
                 )
         if outcome.finding:
             failures.append(f"[yellow]{mode}: the engine's stated finding: {escape(outcome.finding)}[/yellow]")
-        verdict = (
-            "[green]pass[/green]"
-            if outcome.passed
-            else "[yellow]finding[/yellow]"
-            if outcome.finding
-            else "[red]FAIL[/red]"
-        )
-        table.add_row(mode, verdict, *cells)
+        shown = {"pass": "[green]pass[/green]", "finding": "[yellow]finding[/yellow]", "fail": "[red]FAIL[/red]"}
+        table.add_row(mode, shown[outcome.verdict], *cells)
     console.print(table)
     console.print(
         "  largest difference from the native solution / tolerance: position per mechanism size, "

@@ -190,6 +190,14 @@ class ModeOutcome:
             return ""
         return "; ".join(dict.fromkeys(findings[category] for category in failing))
 
+    @property
+    def verdict(self) -> str:
+        """ "pass", "finding" (it fails only in its engine's stated findings),
+        "fail" (beyond a tolerance elsewhere) or "failed" (it did not run through)."""
+        if not self.ok:
+            return "failed"
+        return "pass" if self.passed else "finding" if self.finding else "fail"
+
 
 @dataclass
 class RunResult:

@@ -67,7 +67,7 @@ def _comparison_section(run: RunResult) -> str:
             c = str(ratios.idxmax())
             x = float(table.at[c, "worst_input"])  # type: ignore[arg-type]  # pandas-stubs: a cell is any scalar
             worst = f"{c}: {table.at[c, 'worst']!s} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
-        result = "pass" if outcome.passed else "finding" if outcome.finding else "**FAIL**"
+        result = {"pass": "pass", "finding": "finding", "fail": "**FAIL**"}[outcome.verdict]
         if outcome.reason:
             result += f" ({outcome.reason})"
         rows.append([f"`{mode}`", result] + cells + [worst])
