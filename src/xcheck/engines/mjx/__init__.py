@@ -75,7 +75,7 @@ class MJX(Engine):
         "qd, so its loops stay open by about J-dot qd (2 dt)^2); accelerations 0.09 to 0.48 relative on these "
         "three (0.03 to 1.1 over the bundled mechanisms), which fail MuJoCo (C)'s bound of "
         "1.5e-2: the mode's stated finding. Tracing and "
-        "compilation 16 to 20 CPU s per mechanism, 5 to 5.5 s when JAX's persistent cache (in xcheck's cache "
+        "compilation 16 to 20 CPU s per mechanism, 4 to 4.8 s when JAX's persistent cache (in xcheck's cache "
         "directory) has the compilation; run 0.2 to 2.4 CPU s per simulated second (1 to 0.125 ms), 3.3 to "
         "7.5 times MuJoCo (C)'s."
     )
