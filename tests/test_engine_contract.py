@@ -249,3 +249,65 @@ def test_a_free_mode_from_a_test_module_runs_in_simulate():
     ladder = json.loads(done.stdout)["engines"]["freetoy-free"]["ladder"]
     assert ladder[0]["position_error"] == pytest.approx(SHIFT * 1.0, rel=1e-9)  # spring-block's size is 1 m
     assert run.exit_code == 2 and "found 'freetoy'" in run.stderr
+
+
+class Weighty(Shifted):
+    """The toy declared costly enough that a run with --jobs sends the modes to workers."""
+
+    name = "weighty"
+    modes = (
+        engines.Mode("weighty-kinematic", "kinematic", Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "as the toy"), cost=5.0),
+        engines.Mode("weighty-other", "kinematic", Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "as the toy"), cost=5.0),
+    )
+
+
+def test_an_engine_registered_at_run_time_runs_here_beside_the_worker_processes():
+    """A spawned worker knows only the built-in and entry-point engines: with
+    jobs > 1 the modes of an engine registered in this process run in it, the
+    others in workers, and the run lists them in the order asked for."""
+    from xcheck import api
+    from xcheck.runner import PARALLEL_SAVING
+
+    engines.register(Weighty)
+    try:
+        assert engines.registered_at_run_time("weighty") and not engines.registered_at_run_time("mujoco")
+        assert 5.0 + 0.04 > PARALLEL_SAVING  # the summed cost less the costliest: worth workers
+        told = []
+        run = api.run(
+            "fourbar",
+            "weighty-kinematic,formulation-II,weighty-other",
+            samples=21,
+            models=MODELS,
+            jobs=2,
+            progress=told.append,
+        )
+    finally:
+        engines.unregister("weighty")
+    assert not engines.registered_at_run_time("weighty")
+    assert list(run.outcomes) == ["native", "weighty-kinematic", "formulation-II", "weighty-other"]
+    assert sorted(told) == ["forces", "formulation-II", "weighty-kinematic", "weighty-other"]
+    for mode in ("weighty-kinematic", "weighty-other"):
+        position = run.outcomes[mode].categories.set_index("category").relative["position"]
+        assert run.outcomes[mode].passed and position == pytest.approx(SHIFT, rel=1e-6)
+    assert run.outcomes["formulation-II"].passed and run.outcomes["formulation-II"].result is not None
+
+
+def test_an_engines_availability_imports_nothing():
+    """`available()` finds a dotted requirement (MJX's ``mujoco.mjx``) without importing
+    its parent (MuJoCo: 0.25 s of every `xcheck list`), and names a missing submodule."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys; from xcheck import engines; "
+        "[e.available() for e in engines.engines()]; "
+        "print(sorted(m for m in ('mujoco', 'jax', 'pinocchio', 'pymunk') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+    class Partly(engines.Engine):
+        name = "partly"
+        requires = ("json.decoder", "json.no_such_submodule_xcheck", "no_such_package_xcheck.sub")
+
+    assert Partly().available() == "not installed: json.no_such_submodule_xcheck, no_such_package_xcheck.sub"

@@ -78,3 +78,52 @@ def test_jobs_out_of_range_is_refused():
         done.returncode == 2
         and done.stderr.strip() == "xcheck: error: --jobs: expected a whole number from 1 to 256, found 0"
     )
+
+
+def _run_one(out, jobs: str) -> tuple[dict, dict]:
+    """fourbar with modes whose summed cost is worth a pool (PARALLEL_SAVING)."""
+    done = invoke(
+        "run",
+        "fourbar",
+        "--models",
+        str(MODELS),
+        "--engines",
+        "formulations,mujoco,pinocchio-dynamic,pymunk-dynamic",
+        "--samples",
+        "21",
+        "--out",
+        str(out),
+        "--json",
+        "--report",
+        "--no-gif",
+        "--jobs",
+        jobs,
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    del document["timings"]
+    files = {}
+    for path in sorted(p for p in out.rglob("*") if p.is_file()):
+        data = path.read_bytes()
+        if path.suffix in (".md", ".json"):
+            data = data.replace(str(out).encode(), b"OUT")
+        files[str(path.relative_to(out))] = data
+    return document, files
+
+
+@pytest.mark.slow
+def test_a_mechanisms_modes_in_worker_processes_equal_the_serial_run(tmp_path):
+    from xcheck import engines
+    from xcheck.runner import PARALLEL_SAVING
+
+    costs = [engines.mode(m).cost for m in ("formulation-I", "formulation-II", "mujoco-kinematic", "mujoco-dynamic")]
+    costs += [engines.mode("pinocchio-dynamic").cost, engines.mode("pymunk-dynamic").cost]
+    assert sum(costs) - max(costs) > PARALLEL_SAVING  # so that --jobs 2 does use workers
+    serial_json, serial_files = _run_one(tmp_path / "serial", "1")
+    parallel_json, parallel_files = _run_one(tmp_path / "parallel", "2")
+    assert list(parallel_json["engines"]) == list(serial_json["engines"])  # the order asked for
+    assert parallel_json == serial_json
+    assert parallel_files.keys() == serial_files.keys() and "fourbar.md" in serial_files
+    for relative, data in serial_files.items():
+        assert parallel_files[relative] == data, f"{relative} differs between the serial and the parallel run"

@@ -148,8 +148,10 @@ def test_a_failing_mode_is_reported_and_others_run(monkeypatch):
     def broken(self, mode, kinematics, **options):
         raise RuntimeError("engine crashed")
 
-    monkeypatch.setattr(type(engines.engine("pymunk")), "run", broken)
-    result = _cli("run", "slider-crank", "--engines", "pymunk,formulations", "--no-report", "--samples", "21")
+    monkeypatch.setattr(type(engines.engine("pymunk")), "run", broken)  # in this process only: --jobs 1
+    result = _cli(
+        "run", "slider-crank", "--engines", "pymunk,formulations", "--no-report", "--samples", "21", "--jobs", "1"
+    )
     assert result.exit_code == 1
     assert "pymunk-dynamic: RuntimeError: engine crashed" in result.stdout
     assert next(line for line in result.stdout.splitlines() if line.startswith("formulation-I ")).split()[1] == "pass"

@@ -603,6 +603,7 @@ def run(
     models: str | Path | None = None,
     comparisons: str | Path | None = None,
     progress=None,
+    jobs: int = 1,
 ) -> "RunResult":
     """Every requested mode on one mechanism against the exact native solution
     (``xcheck run`` without printing or reports).
@@ -616,7 +617,11 @@ def run(
     samples : int
         Samples of the sweeps over the feasible input range.
     progress : callable, optional
-        Called with each mode's name before it runs.
+        Called with each mode's name before it runs (with ``jobs`` > 1: as it finishes).
+    jobs : int
+        Modes run at once, each in a worker process (engines registered in this
+        session with :func:`xcheck.engines.register` need 1). The results are
+        those of a serial run.
 
     Returns
     -------
@@ -633,7 +638,7 @@ def run(
     else:
         kinematics = load(name, models, branch).kinematics
     textbook, _ = printed_answers(kinematics, comparisons)
-    return run_mechanism(kinematics, select_modes(engines), samples, branch, textbook, progress=progress)
+    return run_mechanism(kinematics, select_modes(engines), samples, branch, textbook, progress=progress, jobs=jobs)
 
 
 #: the columns of :func:`compare`'s table

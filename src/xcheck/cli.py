@@ -497,8 +497,9 @@ def run_command(
         typer.Option(
             "--jobs",
             "-j",
-            help="Mechanisms run at once, each in its own process (default: one per CPU core; 1: one after "
-            "another in this process). The results and reports are those of a serial run.",
+            help="Processes at once (default: one per CPU core): with several mechanisms, one mechanism each; "
+            "with one, one mode each. 1: everything one after another in this process. The results and reports "
+            "are those of a serial run.",
             show_default=False,
         ),
     ] = None,
@@ -536,7 +537,9 @@ def run_command(
     )
     results, entries, failures = [], [], []
     settings = (directory, modes, samples, branch, comparisons, report, out, options, gif)
-    jobs = min(jobs if jobs is not None else os.cpu_count() or 1, len(names))
+    jobs = jobs if jobs is not None else os.cpu_count() or 1
+    mode_jobs = jobs if len(names) == 1 else 1  # one mechanism: its modes at once; several: the mechanisms
+    jobs = min(jobs, len(names))
     progress = _progress_bar(quiet or as_json)
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
@@ -547,7 +550,7 @@ def run_command(
                 def step(label: str, mode: str) -> None:
                     progress.update(task, description=f"{label}: {mode}", advance=1)
 
-                outcomes.append(_run_model(model, *settings, step=step))
+                outcomes.append(_run_model(model, *settings, step=step, jobs=mode_jobs))
         else:  # one mechanism per worker process; the outcomes kept in the order of the names
             outcomes = _run_models_in_parallel(names, settings, jobs, lambda: progress.update(task, advance=len(modes)))
         for run, entry, problems in outcomes:
@@ -581,11 +584,14 @@ def run_command(
         raise typer.Exit(1)
 
 
-def _run_model(model, directory, modes, samples, branch, comparisons, report, out, options, gif=True, step=None):
-    """One mechanism of ``xcheck run``: its comparison and, if ``report``, its
-    report. Returns (the run or None, (reports directory, file, index entry) or
-    None, failure lines). ``step(label, stage)`` is told of each stage; it is
-    left out in a worker process (:func:`_run_models_in_parallel`)."""
+def _run_model(
+    model, directory, modes, samples, branch, comparisons, report, out, options, gif=True, step=None, jobs=1
+):
+    """One mechanism of ``xcheck run``: its comparison, its modes in ``jobs``
+    processes, and, if ``report``, its report. Returns (the run or None,
+    (reports directory, file, index entry) or None, failure lines).
+    ``step(label, stage)`` is told of each stage; it is left out in a worker
+    process (:func:`_run_models_in_parallel`)."""
     from .runner import run_mechanism
 
     def tell(label: str, stage: str) -> None:
@@ -598,7 +604,7 @@ def _run_model(model, directory, modes, samples, branch, comparisons, report, ou
         kin.assemble(branch)
         label = kin.mechanism.name
         textbook, _ = printed_answers(kin, comparisons)
-        run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode))
+        run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs)
         cache.store(kin)
     except XcheckError as err:
         if step is not None:
@@ -627,23 +633,6 @@ def _run_model(model, directory, modes, samples, branch, comparisons, report, ou
     return run, None, [problem]
 
 
-def _picklable_mechanisms() -> None:
-    """Let a worker process send its runs back: a :class:`Mechanism` keeps
-    mappings as read-only views (``types.MappingProxyType``), which pickle does
-    not know; they travel as dicts and come back as views."""
-    import copyreg
-    import types
-
-    copyreg.pickle(types.MappingProxyType, lambda view: (_read_only, (dict(view),)))
-
-
-def _read_only(items: dict):
-    """A read-only view of ``items`` (how a pickled mapping view comes back)."""
-    import types
-
-    return types.MappingProxyType(items)
-
-
 def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     """:func:`_run_model` for each name in a pool of ``jobs`` worker processes
     (started afresh: "spawn"), the outcomes in the order of ``names`` whatever
@@ -651,11 +640,11 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     a serial run; ``done()`` after each mechanism. Engines registered at run
     time (:func:`xcheck.engines.register`) exist only in this process: run
     them with ``--jobs 1``."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_picklable_mechanisms) as pool:
+    from ._parallel import process_pool
+
+    with process_pool(jobs) as pool:
         futures = {pool.submit(_run_model, model, *settings): i for i, model in enumerate(names)}
         outcomes: list = [None] * len(names)
         for future in as_completed(futures):

@@ -123,6 +123,11 @@ ORDER_MARGIN = 0.5
 #: be in the asymptotic range (fuzz cases s1-00022, s1-00093: an order of 0.3
 #: where 1 is expected), and only a finer pair tells that from a lower order.
 REFINEMENTS = 2
+
+#: a run's modes go to worker processes only where that could save more than this
+#: (s): the summed :attr:`~xcheck.engines.Mode.cost` less the costliest, against
+#: two workers' start (Python, NumPy, pandas and xcheck: about 1 s of CPU each)
+PARALLEL_SAVING = 2.0
 #: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
 ENERGY_TOLERANCE = 1e-12
 #: the seed's per-body Newton-Euler form against the native multipliers: round-off (measured at most 1.7e-13)
@@ -618,6 +623,7 @@ def run_mechanism(
     branch: str | None = None,
     textbook: list[dict] | None = None,
     progress=None,
+    jobs: int = 1,
 ) -> RunResult:
     """Run the native solver and the requested modes on one mechanism.
 
@@ -631,7 +637,12 @@ def run_mechanism(
     textbook : list of dict, optional
         The printed-answer checks to carry into the result.
     progress : callable, optional
-        Called with each mode's name before it runs.
+        Called with each mode's name before it runs (with ``jobs`` > 1: as it
+        finishes), and with "forces" before the reactions.
+    jobs : int
+        Modes run at once, each in a worker process (1: one after another in
+        this process), where that could save time (:data:`PARALLEL_SAVING`).
+        The results are those of a serial run.
     """
     start = time.perf_counter()
     static = is_static(kinematics.mechanism)
@@ -641,34 +652,88 @@ def run_mechanism(
     native = kinematics.solve(inputs, rates, accelerations, branch=branch)
     floors = scale_floors(kinematics.mechanism, rates, accelerations)
     outcomes = {"native": _native_self_check(kinematics, native, NATIVE_TOLERANCE, floors)}
-    not_applicable = {}
     if modes is None:
         modes = default_modes()
-    modes = tuple(modes)
+    modes = tuple(m for m in modes if m != "native")
+    reasons = {}  # mode to why it does not run here
     for mode in modes:
-        if mode == "native":
-            continue
         if mode not in all_modes():
             raise ValueError(f"expected modes among {', '.join(all_modes())}, found {mode!r}")
-        if progress is not None:
-            progress(mode)
         missing = engines.engine_of(mode).available()
         if missing:
-            not_applicable[mode] = missing
-            continue
-        if static and engines.mode(mode).kind == "dynamic":
-            not_applicable[mode] = (
+            reasons[mode] = missing
+        elif static and engines.mode(mode).kind == "dynamic":
+            reasons[mode] = (
                 "the drivers stand still (every state is a static position): there is no motion to integrate"
             )
-            continue
-        try:
-            outcomes[mode] = _run_mode(kinematics, mode, native, samples, branch, floors)
-        except NotApplicable as err:
-            not_applicable[mode] = err.reason
-    run = RunResult(kinematics, branch_name, native, outcomes, not_applicable, textbook or [], 0.0, floors=floors)
-    _add_forces(run, modes, branch, progress)
+    runnable = [mode for mode in modes if mode not in reasons]
+    run = RunResult(kinematics, branch_name, native, outcomes, {}, textbook or [], 0.0, floors=floors)
+    arguments = (kinematics, native, samples, branch, floors)
+    costs = [engines.mode(mode).cost for mode in runnable]
+    if jobs > 1 and len(runnable) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING:
+        for mode in reasons:
+            if progress is not None:
+                progress(mode)
+        ran = _run_modes_in_parallel(run, runnable, modes, arguments, jobs, progress)
+    else:
+        ran = {}
+        for mode in modes:
+            if progress is not None:
+                progress(mode)
+            if mode in runnable:
+                ran[mode] = _run_or_not_applicable(mode, *arguments)
+        _add_forces(run, modes, branch, progress)
+    for mode in modes:  # in the order asked for, however the modes ran
+        if mode in reasons or isinstance(ran[mode], NotApplicable):
+            run.not_applicable[mode] = reasons.get(mode) or ran[mode].reason
+        else:
+            outcomes[mode] = ran[mode]
     run.seconds = time.perf_counter() - start
     return run
+
+
+def _run_or_not_applicable(mode: str, kinematics: Kinematics, native: Solution, samples, branch, floors):
+    """:func:`_run_mode`, or the mode's :class:`NotApplicable` returned rather
+    than raised (how a worker process hands it back)."""
+    try:
+        return _run_mode(kinematics, mode, native, samples, branch, floors)
+    except NotApplicable as err:
+        return err
+
+
+def _run_modes_in_parallel(
+    run: RunResult, runnable: list[str], modes: tuple[str, ...], arguments: tuple, jobs: int, progress
+) -> dict:
+    """Each of the ``runnable`` modes in a pool of ``jobs`` worker processes, the
+    costliest first (:attr:`xcheck.engines.Mode.cost`), while this process
+    computes the reactions and the power balance (:func:`_add_forces`), then
+    runs the modes of engines registered at run time, which a worker does not
+    know (:func:`xcheck.engines.registered_at_run_time`). Returns mode name to
+    its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
+    engine's crash) is that mode's failure, with the reason."""
+    from concurrent.futures import as_completed
+
+    from ._parallel import process_pool
+
+    here = [mode for mode in runnable if engines.registered_at_run_time(engines.engine_of(mode).name)]
+    away = sorted((mode for mode in runnable if mode not in here), key=lambda mode: -engines.mode(mode).cost)
+    ran: dict = {}
+    with process_pool(max(1, min(jobs, len(away)))) as pool:
+        futures = {pool.submit(_run_or_not_applicable, mode, *arguments): mode for mode in away}
+        _add_forces(run, modes, arguments[3], progress)
+        for mode in here:
+            if progress is not None:
+                progress(mode)
+            ran[mode] = _run_or_not_applicable(mode, *arguments)
+        for future in as_completed(futures):
+            mode = futures[future]
+            try:
+                ran[mode] = future.result()
+            except Exception as err:  # noqa: BLE001 - a dead worker is its mode's outcome
+                ran[mode] = ModeOutcome(mode, False, f"{type(err).__name__}: {err}".splitlines()[0])
+            if progress is not None:
+                progress(mode)
+    return ran
 
 
 def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:

@@ -29,6 +29,7 @@ from ._registry import (
     mode,
     modes,
     register,
+    registered_at_run_time,
     unregister,
 )
 
@@ -49,5 +50,6 @@ __all__ = [
     "mode",
     "modes",
     "register",
+    "registered_at_run_time",
     "unregister",
 ]

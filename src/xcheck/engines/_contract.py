@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import importlib.machinery
 import importlib.util
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -95,6 +96,21 @@ def with_unit_mass(mech: Mechanism) -> Mechanism:
     return dataclasses.replace(mech, bodies=tuple(bodies))
 
 
+def _installed(name: str) -> bool:
+    """Whether the module ``name`` (dotted for a submodule) can be imported, without
+    importing it: ``importlib.util.find_spec("mujoco.mjx")`` would import mujoco
+    (0.25 s of every ``xcheck list``) to find its submodule."""
+    top, *parts = name.split(".")
+    spec = importlib.util.find_spec(top)
+    for part in parts:
+        if spec is None:
+            return False
+        if spec.submodule_search_locations is None:  # not a package (os.path): ask the import system
+            return importlib.util.find_spec(name) is not None
+        spec = importlib.machinery.PathFinder.find_spec(part, list(spec.submodule_search_locations))
+    return spec is not None
+
+
 class NotApplicable(Exception):
     """A mode that does not apply to a mechanism (not a failure): ``reason`` says why."""
 
@@ -137,6 +153,11 @@ class Mode:
         measured defect: the mode still fails them (``passed`` False, the
         error and the bound shown), but a run whose only failures are stated
         findings exits 0 (:attr:`xcheck.runner.ModeOutcome.finding`).
+    cost : float
+        Its CPU seconds on the bundled four-bar, as measured (``xcheck run
+        fourbar --json``, its ``timings``): only the order in which a run with
+        ``--jobs`` starts its modes, the costliest first, so that the longest
+        does not start last.
     """
 
     name: str
@@ -147,6 +168,7 @@ class Mode:
     on_request: bool = False
     campaigns: bool = True
     findings: Mapping[str, str] = field(default_factory=dict)
+    cost: float = 1.0
 
 
 class Engine:
@@ -210,7 +232,7 @@ class Engine:
 
     def available(self) -> str:
         """Empty if the engine can run here, else the reason (one line)."""
-        missing = [package for package in self.requires if importlib.util.find_spec(package) is None]
+        missing = [package for package in self.requires if not _installed(package)]
         if missing:
             return f"not installed: {', '.join(missing)}" + (f" ({self.install})" if self.install else "")
         return ""

@@ -24,6 +24,7 @@ __all__ = [
     "groups",
     "exporters",
     "load_problems",
+    "registered_at_run_time",
 ]
 
 #: the entry-point group through which an installed package adds engines:
@@ -42,6 +43,8 @@ _BUILT_IN = (
 )
 
 _registered: dict[str, Engine] = {}
+#: names of the engines :func:`register` added in this process (absent from a spawned worker)
+_at_run_time: set[str] = set()
 _loaded = False
 #: entry points that could not be loaded: name -> reason (shown by ``xcheck list``)
 _problems: dict[str, str] = {}
@@ -98,6 +101,7 @@ def register(engine: Engine | type[Engine], replace: bool = False) -> Engine:
     _load()
     instance = _instance(engine)
     _add(instance, replace)
+    _at_run_time.add(instance.name)
     return instance
 
 
@@ -105,6 +109,7 @@ def unregister(name: str) -> None:
     """Remove an engine (no error if absent)."""
     _load()
     _registered.pop(name, None)
+    _at_run_time.discard(name)
 
 
 def engines() -> tuple[Engine, ...]:
@@ -164,3 +169,10 @@ def load_problems() -> dict[str, str]:
     """Entry points that could not be loaded: name -> reason."""
     _load()
     return dict(_problems)
+
+
+def registered_at_run_time(name: str) -> bool:
+    """Whether :func:`register` added (or replaced) this engine in this process:
+    a worker process started afresh knows only the built-in engines and the
+    entry points, so such an engine's modes run in the process that registered it."""
+    return name in _at_run_time

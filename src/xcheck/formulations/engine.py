@@ -21,8 +21,14 @@ class Formulations(Engine):
     name = "formulations"
     title = "the seeds' formulations"
     modes = (
-        Mode("formulation-I", "kinematic", EXACT, style=dict(color="tab:gray", lw=0, marker="o", ms=3, mfc="none")),
-        Mode("formulation-II", "kinematic", EXACT, style=dict(color="tab:brown", lw=0, marker="x", ms=3)),
+        Mode(
+            "formulation-I",
+            "kinematic",
+            EXACT,
+            style=dict(color="tab:gray", lw=0, marker="o", ms=3, mfc="none"),
+            cost=0.04,
+        ),
+        Mode("formulation-II", "kinematic", EXACT, style=dict(color="tab:brown", lw=0, marker="x", ms=3), cost=0.04),
     )
     notes = (
         "Formulation I: a four-bar or an offset slider-crank driven at its crank; formulation II: every "

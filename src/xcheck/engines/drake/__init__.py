@@ -58,6 +58,7 @@ class Drake(Engine):
             _DYNAMIC,
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:pink", lw=1, ls="--"),
+            cost=2.5,
         ),
         Mode("drake-free", "free", FREE_MOTION, style=dict(color="tab:pink", lw=1, ls="--")),
     )

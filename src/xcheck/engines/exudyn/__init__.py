@@ -38,6 +38,7 @@ class Exudyn(Engine):
             _DYNAMIC,
             orders={"position": None, "angle": None, "velocity": 2.0, "omega": 2.0, "acceleration": 2.0, "alpha": 2.0},
             style=dict(color="tab:purple", lw=1, ls="--"),
+            cost=3.0,
         ),
         Mode("exudyn-free", "free", FREE_MOTION, style=dict(color="tab:purple", lw=1, ls="--")),
     )

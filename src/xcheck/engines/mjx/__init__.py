@@ -53,6 +53,7 @@ class MJX(Engine):
             findings={"acceleration": _ACCELERATIONS, "alpha": _ACCELERATIONS},
             # a compilation for every random mechanism: 39 s a case, 4 times the rest (fuzz --seed 6)
             campaigns=False,
+            cost=12.8,
         ),
         Mode("mjx-free", "free", FREE_MOTION, style=dict(color="tab:cyan", lw=1, ls="-.")),
     )

@@ -47,6 +47,7 @@ class Pinocchio(Engine):
             _DYNAMIC,
             orders=dict.fromkeys(("position", "angle", "velocity", "omega", "acceleration", "alpha"), 4.0),
             style=dict(color="tab:orange", lw=1, ls=":"),
+            cost=1.8,
         ),
         Mode("pinocchio-free", "free", FREE_TOLERANCE, style=dict(color="tab:orange", lw=1, ls="-.")),
     )
