@@ -138,3 +138,24 @@ def test_panels_and_their_labels_fit_without_tight_layout(two_input_run):
     convergence = _figures.convergence_figure(two_input_run)
     assert convergence is not None
     _boxes_apart(convergence)
+
+
+@pytest.mark.parametrize("name", ["slider-crank", "two-body-arm"])
+def test_the_gif_is_matplotlibs_animation_drawn_once_a_frame(name, tmp_path):
+    """motion_gif writes the bytes FuncAnimation.save with PillowWriter writes (which
+    draws every frame twice), from the same figure and frames; and it animates."""
+    from matplotlib import animation
+    from PIL import Image, ImageSequence
+
+    run = api.run(name, engines="formulation-II", samples=61, models=MODELS)  # 24 distinct poses of 61
+    figure, draw = _figures._motion_figure(run, 24)
+    animation.FuncAnimation(figure, draw, frames=24).save(tmp_path / "m.gif", writer=animation.PillowWriter(fps=12))
+    matplotlib.pyplot.close(figure)
+    data = _figures.motion_gif(run)
+    assert data == (tmp_path / "m.gif").read_bytes()
+    with Image.open(tmp_path / "m.gif") as movie:
+        frames = [frame.convert("RGB").tobytes() for frame in ImageSequence.Iterator(movie)]
+        # 12 frames a second: 83 ms, which a GIF holds in hundredths of a second
+        assert movie.size == (315, 252) and movie.info["loop"] == 0 and movie.info["duration"] == 80
+    # the mechanism moves from frame to frame (a whole turn: the last pose is the first)
+    assert len(frames) == 24 and len(set(frames[:-1])) == 23

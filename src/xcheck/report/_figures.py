@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import io
 import math
-import tempfile
 import textwrap
-from pathlib import Path
 
 import matplotlib
 
@@ -14,7 +12,8 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import animation, ticker  # noqa: E402
+from matplotlib import ticker  # noqa: E402
+from PIL import Image  # noqa: E402
 
 from .. import engines  # noqa: E402
 from ..compare import native_at  # noqa: E402
@@ -157,7 +156,30 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
 
 
 def motion_gif(run: RunResult, frames: int = 24) -> bytes:
-    """An animated GIF of the mechanism over the sweep."""
+    """An animated GIF of the mechanism over the sweep, 12 frames a second.
+
+    What matplotlib's ``FuncAnimation(figure, draw, frames).save(..., writer=PillowWriter(fps=12))``
+    writes, byte for byte, but each frame drawn once: ``save`` draws it for the
+    animation, then again to grab it."""
+    figure, draw = _motion_figure(run, frames)
+    width, height = figure.get_size_inches()
+    size = int(width * figure.dpi + 1e-8), int(height * figure.dpi + 1e-8)
+    images = []
+    with matplotlib.rc_context({"savefig.bbox": None}):
+        for n in range(frames):
+            draw(n)
+            pixels = io.BytesIO()
+            figure.savefig(pixels, format="rgba", dpi=figure.dpi)
+            image = Image.frombuffer("RGBA", size, pixels.getbuffer(), "raw", "RGBA", 0, 1)
+            images.append(image if image.getextrema()[3][0] < 255 else image.convert("RGB"))
+    plt.close(figure)
+    movie = io.BytesIO()
+    images[0].save(movie, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / 12), loop=0)
+    return movie.getvalue()
+
+
+def _motion_figure(run: RunResult, frames: int):
+    """The GIF's figure (open) and ``draw(n)``, which shows frame n of ``frames``."""
     mech, native = run.mechanism, run.native
     scale = mech.units.length_factor
     good = np.flatnonzero(native.status <= 1)
@@ -179,12 +201,7 @@ def motion_gif(run: RunResult, frames: int = 24) -> bytes:
         ax.set_xlim(xy[:, 0].min() - pad, xy[:, 0].max() + pad)
         ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
 
-    movie = animation.FuncAnimation(figure, draw, frames=frames)
-    with tempfile.TemporaryDirectory() as tmp:
-        target = Path(tmp) / "motion.gif"
-        movie.save(target, writer=animation.PillowWriter(fps=12))
-        plt.close(figure)
-        return target.read_bytes()
+    return figure, draw
 
 
 def _values(source, point: str, body: str) -> dict[str, np.ndarray | None]:
