@@ -170,8 +170,9 @@ def motion_gif(run: RunResult, frames: int = 24) -> bytes:
             draw(n)
             pixels = io.BytesIO()
             figure.savefig(pixels, format="rgba", dpi=figure.dpi)
-            image = Image.frombuffer("RGBA", size, pixels.getbuffer(), "raw", "RGBA", 0, 1)
-            images.append(image if image.getextrema()[3][0] < 255 else image.convert("RGB"))
+            image = Image.frombuffer("RGBA", size, pixels.getvalue(), "raw", "RGBA", 0, 1)
+            transparent = np.asarray(image.getchannel("A")).min() < 255  # as PillowWriter: RGB when opaque
+            images.append(image if transparent else image.convert("RGB"))
     plt.close(figure)
     movie = io.BytesIO()
     images[0].save(movie, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / 12), loop=0)
