@@ -95,7 +95,6 @@ def _run_one(out, jobs: str) -> tuple[dict, dict]:
         str(out),
         "--json",
         "--report",
-        "--no-gif",
         "--jobs",
         jobs,
     )
@@ -124,6 +123,29 @@ def test_a_mechanisms_modes_in_worker_processes_equal_the_serial_run(tmp_path):
     parallel_json, parallel_files = _run_one(tmp_path / "parallel", "2")
     assert list(parallel_json["engines"]) == list(serial_json["engines"])  # the order asked for
     assert parallel_json == serial_json
-    assert parallel_files.keys() == serial_files.keys() and "fourbar.md" in serial_files
+    # a worker drew part of the parallel run's figures (report._WORKER_SHARE)
+    assert parallel_files.keys() == serial_files.keys() and {"fourbar.md", "fourbar/motion.gif"} <= set(serial_files)
     for relative, data in serial_files.items():
         assert parallel_files[relative] == data, f"{relative} differs between the serial and the parallel run"
+
+
+def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
+    """A spawned worker imports the script that started it: unguarded, the script
+    starts workers again, which multiprocessing refuses; the modes fail with a
+    reason that says what to do, and the script ends."""
+    import subprocess
+    import sys
+
+    from xcheck.runner import WORKER_DIED
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "from xcheck import api\n"
+        f"run = api.run('fourbar', engines='mujoco,pinocchio-dynamic,pymunk-dynamic', samples=21, "
+        f"models={str(MODELS)!r}, jobs=2)\n"
+        "print(sorted({o.reason for m, o in run.outcomes.items() if m != 'native'}))\n",
+        encoding="utf-8",
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == repr([WORKER_DIED])

@@ -619,9 +619,11 @@ def run(
     progress : callable, optional
         Called with each mode's name before it runs (with ``jobs`` > 1: as it finishes).
     jobs : int
-        Modes run at once, each in a worker process (engines registered in this
-        session with :func:`xcheck.engines.register` need 1). The results are
-        those of a serial run.
+        Modes run at once, each in a worker process started afresh, where that
+        could save time; the results are those of a serial run. A script that
+        asks for more than 1 must call this under ``if __name__ == "__main__":``
+        (a worker imports the script; notebooks need nothing). Engines
+        registered in this session (:func:`xcheck.engines.register`) run here.
 
     Returns
     -------

@@ -619,7 +619,7 @@ def _run_model(
 
     target = reports_dir(path, out)
     try:  # a report that cannot be written is reported; the run's results still count
-        write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif)
+        write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif, jobs=jobs)
         return run, (target, path, index_entry(run)), []
     except OSError as err:
         problem = (

@@ -128,6 +128,11 @@ REFINEMENTS = 2
 #: (s): the summed :attr:`~xcheck.engines.Mode.cost` less the costliest, against
 #: two workers' start (Python, NumPy, pandas and xcheck: about 1 s of CPU each)
 PARALLEL_SAVING = 2.0
+#: the reason of a mode whose worker process died
+WORKER_DIED = (
+    "its worker process died before returning (an engine that crashed the process, or a script that starts "
+    "workers outside `if __name__ == '__main__':`): run it with jobs=1 (--jobs 1) to see which"
+)
 #: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
 ENERGY_TOLERANCE = 1e-12
 #: the seed's per-body Newton-Euler form against the native multipliers: round-off (measured at most 1.7e-13)
@@ -712,6 +717,7 @@ def _run_modes_in_parallel(
     its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
     engine's crash) is that mode's failure, with the reason."""
     from concurrent.futures import as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     from ._parallel import process_pool
 
@@ -729,7 +735,9 @@ def _run_modes_in_parallel(
             mode = futures[future]
             try:
                 ran[mode] = future.result()
-            except Exception as err:  # noqa: BLE001 - a dead worker is its mode's outcome
+            except BrokenProcessPool:  # a dead worker is its mode's outcome
+                ran[mode] = ModeOutcome(mode, False, WORKER_DIED)
+            except Exception as err:  # noqa: BLE001 - a result that could not come back, likewise
                 ran[mode] = ModeOutcome(mode, False, f"{type(err).__name__}: {err}".splitlines()[0])
             if progress is not None:
                 progress(mode)
