@@ -155,9 +155,10 @@ class Mode:
         findings exits 0 (:attr:`xcheck.runner.ModeOutcome.finding`).
     cost : float
         Its CPU seconds on the bundled four-bar, as measured (``xcheck run
-        fourbar --json``, its ``timings``): only the order in which a run with
-        ``--jobs`` starts its modes, the costliest first, so that the longest
-        does not start last.
+        fourbar --json``, its ``timings``; default 1, a typical mode): used only
+        to schedule a run with ``--jobs``, which starts the costliest first, so
+        that the longest does not start last, and sends modes to worker
+        processes only where they could save time (:data:`xcheck.runner.PARALLEL_SAVING`).
     """
 
     name: str
