@@ -24,7 +24,7 @@ import tempfile
 import time
 import uuid
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -740,7 +740,9 @@ def fuzz(
         for args in arguments:
             record(_run_batch(*args), len(args[0]))
     else:
-        with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
+        from ._parallel import process_pool  # spawned afresh: a fork would inherit JAX's threads
+
+        with process_pool(workers or os.cpu_count() or 1) as pool:
             pending = {pool.submit(_run_batch, *args): len(args[0]) for args in arguments}
             while pending:
                 complete, _ = wait(pending, return_when=FIRST_COMPLETED)
