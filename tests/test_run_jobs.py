@@ -1,5 +1,6 @@
-"""`xcheck run all --jobs N`: mechanisms in worker processes give the results
-and the report bytes of a serial run (issue 17)."""
+"""`xcheck run --jobs N`: mechanisms (`run all`), or one mechanism's modes and
+figures, in worker processes give the results and the report bytes of a serial
+run (issue 17)."""
 
 from __future__ import annotations
 
@@ -12,14 +13,16 @@ from conftest import MODELS, invoke
 SMALL = ("fourbar", "slider-crank", "two-body-arm")
 
 
-def _run_all(models, out, jobs: str) -> tuple[list, dict]:
+def _run(name: str, models, engines: str, out, jobs: str) -> tuple[list | dict, dict]:
+    """``xcheck run NAME`` with --json and --report: its JSON without the timings,
+    and every file it wrote (the --out folder in the Markdown named OUT)."""
     done = invoke(
         "run",
-        "all",
+        name,
         "--models",
         str(models),
         "--engines",
-        "formulations,mujoco-kinematic",
+        engines,
         "--samples",
         "21",
         "--out",
@@ -32,7 +35,7 @@ def _run_all(models, out, jobs: str) -> tuple[list, dict]:
     assert "Traceback" not in done.stderr, done.stderr
     assert done.returncode in (0, 1), done.stderr
     documents = json.loads(done.stdout)
-    for document in documents:
+    for document in documents if isinstance(documents, list) else [documents]:
         del document["timings"]
     files = {}
     for path in sorted(p for p in out.rglob("*") if p.is_file()):
@@ -40,6 +43,12 @@ def _run_all(models, out, jobs: str) -> tuple[list, dict]:
         if path.suffix in (".md", ".json"):  # the reports and the index name the run's --out
             data = data.replace(str(out).encode(), b"OUT")
         files[str(path.relative_to(out))] = data
+    return documents, files
+
+
+def _run_all(models, out, jobs: str) -> tuple[list, dict]:
+    documents, files = _run("all", models, "formulations,mujoco-kinematic", out, jobs)
+    assert isinstance(documents, list)
     return documents, files
 
 
@@ -82,32 +91,8 @@ def test_jobs_out_of_range_is_refused():
 
 def _run_one(out, jobs: str) -> tuple[dict, dict]:
     """fourbar with modes whose summed cost is worth a pool (PARALLEL_SAVING)."""
-    done = invoke(
-        "run",
-        "fourbar",
-        "--models",
-        str(MODELS),
-        "--engines",
-        "formulations,mujoco,pinocchio-dynamic,pymunk-dynamic",
-        "--samples",
-        "21",
-        "--out",
-        str(out),
-        "--json",
-        "--report",
-        "--jobs",
-        jobs,
-    )
-    assert "Traceback" not in done.stderr, done.stderr
-    assert done.returncode == 0, done.stderr
-    document = json.loads(done.stdout)
-    del document["timings"]
-    files = {}
-    for path in sorted(p for p in out.rglob("*") if p.is_file()):
-        data = path.read_bytes()
-        if path.suffix in (".md", ".json"):
-            data = data.replace(str(out).encode(), b"OUT")
-        files[str(path.relative_to(out))] = data
+    document, files = _run("fourbar", MODELS, "formulations,mujoco,pinocchio-dynamic,pymunk-dynamic", out, jobs)
+    assert isinstance(document, dict) and document["pass"] is True
     return document, files
 
 
