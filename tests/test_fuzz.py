@@ -334,3 +334,26 @@ def test_a_campaign_leaves_out_what_would_dominate_it():
     assert left_out == {m.name for m in engines.modes() if not m.campaigns} & set(default_modes())
     assert "mjx-dynamic" in left_out and "mujoco-dynamic" in campaign_modes()
     assert campaign_modes()[0] == "native"
+
+
+def test_a_campaign_with_an_engine_registered_here_runs_here(tmp_path):
+    """A spawned worker does not know an engine registered at run time: a campaign
+    naming one of its modes runs in this process, whatever ``workers`` says."""
+    from xcheck import engines
+    from xcheck.fuzz import fuzz
+    from xcheck.tolerances import Tolerance
+
+    class Here(engines.Engine):
+        name = "fuzz-here"
+        modes = (engines.Mode("fuzz-here-kinematic", "kinematic", Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "as the toy")),)
+
+        def run(self, mode, kinematics, *, native, samples, branch=None):
+            return shifted_sweep(mode, kinematics, native, 1e-8)
+
+    engines.register(Here)
+    try:
+        rows = fuzz(tmp_path, count=2, seed=5, modes=["fuzz-here-kinematic"], workers=2, batch=1, samples=21)
+    finally:
+        engines.unregister("fuzz-here")
+    toy = rows[rows["mode"] == "fuzz-here-kinematic"]
+    assert len(toy) == 2 and set(toy.outcome) == {"passed"}, toy[["case", "outcome", "reason"]]

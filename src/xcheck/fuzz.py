@@ -695,9 +695,9 @@ def fuzz(
     """Generate ``count`` cases of ``seed``, run ``modes`` on each and write the rows.
 
     Cases already in ``out``/results/ are skipped (resume). The work runs on a
-    local process pool of ``workers`` processes (default: the CPU count; 1: in
-    this process), on the Dask cluster at ``scheduler``, or on a given
-    ``dask.distributed.Client``.
+    local process pool of ``workers`` processes (default: the CPU count; 1, or
+    a mode of an engine registered at run time: in this process), on the Dask
+    cluster at ``scheduler``, or on a given ``dask.distributed.Client``.
 
     Parameters
     ----------
@@ -736,7 +736,7 @@ def fuzz(
     arguments = [(b, [by_name[c.name] for c in b], chosen, samples) for b in batches]
     if client is not None or scheduler is not None:
         _run_dask(arguments, record, client, scheduler)
-    elif (workers or os.cpu_count() or 1) <= 1 or len(batches) <= 1:
+    elif (workers or os.cpu_count() or 1) <= 1 or len(batches) <= 1 or _registered_here(chosen):
         for args in arguments:
             record(_run_batch(*args), len(args[0]))
     else:
@@ -749,6 +749,15 @@ def fuzz(
                 for future in complete:
                     record(future.result(), pending.pop(future))
     return read_rows(out)
+
+
+def _registered_here(modes) -> bool:
+    """Whether a mode belongs to an engine registered at run time
+    (:func:`xcheck.engines.registered_at_run_time`), which a spawned worker does
+    not know: the campaign then runs in this process."""
+    from . import engines
+
+    return any(m != "native" and engines.registered_at_run_time(engines.engine_of(m).name) for m in modes)
 
 
 def _run_dask(arguments: list[tuple], record: Callable[[list[dict], int], None], client, scheduler: str | None) -> None:

@@ -41,7 +41,8 @@ def write_report(run: RunResult, directory: str | Path, command: str, gif: bool 
 
     One writer at a time per directory (:func:`xcheck.fileio.directory_lock`),
     which first removes the staging that killed runs left there. With ``jobs``
-    > 1, one worker process draws part of the figures (the same bytes).
+    > 1, one worker process draws part of the figures (the same bytes), unless
+    an engine registered at run time took part (a worker does not know it).
     """
     with directory_lock(directory):
         complete_reports(directory)
@@ -71,13 +72,24 @@ def _figure(function: str, run: RunResult) -> bytes | None:
     return getattr(_figures, function)(run)
 
 
+def _known_here_only(run: RunResult) -> bool:
+    """Whether a mode of the run belongs to an engine registered at run time, whose
+    styles and tolerances a spawned worker does not know (it draws nothing then)."""
+    from .. import engines
+
+    built_in_or_plugged = {
+        m.name for e in engines.engines() if not engines.registered_at_run_time(e.name) for m in e.modes
+    }
+    return any(m not in built_in_or_plugged for m in (*run.outcomes, *run.not_applicable) if m != "native")
+
+
 def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs: int = 1) -> Path:
     name = run.mechanism.name
     wanted = [(file, function, key) for file, function, key in _IMAGES if gif or function != "motion_gif"]
 
     def render(staging: Path) -> str:
         drawn: dict[str, bytes | None] = {}
-        if jobs > 1:
+        if jobs > 1 and not _known_here_only(run):
             from .._parallel import process_pool
 
             with process_pool(1) as pool:
