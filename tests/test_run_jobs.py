@@ -134,3 +134,30 @@ def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == repr([WORKER_DIED])
+
+
+def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
+    """`xcheck simulate --jobs`: the free modes in worker processes give the JSON
+    of a serial run but for its timings (the pool forced on, whatever the
+    reference took: PARALLEL_REFERENCE 0)."""
+    from xcheck import load, simulation
+    from xcheck.output import simulation_json
+
+    timings = {"seconds", "cpu_seconds", "cpu_per_simulated_second"}
+
+    def without_timings(value):
+        if isinstance(value, dict):
+            return {k: without_timings(v) for k, v in value.items() if k not in timings}
+        if isinstance(value, list):
+            return [without_timings(v) for v in value]
+        return value
+
+    monkeypatch.setattr(simulation, "PARALLEL_REFERENCE", 0.0)
+    kinematics = load(MODELS / "benchmarks" / "iftomm-a01.toml").kinematics
+    modes = ["mujoco-free", "pinocchio-free", "pymunk-free"]
+    documents = []
+    for jobs in (1, 2):
+        result = simulation.simulate_all(kinematics, modes, duration=0.3, jobs=jobs)
+        assert list(result.outcomes) == modes and all(result.outcomes[m].ok for m in modes)
+        documents.append(without_timings(simulation_json(result.reference, result)))
+    assert documents[1] == documents[0]

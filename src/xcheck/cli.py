@@ -716,6 +716,16 @@ def simulate_command(
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write the Markdown report.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
     models: ModelsOption = None,
+    jobs: Annotated[
+        Optional[int],
+        typer.Option(
+            "--jobs",
+            "-j",
+            help="Free modes run at once, each in its own process (default: one per CPU core; 1: one after "
+            "another in this process). The results and the report are those of a serial run.",
+            show_default=False,
+        ),
+    ] = None,
 ):
     """Release the mechanism to move freely under gravity, springs and loads, and integrate it exactly.
 
@@ -731,6 +741,8 @@ def simulate_command(
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
+    if jobs is not None and not 1 <= jobs <= 256:
+        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
     path = model_path(name, models_dir(models))
@@ -746,7 +758,8 @@ def simulate_command(
                 bar.advance(task)
             bar.update(task, description=f"{kin.mechanism.name}: {what}")
 
-        result = simulate_all(kin, modes, duration, branch, progress=progress)
+        jobs = jobs if jobs is not None else os.cpu_count() or 1
+        result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs)
     reference = result.reference
     failure = None
     if report:

@@ -301,8 +301,17 @@ def ladder_steps(reference: FreeReference, steps) -> tuple[float, ...]:
     return tuple(float(s) * factor for s in steps)
 
 
+#: the native reference's wall time (s) from which the free modes go to worker processes
+PARALLEL_REFERENCE = 1.0
+
+
 def simulate_all(
-    kinematics: Kinematics, modes=None, duration: float | None = None, branch: str | None = None, progress=None
+    kinematics: Kinematics,
+    modes=None,
+    duration: float | None = None,
+    branch: str | None = None,
+    progress=None,
+    jobs: int = 1,
 ) -> SimulationResult:
     """The native reference of the mechanism's free motion and each free mode against it.
 
@@ -313,7 +322,12 @@ def simulate_all(
     duration : float, optional
         Simulated time, s (default: the file's).
     progress : callable, optional
-        Called with a line saying what runs now.
+        Called with a line saying what runs now (with ``jobs`` > 1: each mode as it finishes).
+    jobs : int
+        Modes run at once, each in a worker process started afresh (1: one after
+        another in this process), where the reference took at least
+        :data:`PARALLEL_REFERENCE`; the modes of engines registered at run time
+        run here. The results are those of a serial run.
     """
     start = time.perf_counter()
     reference = simulate(
@@ -323,22 +337,61 @@ def simulate_all(
         progress=None if progress is None else (lambda h: progress(f"native: RK4 at {h:.4g} s")),
     )
     result = SimulationResult(kinematics, reference, seconds={"native": time.perf_counter() - start})
-    for mode in free_modes() if modes is None else modes:
-        engine = engines.engine_of(mode)
-        missing = engine.available()
-        if missing:
-            result.not_applicable[mode] = missing
-            continue
+    chosen = list(free_modes() if modes is None else modes)
+    missing = {mode: engines.engine_of(mode).available() for mode in chosen}
+    runnable = [mode for mode in chosen if not missing[mode]]
+    # a short or simple motion (its reference under PARALLEL_REFERENCE s) has short ladders too:
+    # a worker's start (about 1 s of CPU) would cost more than it saves
+    alone = jobs <= 1 or result.seconds["native"] < PARALLEL_REFERENCE
+    here = [m for m in runnable if alone or engines.registered_at_run_time(engines.engine_of(m).name)]
+    away = [m for m in runnable if m not in here]
+    ran: dict = {}
+    if len(away) > 1:
+        from concurrent.futures import as_completed
+        from concurrent.futures.process import BrokenProcessPool
+
+        from ._parallel import process_pool
+        from .runner import WORKER_DIED
+
+        begin = time.perf_counter()
+        with process_pool(min(jobs, len(away))) as pool:
+            futures = {pool.submit(_run_free, mode, kinematics, reference, branch): mode for mode in away}
+            for future in as_completed(futures):
+                mode = futures[future]
+                try:
+                    ran[mode] = future.result()
+                except BrokenProcessPool:  # its time: until the pool said so
+                    died = ModeResult(mode, kinematics.mechanism.name, False, WORKER_DIED)
+                    ran[mode] = (died, time.perf_counter() - begin)
+                if progress is not None:
+                    progress(mode)
+    else:
+        here = runnable
+    for mode in here:
         if progress is not None:
             progress(mode)
-        begin = time.perf_counter()
-        try:
-            result.outcomes[mode] = engine.run_free(mode, kinematics, reference, branch=branch)
-        except NotApplicable as err:
-            result.not_applicable[mode] = err.reason
-        except Exception as err:  # noqa: BLE001 - an engine's failure is its mode's result
-            result.outcomes[mode] = ModeResult(
-                mode, kinematics.mechanism.name, False, f"{type(err).__name__}: {err}".splitlines()[0]
-            )
-        result.seconds[mode] = time.perf_counter() - begin
+        ran[mode] = _run_free(mode, kinematics, reference, branch)
+    for mode in chosen:  # in the order asked for, however the modes ran
+        if missing[mode]:
+            result.not_applicable[mode] = missing[mode]
+            continue
+        outcome, result.seconds[mode] = ran[mode]
+        if isinstance(outcome, NotApplicable):
+            result.not_applicable[mode] = outcome.reason
+        else:
+            result.outcomes[mode] = outcome
     return result
+
+
+def _run_free(mode: str, kinematics: Kinematics, reference: FreeReference, branch: str | None):
+    """One free mode against the reference: (its ModeResult, or its NotApplicable
+    returned rather than raised, and its wall time, s); never raises."""
+    begin = time.perf_counter()
+    outcome: ModeResult | NotApplicable
+    try:
+        outcome = engines.engine_of(mode).run_free(mode, kinematics, reference, branch=branch)
+    except NotApplicable as err:
+        outcome = err
+    except Exception as err:  # noqa: BLE001 - an engine's failure is its mode's result
+        outcome = ModeResult(mode, kinematics.mechanism.name, False, f"{type(err).__name__}: {err}".splitlines()[0])
+    return outcome, time.perf_counter() - begin
