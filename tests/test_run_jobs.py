@@ -121,7 +121,7 @@ def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
     import subprocess
     import sys
 
-    from xcheck.runner import WORKER_DIED
+    from xcheck._parallel import WORKER_DIED
 
     script = tmp_path / "unguarded.py"
     script.write_text(

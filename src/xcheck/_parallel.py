@@ -12,9 +12,17 @@ from __future__ import annotations
 import copyreg
 import multiprocessing
 import types
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 
-__all__ = ["process_pool", "picklable_mechanisms"]
+__all__ = ["process_pool", "picklable_mechanisms", "known_to_workers", "collect", "WORKER_DIED"]
+
+#: the reason of a mode whose worker process died
+WORKER_DIED = (
+    "its worker process died before returning (an engine that crashed the process, or a script that starts "
+    "workers outside `if __name__ == '__main__':`): run it with jobs=1 (--jobs 1) to see which"
+)
 
 
 def picklable_mechanisms() -> None:
@@ -39,3 +47,34 @@ def process_pool(jobs: int) -> ProcessPoolExecutor:
     picklable_mechanisms()
     context = multiprocessing.get_context("spawn")
     return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=picklable_mechanisms)
+
+
+def known_to_workers(mode: str) -> bool:
+    """Whether a spawned worker knows this mode: a built-in or entry-point engine's,
+    not one that :func:`xcheck.engines.register` added in this process (nor one
+    since unregistered), whose modes must run here."""
+    from . import engines
+
+    try:
+        engine = engines.engine_of(mode)
+    except ValueError:
+        return False
+    return not engines.registered_at_run_time(engine.name)
+
+
+def collect(futures: dict[Future, str], failed: Callable, done: Callable | None = None) -> dict:
+    """The results of ``futures`` (future to its mode's name) by name, as they
+    finish; a result that does not come back is ``failed(name, reason)`` (a dead
+    worker: :data:`WORKER_DIED`); ``done(name)`` after each."""
+    results = {}
+    for future in as_completed(futures):
+        name = futures[future]
+        try:
+            results[name] = future.result()
+        except BrokenProcessPool:
+            results[name] = failed(name, WORKER_DIED)
+        except Exception as err:  # noqa: BLE001 - a result that could not come back (pickling) is the mode's
+            results[name] = failed(name, f"{type(err).__name__}: {err}".splitlines()[0])
+        if done is not None:
+            done(name)
+    return results

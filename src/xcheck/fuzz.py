@@ -752,12 +752,11 @@ def fuzz(
 
 
 def _registered_here(modes) -> bool:
-    """Whether a mode belongs to an engine registered at run time
-    (:func:`xcheck.engines.registered_at_run_time`), which a spawned worker does
-    not know: the campaign then runs in this process."""
-    from . import engines
+    """Whether a mode is one a spawned worker does not know
+    (:func:`xcheck._parallel.known_to_workers`): the campaign then runs in this process."""
+    from ._parallel import known_to_workers
 
-    return any(m != "native" and engines.registered_at_run_time(engines.engine_of(m).name) for m in modes)
+    return any(m != "native" and not known_to_workers(m) for m in modes)
 
 
 def _run_dask(arguments: list[tuple], record: Callable[[list[dict], int], None], client, scheduler: str | None) -> None:

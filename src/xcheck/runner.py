@@ -128,11 +128,6 @@ REFINEMENTS = 2
 #: (s): the summed :attr:`~xcheck.engines.Mode.cost` less the costliest, against
 #: two workers' start (Python, NumPy, pandas and xcheck: about 1 s of CPU each)
 PARALLEL_SAVING = 2.0
-#: the reason of a mode whose worker process died
-WORKER_DIED = (
-    "its worker process died before returning (an engine that crashed the process, or a script that starts "
-    "workers outside `if __name__ == '__main__':`): run it with jobs=1 (--jobs 1) to see which"
-)
 #: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
 ENERGY_TOLERANCE = 1e-12
 #: the seed's per-body Newton-Euler form against the native multipliers: round-off (measured at most 1.7e-13)
@@ -713,34 +708,23 @@ def _run_modes_in_parallel(
     costliest first (:attr:`xcheck.engines.Mode.cost`), while this process
     computes the reactions and the power balance (:func:`_add_forces`), then
     runs the modes of engines registered at run time, which a worker does not
-    know (:func:`xcheck.engines.registered_at_run_time`). Returns mode name to
+    know (:func:`xcheck._parallel.known_to_workers`). Returns mode name to
     its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
     engine's crash) is that mode's failure, with the reason."""
-    from concurrent.futures import as_completed
-    from concurrent.futures.process import BrokenProcessPool
+    from ._parallel import collect, known_to_workers, process_pool
 
-    from ._parallel import process_pool
-
-    here = [mode for mode in runnable if engines.registered_at_run_time(engines.engine_of(mode).name)]
+    branch = arguments[3]  # (kinematics, native, samples, branch, floors)
+    here = [mode for mode in runnable if not known_to_workers(mode)]
     away = sorted((mode for mode in runnable if mode not in here), key=lambda mode: -engines.mode(mode).cost)
-    ran: dict = {}
     with process_pool(max(1, min(jobs, len(away)))) as pool:
         futures = {pool.submit(_run_or_not_applicable, mode, *arguments): mode for mode in away}
-        _add_forces(run, modes, arguments[3], progress)
+        _add_forces(run, modes, branch, progress)
+        ran = {}
         for mode in here:
             if progress is not None:
                 progress(mode)
             ran[mode] = _run_or_not_applicable(mode, *arguments)
-        for future in as_completed(futures):
-            mode = futures[future]
-            try:
-                ran[mode] = future.result()
-            except BrokenProcessPool:  # a dead worker is its mode's outcome
-                ran[mode] = ModeOutcome(mode, False, WORKER_DIED)
-            except Exception as err:  # noqa: BLE001 - a result that could not come back, likewise
-                ran[mode] = ModeOutcome(mode, False, f"{type(err).__name__}: {err}".splitlines()[0])
-            if progress is not None:
-                progress(mode)
+        ran.update(collect(futures, lambda mode, why: ModeOutcome(mode, False, why), progress))
     return ran
 
 

@@ -340,33 +340,25 @@ def simulate_all(
     chosen = list(free_modes() if modes is None else modes)
     missing = {mode: engines.engine_of(mode).available() for mode in chosen}
     runnable = [mode for mode in chosen if not missing[mode]]
+    from ._parallel import collect, known_to_workers, process_pool
+
     # a short or simple motion (its reference under PARALLEL_REFERENCE s) has short ladders too:
     # a worker's start (about 1 s of CPU) would cost more than it saves
     alone = jobs <= 1 or result.seconds["native"] < PARALLEL_REFERENCE
-    here = [m for m in runnable if alone or engines.registered_at_run_time(engines.engine_of(m).name)]
-    away = [m for m in runnable if m not in here]
+    away = [] if alone else [m for m in runnable if known_to_workers(m)]
+    if len(away) < 2:  # one mode gains nothing from a worker
+        away = []
+    here = [m for m in runnable if m not in away]
     ran: dict = {}
-    if len(away) > 1:
-        from concurrent.futures import as_completed
-        from concurrent.futures.process import BrokenProcessPool
-
-        from ._parallel import process_pool
-        from .runner import WORKER_DIED
-
+    if away:
         begin = time.perf_counter()
+
+        def failed(mode: str, why: str):  # its time: until the pool said so
+            return ModeResult(mode, kinematics.mechanism.name, False, why), time.perf_counter() - begin
+
         with process_pool(min(jobs, len(away))) as pool:
             futures = {pool.submit(_run_free, mode, kinematics, reference, branch): mode for mode in away}
-            for future in as_completed(futures):
-                mode = futures[future]
-                try:
-                    ran[mode] = future.result()
-                except BrokenProcessPool:  # its time: until the pool said so
-                    died = ModeResult(mode, kinematics.mechanism.name, False, WORKER_DIED)
-                    ran[mode] = (died, time.perf_counter() - begin)
-                if progress is not None:
-                    progress(mode)
-    else:
-        here = runnable
+            ran.update(collect(futures, failed, progress))
     for mode in here:
         if progress is not None:
             progress(mode)

@@ -75,12 +75,9 @@ def _figure(function: str, run: RunResult) -> bytes | None:
 def _known_here_only(run: RunResult) -> bool:
     """Whether a mode of the run belongs to an engine registered at run time, whose
     styles and tolerances a spawned worker does not know (it draws nothing then)."""
-    from .. import engines
+    from .._parallel import known_to_workers
 
-    built_in_or_plugged = {
-        m.name for e in engines.engines() if not engines.registered_at_run_time(e.name) for m in e.modes
-    }
-    return any(m not in built_in_or_plugged for m in (*run.outcomes, *run.not_applicable) if m != "native")
+    return any(m != "native" and not known_to_workers(m) for m in (*run.outcomes, *run.not_applicable))
 
 
 def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs: int = 1) -> Path:
