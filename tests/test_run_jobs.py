@@ -136,6 +136,40 @@ def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
     assert done.stdout.strip().splitlines()[-1] == repr([WORKER_DIED])
 
 
+def test_a_dead_worker_of_run_all_is_one_line_per_mechanism_not_a_traceback(tmp_path):
+    """`run all --jobs 2` from a script without a main guard: every worker dies
+    at its start; each mechanism is one failure line naming it, the exit code is
+    2, and no traceback comes from the run itself (the workers' own start-up
+    errors are multiprocessing's)."""
+    import subprocess
+    import sys
+
+    from xcheck._parallel import WORKER_DIED
+
+    models = tmp_path / "models"
+    models.mkdir()
+    for name in ("slider-crank", "two-body-arm"):
+        shutil.copy(MODELS / f"{name}.toml", models)
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import sys\n"
+        "from xcheck.cli import main\n"
+        f"sys.argv = ['xcheck', 'run', 'all', '--models', {str(models)!r}, '--engines', 'formulations', "
+        "'--json', '--no-report', '--jobs', '2']\n"
+        "main()\n",
+        encoding="utf-8",
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    ours = [line for line in done.stderr.splitlines() if line.startswith("xcheck: error: ")]
+    assert ours == [
+        f"xcheck: error: {name}: expected its run back from a worker process, found that {WORKER_DIED}"
+        for name in ("slider-crank", "two-body-arm")
+    ]
+    assert "BrokenProcessPool" not in done.stderr
+    assert json.loads(done.stdout) == []
+
+
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
     """`xcheck simulate --jobs`: the free modes in worker processes give the JSON
     of a serial run but for its timings (the pool forced on, whatever the

@@ -12,11 +12,14 @@ from __future__ import annotations
 import copyreg
 import multiprocessing
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from typing import Any, TypeVar
 
 __all__ = ["process_pool", "picklable_mechanisms", "known_to_workers", "collect", "WORKER_DIED"]
+
+Key = TypeVar("Key", bound=Hashable)
 
 #: the reason of a mode whose worker process died
 WORKER_DIED = (
@@ -62,19 +65,20 @@ def known_to_workers(mode: str) -> bool:
     return not engines.registered_at_run_time(engine.name)
 
 
-def collect(futures: dict[Future, str], failed: Callable, done: Callable | None = None) -> dict:
-    """The results of ``futures`` (future to its mode's name) by name, as they
-    finish; a result that does not come back is ``failed(name, reason)`` (a dead
-    worker: :data:`WORKER_DIED`); ``done(name)`` after each."""
-    results = {}
+def collect(futures: dict[Future, Key], failed: Callable, done: Callable | None = None) -> dict[Key, Any]:
+    """The results of ``futures`` (future to its key: a mode's name, a mechanism's
+    index) by key, as they finish; a result that does not come back is
+    ``failed(key, reason)`` (a dead worker: :data:`WORKER_DIED`); ``done(key)``
+    after each."""
+    results: dict[Key, Any] = {}
     for future in as_completed(futures):
-        name = futures[future]
+        key = futures[future]
         try:
-            results[name] = future.result()
+            results[key] = future.result()
         except BrokenProcessPool:
-            results[name] = failed(name, WORKER_DIED)
+            results[key] = failed(key, WORKER_DIED)
         except Exception as err:  # noqa: BLE001 - a result that could not come back (pickling) is the mode's
-            results[name] = failed(name, f"{type(err).__name__}: {err}".splitlines()[0])
+            results[key] = failed(key, f"{type(err).__name__}: {err}".splitlines()[0])
         if done is not None:
-            done(name)
+            done(key)
     return results

@@ -637,20 +637,19 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     """:func:`_run_model` for each name in a pool of ``jobs`` worker processes
     (started afresh: "spawn"), the outcomes in the order of ``names`` whatever
     the order they finish in, so that the output and the reports are those of
-    a serial run; ``done()`` after each mechanism. Engines registered at run
-    time (:func:`xcheck.engines.register`) exist only in this process: run
+    a serial run; ``done()`` after each mechanism. A mechanism whose worker
+    died is one failure line and the others still count. Engines registered at
+    run time (:func:`xcheck.engines.register`) exist only in this process: run
     them with ``--jobs 1``."""
-    from concurrent.futures import as_completed
+    from ._parallel import collect, process_pool
 
-    from ._parallel import process_pool
+    def failed(index: int, reason: str) -> tuple:
+        return None, None, [f"{names[index]}: expected its run back from a worker process, found that {reason}"]
 
     with process_pool(jobs) as pool:
         futures = {pool.submit(_run_model, model, *settings): i for i, model in enumerate(names)}
-        outcomes: list = [None] * len(names)
-        for future in as_completed(futures):
-            outcomes[futures[future]] = future.result()
-            done()
-    return outcomes
+        outcomes = collect(futures, failed, lambda _: done())
+    return [outcomes[i] for i in range(len(names))]
 
 
 def _progress_bar(off: bool) -> Progress:
