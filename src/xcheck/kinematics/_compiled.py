@@ -26,11 +26,18 @@ import math
 import numpy as np
 from numba import njit
 
+from ._banded import band_lu, band_norm1, band_solve, inverse_norm1_estimate
+
 __all__ = ["Packed", "predict_atlas", "newton_rounds", "check_and_finish", "finish"]
 
 KIND_COINCIDENCE = 0
 KIND_PROJECTION = 1
 KIND_ANGLE = 2
+
+#: from this many coordinates, Phi_q is factorised as a band matrix
+#: (:meth:`Packed._layout`, :mod:`._banded`), and the singularity measure is
+#: Higham's estimate of 1 / the 1-norm condition number instead of the exact value
+BANDED_FROM = 30
 
 #: Status codes (the values of :class:`._solve.Status`).
 _OK, _NEAR_SINGULAR, _SINGULAR, _NOT_CONVERGED, _BRANCH_JUMP = 0, 1, 2, 3, 4
@@ -74,10 +81,83 @@ class Packed:
         self.row_scale = rows.astype(float)
         self.coordinate_scale = system.coordinate_scale()
         self.jacobian_scale = np.ascontiguousarray(rows[:, None] / self.coordinate_scale[None, :])
+        self._layout(system)
 
     def terms(self) -> tuple:
         """The term arrays in the kernels' argument order."""
         return (self.kind, self.a, self.b, self.s1, self.s2, self.w, self.offset, self.driver, self.row)
+
+    def structure(self) -> tuple:
+        """Where the kernels keep Phi_q: ``layout`` (4, n), None where dense, and ``band`` (4,);
+        see :meth:`_layout`."""
+        return (self.layout, self.band)
+
+    def _layout(self, system) -> None:
+        """How the kernels store Phi_q (square systems only).
+
+        Dense below ``BANDED_FROM`` coordinates: row r, column k at [r, k]. From
+        there, banded (:mod:`._banded`): the bodies in reverse Cuthill-McKee order
+        of the graph the joints make of them, each term's rows placed by its
+        first body in that order; row r, column k at [i, col_pos[k] - i + kl] with
+        i = row_pos[r] (:func:`_set`). ``layout`` rows: row_pos, col_pos, and the inverse
+        permutations row_of, col_of. ``band``: (banded 0/1, kl, ku, the sign of
+        the two permutations, which det Phi_q's sign is corrected by).
+        """
+        n, rows = self.n, len(self.metres)
+        self.layout: np.ndarray | None = None
+        self.band = np.array([0, n - 1, n - 1, 1], dtype=np.int64)
+        if n < BANDED_FROM or rows != n:
+            return
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        bodies = n // 3
+        pairs = [(a, b) for a, b in zip(self.a, self.b) if a >= 0 and b >= 0]
+        first = np.array([a for a, b in pairs] + [b for a, b in pairs] + list(range(bodies)), dtype=np.int64)
+        second = np.array([b for a, b in pairs] + [a for a, b in pairs] + list(range(bodies)), dtype=np.int64)
+        graph = csr_matrix((np.ones(len(first)), (first, second)), shape=(bodies, bodies))
+        body_pos = np.empty(bodies, dtype=np.int64)
+        body_pos[reverse_cuthill_mckee(graph, symmetric_mode=True)] = np.arange(bodies)
+        col_pos = (3 * body_pos[:, None] + np.arange(3)).ravel()
+
+        def placed(t: int) -> tuple[int, int]:
+            at = sorted(body_pos[body] for body in (self.a[t], self.b[t]) if body >= 0)
+            return at[0], at[-1]
+
+        counts = np.diff(np.append(self.row, rows))
+        row_of = np.concatenate([self.row[t] + np.arange(counts[t]) for t in sorted(range(len(self.kind)), key=placed)])
+        row_pos = np.empty(n, dtype=np.int64)
+        row_pos[row_of] = np.arange(n)
+        col_of = np.empty(n, dtype=np.int64)
+        col_of[col_pos] = np.arange(n)
+        # each row of a term may touch the three coordinates of either of its bodies
+        offsets = [
+            col_pos[3 * body + c] - row_pos[self.row[t] + j]
+            for t in range(len(self.kind))
+            for body in (self.a[t], self.b[t])
+            if body >= 0
+            for j in range(counts[t])
+            for c in range(3)
+        ]
+        kl, ku = int(max(0, -min(offsets))), int(max(0, max(offsets)))
+        sign = _permutation_sign(row_of) * _permutation_sign(col_of)
+        self.layout = np.stack([row_pos, col_pos, row_of, col_of]).astype(np.int64)
+        self.band = np.array([1, kl, ku, sign], dtype=np.int64)
+
+
+def _permutation_sign(order: np.ndarray) -> int:
+    """+1 or -1: the parity of a permutation (its number of even-length cycles)."""
+    seen = np.zeros(len(order), dtype=bool)
+    sign = 1
+    for start in range(len(order)):
+        length, at = 0, start
+        while not seen[at]:
+            seen[at] = True
+            at = order[at]
+            length += 1
+        if length % 2 == 0 and length > 0:
+            sign = -sign
+    return sign
 
 
 # -- the constraint equations at one sample ---------------------------------------
@@ -140,9 +220,23 @@ def _residual(pose, inputs, kind, ta, tb, s1, s2, w, offset, driver, row, out):
 
 
 @njit(cache=True)
-def _jacobian(pose, kind, ta, tb, s1, s2, w, row, out):
-    """Phi_q of one sample into out (rows, n)."""
+def _set(out, layout, kl, r, k, value):
+    """Phi_q[r, k] = value, in dense (``layout`` None) or banded storage
+    (:meth:`Packed._layout`). numba compiles the two apart (it prunes the
+    branch on None), so the dense kernels pay nothing for the banded ones."""
+    if layout is None:
+        out[r, k] = value
+    else:
+        i = layout[0, r]
+        out[i, layout[1, k] - i + kl] = value
+
+
+@njit(cache=True)
+def _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out):
+    """Phi_q of one sample into out: (rows, n) where ``layout`` is None, else
+    banded (n, 2 kl + ku + 1) as :meth:`Packed._layout` says."""
     out.fill(0.0)
+    kl = band[1]
     for t in range(len(kind)):
         a, b, r = ta[t], tb[t], row[t]
         xa, ya, ca, sa = pose[a, 0], pose[a, 1], pose[a, 3], pose[a, 4]
@@ -151,17 +245,17 @@ def _jacobian(pose, kind, ta, tb, s1, s2, w, row, out):
             if a >= 0:
                 ax, ay = _turn(ca, sa, s1[t, 0], s1[t, 1])
                 k = 3 * a
-                out[r, k] = 1.0
-                out[r + 1, k + 1] = 1.0
-                out[r, k + 2] = 1.0 * -ay
-                out[r + 1, k + 2] = 1.0 * ax
+                _set(out, layout, kl, r, k, 1.0)
+                _set(out, layout, kl, r + 1, k + 1, 1.0)
+                _set(out, layout, kl, r, k + 2, 1.0 * -ay)
+                _set(out, layout, kl, r + 1, k + 2, 1.0 * ax)
             if b >= 0:
                 bx, by = _turn(cb, sb, s2[t, 0], s2[t, 1])
                 k = 3 * b
-                out[r, k] = -1.0
-                out[r + 1, k + 1] = -1.0
-                out[r, k + 2] = -1.0 * -by
-                out[r + 1, k + 2] = -1.0 * bx
+                _set(out, layout, kl, r, k, -1.0)
+                _set(out, layout, kl, r + 1, k + 1, -1.0)
+                _set(out, layout, kl, r, k + 2, -1.0 * -by)
+                _set(out, layout, kl, r + 1, k + 2, -1.0 * bx)
         elif kind[t] == KIND_PROJECTION:
             wx, wy = _turn(ca, sa, w[t, 0], w[t, 1])
             qx, qy = _turn(ca, sa, s1[t, 0], s1[t, 1])
@@ -169,17 +263,19 @@ def _jacobian(pose, kind, ta, tb, s1, s2, w, row, out):
             dx, dy = xb + px - xa - qx, yb + py - ya - qy
             if b >= 0:
                 k = 3 * b
-                out[r, k], out[r, k + 1] = wx, wy
-                out[r, k + 2] = wx * -py + wy * px
+                _set(out, layout, kl, r, k, wx)
+                _set(out, layout, kl, r, k + 1, wy)
+                _set(out, layout, kl, r, k + 2, wx * -py + wy * px)
             if a >= 0:
                 k = 3 * a
-                out[r, k], out[r, k + 1] = -wx, -wy
-                out[r, k + 2] = (-wy * dx + wx * dy) - (wx * -qy + wy * qx)
+                _set(out, layout, kl, r, k, -wx)
+                _set(out, layout, kl, r, k + 1, -wy)
+                _set(out, layout, kl, r, k + 2, (-wy * dx + wx * dy) - (wx * -qy + wy * qx))
         else:
             if b >= 0:
-                out[r, 3 * b + 2] = 1.0
+                _set(out, layout, kl, r, 3 * b + 2, 1.0)
             if a >= 0:
-                out[r, 3 * a + 2] = -1.0
+                _set(out, layout, kl, r, 3 * a + 2, -1.0)
 
 
 @njit(cache=True)
@@ -326,6 +422,49 @@ def _inverse(lu, piv, inverse):
             inverse[m, j] = inverse[m, j] / pivot
 
 
+# -- dense or banded, as the Packed layout says -----------------------------------------
+
+
+@njit(cache=True)
+def _matrix(rows, n, layout, band):
+    """Scratch for Phi_q: (rows, n) dense (``layout`` None), or (n, 2 kl + ku + 1) banded."""
+    if layout is not None:
+        return np.empty((n, 2 * band[1] + band[2] + 1))
+    return np.empty((rows, n))
+
+
+@njit(cache=True)
+def _factorise(matrix, piv, layout, band):
+    """LU of Phi_q in place; returns the sign of det Phi_q in the system's order
+    (0 if exactly singular, NaN if NaN), as :func:`_lu`."""
+    if layout is not None:
+        return band_lu(matrix, band[1], band[2], piv) * band[3]
+    return _lu(matrix, piv)
+
+
+@njit(cache=True)
+def _solve(lu, piv, layout, band, x, work):
+    """x (n,), rows in the system's order, becomes Phi_q^-1 x (coordinates in the
+    system's order), from :func:`_factorise`'s factors; ``work`` (n,) is scratch."""
+    if layout is not None:
+        n = len(x)
+        for r in range(n):
+            work[layout[0, r]] = x[r]
+        band_solve(lu, band[1], band[2], piv, work)
+        for j in range(n):
+            x[layout[3, j]] = work[j]
+    else:
+        _lu_solve(lu, piv, x)
+
+
+@njit(cache=True)
+def _least_squares_step(pose, kind, ta, tb, s1, s2, w, row, phi, n, step):
+    """step = lstsq(Phi_q, phi) at an exactly singular Jacobian, from a dense Phi_q."""
+    dense = np.empty((len(phi), n))
+    _jacobian(pose, kind, ta, tb, s1, s2, w, row, None, np.zeros(4, dtype=np.int64), dense)
+    step[:] = np.linalg.lstsq(dense, phi, rcond=-1.0)[0]
+
+
 # -- the sweep ------------------------------------------------------------------------
 
 
@@ -414,7 +553,25 @@ def assembled(q, residual, attempt, fixed, per_radian, out):
 
 @njit(cache=True)
 def newton_rounds(
-    q, inputs, attempt, kind, ta, tb, s1, s2, w, offset, driver, row, metres, stop, max_iter, residual, iterations
+    q,
+    inputs,
+    attempt,
+    kind,
+    ta,
+    tb,
+    s1,
+    s2,
+    w,
+    offset,
+    driver,
+    row,
+    layout,
+    band,
+    metres,
+    stop,
+    max_iter,
+    residual,
+    iterations,
 ):
     """Newton-Raphson on the attempted samples, in place, as :func:`._newton.newton`.
 
@@ -424,6 +581,8 @@ def newton_rounds(
         Starting configurations of the attempted samples, overwritten by the solutions.
     inputs : ndarray, shape (N, k)
     attempt : ndarray of bool, shape (N,)
+    layout, band : ndarray of int
+        :meth:`Packed.structure`: dense or banded Phi_q.
     residual : ndarray, shape (N,)
         Written: the largest constraint violation (m).
     iterations : ndarray of int, shape (N,)
@@ -432,10 +591,11 @@ def newton_rounds(
     n = q.shape[1]
     rows = len(metres)
     phi = np.empty(rows)
-    jac = np.empty((rows, n))
+    jac = _matrix(rows, n, layout, band)
     piv = np.empty(n, dtype=np.int64)
     step = np.empty(n)
     trial = np.empty(n)
+    work = np.empty(n)
     pose = _new_pose(n)
     for i in range(len(attempt)):
         iterations[i] = 0
@@ -456,14 +616,13 @@ def newton_rounds(
             else:
                 _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
             active = True
-            _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
+            _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jac)
             for r in range(n):
                 step[r] = phi[r]
-            if _lu(jac, piv) == 0.0:  # exactly singular: least squares, as solve_linear
-                _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
-                step[:] = np.linalg.lstsq(jac, phi, rcond=-1.0)[0]
+            if _factorise(jac, piv, layout, band) == 0.0:  # exactly singular: least squares, as solve_linear
+                _least_squares_step(pose, kind, ta, tb, s1, s2, w, row, phi, n, step)
             else:
-                _lu_solve(jac, piv, step)
+                _solve(jac, piv, layout, band, step, work)
             finite = True
             for j in range(n):
                 trial[j] = q[i, j] - step[j]
@@ -485,25 +644,26 @@ def newton_rounds(
 
 
 @njit(cache=True)
-def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row):
+def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row, layout, band):
     """One Newton step with a given right-hand side, in place: q[i] -= Phi_q(q[i])^-1
     rhs[j] for i = samples[j] (the long-double residuals of :func:`._newton.polish`);
     a sample whose Jacobian is exactly singular, or whose step is not finite, is left."""
     n = q.shape[1]
-    jac = np.empty((n, n))
+    jac = _matrix(n, n, layout, band)
     piv = np.empty(n, dtype=np.int64)
     step = np.empty(n)
+    work = np.empty(n)
     pose = _new_pose(n)
     for j in range(len(samples)):
         i = samples[j]
         _pose(q[i], pose)
-        _jacobian(pose, kind, ta, tb, s1, s2, w, row, jac)
-        sign = _lu(jac, piv)
+        _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jac)
+        sign = _factorise(jac, piv, layout, band)
         if sign == 0.0 or sign != sign:
             continue
         for r in range(n):
             step[r] = rhs[j, r]
-        _lu_solve(jac, piv, step)
+        _solve(jac, piv, layout, band, step, work)
         finite = True
         for r in range(n):
             if not np.isfinite(step[r]):
@@ -514,8 +674,17 @@ def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row):
 
 
 @njit(cache=True)
-def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, out):
-    _jacobian(pose, kind, ta, tb, s1, s2, w, row, out)
+def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, out):
+    """The dimensionless Phi_q (entries times ``jacobian_scale`` (rows, n)) into out."""
+    _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out)
+    if layout is not None:
+        n, kl = out.shape[0], band[1]
+        for i in range(n):
+            for jj in range(out.shape[1]):
+                j = jj + i - kl
+                if 0 <= j < n:
+                    out[i, jj] = out[i, jj] * jacobian_scale[layout[2, i], layout[3, j]]
+        return
     for r in range(out.shape[0]):
         for j in range(out.shape[1]):
             out[r, j] = out[r, j] * jacobian_scale[r, j]
@@ -546,6 +715,24 @@ def _norm1(a):
 
 
 @njit(cache=True)
+def _times_inverse(inverse, lu, piv, layout, band, vector, work, coordinate_scale, out):
+    """out (n,) = C^-1 (scaled Phi_q)^-1 vector: by the explicit inverse where
+    dense, by the banded factors where banded (``vector`` is overwritten there);
+    ``work`` (n,) is scratch."""
+    n = len(vector)
+    if layout is not None:
+        _solve(lu, piv, layout, band, vector, work)
+        for r in range(n):
+            out[r] = vector[r] / coordinate_scale[r]
+        return
+    for r in range(n):
+        total = 0.0
+        for j in range(n):
+            total += inverse[r, j] * vector[j]
+        out[r] = total / coordinate_scale[r]
+
+
+@njit(cache=True)
 def _rates(
     i,
     q,
@@ -560,6 +747,10 @@ def _rates(
     scaled,
     inverse,
     vector,
+    layout,
+    band,
+    work,
+    signs,
     row_scale,
     coordinate_scale,
     kind,
@@ -577,35 +768,33 @@ def _rates(
     singularity,
 ):
     """Step 4 of the solve for sample i: singularity, qd and qdd through the
-    inverse of the scaled Jacobian (``scaled``), whose LU is in lu, piv."""
+    inverse of the scaled Jacobian (``scaled``), whose LU is in lu, piv (dense:
+    the explicit inverse, into ``inverse``, and the exact condition number;
+    banded: solves, and the estimate). ``vector``, ``work``, ``signs`` (n,) are scratch."""
     n = lu.shape[0]
-    norm = _norm1(scaled)
+    norm = _norm1(scaled) if layout is None else band_norm1(scaled, band[1], work)
     if sign == 0.0 or sign != sign:  # exactly singular (or NaN): not determined
         singularity[i] = 0.0
         status[i] = _SINGULAR
         qd[i, :] = np.nan
         qdd[i, :] = np.nan
         return
-    _inverse(lu, piv, inverse)
-    value = 1.0 / (norm * _norm1(inverse))
+    if layout is not None:  # the inverse is dense: its norm is estimated
+        inverse_norm = inverse_norm1_estimate(lu, band[1], band[2], piv, work, signs)
+    else:
+        _inverse(lu, piv, inverse)
+        inverse_norm = _norm1(inverse)
+    value = 1.0 / (norm * inverse_norm)
     value = value if np.isfinite(value) else 0.0
     singularity[i] = value
     # qd = C^-1 S^-1 D_r (-Phi_t), qdd = C^-1 S^-1 D_r gamma
     for r in range(n):
         vector[r] = 0.0 * row_scale[r] if r < n_kinematic else rates[i, r - n_kinematic] * row_scale[r]
-    for r in range(n):
-        total = 0.0
-        for j in range(n):
-            total += inverse[r, j] * vector[j]
-        qd[i, r] = total / coordinate_scale[r]
+    _times_inverse(inverse, lu, piv, layout, band, vector, work, coordinate_scale, qd[i])
     _gamma(pose, qd[i], cdd[i], kind, ta, tb, s1, s2, w, driver, row, vector)
     for r in range(n):
         vector[r] = vector[r] * row_scale[r]
-    for r in range(n):
-        total = 0.0
-        for j in range(n):
-            total += inverse[r, j] * vector[j]
-        qdd[i, r] = total / coordinate_scale[r]
+    _times_inverse(inverse, lu, piv, layout, band, vector, work, coordinate_scale, qdd[i])
     if value < near:
         status[i] = _NEAR_SINGULAR
     if value < singular:
@@ -636,6 +825,8 @@ def check_and_finish(
     w,
     driver,
     row,
+    layout,
+    band,
     n_kinematic,
     near,
     singular,
@@ -652,11 +843,11 @@ def check_and_finish(
     ``converged`` (N,) bool: the samples :func:`assembled` counts as assembled.
     """
     n = q.shape[1]
-    scaled = np.empty((n, n))
-    lu = np.empty((n, n))
-    inverse = np.empty((n, n))
+    scaled = _matrix(n, n, layout, band)
+    lu = _matrix(n, n, layout, band)
+    inverse = np.empty((n, n)) if layout is None else np.empty((1, 1))
     piv = np.empty(n, dtype=np.int64)
-    vector = np.empty(n)
+    vector, work, signs = np.empty(n), np.empty(n), np.empty(n)
     pose = _new_pose(n)
     for i in range(len(attempt)):
         if not attempt[i]:
@@ -669,9 +860,9 @@ def check_and_finish(
                 if v != v:
                     break
         _pose(q[i], pose)
-        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, scaled)
+        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, scaled)
         _copy(scaled, lu)
-        sign = _lu(lu, piv)
+        sign = _factorise(lu, piv, layout, band)
         on_branch = correction <= max_correction and (sign == base_sign[i] or sign == 0.0)
         if converged[i] and on_branch:
             status[i] = _OK
@@ -689,6 +880,10 @@ def check_and_finish(
                 scaled,
                 inverse,
                 vector,
+                layout,
+                band,
+                work,
+                signs,
                 row_scale,
                 coordinate_scale,
                 kind,
@@ -731,6 +926,8 @@ def finish(
     w,
     driver,
     row,
+    layout,
+    band,
     n_kinematic,
     near,
     singular,
@@ -739,17 +936,17 @@ def finish(
 ):
     """Step 4 of the solve (singularity, qd, qdd) for assembled samples idx."""
     n = q.shape[1]
-    scaled = np.empty((n, n))
-    lu = np.empty((n, n))
-    inverse = np.empty((n, n))
+    scaled = _matrix(n, n, layout, band)
+    lu = _matrix(n, n, layout, band)
+    inverse = np.empty((n, n)) if layout is None else np.empty((1, 1))
     piv = np.empty(n, dtype=np.int64)
-    vector = np.empty(n)
+    vector, work, signs = np.empty(n), np.empty(n), np.empty(n)
     pose = _new_pose(n)
     for i in idx:
         _pose(q[i], pose)
-        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, jacobian_scale, scaled)
+        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, scaled)
         _copy(scaled, lu)
-        sign = _lu(lu, piv)
+        sign = _factorise(lu, piv, layout, band)
         _rates(
             i,
             q,
@@ -764,6 +961,10 @@ def finish(
             scaled,
             inverse,
             vector,
+            layout,
+            band,
+            work,
+            signs,
             row_scale,
             coordinate_scale,
             kind,

@@ -241,6 +241,7 @@ class Kinematics:
     _turns: dict = field(init=False, default_factory=dict)
     _walked: dict = field(init=False, default_factory=dict)
     _atlases: dict = field(init=False, default_factory=dict)
+    _atlas_slopes: dict = field(init=False, default_factory=dict)
     _packed: Any = field(init=False, default=None)
 
     def __post_init__(self):
@@ -493,6 +494,15 @@ class Kinematics:
             self._atlases[branch] = atlas
         return self._atlases[branch]
 
+    def _atlas_tangents_and_signs(self, branch: str, atlas) -> tuple[np.ndarray, np.ndarray]:
+        """dq/dc (M, n) and the sign of det Phi_q (M,) at the branch's atlas points,
+        computed once per branch (n^3 each: on a long chain, more than the sweep)."""
+        if branch not in self._atlas_slopes:
+            q_atlas = atlas[1]
+            tangents = np.ascontiguousarray(tangent(self.system, q_atlas)[:, :, 0])
+            self._atlas_slopes[branch] = (tangents, det_sign(self.system, self.system.jacobian(q_atlas)))
+        return self._atlas_slopes[branch]
+
     def _atlas_predictions(self, atlas, c: np.ndarray):
         """Samples the atlas covers, their predicted configurations, and the atlas
         point before each (shifted by whole turns) for the branch check.
@@ -686,8 +696,7 @@ class Kinematics:
         prediction = None
         if atlas is not None:
             c_atlas, q_atlas, period = atlas
-            tangents = np.ascontiguousarray(tangent(system, q_atlas)[:, :, 0])
-            signs = det_sign(system, system.jacobian(q_atlas))
+            tangents, signs = self._atlas_tangents_and_signs(name, atlas)
             inside = fast.predict_atlas(
                 c,
                 c_atlas,
@@ -711,15 +720,18 @@ class Kinematics:
                 attempt[idx] = True
                 q[idx] = qd[idx] = prediction[1]
                 base_sign[idx] = prediction[4]
-        fast.newton_rounds(q, c, attempt, *terms, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations)
+        structure = packed.structure()  # dense or banded Phi_q
+        fast.newton_rounds(
+            q, c, attempt, *terms, *structure, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations
+        )
         assembled = np.empty(n_samples, dtype=bool)
         fast.assembled(q, residual, attempt, CONVERGED_TOLERANCE * system.size, ANGLE_ROUNDOFF * system.size, assembled)
         converged = np.flatnonzero(assembled)
         for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
             chunk = converged[start : start + POLISH_CHUNK]
-            fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms)
+            fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms, *structure)
         kernel_terms = (*terms[:6], *terms[7:])  # no angle offsets
-        rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms)
+        rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms, *structure)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
         fast.check_and_finish(
             q, qd, qdd, cd, cdd, attempt, assembled, MAX_CORRECTION, base_sign,
@@ -758,7 +770,7 @@ class Kinematics:
         atlas = self._atlas(branch)
         if atlas is not None:
             idx, guess, base_q, base_c, anchor = self._atlas_predictions(atlas, c)
-            signs = det_sign(system, system.jacobian(atlas[1]))
+            _, signs = self._atlas_tangents_and_signs(branch, atlas)
             return idx, guess, base_q, base_c, signs[anchor]
         n_samples = c.shape[0]
         path = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(c, axis=0)) * system.input_scale(), axis=1))])
