@@ -26,6 +26,7 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_solver.py
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_chain_size.py --no-reference 1 5 20 50
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache

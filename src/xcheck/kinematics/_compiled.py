@@ -6,7 +6,10 @@ reference and is tested against this one sample by sample), but one sample at
 a time with O(n^2) scratch instead of whole-batch (N, n, n) arrays: memory
 stays flat whatever the number of samples, and the Jacobian at the solution is
 factorised once (LU with partial pivoting) for the determinant's sign, the
-inverse (condition number, velocities, accelerations).
+inverse (condition number, velocities, accelerations). From ``BANDED_FROM``
+coordinates the Jacobian is stored and factorised as a band matrix
+(:meth:`Packed._layout`, :mod:`._banded`): O(n) scratch and work per sample on
+a chain, with the condition number estimated rather than computed exactly.
 
 Newton runs in rounds over all samples, as the batched reference does: a
 sample that has stopped improving keeps iterating while any other sample
@@ -223,7 +226,7 @@ def _residual(pose, inputs, kind, ta, tb, s1, s2, w, offset, driver, row, out):
 def _set(out, layout, kl, r, k, value):
     """Phi_q[r, k] = value, in dense (``layout`` None) or banded storage
     (:meth:`Packed._layout`). numba compiles the two apart (it prunes the
-    branch on None), so the dense kernels pay nothing for the banded ones."""
+    branch on None), so the dense kernels carry no banded code."""
     if layout is None:
         out[r, k] = value
     else:
