@@ -166,3 +166,20 @@ def test_a_chain_listed_in_scrambled_order_is_as_banded(tmp_path):
     assert poses[0].keys() == poses[1].keys()
     for name, q in poses[0].items():
         assert np.allclose(poses[1][name], q, rtol=0, atol=1e-12), name
+
+
+def test_a_wide_band_stays_dense(tmp_path, monkeypatch):
+    """Where the bodies' order leaves a band wider than n / 2 (a body joined to
+    many; here the chain's bodies in a scrambled order stand in for one), the
+    Jacobian stays dense and the condition number exact."""
+    from scipy.sparse import csgraph
+
+    kin = _chain(tmp_path, 12)
+    scrambled = np.random.default_rng(5).permutation(kin.system.n // 3)
+    monkeypatch.setattr(csgraph, "reverse_cuthill_mckee", lambda graph, symmetric_mode: scrambled)
+    c = np.linspace(0.3, 1.2, 7)[:, None]
+    fast = kin.solve(c, compiled=True)
+    assert kin._packed.layout is None and kin._packed.band[0] == 0
+    ref = kin.solve(c, compiled=False)
+    assert np.array_equal(fast.status, ref.status)
+    assert np.all(np.abs(fast.singularity - ref.singularity) <= 16 * EPS / ref.singularity)

@@ -104,15 +104,15 @@ class Packed:
         first body in that order; row r, column k at [i, col_pos[k] - i + kl] with
         i = row_pos[r] (:func:`_set`). ``layout`` rows: row_pos, col_pos, and the inverse
         permutations row_of, col_of. ``band``: (banded 0/1, kl, ku, the sign of
-        the two permutations, which det Phi_q's sign is corrected by).
+        the two permutations, which det Phi_q's sign is corrected by). Dense
+        also where the band would be wider than n / 2 (a body joined to many).
         """
         n, rows = self.n, len(self.metres)
         self.layout: np.ndarray | None = None
         self.band = np.array([0, n - 1, n - 1, 1], dtype=np.int64)
         if n < BANDED_FROM or rows != n:
             return
-        from scipy.sparse import csr_matrix
-        from scipy.sparse.csgraph import reverse_cuthill_mckee
+        from scipy.sparse import csgraph, csr_matrix
 
         bodies = n // 3
         pairs = [(a, b) for a, b in zip(self.a, self.b) if a >= 0 and b >= 0]
@@ -120,7 +120,7 @@ class Packed:
         second = np.array([b for a, b in pairs] + [a for a, b in pairs] + list(range(bodies)), dtype=np.int64)
         graph = csr_matrix((np.ones(len(first)), (first, second)), shape=(bodies, bodies))
         body_pos = np.empty(bodies, dtype=np.int64)
-        body_pos[reverse_cuthill_mckee(graph, symmetric_mode=True)] = np.arange(bodies)
+        body_pos[csgraph.reverse_cuthill_mckee(graph, symmetric_mode=True)] = np.arange(bodies)
         col_pos = (3 * body_pos[:, None] + np.arange(3)).ravel()
 
         def placed(t: int) -> tuple[int, int]:
@@ -143,6 +143,8 @@ class Packed:
             for c in range(3)
         ]
         kl, ku = int(max(0, -min(offsets))), int(max(0, max(offsets)))
+        if 2 * kl + ku + 1 > n // 2:  # not a chain (a hub body): a wide band costs more than dense
+            return
         sign = _permutation_sign(row_of) * _permutation_sign(col_of)
         self.layout = np.stack([row_pos, col_pos, row_of, col_of]).astype(np.int64)
         self.band = np.array([1, kl, ku, sign], dtype=np.int64)
