@@ -5,7 +5,9 @@ run (issue 17)."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
+from pathlib import Path
 
 import pytest
 from conftest import MODELS, invoke
@@ -168,6 +170,54 @@ def test_a_dead_worker_of_run_all_is_one_line_per_mechanism_not_a_traceback(tmp_
     ]
     assert "BrokenProcessPool" not in done.stderr
     assert json.loads(done.stdout) == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads process states from /proc")
+def test_a_worker_ends_with_its_killed_parent(tmp_path):
+    """A run killed outright (SIGKILL: no clean-up of any kind) leaves no worker
+    behind: each one, busy or idle, sees its parent go and exits within seconds
+    (it waited forever before, a Python process with NumPy and xcheck loaded,
+    after every killed `xcheck run` that used workers)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "busy.py"
+    script.write_text(
+        "import time\n"
+        "from xcheck._parallel import process_pool\n"
+        "if __name__ == '__main__':\n"
+        "    pool = process_pool(2)\n"
+        "    busy = pool.submit(time.sleep, 300)\n"
+        "    idle = pool.submit(abs, -1)\n"
+        "    print(idle.result(), *pool._processes, flush=True)\n"
+        "    time.sleep(300)\n",
+        encoding="utf-8",
+    )
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, cwd=tmp_path)
+    assert parent.stdout is not None
+    first, *workers = parent.stdout.readline().split()
+    assert first == "1" and len(workers) == 2
+
+    def alive(pid: str) -> bool:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return False
+        return state != "Z"  # a zombie has exited
+
+    assert all(alive(pid) for pid in workers)
+    parent.send_signal(signal.SIGKILL)
+    parent.wait(timeout=30)
+    parent.stdout.close()
+    deadline = time.monotonic() + 20
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [pid for pid in workers if alive(pid)]
+    for pid in left:  # do not leave them to the next test either
+        os.kill(int(pid), signal.SIGKILL)
+    assert left == [], "workers outlived their killed parent"
 
 
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):

@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import copyreg
 import multiprocessing
+import multiprocessing.connection
+import os
+import threading
 import types
 from collections.abc import Callable, Hashable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
@@ -46,10 +49,28 @@ def _read_only(items: dict) -> types.MappingProxyType:
 
 
 def process_pool(jobs: int) -> ProcessPoolExecutor:
-    """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both ways."""
+    """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both
+    ways, and that end with the process that started them."""
     picklable_mechanisms()
     context = multiprocessing.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=picklable_mechanisms)
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_start_worker)
+
+
+def _start_worker() -> None:
+    """The pool's initializer: mechanisms picklable, and a watch on the parent. A
+    worker waits for its next task on a pipe whose writing end it holds itself, so
+    when the parent is killed (SIGKILL, or a crash) it would wait forever, a
+    Python process with NumPy, pandas and xcheck loaded; instead it exits."""
+    picklable_mechanisms()
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True).start()
+
+
+def _exit_with(sentinel: int) -> None:
+    """Wait until the parent process is gone, then end this one at once."""
+    multiprocessing.connection.wait([sentinel])
+    os._exit(1)
 
 
 def known_to_workers(mode: str) -> bool:
