@@ -41,6 +41,9 @@ KIND_ANGLE = 2
 #: (:meth:`Packed._layout`, :mod:`._banded`), and the singularity measure is
 #: Higham's estimate of 1 / the 1-norm condition number instead of the exact value
 BANDED_FROM = 30
+#: ... unless the band (2 kl + ku + 1 entries a row) is wider than this share of n:
+#: a body joined to many others, whose band storage and LU would cost more than dense
+BAND_WIDTH_LIMIT = 0.5
 
 #: Status codes (the values of :class:`._solve.Status`).
 _OK, _NEAR_SINGULAR, _SINGULAR, _NOT_CONVERGED, _BRANCH_JUMP = 0, 1, 2, 3, 4
@@ -143,7 +146,7 @@ class Packed:
             for c in range(3)
         ]
         kl, ku = int(max(0, -min(offsets))), int(max(0, max(offsets)))
-        if 2 * kl + ku + 1 > n // 2:  # not a chain (a hub body): a wide band costs more than dense
+        if 2 * kl + ku + 1 > BAND_WIDTH_LIMIT * n:
             return
         sign = _permutation_sign(row_of) * _permutation_sign(col_of)
         self.layout = np.stack([row_pos, col_pos, row_of, col_of]).astype(np.int64)
