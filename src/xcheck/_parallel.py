@@ -13,6 +13,7 @@ import copyreg
 import multiprocessing
 import multiprocessing.connection
 import os
+import signal
 import threading
 import types
 from collections.abc import Callable, Hashable
@@ -57,10 +58,16 @@ def process_pool(jobs: int) -> ProcessPoolExecutor:
 
 
 def _start_worker() -> None:
-    """The pool's initializer: mechanisms picklable, and a watch on the parent. A
-    worker waits for its next task on a pipe whose writing end it holds itself, so
-    when the parent is killed (SIGKILL, or a crash) it would wait forever, a
-    Python process with NumPy, pandas and xcheck loaded; instead it exits."""
+    """The pool's initializer: mechanisms picklable, Ctrl-C, and a watch on the parent.
+
+    Ctrl-C reaches the whole foreground process group: the parent ends the run
+    (exit code 130), and a worker is ended by the signal's default action, at
+    once and silently, instead of printing a KeyboardInterrupt traceback from
+    wherever it was. A worker waits for its next task on a pipe whose writing end
+    it holds itself, so when the parent is killed (SIGKILL, or a crash) it would
+    wait forever, a Python process with NumPy, pandas and xcheck loaded; instead
+    it exits."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     picklable_mechanisms()
     parent = multiprocessing.parent_process()
     if parent is not None:
