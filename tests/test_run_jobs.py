@@ -123,7 +123,6 @@ def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
     starts workers again, which multiprocessing refuses; the modes fail with a
     reason that says what to do, and the script ends."""
     import subprocess
-    import sys
 
     from xcheck._parallel import WORKER_DIED
 
@@ -146,7 +145,6 @@ def test_a_dead_worker_of_run_all_is_one_line_per_mechanism_not_a_traceback(tmp_
     2, and no traceback comes from the run itself (the workers' own start-up
     errors are multiprocessing's)."""
     import subprocess
-    import sys
 
     from xcheck._parallel import WORKER_DIED
 
@@ -180,7 +178,6 @@ def test_a_worker_ends_with_its_killed_parent(tmp_path):
     behind: each one, busy or idle, sees its parent go and exits within seconds
     (it waited forever before, a Python process with NumPy and xcheck loaded,
     after every killed `xcheck run` that used workers)."""
-    import signal
     import subprocess
     import sys
     import time
@@ -220,62 +217,6 @@ def test_a_worker_ends_with_its_killed_parent(tmp_path):
     for pid in left:  # do not leave them to the next test either
         os.kill(int(pid), signal.SIGKILL)
     assert left == [], "workers outlived their killed parent"
-
-
-def _children(pid: int) -> list[str]:
-    """The process ids whose parent is ``pid`` (from /proc)."""
-    found = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except (FileNotFoundError, ProcessLookupError):
-            continue
-        if fields[1] == str(pid) and fields[0] != "Z":
-            found.append(stat.parent.name)
-    return found
-
-
-def _catches_sigint(pid: str) -> bool:
-    """Whether the process has a handler for SIGINT (signal 2: bit 1 of SigCgt)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-    caught = next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:"))
-    return bool(int(caught, 16) & (1 << (signal.SIGINT - 1)))
-
-
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads process states from /proc")
-def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
-    """Ctrl-C reaches the whole foreground process group, the workers too: the run
-    ends with a failing exit code, no traceback from it or its workers, and no
-    worker left behind."""
-    import signal
-    import subprocess
-    import time
-
-    xcheck = Path(sys.executable).with_name("xcheck")
-    command = [str(xcheck), "run", "fourbar", "--models", str(MODELS), "--engines"]
-    command += ["mujoco,pinocchio-dynamic,pymunk-dynamic,exudyn", "--no-report", "--jobs", "2"]
-    run = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                           start_new_session=True)  # fmt: skip
-    deadline = time.monotonic() + 120
-    workers: list[str] = []
-    while time.monotonic() < deadline and run.poll() is None:
-        workers = [pid for pid in _children(run.pid) if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
-        if len(workers) == 2 and not any(_catches_sigint(pid) for pid in workers):
-            break  # both past the pool's initializer (before it, Python's own handler raises)
-        time.sleep(0.1)
-    assert len(workers) == 2, "the run did not start its two workers"
-    time.sleep(1.0)  # into the modes
-    os.killpg(run.pid, signal.SIGINT)
-    _, stderr = run.communicate(timeout=60)
-    assert run.returncode != 0
-    assert "Traceback" not in stderr, stderr
-    deadline = time.monotonic() + 20
-    while any(Path(f"/proc/{pid}").exists() for pid in workers) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not any(Path(f"/proc/{pid}").exists() for pid in workers)
 
 
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
