@@ -515,8 +515,7 @@ def run_command(
     """
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
-    if jobs is not None and not 1 <= jobs <= 256:
-        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
+    jobs = _process_count(jobs)
     if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
         report = not as_json
     if report:  # matplotlib and the figures' code: only when a report is written
@@ -537,7 +536,6 @@ def run_command(
     )
     results, entries, failures = [], [], []
     settings = (directory, modes, samples, branch, comparisons, report, out, options, gif)
-    jobs = jobs if jobs is not None else os.cpu_count() or 1
     mode_jobs = jobs if len(names) == 1 else 1  # one mechanism: its modes at once; several: the mechanisms
     jobs = min(jobs, len(names))
     progress = _progress_bar(quiet or as_json)
@@ -652,6 +650,13 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     return [outcomes[i] for i in range(len(names))]
 
 
+def _process_count(jobs: int | None) -> int:
+    """``--jobs`` checked (1 to 256), or one process per CPU core where it is not given."""
+    if jobs is not None and not 1 <= jobs <= 256:
+        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
+    return jobs if jobs is not None else os.cpu_count() or 1
+
+
 def _progress_bar(off: bool) -> Progress:
     """A transient progress bar on stderr (what runs, done/total, time): only
     when stderr and stdout are terminals, never with --json or --quiet (``off``),
@@ -740,8 +745,7 @@ def simulate_command(
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
-    if jobs is not None and not 1 <= jobs <= 256:
-        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
+    jobs = _process_count(jobs)
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
     path = model_path(name, models_dir(models))
@@ -757,7 +761,6 @@ def simulate_command(
                 bar.advance(task)
             bar.update(task, description=f"{kin.mechanism.name}: {what}")
 
-        jobs = jobs if jobs is not None else os.cpu_count() or 1
         result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs)
     reference = result.reference
     failure = None
