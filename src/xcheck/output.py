@@ -229,20 +229,34 @@ def _plain_table_lines(console: Console, table: Table) -> list[Text] | None:
     for row in range(len(grid[0])):
         style = header_style if row == 0 else None
         wrapped = [
-            texts[row].wrap(console, width, justify=column.justify, overflow=column.overflow, no_wrap=column.no_wrap)
-            for column, texts, width in zip(columns, grid, widths)
+            _cell_lines(console, texts[row], width, column) for column, texts, width in zip(columns, grid, widths)
         ]
         height = max(len(cell) for cell in wrapped)
         for line_no in range(height):
             line = Text()
-            for cell, width, (left, right) in zip(wrapped, widths, pads):
+            for column, cell, width, (left, right) in zip(columns, wrapped, widths, pads):
                 at = line_no - (height - len(cell) if row == 0 else 0)  # rich puts headers at the bottom
                 text = cell[at] if 0 <= at < len(cell) else Text()
-                line.append(" " * left, style)
-                line.append_text(text)
-                line.append(" " * (width - cell_len(text.plain) + right), style)
+                gap = width - cell_len(text.plain)
+                if column.justify == "right":
+                    line.append(" " * (left + gap), style)
+                    line.append_text(text)
+                    line.append(" " * right, style)
+                else:
+                    line.append(" " * left, style)
+                    line.append_text(text)
+                    line.append(" " * (gap + right), style)
             lines.append(line)
     return lines
+
+
+def _cell_lines(console: Console, text: Text, width: int, column) -> list[Text]:
+    """The lines of one cell as rich wraps and justifies them in ``width``
+    cells; a line that fits comes back as it is, to be padded to the width."""
+    plain = text.plain
+    if "\n" not in plain and plain == plain.rstrip() and cell_len(plain) <= width:
+        return [text]  # what wrap gives a line that fits, but for the padding added later
+    return list(text.wrap(console, width, justify=column.justify, overflow=column.overflow, no_wrap=column.no_wrap))
 
 
 def print_solution(console: Console, solution: Solution, labels: list[str] | None = None, forces=None) -> None:
