@@ -9,13 +9,12 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Optional
 
 import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from . import __version__, cache
@@ -49,6 +48,9 @@ from .output import (
     wide_console,
 )
 from .units import evaluate_expression
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
 
 __all__ = ["app", "main"]
 
@@ -661,6 +663,8 @@ def _progress_bar(off: bool) -> Progress:
     """A transient progress bar on stderr (what runs, done/total, time): only
     when stderr and stdout are terminals, never with --json or --quiet (``off``),
     so that piped or captured output stays clean."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
     stderr = Console(stderr=True)
     return Progress(
         SpinnerColumn(),
@@ -1071,6 +1075,8 @@ def fuzz_command(
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
     campaign.generate(seed, 0, chosen)  # checks the kinds
     modes = campaign.campaign_modes() if engines is None else select_modes(engines)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
     stderr = Console(stderr=True)
     progress = Progress(
         SpinnerColumn(),
