@@ -311,3 +311,84 @@ def test_an_engines_availability_imports_nothing():
         requires = ("json.decoder", "json.no_such_submodule_xcheck", "no_such_package_xcheck.sub")
 
     assert Partly().available() == "not installed: json.no_such_submodule_xcheck, no_such_package_xcheck.sub"
+
+
+_PLUG_IN = """
+from xcheck import engines
+from xcheck.tolerances import Tolerance
+
+
+class Plugged(engines.Engine):
+    name = "plugged"
+    modes = (engines.Mode("plugged-kinematic", "kinematic", Tolerance(1, 1, 1, 1, "anything")),)
+"""
+
+
+def _install_plug_in(site, entry_points: str) -> None:
+    """A distribution as pip leaves one: the module and its ``.dist-info`` folder."""
+    (site / "xcheck_plug_test.py").write_text(_PLUG_IN, encoding="utf-8")
+    info = site / "xcheck_plug_test-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: xcheck-plug-test\nVersion: 1.0\n", encoding="utf-8")
+    (info / "entry_points.txt").write_text(entry_points, encoding="utf-8")
+
+
+def _engines_with(path: str):
+    import os
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([path, str(ROOT / "src")])}
+    done = subprocess.run(
+        [sys.executable, "-m", "xcheck", "engines", "--json"], env=env, capture_output=True, text=True, check=True
+    )
+    doc = json.loads(done.stdout)
+    return {e["name"] for e in doc["engines"]}, doc["plugin_errors"]
+
+
+def test_an_installed_plug_in_is_listed_and_a_broken_one_reported(tmp_path):
+    """The entry-point group end to end, through the quick check of the
+    installed distributions that spares ``importlib.metadata`` where none
+    declares the group."""
+    _install_plug_in(
+        tmp_path, "[xcheck.engines]\nplugged = xcheck_plug_test:Plugged\nbroken = xcheck_plug_no_such_module:Gone\n"
+    )
+    names, problems = _engines_with(str(tmp_path))
+    assert "plugged" in names and "mujoco" in names
+    assert list(problems) == ["broken"] and "ModuleNotFoundError" in problems["broken"]
+
+
+def test_a_plug_in_inside_a_zip_file_on_the_path_is_found(tmp_path):
+    """A zip file on the path is one place the quick check cannot read: it
+    leaves the answer to ``importlib.metadata``."""
+    import shutil
+
+    site = tmp_path / "site"
+    site.mkdir()
+    _install_plug_in(site, "[xcheck.engines]\nplugged = xcheck_plug_test:Plugged\n")
+    archive = shutil.make_archive(str(tmp_path / "plug"), "zip", site)
+    names, problems = _engines_with(archive)
+    assert "plugged" in names and problems == {}
+
+
+def test_no_plug_in_declared_skips_the_metadata_scan(tmp_path):
+    """A distribution with other entry points only: nothing is listed, and the
+    registry never imports ``importlib.metadata`` (40 ms of ``xcheck list``)."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    _install_plug_in(tmp_path, "[console_scripts]\nplug = xcheck_plug_test:main\n")
+    names, problems = _engines_with(str(tmp_path))
+    assert "plugged" not in names and problems == {}
+    probe = (
+        "import sys, xcheck.cli; from xcheck import engines; engines.engines(); "
+        "print('importlib.metadata' in sys.modules)"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT / "src")])}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
