@@ -151,7 +151,7 @@ def test_a_long_chain_is_banded_and_its_sweep_matches_the_reference(tmp_path, so
     rates, accelerations = np.full_like(c, 0.7), np.full_like(c, -1.3)
     fast = kin.solve(c, rates, accelerations, compiled=True)
     layout, band = kin._packed.structure()
-    assert band[0] == 1 and band[1] + band[2] <= 8  # a chain: a few diagonals, whatever n
+    assert layout is not None and band[0] + band[1] <= 8  # a chain: a few diagonals, whatever n
     ref = kin.solve(c, rates, accelerations, compiled=False)
     # on a chain the estimate was exact: the measure within 1e-12 of the exact one
     assert _matches_the_reference(kin, fast, ref, largest_ratio=1 + 1e-12) > 1000
@@ -177,7 +177,7 @@ def test_a_chain_listed_in_scrambled_order_is_as_banded(tmp_path):
         path.write_text(text, encoding="utf-8")
         kin = Kinematics(load_mechanism(path))
         solution = kin.solve(c, compiled=True)
-        assert kin._packed.band[0] == 1 and kin._packed.band[1] + kin._packed.band[2] <= 8
+        assert kin._packed.layout is not None and kin._packed.band[0] + kin._packed.band[1] <= 8
         poses.append({name: solution.q[:, 3 * k : 3 * k + 3] for k, name in enumerate(kin.system.body_names)})
     assert poses[0].keys() == poses[1].keys()
     for name, q in poses[0].items():
@@ -195,7 +195,7 @@ def test_a_wide_band_stays_dense(tmp_path, monkeypatch):
     monkeypatch.setattr(csgraph, "reverse_cuthill_mckee", lambda graph, symmetric_mode: scrambled)
     c = np.linspace(0.3, 1.2, 7)[:, None]
     fast = kin.solve(c, compiled=True)
-    assert kin._packed.layout is None and kin._packed.band[0] == 0
+    assert kin._packed.layout is None
     ref = kin.solve(c, compiled=False)
     assert np.array_equal(fast.status, ref.status)
     assert np.all(np.abs(fast.singularity - ref.singularity) <= 16 * EPS / ref.singularity)

@@ -94,7 +94,7 @@ class Packed:
         return (self.kind, self.a, self.b, self.s1, self.s2, self.w, self.offset, self.driver, self.row)
 
     def structure(self) -> tuple:
-        """Where the kernels keep Phi_q: ``layout`` (4, n), None where dense, and ``band`` (4,);
+        """Where the kernels keep Phi_q: ``layout`` (4, n), None where dense, and ``band`` (3,);
         see :meth:`_layout`."""
         return (self.layout, self.band)
 
@@ -106,13 +106,13 @@ class Packed:
         of the graph the joints make of them, each term's rows placed by its
         first body in that order; row r, column k at [i, col_pos[k] - i + kl] with
         i = row_pos[r] (:func:`_set`). ``layout`` rows: row_pos, col_pos, and the inverse
-        permutations row_of, col_of. ``band``: (banded 0/1, kl, ku, the sign of
-        the two permutations, which det Phi_q's sign is corrected by). Dense
+        permutations row_of, col_of. ``band``: (kl, ku, the sign of the two
+        permutations, which det Phi_q's sign is corrected by). Dense
         also where the band would be wider than n / 2 (a body joined to many).
         """
         n, rows = self.n, len(self.metres)
         self.layout: np.ndarray | None = None
-        self.band = np.array([0, n - 1, n - 1, 1], dtype=np.int64)
+        self.band = np.array([n - 1, n - 1, 1], dtype=np.int64)
         if n < BANDED_FROM or rows != n:
             return
         from scipy.sparse import csgraph, csr_matrix
@@ -150,7 +150,7 @@ class Packed:
             return
         sign = _permutation_sign(row_of) * _permutation_sign(col_of)
         self.layout = np.stack([row_pos, col_pos, row_of, col_of]).astype(np.int64)
-        self.band = np.array([1, kl, ku, sign], dtype=np.int64)
+        self.band = np.array([kl, ku, sign], dtype=np.int64)
 
 
 def _permutation_sign(order: np.ndarray) -> int:
@@ -244,7 +244,7 @@ def _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out):
     """Phi_q of one sample into out: (rows, n) where ``layout`` is None, else
     banded (n, 2 kl + ku + 1) as :meth:`Packed._layout` says."""
     out.fill(0.0)
-    kl = band[1]
+    kl = band[0]
     for t in range(len(kind)):
         a, b, r = ta[t], tb[t], row[t]
         xa, ya, ca, sa = pose[a, 0], pose[a, 1], pose[a, 3], pose[a, 4]
@@ -437,7 +437,7 @@ def _inverse(lu, piv, inverse):
 def _matrix(rows, n, layout, band):
     """Scratch for Phi_q: (rows, n) dense (``layout`` None), or (n, 2 kl + ku + 1) banded."""
     if layout is not None:
-        return np.empty((n, 2 * band[1] + band[2] + 1))
+        return np.empty((n, 2 * band[0] + band[1] + 1))
     return np.empty((rows, n))
 
 
@@ -446,7 +446,7 @@ def _factorise(matrix, piv, layout, band):
     """LU of Phi_q in place; returns the sign of det Phi_q in the system's order
     (0 if exactly singular, NaN if NaN), as :func:`_lu`."""
     if layout is not None:
-        return band_lu(matrix, band[1], band[2], piv) * band[3]
+        return band_lu(matrix, band[0], band[1], piv) * band[2]
     return _lu(matrix, piv)
 
 
@@ -458,7 +458,7 @@ def _solve(lu, piv, layout, band, x, work):
         n = len(x)
         for r in range(n):
             work[layout[0, r]] = x[r]
-        band_solve(lu, band[1], band[2], piv, work)
+        band_solve(lu, band[0], band[1], piv, work)
         for j in range(n):
             x[layout[3, j]] = work[j]
     else:
@@ -686,7 +686,7 @@ def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_
     """The dimensionless Phi_q (entries times ``jacobian_scale`` (rows, n)) into out."""
     _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out)
     if layout is not None:
-        n, kl = out.shape[0], band[1]
+        n, kl = out.shape[0], band[0]
         for i in range(n):
             for jj in range(out.shape[1]):
                 j = jj + i - kl
@@ -781,7 +781,7 @@ def _rates(
     into the sample loop, and the dense sweep lost 30 % of this step.)"""
     n = lu.shape[0]
     vector, work, signs = scratch[0], scratch[1], scratch[2]
-    norm = _norm1(scaled) if layout is None else band_norm1(scaled, band[1], work)
+    norm = _norm1(scaled) if layout is None else band_norm1(scaled, band[0], work)
     if sign == 0.0 or sign != sign:  # exactly singular (or NaN): not determined
         singularity[i] = 0.0
         status[i] = _SINGULAR
@@ -789,7 +789,7 @@ def _rates(
         qdd[i, :] = np.nan
         return
     if layout is not None:  # the inverse is dense: its norm is estimated
-        inverse_norm = inverse_norm1_estimate(lu, band[1], band[2], piv, work, signs)
+        inverse_norm = inverse_norm1_estimate(lu, band[0], band[1], piv, work, signs)
     else:
         _inverse(lu, piv, inverse)
         inverse_norm = _norm1(inverse)
