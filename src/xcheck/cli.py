@@ -652,10 +652,10 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     return [outcomes[i] for i in range(len(names))]
 
 
-def _process_count(jobs: int | None) -> int:
-    """``--jobs`` checked (1 to 256), or one process per CPU core where it is not given."""
+def _process_count(jobs: int | None, option: str = "--jobs") -> int:
+    """``--jobs`` (or ``option``) checked (1 to 256), or one process per CPU core where it is not given."""
     if jobs is not None and not 1 <= jobs <= 256:
-        raise InputError(f"--jobs: expected a whole number from 1 to 256, found {jobs}")
+        raise InputError(f"{option}: expected a whole number from 1 to 256, found {jobs}")
     return jobs if jobs is not None else os.cpu_count() or 1
 
 
@@ -1068,8 +1068,7 @@ def fuzz_command(
         raise InputError(f"--count: expected a whole number from 1 to 100000, found {count}")
     if not 3 <= samples <= MAX_SAMPLES:
         raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
-    if workers is not None and not 1 <= workers <= 256:
-        raise InputError(f"--workers: expected a whole number from 1 to 256, found {workers}")
+    workers = _process_count(workers, "--workers")
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: expected a directory for the campaign, found a file")
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
