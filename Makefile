@@ -24,9 +24,20 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
 
+# the figures of issue 17's table, each printed with its command (CLI: wall and CPU
+# medians of N runs); what the runs write goes to BENCH_OUT, never into reports/
+BENCH_OUT ?= $${TMPDIR:-/tmp}/xcheck-bench
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_solver.py
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_chain_size.py --no-reference 1 5 20 50
+	mkdir -p $(BENCH_OUT) && rm -rf $(BENCH_OUT)/fuzz
+	$(BIN)/python benchmarks/bench_cli.py 5 $(BIN)/xcheck list
+	$(BIN)/python benchmarks/bench_cli.py 5 $(BIN)/xcheck solve fourbar
+	$(BIN)/python benchmarks/bench_cli.py 3 $(BIN)/xcheck run fourbar --json
+	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck run fourbar --out $(BENCH_OUT)
+	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck run all --out $(BENCH_OUT)
+	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck simulate iftomm-a02 --engines native --json --no-report
+	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck fuzz --count 20 --seed 1 --out $(BENCH_OUT)/fuzz
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache
