@@ -373,6 +373,22 @@ def test_a_plug_in_inside_a_zip_file_on_the_path_is_found(tmp_path):
     assert "plugged" in names and problems == {}
 
 
+def test_a_plug_in_in_an_egg_on_the_path_is_found(tmp_path):
+    """An egg keeps its entry points in ``EGG-INFO``, which the quick check does
+    not read: an egg on the path leaves the answer to ``importlib.metadata``."""
+    egg = tmp_path / "xcheck_plug_test-1.0.egg"
+    (egg / "EGG-INFO").mkdir(parents=True)
+    (egg / "xcheck_plug_test.py").write_text(_PLUG_IN, encoding="utf-8")
+    (egg / "EGG-INFO" / "PKG-INFO").write_text(
+        "Metadata-Version: 2.1\nName: xcheck-plug-test\nVersion: 1.0\n", encoding="utf-8"
+    )
+    (egg / "EGG-INFO" / "entry_points.txt").write_text(
+        "[xcheck.engines]\nplugged = xcheck_plug_test:Plugged\n", encoding="utf-8"
+    )
+    names, problems = _engines_with(str(egg))
+    assert "plugged" in names and problems == {}
+
+
 def test_no_plug_in_declared_skips_the_metadata_scan(tmp_path):
     """A distribution with other entry points only: nothing is listed, and the
     registry never imports ``importlib.metadata`` (40 ms of ``xcheck list``)."""

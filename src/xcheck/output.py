@@ -157,10 +157,10 @@ def print_table(console: Console, table: Table) -> None:
 
     rich lays out every cell of a table as a renderable of its own, about 80 µs
     a cell: 0.4 s for ``xcheck solve fourbar``'s tables. A table of the plain kind
-    this module builds (no box, no edge padding, one-line text cells, no column
-    widths of its own) that fits the console is instead written as one styled
-    :class:`rich.text.Text` per line, with the same characters and styles.
-    Any other table goes to rich.
+    this module builds (no box, no edge padding, text cells, no column widths of
+    its own) that fits the console, or fits it once its one wrapping column is
+    narrowed, is instead written as one styled :class:`rich.text.Text` per line,
+    with the same characters and styles. Any other table goes to rich.
     """
     lines = _plain_table_lines(console, table)
     if lines is None:

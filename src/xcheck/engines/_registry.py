@@ -86,8 +86,8 @@ def _may_declare_plug_ins() -> bool:
     40 ms, a tenth of ``xcheck list``. Distributions on the path are folders
     named ``*.dist-info`` or ``*.egg-info`` with an ``entry_points.txt``;
     reading those for the group's name takes 2 ms. Where the path holds
-    anything else metadata could look in (a zip file, a finder of its own on
-    ``sys.meta_path``), the answer is True and metadata decides.
+    anything else metadata could look in (a zip file, an egg, a finder of its
+    own on ``sys.meta_path``), the answer is True and metadata decides.
     """
     from importlib.machinery import PathFinder
 
@@ -96,8 +96,8 @@ def _may_declare_plug_ins() -> bool:
     group = ENTRY_POINT_GROUP.encode()
     for entry in sys.path:
         folder = entry or "."
-        if os.path.isfile(folder):
-            return True  # a zip file on the path
+        if os.path.isfile(folder) or folder.lower().endswith(".egg"):
+            return True  # a zip file, or an egg whose metadata lies in EGG-INFO
         try:
             listing = os.scandir(folder)
         except OSError:
