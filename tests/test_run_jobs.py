@@ -274,14 +274,19 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
         command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True,  # its own process group, as a shell gives a foreground job
     )  # fmt: skip
-    deadline = time.monotonic() + 300
-    while len(list(started.iterdir())) < 2 and run.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.1)
-    workers = [int(p.name) for p in started.iterdir()]
-    assert len(workers) == 2 and run.poll() is None, "the two slow modes did not start"
-    signalled = time.monotonic()
-    os.killpg(run.pid, signal.SIGINT)
-    _, stderr = run.communicate(timeout=60)
+    try:
+        deadline = time.monotonic() + 300
+        while len(list(started.iterdir())) < 2 and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        workers = [int(p.name) for p in started.iterdir()]
+        assert len(workers) == 2 and run.poll() is None, "the two slow modes did not start"
+        signalled = time.monotonic()
+        os.killpg(run.pid, signal.SIGINT)
+        _, stderr = run.communicate(timeout=60)
+    finally:  # a failed wait leaves no sleeping run behind
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.communicate()
     assert time.monotonic() - signalled < 30  # not after the modes' two minutes
     assert run.returncode != 0
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
