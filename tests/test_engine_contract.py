@@ -334,6 +334,8 @@ def _install_plug_in(site, entry_points: str) -> None:
 
 
 def _engines_with(path: str):
+    """(the engines' names, the plug-in errors) of ``xcheck engines --json`` with
+    ``path`` first on a fresh interpreter's path."""
     import os
     import subprocess
     import sys
