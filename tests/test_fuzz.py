@@ -150,6 +150,17 @@ def test_cli_fuzz_bad_options(tmp_path, args, needle):
     assert len(result.stderr.splitlines()) == 1 and needle in result.stderr
 
 
+def test_a_local_pool_gets_batches_small_enough_to_keep_every_process_busy(tmp_path):
+    """Eight cases in batches of at most 4 on two processes go as eight tasks of
+    one case (four or more a process, so that the last batch does not leave one
+    process idle for four cases), and give the rows of a serial run."""
+    pooled = fuzz.fuzz(tmp_path / "pool", count=8, seed=1, modes="formulations", workers=2, batch=4)
+    assert len(list((tmp_path / "pool" / "results").glob("part-*.parquet"))) == 8
+    serial = fuzz.fuzz(tmp_path / "serial", count=8, seed=1, modes="formulations", workers=1, batch=4)
+    assert len(list((tmp_path / "serial" / "results").glob("part-*.parquet"))) == 2
+    pd.testing.assert_frame_equal(_comparable(pooled, tmp_path / "pool"), _comparable(serial, tmp_path / "serial"))
+
+
 @pytest.mark.slow
 def test_local_pool_and_dask_cluster_give_the_same_rows(tmp_path):
     """The same cases on two local processes and on a two-worker Dask
