@@ -27,7 +27,8 @@ def main() -> None:
         if done.returncode not in (0, 1):
             print("exit code", done.returncode, done.stderr.decode()[-500:])
     print(
-        f"{' '.join(command)}: wall median {statistics.median(walls):.2f} s (min {min(walls):.2f}, max {max(walls):.2f}); "
+        f"{' '.join(command)}: wall median {statistics.median(walls):.2f} s "
+        f"(min {min(walls):.2f}, max {max(walls):.2f}); "
         f"CPU median {statistics.median(cpus):.2f} s (min {min(cpus):.2f}); n={n}; load {os.getloadavg()[0]:.1f}"
     )
 
