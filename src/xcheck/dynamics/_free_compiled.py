@@ -115,10 +115,28 @@ class Packed:
         self.band = np.array([1 if dyn.banded else 0, width], dtype=np.int64)
         self.start = np.empty(rows)
         self.start[self.position] = dyn.start
+        # each row's columns, ascending: the three coordinates of each of its bodies
+        self.row_columns = np.full((rows, 6), -1, dtype=np.int64)
+        self.row_width = np.zeros(rows, dtype=np.int64)
+        for r in range(rows):
+            columns = sorted({3 * k + i for k in self.row_body[r] if k >= 0 for i in range(3)})
+            self.row_columns[r, : len(columns)] = columns
+            self.row_width[r] = len(columns)
 
     def structure(self) -> tuple:
-        """The band structure in :func:`integrate`'s ``structure`` order."""
-        return (self.row_body, self.body_ptr, self.body_row, self.body_slot, self.position, self.band, self.start)
+        """The band structure in :func:`integrate`'s ``structure`` order, then each
+        row's columns (m, 6; -1 past ``row_width``) for :func:`_constrained`."""
+        return (
+            self.row_body,
+            self.body_ptr,
+            self.body_row,
+            self.body_slot,
+            self.position,
+            self.band,
+            self.start,
+            self.row_columns,
+            self.row_width,
+        )
 
     def arrays(self) -> tuple:
         """The arrays in :func:`integrate`'s argument order."""
@@ -480,31 +498,39 @@ def _least_squares(matrix, rhs, cutoff):
 
 
 @njit(cache=True)
-def _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale):
+def _constrained(
+    mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, row_columns, row_width
+):
     """As ``_Dynamics._constrained``: (x, singularity measure or NaN). The
     symmetric positive definite solves by Cholesky (plain loops, which at these
     sizes beat LAPACK's call overhead), the measure from the eigenvalues of
     J Mbar^-1 J^T, the least-squares solve by SVD only below
-    :data:`LEAST_SQUARES_BELOW` (above it, it drops nothing and equals the plain solve)."""
+    :data:`LEAST_SQUARES_BELOW` (above it, it drops nothing and equals the plain solve).
+
+    J enters only through each row's columns (``row_columns``, ascending: at most
+    six, where a dense loop visits all n), added in the order the dense sums
+    take, so the results are those of the dense loops but for the sign of an
+    exact zero."""
     m, n = jac.shape
-    sj = np.empty((m, n))
+    sj = np.empty((m, 6))  # the scaled J on each row's columns
     for r in range(m):
-        for j in range(n):
-            sj[r, j] = jac[r, j] * scale_rows[r] / d[j]
+        for e in range(row_width[r]):
+            j = row_columns[r, e]
+            sj[r, e] = jac[r, j] * scale_rows[r] / d[j]
     scaled_gap = scale_rows * gap
     augmented = np.empty((n, n))
-    columns = np.empty((n, 1 + m))  # the right-hand side (load, then J^T), then the solution
+    columns = np.zeros((n, 1 + m))  # the right-hand side (load, then J^T), then the solution
     for i in range(n):
         for j in range(n):
-            total = mass[i, j] / (d[i] * d[j] * mass_scale)
-            for r in range(m):
-                total += sj[r, i] * sj[r, j]
-            augmented[i, j] = total
-        total = load[i] / (d[i] * mass_scale)
-        for r in range(m):
-            total += sj[r, i] * scaled_gap[r]
-            columns[i, 1 + r] = sj[r, i]
-        columns[i, 0] = total
+            augmented[i, j] = mass[i, j] / (d[i] * d[j] * mass_scale)
+        columns[i, 0] = load[i] / (d[i] * mass_scale)
+    for r in range(m):  # row by row, so each entry's sum runs over r in order, as the dense loops'
+        for e in range(row_width[r]):
+            i = row_columns[r, e]
+            for f in range(row_width[r]):
+                augmented[i, row_columns[r, f]] += sj[r, e] * sj[r, f]
+            columns[i, 0] += sj[r, e] * scaled_gap[r]
+            columns[i, 1 + r] = sj[r, e]
     lower = np.empty((n, n))
     if not _cholesky(augmented, lower):  # non-finite q, or a direction with no mass and no constraint
         return np.full(n, np.nan), math.nan
@@ -514,12 +540,12 @@ def _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows
     for r in range(m):
         for c in range(m):
             total = 0.0
-            for j in range(n):
-                total += sj[r, j] * columns[j, 1 + c]
+            for e in range(row_width[r]):
+                total += sj[r, e] * columns[row_columns[r, e], 1 + c]
             schur[r, c] = total
         total = scaled_gap[r]
-        for j in range(n):
-            total -= sj[r, j] * columns[j, 0]
+        for e in range(row_width[r]):
+            total -= sj[r, e] * columns[row_columns[r, e], 0]
         rhs[r] = total
     singularity = math.nan
     plain = last_measure > LEAST_SQUARES_BELOW
@@ -627,7 +653,7 @@ def _constrained_banded(
     by body in the rows' banded order and factored as banded; the least-squares
     solve (dense SVD) only where that factor does not exist or below
     :data:`BANDED_LEAST_SQUARES_BELOW`."""
-    row_body, body_ptr, body_row, body_slot, position, band_info, start = structure
+    row_body, body_ptr, body_row, body_slot, position, band_info, start, _, _ = structure
     schur, lower = work
     band = band_info[1]
     m, n = jac.shape
@@ -719,7 +745,9 @@ def _solve(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, m
         return _constrained_banded(
             mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
         )
-    return _constrained(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale)
+    return _constrained(
+        mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure[7], structure[8]
+    )
 
 
 @njit(cache=True)
