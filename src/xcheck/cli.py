@@ -659,22 +659,23 @@ def _process_count(jobs: int | None, option: str = "--jobs") -> int:
     return jobs if jobs is not None else os.cpu_count() or 1
 
 
-def _progress_bar(off: bool) -> Progress:
-    """A transient progress bar on stderr (what runs, done/total, time): only
-    when stderr and stdout are terminals, never with --json or --quiet (``off``),
-    so that piped or captured output stays clean."""
+def _progress_bar(off: bool, label: str = "{task.description}", stdout_terminal: bool = True) -> Progress:
+    """A transient progress bar on stderr (``label``, done/total, time): only
+    when stderr is a terminal, and stdout too unless ``stdout_terminal`` is
+    False; never with --json or --quiet (``off``), so that piped or captured
+    output stays clean."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     stderr = Console(stderr=True)
     return Progress(
         SpinnerColumn(),
-        TextColumn("{task.description}"),
+        TextColumn(label),
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
         console=stderr,
         transient=True,
-        disable=off or not stderr.is_terminal or not sys.stdout.isatty(),
+        disable=off or not stderr.is_terminal or (stdout_terminal and not sys.stdout.isatty()),
     )
 
 
@@ -1074,19 +1075,7 @@ def fuzz_command(
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
     campaign.generate(seed, 0, chosen)  # checks the kinds
     modes = campaign.campaign_modes() if engines is None else select_modes(engines)
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    stderr = Console(stderr=True)
-    progress = Progress(
-        SpinnerColumn(),
-        TextColumn("fuzz"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-        disable=not stderr.is_terminal,
-    )
+    progress = _progress_bar(False, label="fuzz", stdout_terminal=False)  # a long campaign: shown even when piped
     with progress:
         task = progress.add_task("", total=None)
 
