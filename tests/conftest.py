@@ -90,3 +90,14 @@ def shifted_sweep(mode: str, kinematics, native, fraction: float):
     for states in (*trajectory.bodies.values(), *trajectory.points.values()):
         states["position"] = states["position"] + shift
     return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
+
+
+def install_plug_in(site: Path, module: str, source: str, entry_points: str) -> None:
+    """A distribution in ``site`` as pip leaves one: ``module``.py with ``source``,
+    and its ``.dist-info`` folder (METADATA, and ``entry_points`` as entry_points.txt)."""
+    (site / f"{module}.py").write_text(source, encoding="utf-8")
+    info = site / f"{module}-1.0.dist-info"
+    info.mkdir(parents=True)
+    name = module.replace("_", "-")
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n", encoding="utf-8")
+    (info / "entry_points.txt").write_text(entry_points, encoding="utf-8")

@@ -325,12 +325,9 @@ class Plugged(engines.Engine):
 
 
 def _install_plug_in(site, entry_points: str) -> None:
-    """A distribution as pip leaves one: the module and its ``.dist-info`` folder."""
-    (site / "xcheck_plug_test.py").write_text(_PLUG_IN, encoding="utf-8")
-    info = site / "xcheck_plug_test-1.0.dist-info"
-    info.mkdir(parents=True)
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: xcheck-plug-test\nVersion: 1.0\n", encoding="utf-8")
-    (info / "entry_points.txt").write_text(entry_points, encoding="utf-8")
+    from conftest import install_plug_in
+
+    install_plug_in(site, "xcheck_plug_test", _PLUG_IN, entry_points)
 
 
 def _engines_with(path: str):

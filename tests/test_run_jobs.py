@@ -260,12 +260,9 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     site, started = tmp_path / "site", tmp_path / "started"
     site.mkdir()
     started.mkdir()
-    (site / "xcheck_slow_test.py").write_text(_SLOW_PLUG_IN, encoding="utf-8")
-    info = site / "xcheck_slow_test-1.0.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: xcheck-slow-test\nVersion: 1.0\n", encoding="utf-8")
-    (info / "entry_points.txt").write_text("[xcheck.engines]\nslow = xcheck_slow_test:Slow\n", encoding="utf-8")
-    from conftest import ROOT
+    from conftest import ROOT, install_plug_in
+
+    install_plug_in(site, "xcheck_slow_test", _SLOW_PLUG_IN, "[xcheck.engines]\nslow = xcheck_slow_test:Slow\n")
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")]), "SLOW_STARTED": str(started)}
     command = [sys.executable, "-m", "xcheck", "run", "fourbar", "--models", str(MODELS)]
