@@ -83,7 +83,7 @@ def shifted_sweep(mode: str, kinematics, native, fraction: float):
     moved by ``fraction`` of the mechanism's size along x (a known error)."""
     import numpy as np
 
-    from xcheck.compare import ModeResult, trajectory_from_solution
+    from xcheck.results import ModeResult, trajectory_from_solution
 
     trajectory = trajectory_from_solution(native, source=mode)
     shift = np.array([fraction * kinematics.system.size, 0.0])

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from xcheck import engines
 from xcheck.cli import app
-from xcheck.compare import ModeResult, trajectory_from_solution
+from xcheck.results import ModeResult, trajectory_from_solution
 from xcheck.tolerances import Tolerance
 
 #: the toy's known error: every position moved by this fraction of the mechanism's size along x
@@ -213,7 +213,7 @@ class FreeToy(engines.Engine):
     def run_free(self, mode, kinematics, reference, branch=None):
         import pandas as pd
 
-        from xcheck.compare import convergence_study
+        from xcheck.results import convergence_study
         from xcheck.simulation import free_errors
 
         trajectory = trajectory_from_solution(reference.motion.solution(), source=mode)

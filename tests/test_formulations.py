@@ -15,7 +15,6 @@ from conftest import DATA, MODEL_NAMES
 from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
 
 from xcheck import Kinematics, Status
-from xcheck.compare import differences
 from xcheck.formulations import (
     FORMULATIONS,
     NotApplicable,
@@ -25,6 +24,7 @@ from xcheck.formulations import (
     run_formulation,
 )
 from xcheck.model import parse_mechanism
+from xcheck.results import differences
 
 INVERTED = (DATA / "inverted.toml").read_text()
 SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()

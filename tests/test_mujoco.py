@@ -15,10 +15,10 @@ import pytest
 from conftest import DATA, MODEL_NAMES, MODELS
 
 from xcheck import Kinematics, ModelError
-from xcheck.compare import differences
 from xcheck.engines.mujoco.modes import export_files, inverse_dynamics, relative_error, run_dynamic, run_kinematic
 from xcheck.errors import XcheckError
 from xcheck.model import parse_mechanism
+from xcheck.results import differences
 from xcheck.topology import spanning_tree
 
 INVERTED = (DATA / "inverted.toml").read_text()

@@ -33,11 +33,11 @@ import pytest
 from conftest import DATA, MODEL_NAMES, MODELS
 
 from xcheck import Kinematics, engines, load_mechanism
-from xcheck.compare import differences
 from xcheck.engines.pinocchio.model import joint_coordinates
 from xcheck.engines.pinocchio.modes import build, export_files, inverse_dynamics, run_dynamic, run_kinematic
 from xcheck.engines.pinocchio.oracle import Oracle
 from xcheck.model import parse_mechanism
+from xcheck.results import differences
 
 URDF_DIR = MODELS / "urdf"
 

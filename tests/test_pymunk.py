@@ -15,7 +15,6 @@ import pytest
 from conftest import DATA, MODEL_NAMES, ROOT
 
 from xcheck import Kinematics, engines, load_mechanism
-from xcheck.compare import differences
 from xcheck.engines.pymunk.modes import (
     DEFAULT_SETTINGS,
     Setting,
@@ -26,6 +25,7 @@ from xcheck.engines.pymunk.modes import (
 )
 from xcheck.engines.pymunk.scene import native_window
 from xcheck.model import parse_mechanism
+from xcheck.results import differences
 
 INVERTED = (DATA / "inverted.toml").read_text()
 SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()

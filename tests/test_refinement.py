@@ -14,8 +14,8 @@ import pytest
 from conftest import DATA, MODELS
 
 from xcheck import api, engines
-from xcheck.compare import ModeResult, convergence_study, trajectory_from_solution
 from xcheck.fuzz import _engine_limitation, _force_origin
+from xcheck.results import ModeResult, convergence_study, trajectory_from_solution
 from xcheck.runner import REFINEMENTS
 from xcheck.tolerances import Tolerance
 

@@ -11,9 +11,9 @@ import pytest
 from conftest import DATA
 
 from xcheck import Kinematics, load_mechanism
-from xcheck.compare import scale_floors
 from xcheck.dynamics import energy_summary, inverse_dynamics, window_states
 from xcheck.dynamics._energy import energy_balance
+from xcheck.results import scale_floors
 from xcheck.runner import NATIVE_TOLERANCE, _condition, _native_self_check, energy_tolerance, run_mechanism
 from xcheck.tolerances import length_ratio
 

@@ -11,8 +11,8 @@ import pytest
 from conftest import ROOT
 
 from xcheck import Kinematics, load_mechanism
-from xcheck.compare import STANDARD_GRAVITY, scale_floors
 from xcheck.dynamics import force_floors
+from xcheck.results import STANDARD_GRAVITY, scale_floors
 from xcheck.runner import run_mechanism
 
 DATA = ROOT / "tests" / "data"

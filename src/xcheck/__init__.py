@@ -29,7 +29,7 @@ _API = {
     "printed_answers": "printed_answers",
     "select_modes": "select_modes",
     "simulate": "simulate",
-    # ``xcheck.compare`` is the module of the comparison's arithmetic (imported
+    # ``xcheck.results`` is the module of the comparison's arithmetic (imported
     # by the runner): the function that compares engines is offered under this name
     "compare_engines": "compare",
 }

@@ -709,7 +709,7 @@ def compare(
     """Run the requested modes against the native solution (:func:`run`) and
     return its :func:`summary`: one row per mode.
 
-    ``xcheck.compare`` is the module of the comparison's arithmetic; this
+    ``xcheck.results`` is the module of the comparison's arithmetic; this
     function is ``xcheck.api.compare`` or, at the top level,
     ``xcheck.compare_engines``.
 

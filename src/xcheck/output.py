@@ -456,7 +456,7 @@ def run_json(run) -> dict:
     Per mode: the largest absolute difference per category (m, m/s, m/s^2,
     rad, rad/s, rad/s^2), the same relative (see :class:`xcheck.runner.ModeOutcome`),
     the tolerances, the physical floor of each category's scale (SI; ``scale_floors``:
-    the run's, :func:`xcheck.compare.scale_floors`), pass and reason; a
+    the run's, :func:`xcheck.results.scale_floors`), pass and reason; a
     dynamic mode adds ``convergence`` per category: the basis of its verdict
     (expected and observed order, the coarser run's error and time step (s),
     the time step compared, the error the expected order predicts there and

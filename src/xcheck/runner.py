@@ -21,17 +21,6 @@ import numpy as np
 import pandas as pd
 
 from . import __version__, engines
-from .compare import (
-    ModeResult,
-    Trajectory,
-    convergence_study,
-    differences,
-    empty_study,
-    native_at,
-    observed_order,
-    sample_errors,
-    scale_floors,
-)
 from .dynamics import (
     ForceResult,
     Forces,
@@ -47,6 +36,17 @@ from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
 from .motion import law_states, simulation_window, sweep_span
+from .results import (
+    ModeResult,
+    Trajectory,
+    convergence_study,
+    differences,
+    empty_study,
+    native_at,
+    observed_order,
+    sample_errors,
+    scale_floors,
+)
 from .tolerances import (
     CONDITIONING_FACTOR,
     ENGINE_CONDITIONING_FACTOR,
@@ -150,7 +150,7 @@ class ModeOutcome:
         One row per category: max_abs (SI), rms, relative (position per
         mechanism size, angle in rad, others per the largest magnitude of
         that quantity over all bodies and points, but at least ``floor``, its
-        physical floor from :func:`xcheck.compare.scale_floors`), tolerance,
+        physical floor from :func:`xcheck.results.scale_floors`), tolerance,
         passed, worst (the body or point), worst_input (first driver, SI);
         a dynamic mode's also the basis of its verdict (expected_order,
         observed_order, coarse_error, coarse_step, step, estimate, basis:
@@ -159,7 +159,7 @@ class ModeOutcome:
         steps (:data:`REFINEMENTS`), refinements (how many times) or
         refinement_failure (why a finer run failed).
     details : DataFrame
-        :func:`xcheck.compare.differences` of the compared trajectory.
+        :func:`xcheck.results.differences` of the compared trajectory.
     result : ModeResult or None
         The engine's own result: every trajectory and its summary table.
     trajectory : Trajectory or None
@@ -371,7 +371,7 @@ def _convergence_verdict(
     The compared run (time step h_f) and the next coarser run of the same
     series (h_c, same integrator and settings) give per category the errors
     e_f and e_c (relative as in :func:`_categorise`) and the observed order
-    :func:`~xcheck.compare.observed_order`. A category with an expected order
+    :func:`~xcheck.results.observed_order`. A category with an expected order
     p (the mode's ``orders``, :class:`xcheck.engines.Mode`, or the compared trajectory's
     ``settings["orders"]`` where the run states an engine limitation) passes when e_f <= :func:`convergence_limit`
     (e_c, h_c, h_f, p), i.e. the observed order is at least p -
@@ -820,7 +820,7 @@ def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | 
 
 def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
     """A dynamic mode's error against time step, the same for every engine: its
-    result's ``study`` (:func:`xcheck.compare.convergence_study`; columns
+    result's ``study`` (:func:`xcheck.results.convergence_study`; columns
     series, timestep (s), position_error (m), status, order), empty if none."""
     study = None if outcome.result is None else outcome.result.study
     return empty_study() if study is None else study
@@ -845,7 +845,7 @@ def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> 
     since the reactions come from the accelerations and a body ``ratio`` times
     longer than the crank carries its angular acceleration's round-off (eps
     kappa^2 of the crank's) into forces with its length, while the force scale
-    follows the crank's tip (:func:`~xcheck.compare.scale_floors`). Measured on a
+    follows the crank's tip (:func:`~xcheck.results.scale_floors`). Measured on a
     rod 1000 times its crank (tests/data/ratio-1000.toml): the ground pin's
     reaction from Newton-Euler, MuJoCo and Pinocchio 3.0e-12 to 3.4e-12 off the
     native multipliers, 15 eps ratio. Measured (xcheck fuzz, seed 1): on a slider-crank

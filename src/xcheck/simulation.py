@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import engines
-from .compare import ModeResult, Trajectory
 from .dynamics._free import FreeReference, simulate
 from .engines import NotApplicable
 from .kinematics import Kinematics, rotate
 from .model import GROUND
+from .results import ModeResult, Trajectory
 
 __all__ = [
     "SimulationResult",
@@ -190,7 +190,7 @@ def outputs_per_step(reference: FreeReference, timestep: float) -> tuple[int, st
 
 
 def empty_path(mechanism, count: int) -> tuple[dict, dict]:
-    """NaN-filled ``(bodies, points)`` of :class:`~xcheck.compare.Trajectory` for
+    """NaN-filled ``(bodies, points)`` of :class:`~xcheck.results.Trajectory` for
     ``count`` samples: each moving body's position (count, 2) and angle (count,),
     each named point's position (count, 2)."""
     bodies = {

@@ -38,7 +38,7 @@ class Tolerance:
     ``velocity`` (velocities and angular velocities) and ``acceleration``
     (accelerations and angular accelerations) fractions of the largest
     magnitude of that quantity in the mechanism, but at least of its physical
-    floor (:func:`xcheck.compare.scale_floors`); ``basis`` says where the
+    floor (:func:`xcheck.results.scale_floors`); ``basis`` says where the
     numbers come from.
     """
 

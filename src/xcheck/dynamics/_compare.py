@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..compare import relative_to_floored_scale, scale_floors
 from ..errors import XcheckError
 from ..kinematics import Kinematics, Solution, Status
 from ..motion import law_states, simulation_window
+from ..results import relative_to_floored_scale, scale_floors
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics, newton_euler
@@ -95,7 +95,7 @@ def force_floors(mechanism, floors: dict[str, float]) -> dict[str, float]:
 
     With M the total mass of the moving bodies (kg), L the size, a the
     characteristic angular acceleration (``floors``, from
-    :func:`~xcheck.compare.scale_floors`) and g the gravity: a force's scale
+    :func:`~xcheck.results.scale_floors`) and g the gravity: a force's scale
     is at least F = max(M |g|, M a L, the largest applied load force) (N), a
     moment's at least max(F L, the largest applied torque) (N m).
 
@@ -129,7 +129,7 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
         etc. compare magnitudes); ``unit`` "N" or "N m"; ``max_abs``, ``rms``
         (vectors by Euclidean norm of the difference); ``scale``: the largest
         native magnitude over the states, but at least
-        :data:`~xcheck.compare.SCALE_FLOOR` of the largest scale of the same
+        :data:`~xcheck.results.SCALE_FLOOR` of the largest scale of the same
         unit in the table (a joint that carries almost nothing is not divided
         by round-off) and at least ``floor``, :func:`force_floors` of the
         source's inputs (a mechanism that carries almost nothing is not

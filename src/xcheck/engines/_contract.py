@@ -4,7 +4,7 @@ An engine (a :class:`Engine` subclass, one per subpackage of
 :mod:`xcheck.engines`, or one a third party registers) says what it is --
 its name, its :class:`Mode` s with their tolerances and expected orders of
 convergence, the packages it needs -- and provides its modes through
-:meth:`Engine.run`, which returns a :class:`~xcheck.compare.ModeResult` for
+:meth:`Engine.run`, which returns a :class:`~xcheck.results.ModeResult` for
 every engine alike. Importing an engine's description never imports the
 package it wraps: :meth:`Engine.available` says whether it can run, and why
 not, so a missing package is a reason shown in the report, never an
@@ -20,7 +20,7 @@ Modes
     Driven dynamics: the engine integrates the mechanism with its inputs
     driven by the motion laws; judged by its convergence to the exact answer
     as the time step falls. Its result carries ``study``
-    (:func:`~xcheck.compare.convergence_study`) and the compared trajectory
+    (:func:`~xcheck.results.convergence_study`) and the compared trajectory
     ``settings["timestep"]`` (s) and ``settings["series"]`` (what makes runs
     of one ladder).
 ``free``
@@ -47,11 +47,11 @@ import numpy as np
 from xcheck.tolerances import Tolerance
 
 if TYPE_CHECKING:
-    from xcheck.compare import ModeResult
     from xcheck.dynamics import Forces
     from xcheck.dynamics._free import FreeReference
     from xcheck.kinematics import Kinematics, Solution
     from xcheck.model import Mechanism
+    from xcheck.results import ModeResult
 
 __all__ = [
     "KINDS",
@@ -302,7 +302,7 @@ class Engine:
             points, :func:`xcheck.simulation.free_errors`), final_error (m),
             loop_drift (m, the largest constraint violation), energy_drift (J,
             the largest |E(t) - E(0) - W(t)| where the engine's energy is known);
-            ``study``: :func:`~xcheck.compare.convergence_study` of the ladder.
+            ``study``: :func:`~xcheck.results.convergence_study` of the ladder.
         """
         return self._function("run_free")(kinematics, reference, branch=branch)
 

@@ -1,6 +1,6 @@
 """What the driven-dynamics modes of engines without an oracle of their own
 (Exudyn, PyBullet) share: their runs of a step ladder judged against the native
-solution at the inputs each engine realised, as one :class:`~xcheck.compare.ModeResult`."""
+solution at the inputs each engine realised, as one :class:`~xcheck.results.ModeResult`."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from xcheck import engines
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, native_at
 from xcheck.kinematics import Kinematics, Solution, Status
+from xcheck.results import ModeResult, Trajectory, convergence_study, differences, native_at
 
 __all__ = [
     "LEFT_BRANCH",
@@ -167,7 +167,7 @@ def driven_result(
     -------
     ModeResult
         ``ok`` where the first run went through; ``study``: the position error's
-        :func:`~xcheck.compare.convergence_study` (errors at 1e-13 of the size
+        :func:`~xcheck.results.convergence_study` (errors at 1e-13 of the size
         have no order: the drivers fix the positions exactly there).
     """
     mech = kinematics.mechanism

@@ -15,13 +15,13 @@ Each is a function ``(kinematics, inputs, rates, accelerations, branch=None)
 -> Trajectory`` (registry :data:`FORMULATIONS`) that raises
 :class:`NotApplicable` with a one-line reason when the mechanism is outside
 its reach. Compare a result with the general solver by
-:func:`xcheck.compare.differences`.
+:func:`xcheck.results.differences`.
 """
 
 from __future__ import annotations
 
-from ..compare import ModeResult
 from ..kinematics import Kinematics
+from ..results import ModeResult
 from ._closed_form import recognise, solve_closed_form
 from ._common import NotApplicable
 from ._vector_loops import LoopPlan, plan_loops, solve_vector_loops
@@ -72,7 +72,7 @@ def applicability(kinematics: Kinematics) -> dict[str, str | None]:
 def run_formulation(
     name: str, kinematics: Kinematics, inputs, rates=None, accelerations=None, branch: str | None = None
 ) -> ModeResult:
-    """A formulation as a :class:`~xcheck.compare.ModeResult`: ``ok`` False
+    """A formulation as a :class:`~xcheck.results.ModeResult`: ``ok`` False
     with ``reason`` "not applicable: ..." when it does not apply; one
     trajectory otherwise. Other errors propagate."""
     mech = kinematics.mechanism.name

@@ -28,9 +28,9 @@ from typing import NoReturn
 
 import numpy as np
 
-from ..compare import Trajectory
 from ..kinematics import Kinematics
 from ..model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
+from ..results import Trajectory
 from ._common import (
     Frame,
     NotApplicable,

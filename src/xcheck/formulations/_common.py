@@ -1,6 +1,6 @@
 """What both formulations share: input checks, the not-applicable signal, and
 body frames (held as complex numbers, the seeds' r e^{i phi}) turned into a
-:class:`~xcheck.compare.Trajectory`.
+:class:`~xcheck.results.Trajectory`.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compare import Trajectory
 from ..kinematics import NEAR_SINGULAR, SINGULAR, Kinematics, Status
+from ..results import Trajectory
 
 __all__ = [
     "NotApplicable",

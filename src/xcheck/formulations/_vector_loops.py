@@ -31,9 +31,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compare import Trajectory
 from ..kinematics import Kinematics
 from ..model import Mechanism, PinInSlot, Prismatic, Revolute
+from ..results import Trajectory
 from ._common import (
     Frame,
     NotApplicable,

@@ -9,8 +9,8 @@ from xcheck.engines._contract import Engine, Mode, NotApplicable
 from xcheck.tolerances import EXACT
 
 if TYPE_CHECKING:
-    from xcheck.compare import ModeResult
     from xcheck.kinematics import Kinematics, Solution
+    from xcheck.results import ModeResult
 
 __all__ = ["Formulations"]
 
@@ -45,9 +45,9 @@ class Formulations(Engine):
         branch: str | None = None,
         refine: int = 0,  # kinematic modes: no time step to refine
     ) -> ModeResult:
-        from xcheck.compare import ModeResult
         from xcheck.formulations import NotApplicable as Outside
         from xcheck.formulations import formulation
+        from xcheck.results import ModeResult
 
         try:
             trajectory = formulation(mode)(

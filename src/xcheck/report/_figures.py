@@ -16,9 +16,9 @@ from matplotlib import ticker  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from .. import engines  # noqa: E402
-from ..compare import native_at  # noqa: E402
 from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
 from ..kinematics import Solution  # noqa: E402
+from ..results import native_at  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]

@@ -35,12 +35,12 @@ import time
 
 import numpy as np
 
-from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, empty_states, refined_steps
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
+from xcheck.results import ModeResult, Trajectory
 from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
@@ -208,7 +208,7 @@ def run_dynamic(
         per run setting, timestep (s), status, cpu_seconds, the largest errors
         (position m, angle rad; velocity, omega relative to the native magnitude),
         input_error (the PD's lag behind the law, SI) and loop_gap (m); ``study``:
-        :func:`~xcheck.compare.convergence_study` of the position error.
+        :func:`~xcheck.results.convergence_study` of the position error.
 
     Raises
     ------

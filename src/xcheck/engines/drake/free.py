@@ -65,12 +65,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
 from xcheck.topology import Topology, spanning_tree
 

@@ -21,12 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, ladder
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
 from xcheck.motion import simulation_window
+from xcheck.results import ModeResult, Trajectory
 
 from .free import FreeSetting, _settings, build_system
 
@@ -192,7 +192,7 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int =
         setting first; ``summary``: per run setting, timestep (s), status,
         cpu_seconds and the largest errors (position m, angle rad; velocity,
         omega, acceleration, alpha relative to the native magnitude);
-        ``study``: :func:`~xcheck.compare.convergence_study` of the position error.
+        ``study``: :func:`~xcheck.results.convergence_study` of the position error.
 
     Raises
     ------

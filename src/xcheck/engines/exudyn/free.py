@@ -50,11 +50,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 __all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "ExudynModel", "build_system", "run_free"]

@@ -37,7 +37,6 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from xcheck.compare import ModeResult
 from xcheck.engines import NotApplicable
 from xcheck.engines._driven import refined_timesteps
 from xcheck.engines.mujoco import modes as mujoco_modes
@@ -45,6 +44,7 @@ from xcheck.engines.mujoco.dynamic import Run, Setting, simulate
 from xcheck.engines.mujoco.mjcf import Layout
 from xcheck.kinematics import Kinematics
 from xcheck.model import Mechanism
+from xcheck.results import ModeResult
 
 from . import _rk4
 from .free import MAX_VALUE, _difference, load_mjx, mjx_model

@@ -75,7 +75,6 @@ import numpy as np
 import pandas as pd
 
 from xcheck.cache import cache_dir
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.engines import NotApplicable
 from xcheck.engines.mujoco import dynamic as mujoco_dynamic
 from xcheck.engines.mujoco import free as mujoco_free
@@ -84,6 +83,7 @@ from xcheck.engines.mujoco.oracle import Oracle
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics
 from xcheck.model import Mechanism
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 __all__ = [

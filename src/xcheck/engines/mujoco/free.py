@@ -37,10 +37,10 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, Revolute
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import free_errors, ladder_steps, left_branch
 
 from .dynamic import Setting

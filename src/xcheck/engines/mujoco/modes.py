@@ -14,12 +14,12 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
 from xcheck.engines._driven import left_branch, refined_timesteps
 from xcheck.errors import InputError, XcheckError
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import Mechanism
 from xcheck.motion import law_states, simulation_window, sweep_span
+from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
 
 from .dynamic import DEFAULT, TIGHT, Run, simulate
 from .free import run_free  # noqa: F401

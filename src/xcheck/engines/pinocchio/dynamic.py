@@ -25,10 +25,10 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
 from xcheck.engines._driven import refined_steps
 from xcheck.kinematics import Kinematics
 from xcheck.motion import simulation_window
+from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
 
 from .model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
 from .oracle import Oracle, frame_states, one_line
@@ -206,7 +206,7 @@ def _worst(table: pd.DataFrame, quantities, column: str) -> float:
 
 
 def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
-    """:func:`~xcheck.compare.observed_order` of each run against the one before,
+    """:func:`~xcheck.results.observed_order` of each run against the one before,
     NaN for the first run and where either error is not above ``floor`` (round-off)."""
     return [math.nan] + [
         observed_order(errors[i - 1], errors[i], dts[i - 1], dts[i], floor) for i in range(1, len(errors))
@@ -331,7 +331,7 @@ def run_dynamic(
         uses; without RK4, the first integrator at its finest step), then the
         other runs. ``summary``: one row per run with the largest position
         error (m), velocity and acceleration errors (``max_rel`` of
-        :func:`~xcheck.compare.differences`), loop opening (m), input tracking
+        :func:`~xcheck.results.differences`), loop opening (m), input tracking
         error, observed
         orders and run time. Runs that failed (loops opened wide, state not
         finite) have their reason in ``status`` and no trajectory; the mode

@@ -27,8 +27,8 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 
-from xcheck.compare import ModeResult, convergence_study
 from xcheck.kinematics import Kinematics
+from xcheck.results import ModeResult, convergence_study
 from xcheck.simulation import ladder_steps
 
 from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER, _trajectory

@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from xcheck.compare import ModeResult, Trajectory, differences
 from xcheck.kinematics import Kinematics
 from xcheck.motion import law_states, sweep_span
+from xcheck.results import ModeResult, Trajectory, differences
 
 from .dynamic import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
 from .free import run_free  # noqa: F401 - the mode "pinocchio-free" lives here
@@ -153,7 +153,7 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
     Returns
     -------
     ModeResult
-        One trajectory; ``summary`` is its :func:`~xcheck.compare.differences`
+        One trajectory; ``summary`` is its :func:`~xcheck.results.differences`
         table. ``ok`` is False, with the reason, when the model cannot be
         built or a sample does not converge.
     """

@@ -24,12 +24,12 @@ import time
 
 import numpy as np
 
-from xcheck.compare import ModeResult, Trajectory
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, empty_states, ladder
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
+from xcheck.results import ModeResult, Trajectory
 from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
@@ -192,7 +192,7 @@ def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int =
         setting first; ``summary``: per run setting, timestep (s), status,
         cpu_seconds, the largest errors (position m, angle rad; velocity, omega
         relative to the native magnitude), input_error (the motor's lag behind the
-        law, SI) and loop_gap (m); ``study``: :func:`~xcheck.compare.convergence_study`
+        law, SI) and loop_gap (m); ``study``: :func:`~xcheck.results.convergence_study`
         of the position error.
 
     Raises

@@ -61,12 +61,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
 from xcheck.topology import spanning_tree
 

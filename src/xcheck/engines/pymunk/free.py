@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study
 from xcheck.dynamics._free import FreeReference
 from xcheck.kinematics import Kinematics
+from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import empty_path, finish_free_run, free_row, ladder_steps, outputs_per_step
 
 from .scene import build_scene

@@ -10,7 +10,7 @@ with how far the joints came apart. :func:`scene_figure` draws what pymunk
 simulated.
 
 Every trajectory carries the inputs as pymunk realised them (read from the
-bodies), so :func:`xcheck.compare.differences` solves the native model at the
+bodies), so :func:`xcheck.results.differences` solves the native model at the
 very inputs pymunk reached.
 """
 
@@ -24,11 +24,11 @@ import numpy as np
 import pandas as pd
 import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk.modes)
 
-from xcheck.compare import ModeResult, Trajectory, convergence_study, differences, observed_order
 from xcheck.engines._driven import refined_steps
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.motion import SimulationWindow
+from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
 
 from .figure import render_png, snapshot
 from .free import run_free  # noqa: F401 - the mode "pymunk-free" lives there
@@ -253,7 +253,7 @@ _ERROR_COLUMNS = {
 
 def trajectory_errors(kinematics: Kinematics, trajectory: Trajectory, branch: str | None = None) -> dict[str, float]:
     """The largest differences of a trajectory from the native solution (on
-    ``branch``, by default the model's first), from :func:`xcheck.compare.differences`.
+    ``branch``, by default the model's first), from :func:`xcheck.results.differences`.
 
     Returns
     -------
