@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import engines
+from . import arguments, engines
 from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
 from .errors import InputError
 from .kinematics import Kinematics, Solution, Status
@@ -232,6 +232,12 @@ class Result:
         sol, mech, units = self.solution, self.mechanism, self.mechanism.units
         point = point or _fastest_point(sol)
         body = body or _output_body(sol)
+        for argument, given, names in (
+            ("point", point, list(mech.point_owners)),
+            ("body", body, [b.name for b in mech.moving_bodies]),
+        ):
+            if given not in names:
+                raise InputError(f"{argument}: expected one of {', '.join(names)}, found {arguments.shown(given)}")
         k = int(np.argmax(np.ptp(sol.inputs, axis=0))) if len(sol.status) > 1 else 0
         driver = mech.drivers[k]
         factor = units.angle_factor if driver.quantity == "angle" else units.length_factor
@@ -265,7 +271,7 @@ class Result:
         """The mechanism at state ``i`` (:func:`xcheck.drawing.figure_of`)."""
         from .drawing import figure_of
 
-        return figure_of(self.solution, i)
+        return figure_of(self.solution, arguments.whole_number(i, "i", 0, len(self.labels) - 1))
 
 
 def _fastest_point(sol: Solution) -> str:
@@ -315,6 +321,30 @@ class Assembled:
     def drivers(self) -> tuple[str, ...]:
         """The inputs' names, in the order ``at`` and ``rates`` take them."""
         return tuple(d.name for d in self.mechanism.drivers)
+
+    def _inputs(self, values, si: bool, name: str = "at") -> np.ndarray:
+        """The argument ``name`` (inputs, their rates or accelerations) as SI,
+        shape (N, k), checked: its shape, at most :data:`~xcheck.arguments.MAX_STATES`
+        states, every value finite.
+
+        Raises
+        ------
+        InputError
+            Naming the file and the argument.
+        """
+        where = f"{self.mechanism.path}: {name}"
+        try:
+            np.asarray(values, dtype=float)
+        except (ValueError, TypeError):
+            raise InputError(f"{where}: expected numbers, found {arguments.shown(values)}") from None
+        try:
+            arr = self.kinematics.input_array(values)
+        except ValueError as err:
+            raise InputError(f"{where}: {err}") from None
+        if not 1 <= len(arr) <= arguments.MAX_STATES:
+            raise InputError(f"{where}: expected from 1 to {arguments.MAX_STATES} states, found {len(arr)}")
+        arguments.finite(arr, where, values)
+        return arr * 1.0 if si else self._si(arr, name != "at")
 
     def _si(self, values, per_second: bool) -> np.ndarray:
         """Display-unit inputs (or rates) as SI, shape (N, k)."""
@@ -382,29 +412,22 @@ class Assembled:
             return self._result(states[:, :, 0], states[:, :, 1], states[:, :, 2], labels)
         if accelerations is not None and rates is None:
             raise InputError(f"{path}: accelerations: expected them with rates, found accelerations alone")
-        try:
-            inputs = self.kinematics.input_array(at) * 1.0 if si else self._si(at, False)
-            if rates is None:
-                qd, qdd, reached = law_states(mech, inputs)
-                for k, driver in enumerate(mech.drivers):
-                    if not reached[:, k].all():
-                        value = float(inputs[np.argmin(reached[:, k]), k])
-                        raise InputError(
-                            f"{path}: at {driver.name}: expected a value that the driver's {driver.law.kind} "
-                            f"motion reaches (or give rates), found "
-                            f"{mech.units.show_input(driver.quantity, value, digits=12)}, which it never does"
-                        )
-            else:
-                qd = self.kinematics.input_array(rates) * 1.0 if si else self._si(rates, True)
-                qd = np.broadcast_to(qd, inputs.shape).copy()
-                qdd = np.zeros_like(inputs)
-                if accelerations is not None:
-                    qdd = self.kinematics.input_array(accelerations) * 1.0 if si else self._si(accelerations, True)
-                    qdd = np.broadcast_to(qdd, inputs.shape).copy()
-        except ValueError as err:
-            raise InputError(f"{path}: at/rates: {err}") from None
-        if not (np.isfinite(inputs).all() and np.isfinite(qd).all() and np.isfinite(qdd).all()):
-            raise InputError(f"{path}: at/rates: expected finite values, found {at!r}, {rates!r}")
+        inputs = self._inputs(at, si)
+        if rates is None:
+            qd, qdd, reached = law_states(mech, inputs)
+            for k, driver in enumerate(mech.drivers):
+                if not reached[:, k].all():
+                    value = float(inputs[np.argmin(reached[:, k]), k])
+                    raise InputError(
+                        f"{path}: at {driver.name}: expected a value that the driver's {driver.law.kind} "
+                        f"motion reaches with a finite rate (or give rates), found "
+                        f"{mech.units.show_input(driver.quantity, value, digits=12)}"
+                    )
+        else:
+            qd = np.broadcast_to(self._inputs(rates, si, "rates"), inputs.shape).copy()
+            qdd = np.zeros_like(inputs)
+            if accelerations is not None:
+                qdd = np.broadcast_to(self._inputs(accelerations, si, "accelerations"), inputs.shape).copy()
         labels = [
             ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, row))
             for row in inputs
@@ -424,8 +447,7 @@ class Assembled:
         """
         from .runner import sweep_inputs
 
-        if not 2 <= samples <= 100_000:
-            raise InputError(f"samples: expected a whole number from 2 to 100000, found {samples}")
+        samples = arguments.samples(samples, low=2)
         inputs, rates, accelerations = sweep_inputs(self.kinematics, samples, self.branch)
         labels = [f"sample {i}" for i in range(samples)]
         return self._result(inputs, rates, accelerations, labels)
@@ -458,6 +480,9 @@ class Assembled:
 
         from .drawing import Pose, draw_pose, guide_extents
 
+        frames = arguments.whole_number(frames, "frames", 2, arguments.MAX_SAMPLES)
+        if not (isinstance(interval, (int, float)) and 0.0 < interval < math.inf):
+            raise InputError(f"interval: expected a time in milliseconds above 0, found {arguments.shown(interval)}")
         sol = self.sweep(samples=frames).solution
         good = np.flatnonzero(sol.status <= Status.NEAR_SINGULAR)
         if not good.size:
@@ -497,9 +522,9 @@ class Assembled:
         """
         from .drawing import figure_of
 
-        c = self.kinematics.reference_inputs()[None] if at is None else None
-        if c is None:
-            c = self.kinematics.input_array(at) * 1.0 if si else self._si(at, False)
+        c = self.kinematics.reference_inputs()[None] if at is None else self._inputs(at, si)
+        if len(c) != 1:
+            raise InputError(f"{self.mechanism.path}: at: expected one state to draw, found {len(c)}")
         rates, _, _ = law_states(self.mechanism, c)
         sol = self.kinematics.solve(c, rates, branch=self.branch)
         if sol.status[0] > Status.SINGULAR:
@@ -558,7 +583,15 @@ def select_modes(
         from .runner import default_modes
 
         return default_modes(kinds)
-    text = chosen if isinstance(chosen, str) else ",".join(chosen)
+    if isinstance(chosen, str):
+        text = chosen
+    elif isinstance(chosen, Sequence) and all(isinstance(item, str) for item in chosen):
+        text = ",".join(chosen)
+    else:
+        raise InputError(
+            f"engines: expected a comma-separated string or a sequence of mode or group names, "
+            f"found {arguments.shown(chosen)}"
+        )
     picked: list[str] = []
     for item in (part.strip() for part in text.split(",") if part.strip()):
         if item in every:
@@ -633,6 +666,8 @@ def run(
     """
     from .runner import run_mechanism
 
+    samples = arguments.samples(samples)
+    jobs = arguments.processes(jobs)
     if isinstance(name, Assembled):
         kinematics, branch = name.kinematics, branch or name.branch
     elif isinstance(name, Kinematics):

@@ -6,7 +6,6 @@ import functools
 import io
 import json
 import math
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
@@ -17,9 +16,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from . import __version__, cache
+from . import __version__, arguments, cache
 from . import engines as registry
 from .api import limit_warnings, printed_answers, select_modes
+from .arguments import MAX_SAMPLES
 from .catalog import (
     BENCHMARKS,
     benchmark_names,
@@ -435,11 +435,6 @@ def draw_command(
     typer.echo(str(target))
 
 
-#: Most samples of a sweep: a sweep's cost grows with them (every engine mode
-#: steps through each), and 100000 already resolves a full turn to 0.004 deg.
-MAX_SAMPLES = 100_000
-
-
 @app.command("run")
 @_reports_errors
 def run_command(
@@ -515,9 +510,8 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
-    if not 3 <= samples <= MAX_SAMPLES:
-        raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
-    jobs = _process_count(jobs)
+    arguments.samples(samples, "--samples")
+    jobs = arguments.processes(jobs, "--jobs")
     if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
         report = not as_json
     if report:  # matplotlib and the figures' code: only when a report is written
@@ -652,13 +646,6 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     return [outcomes[i] for i in range(len(names))]
 
 
-def _process_count(jobs: int | None, option: str = "--jobs") -> int:
-    """``--jobs`` (or ``option``) checked (1 to 256), or one process per CPU core where it is not given."""
-    if jobs is not None and not 1 <= jobs <= 256:
-        raise InputError(f"{option}: expected a whole number from 1 to 256, found {jobs}")
-    return jobs if jobs is not None else os.cpu_count() or 1
-
-
 def _progress_bar(off: bool, label: str = "{task.description}", stdout_terminal: bool = True) -> Progress:
     """A transient progress bar on stderr (``label``, done/total, time): only
     when stderr is a terminal, and stdout too unless ``stdout_terminal`` is
@@ -750,7 +737,7 @@ def simulate_command(
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
-    jobs = _process_count(jobs)
+    jobs = arguments.processes(jobs, "--jobs")
     if duration is not None and not 0.0 < duration <= 1e6:
         raise InputError(f"--duration: expected a time above 0 s and at most 1e6 s, found {duration:g}")
     path = model_path(name, models_dir(models))
@@ -1067,9 +1054,8 @@ def fuzz_command(
 
     if not 1 <= count <= 100_000:
         raise InputError(f"--count: expected a whole number from 1 to 100000, found {count}")
-    if not 3 <= samples <= MAX_SAMPLES:
-        raise InputError(f"--samples: expected a whole number from 3 to {MAX_SAMPLES}, found {samples}")
-    workers = _process_count(workers, "--workers")
+    arguments.samples(samples, "--samples")
+    workers = arguments.processes(workers, "--workers")
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: expected a directory for the campaign, found a file")
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())

@@ -1,0 +1,179 @@
+"""Every entry checks its arguments by one rule (xcheck.arguments): a bad value
+gets one line naming the argument, what was expected and what was found, as an
+InputError (a ValueError) from Python and exit code 2 from the command line,
+before any work is done."""
+
+from __future__ import annotations
+
+import doctest
+import math
+import warnings
+
+import numpy as np
+import pytest
+from conftest import MODELS, invoke
+
+import xcheck
+from xcheck import arguments
+from xcheck.errors import InputError
+
+FOURBAR = str(MODELS / "fourbar.toml")
+
+
+def test_docstring_examples_run():
+    failed, attempted = doctest.testmod(arguments)
+    assert attempted >= 2 and failed == 0
+
+
+@pytest.mark.parametrize("value", [3, 181, np.int64(500), 100_000, 21.0, np.float32(7.0)])
+def test_a_whole_number_in_range_is_taken(value):
+    assert arguments.samples(value) == int(value) and type(arguments.samples(value)) is int
+
+
+@pytest.mark.parametrize(
+    "value, found",
+    [
+        (2, "2"),
+        (-5, "-5"),
+        (100_001, "100001"),
+        (10**9, "1000000000"),
+        (10**30, str(10**30)),
+        (math.nan, "nan"),
+        (math.inf, "inf"),
+        (2.5, "2.5"),
+        (True, "True"),
+        ("21", "'21'"),
+        (None, "None"),
+        (np.float64(math.nan), "nan"),
+    ],
+)
+def test_a_bad_number_of_samples_is_one_line(value, found):
+    with pytest.raises(InputError) as caught:
+        arguments.samples(value)
+    assert str(caught.value) == f"samples: expected a whole number from 3 to 100000, found {found}"
+
+
+def test_a_long_value_is_cut_in_the_message():
+    with pytest.raises(InputError) as caught:
+        arguments.samples("x" * 500)
+    assert len(str(caught.value)) < 160 and str(caught.value).endswith("…")
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, 10**30, 1.5])
+def test_a_seed_outside_64_bits_is_refused(seed):
+    with pytest.raises(InputError, match=r"^seed: expected a whole number from 0 to 9223372036854775807"):
+        arguments.seed(seed)
+
+
+def test_processes_default_to_the_cpu_count():
+    import os
+
+    assert arguments.processes(None) == (os.cpu_count() or 1)
+    with pytest.raises(InputError, match="^--workers: expected a whole number from 1 to 256, found 0$"):
+        arguments.processes(0, "--workers")
+
+
+def test_a_directory_that_cannot_be_written_is_refused(tmp_path):
+    (tmp_path / "file").write_text("mine", encoding="utf-8")
+    with pytest.raises(InputError, match="found a file$"):
+        arguments.writable_directory(tmp_path / "file", "--out", "the campaign")
+    with pytest.raises(InputError, match="found that it cannot be made"):
+        arguments.writable_directory(tmp_path / "file" / "below", "--out", "the campaign")
+    assert arguments.writable_directory(tmp_path / "new" / "deep", "--out", "x").is_dir()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "new"]  # the probe left nothing
+
+
+# ----------------------------------------------------------------------------- the API
+
+
+@pytest.fixture(scope="module")
+def fourbar():
+    return xcheck.load(FOURBAR)
+
+
+def _one_line(call, *needles):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(InputError) as caught:
+            call()
+    text = str(caught.value)
+    assert "\n" not in text and all(n in text for n in needles), text
+    return text
+
+
+@pytest.mark.parametrize(
+    "call, needles",
+    [
+        (lambda m: m.solve(at=np.inf), ("fourbar.toml: at: expected finite values, found inf",)),
+        (lambda m: m.solve(at=[30, np.nan]), ("at: expected finite values",)),
+        (lambda m: m.solve(at="thirty"), ("at: expected numbers, found 'thirty'",)),
+        (lambda m: m.solve(at={"crank": 30}), ("at: expected numbers",)),
+        (lambda m: m.solve(at=[]), ("at: expected from 1 to 100000 states, found 0",)),
+        (lambda m: m.solve(at=np.zeros(100_001)), ("found 100001",)),
+        (lambda m: m.solve(at=[[30, 40]]), ("at: expected inputs of shape (N, 1), found (1, 2)",)),
+        (lambda m: m.solve(at=30, rates=np.nan), ("rates: expected finite values, found nan",)),
+        (lambda m: m.solve(at=30, rates=1, accelerations=-np.inf), ("accelerations: expected finite values",)),
+        (lambda m: m.draw(at=np.nan), ("at: expected finite values, found nan",)),
+        (lambda m: m.draw(at=[30, 40]), ("at: expected one state to draw, found 2",)),
+        (lambda m: m.sweep(samples=-5), ("samples: expected a whole number from 2 to 100000, found -5",)),
+        (lambda m: m.sweep(samples=math.nan), ("samples:", "found nan")),
+        (lambda m: m.animate(frames=10**9), ("frames: expected a whole number from 2 to 100000",)),
+        (lambda m: m.animate(frames=5, interval=-1), ("interval: expected a time in milliseconds above 0",)),
+        (lambda m: m.sweep(samples=5).draw(5), ("i: expected a whole number from 0 to 4, found 5",)),
+        (lambda m: m.sweep(samples=5).plot(point="Z"), ("point: expected one of A, D, B, C", "found 'Z'")),
+        (lambda m: m.sweep(samples=5).plot(body=["crank"]), ("body: expected one of crank, coupler, rocker",)),
+    ],
+)
+def test_assembled_mechanism_checks_its_arguments(fourbar, call, needles):
+    _one_line(lambda: call(fourbar), *needles)
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"samples": 10**9}, "samples: expected a whole number from 3 to 100000, found 1000000000"),
+        ({"samples": -5}, "samples: expected a whole number from 3 to 100000, found -5"),
+        ({"samples": math.nan}, "found nan"),
+        ({"engines": 5}, "engines: expected a comma-separated string or a sequence of mode or group names, found 5"),
+        ({"engines": ["native", None]}, "engines: expected"),
+    ],
+)
+def test_compare_engines_checks_its_arguments_before_any_work(kwargs, needle):
+    _one_line(lambda: xcheck.compare_engines(FOURBAR, **{"engines": "native", **kwargs}), needle)
+
+
+def test_run_checks_its_processes():
+    from xcheck import api
+
+    _one_line(
+        lambda: api.run(FOURBAR, engines="native", jobs=0), "jobs: expected a whole number from 1 to 256, found 0"
+    )
+
+
+def test_a_huge_but_finite_input_gives_a_result_with_its_status(fourbar):
+    """1e308 degrees is a number: the solve says per state whether it assembled."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = fourbar.solve(at=1e300, rates=1.0)
+    assert len(result.solution.status) == 1
+
+
+# ----------------------------------------------------------------------------- the same rule on the command line
+
+
+@pytest.mark.parametrize(
+    "args, line",
+    [
+        (
+            ["run", FOURBAR, "--samples", "-5"],
+            "xcheck: error: --samples: expected a whole number from 3 to 100000, found -5",
+        ),
+        (["run", FOURBAR, "--jobs", "0"], "xcheck: error: --jobs: expected a whole number from 1 to 256, found 0"),
+        (["fuzz", "--samples", "2"], "xcheck: error: --samples: expected a whole number from 3 to 100000, found 2"),
+        (["fuzz", "--workers", "999"], "xcheck: error: --workers: expected a whole number from 1 to 256, found 999"),
+    ],
+)
+def test_the_command_line_applies_the_same_rule(tmp_path, args, line):
+    result = invoke(*args, "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and result.stderr.splitlines() == [line]
+    assert not (tmp_path / "out").exists()  # refused before anything was written
