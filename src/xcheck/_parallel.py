@@ -52,13 +52,18 @@ def _read_only(items: dict) -> types.MappingProxyType:
 def process_pool(jobs: int) -> ProcessPoolExecutor:
     """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both
     ways, and that end with the process that started them."""
+    from . import engines
+
     picklable_mechanisms()
     context = multiprocessing.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_start_worker)
+    # a plug-in this process could not load is not tried again in each worker (its import may hang)
+    broken = engines.load_problems()
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_start_worker, initargs=(broken,))
 
 
-def _start_worker() -> None:
-    """The pool's initializer: mechanisms picklable, Ctrl-C, and a watch on the parent.
+def _start_worker(broken: dict[str, str] | None = None) -> None:
+    """The pool's initializer: mechanisms picklable, plug-ins the parent could
+    not load (``broken``: name -> reason) left alone, Ctrl-C, and a watch on the parent.
 
     Ctrl-C reaches the whole foreground process group: the parent ends the run
     (exit code 130), and a worker is ended by the signal's default action, at
@@ -67,8 +72,11 @@ def _start_worker() -> None:
     it holds itself, so when the parent is killed (SIGKILL, or a crash) it would
     wait forever, a Python process with NumPy, pandas and xcheck loaded; instead
     it exits."""
+    from .engines._registry import skip_entry_points
+
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     picklable_mechanisms()
+    skip_entry_points(broken or {})
     parent = multiprocessing.parent_process()
     if parent is not None:
         threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True).start()

@@ -76,7 +76,8 @@ ComparisonsOption = Annotated[
 
 
 def _reports_errors(command):
-    """Turn an XcheckError into one line on stderr and exit code 2."""
+    """Turn an XcheckError into one line on stderr and exit code 2; say which
+    plug-ins could not be loaded, if the command looked for engines."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
@@ -85,8 +86,21 @@ def _reports_errors(command):
         except XcheckError as err:
             typer.echo(f"xcheck: error: {err}", err=True)
             raise typer.Exit(2) from None
+        finally:
+            _warn_of_plug_ins()
 
     return wrapper
+
+
+def _warn_of_plug_ins() -> None:
+    """One line on stderr per plug-in that could not be loaded, where the
+    registry was loaded (the command ran without it)."""
+    for name, reason in registry.load_problems(load=False).items():
+        typer.echo(
+            f"xcheck: warning: plug-in {name!r} (entry-point group {registry.ENTRY_POINT_GROUP!r}) could not be "
+            f"loaded, and runs nowhere: {reason}",
+            err=True,
+        )
 
 
 def _version(value: bool):
@@ -253,8 +267,6 @@ def engines_command(
             escape(row["notes"]),
         )
     wide_console().print(table)
-    for name, reason in problems.items():
-        typer.echo(f"xcheck: error: entry point {name!r} of group {registry.ENTRY_POINT_GROUP!r}: {reason}", err=True)
 
 
 @app.command("solve")

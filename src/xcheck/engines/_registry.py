@@ -27,6 +27,8 @@ __all__ = [
     "exporters",
     "load_problems",
     "registered_at_run_time",
+    "skip_entry_points",
+    "TIMEOUT_ENV",
 ]
 
 #: the entry-point group through which an installed package adds engines:
@@ -48,8 +50,10 @@ _registered: dict[str, Engine] = {}
 #: names of the engines :func:`register` added in this process (absent from a spawned worker)
 _at_run_time: set[str] = set()
 _loaded = False
-#: entry points that could not be loaded: name -> reason (shown by ``xcheck list``)
+#: entry points that could not be loaded: name -> reason (shown by ``xcheck list`` and ``engines``)
 _problems: dict[str, str] = {}
+#: entry points not to load, with the reason (:func:`skip_entry_points`)
+_skipped: dict[str, str] = {}
 
 
 def _instance(target: object) -> Engine:
@@ -69,13 +73,127 @@ def _load() -> None:
         _add(_instance(getattr(importlib.import_module(module), name)))
     if not _may_declare_plug_ins():
         return
+    for point in _declared_entry_points():
+        if point.name in _skipped:
+            _problems[point.name] = _skipped[point.name]
+            continue
+        try:
+            _add(_load_plug_in(point, _plug_in_timeout()))
+        except Exception as error:  # noqa: BLE001 - a broken plug-in is reported, xcheck still runs
+            _problems[point.name] = _reason(error)
+
+
+class _NotLoaded(Exception):
+    """A plug-in that could not be loaded; the message says why."""
+
+
+def _declared_entry_points() -> list:
+    """The entry points of :data:`ENTRY_POINT_GROUP` of every installed
+    distribution (the first of each name on the path, as
+    :func:`importlib.metadata.entry_points` takes them).
+
+    A distribution whose metadata cannot be read (a malformed
+    ``entry_points.txt``, bytes that are not text) is left out: it is listed
+    in :func:`load_problems` if its file names the group, and skipped silently
+    otherwise, as the other packages' business.
+    """
     from importlib import metadata
 
-    for point in metadata.entry_points(group=ENTRY_POINT_GROUP):
+    found: list = []
+    seen: set[str] = set()
+    for distribution in metadata.distributions():
+        key = getattr(distribution, "_normalized_name", None)  # how metadata tells two copies apart
+        if key is not None:
+            if key in seen:
+                continue
+            seen.add(key)
         try:
-            _add(_instance(point.load()))
-        except Exception as error:  # noqa: BLE001 - a broken plug-in is reported, xcheck still runs
-            _problems[point.name] = f"{type(error).__name__}: {error}".splitlines()[0]
+            found.extend(distribution.entry_points.select(group=ENTRY_POINT_GROUP))
+        except Exception as error:  # noqa: BLE001 - another package's broken metadata must not stop xcheck
+            try:
+                declared = ENTRY_POINT_GROUP in (distribution.read_text("entry_points.txt") or "")
+            except Exception:  # noqa: BLE001 - not even text: it cannot declare the group readably
+                declared = False
+            if declared:
+                where = getattr(distribution, "_path", None) or key or "a distribution"
+                _problems[f"{where}"] = f"its entry_points.txt cannot be read ({_reason(error)})"
+    return found
+
+
+def _load_plug_in(point, timeout: float) -> Engine:
+    """The engine an entry point names, imported and made in a thread of its own.
+
+    Whatever the import does is confined to that thread: an exception of any
+    kind, ``sys.exit()`` and a ``KeyboardInterrupt`` it raises itself become
+    :class:`_NotLoaded` with the reason, and so does an import still running
+    after ``timeout`` seconds (it is interrupted where it runs Python code, and
+    left to finish alone where it sleeps in a call). A real Ctrl-C reaches this
+    (the main) thread while it waits and stops xcheck as anywhere else.
+    """
+    import threading
+
+    loaded: list[Engine] = []
+    failed: list[BaseException] = []
+
+    def load() -> None:
+        try:
+            loaded.append(_instance(point.load()))
+        except BaseException as error:  # noqa: BLE001 - SystemExit and the plug-in's own KeyboardInterrupt too
+            failed.append(error)
+
+    worker = threading.Thread(target=load, name=f"xcheck plug-in {point.name}", daemon=True)
+    worker.start()
+    worker.join(timeout)
+    if worker.is_alive():
+        _interrupt(worker)
+        raise _NotLoaded(f"its import did not finish within {timeout:g} s (${TIMEOUT_ENV} sets the limit)")
+    if failed:
+        raise _NotLoaded(_reason(failed[0]))
+    return loaded[0]
+
+
+def _interrupt(thread) -> None:
+    """Raise :class:`_NotLoaded` in ``thread`` at its next Python instruction (CPython)."""
+    import ctypes
+
+    if thread.ident is not None:
+        ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread.ident), ctypes.py_object(_NotLoaded))
+
+
+def _reason(error: BaseException, limit: int = 200) -> str:
+    """Why a plug-in could not be loaded, in one line."""
+    if isinstance(error, _NotLoaded):
+        return str(error)
+    if isinstance(error, SystemExit):
+        return f"its import called sys.exit({error.code!r})"
+    try:
+        message = str(error)
+    except Exception:  # noqa: BLE001 - an exception whose message itself fails
+        message = ""
+    line = f"{type(error).__name__}: {' '.join(message.split())}" if message.strip() else type(error).__name__
+    return line if len(line) <= limit else line[: limit - 1] + "…"
+
+
+#: the environment variable that sets how long a plug-in's import may take (seconds)
+TIMEOUT_ENV = "XCHECK_PLUGIN_TIMEOUT"
+#: how long a plug-in's import may take where $XCHECK_PLUGIN_TIMEOUT does not say (seconds)
+PLUG_IN_TIMEOUT = 30.0
+
+
+def _plug_in_timeout() -> float:
+    """$XCHECK_PLUGIN_TIMEOUT where it is a number of seconds above 0, else :data:`PLUG_IN_TIMEOUT`."""
+    try:
+        value = float(os.environ.get(TIMEOUT_ENV, ""))
+    except ValueError:
+        return PLUG_IN_TIMEOUT
+    return value if 0.0 < value < 1e6 else PLUG_IN_TIMEOUT
+
+
+def skip_entry_points(reasons: dict[str, str]) -> None:
+    """Leave these entry points unloaded in this process, each listed with its
+    reason (a worker process is told which ones its parent could not load, so
+    that it does not wait for a hanging import again)."""
+    _skipped.update(reasons)
 
 
 def _may_declare_plug_ins() -> bool:
@@ -205,10 +323,13 @@ def exporters() -> dict[str, Engine]:
     return {e.export_format: e for e in engines() if e.export_format}
 
 
-def load_problems() -> dict[str, str]:
-    """Entry points that could not be loaded: name -> reason."""
-    _load()
-    return dict(_problems)
+def load_problems(load: bool = True) -> dict[str, str]:
+    """Entry points that could not be loaded: name -> reason (the entry point's
+    name, or the path of a distribution whose metadata cannot be read), by
+    name; with ``load`` False, only if the registry has been loaded already."""
+    if load:
+        _load()
+    return dict(sorted(_problems.items()))
 
 
 def registered_at_run_time(name: str) -> bool:
