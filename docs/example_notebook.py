@@ -18,4 +18,5 @@ sweep.plot().savefig("fourbar-sweep.png")  # a matplotlib Figure: shown inline i
 mech.draw(at=60).savefig("fourbar-at-60.png")
 
 # %%
-print(xcheck.compare_engines("fourbar", engines="formulations").to_string())  # per mode: verdict, error, tolerance
+run = xcheck.run("fourbar", engines="formulations")  # every mode named against the exact solution
+print(run.verdict, run.summary.to_string(), sep="\n")  # per mode: verdict, error, tolerance

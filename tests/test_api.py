@@ -55,7 +55,7 @@ def test_import_xcheck_stays_light():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
-    assert callable(xcheck.compare_engines) and xcheck.compare_engines is api.compare
+    assert xcheck.run is api.run and xcheck.simulate is api.simulate
 
 
 def test_rates_default_to_the_drivers_laws_not_to_zero():
@@ -117,11 +117,37 @@ def test_plot_and_draw_return_figures():
         mech.solve(at=[[1, 2]])
 
 
-def test_compare_returns_one_row_per_mode():
-    table = api.compare("fourbar", engines="formulations", samples=21, models=MODELS)
-    assert list(table.columns) == list(api.SUMMARY_COLUMNS)
+def test_the_summary_has_one_row_per_mode_and_shows_as_a_table():
+    from xcheck.runner import SUMMARY_COLUMNS
+
+    run = xcheck.run("fourbar", engines="formulations", samples=21, models=MODELS)
+    table = run.summary
+    assert list(table.columns) == list(SUMMARY_COLUMNS)
     assert table["mode"].tolist() == ["native", "formulation-I", "formulation-II"]
     assert (table.verdict == "pass").all() and (table.error <= table.tolerance).all()
+    assert run.verdict == "pass"
+    html = run._repr_html_()
+    assert html.startswith("<p><b>fourbar</b>: pass") and html.count("<tr") == 4  # header + three modes
+
+
+def test_a_fresh_import_gives_the_whole_public_surface():
+    """The README's Python example on a fresh ``import xcheck``: no ``xcheck.load``
+    first, ``xcheck.api`` reachable, and the names a newcomer may try for the
+    comparison say which one it is."""
+    import subprocess
+    import sys
+
+    code = (
+        "import xcheck\n"
+        "assert callable(xcheck.api.run)\n"
+        "run = xcheck.run('fourbar', engines='formulations', samples=11)\n"
+        "print(run.verdict, len(run.summary))\n"
+        "try:\n    xcheck.compare_engines\nexcept AttributeError as err:\n    print(err)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    lines = out.stdout.splitlines()
+    assert lines[0] == "pass 3"
+    assert "xcheck.run(...) compares the engines" in lines[1]
 
 
 def test_solve_warns_about_a_limit_position_before_the_numbers():

@@ -138,8 +138,8 @@ def test_assembled_mechanism_checks_its_arguments(fourbar, call, needles):
         ({"engines": ["native", None]}, "engines: expected"),
     ],
 )
-def test_compare_engines_checks_its_arguments_before_any_work(kwargs, needle):
-    _one_line(lambda: xcheck.compare_engines(FOURBAR, **{"engines": "native", **kwargs}), needle)
+def test_run_checks_its_arguments_before_any_work(kwargs, needle):
+    _one_line(lambda: xcheck.run(FOURBAR, **{"engines": "native", **kwargs}), needle)
 
 
 def test_run_checks_its_processes():

@@ -36,7 +36,7 @@ def test_import_cli_pulls_no_heavy_library(tmp_path):
 def test_public_api_still_there_lazily(tmp_path):
     code = (
         "import xcheck\n"
-        "assert callable(xcheck.load) and callable(xcheck.compare_engines) and callable(xcheck.simulate)\n"
+        "assert callable(xcheck.load) and callable(xcheck.run) and callable(xcheck.simulate)\n"
         "assert xcheck.select_modes('formulations')[0] == 'native'\n"
         "from xcheck import Kinematics, Mechanism, load_mechanism, InputError\n"
     )

@@ -173,7 +173,8 @@ def test_a_stated_finding_fails_the_mode_but_not_the_run(findings, tmp_path):
     doc = json.loads(known.stdout)
     entry = doc["engines"]["known-kinematic"]
     assert entry["pass"] is False and entry["finding"] == "the toy moves every position by 3e-7 of the size"
-    assert entry["relative"]["position"] == pytest.approx(SHIFT, rel=1e-6) and doc["pass"] is True
+    assert entry["relative"]["position"] == pytest.approx(SHIFT, rel=1e-6) and doc["verdict"] == "pass with findings"
+    assert entry["verdict"] == "finding"
     assert doc["engines"]["formulation-II"]["finding"] is None
     report = (tmp_path / "fourbar.md").read_text(encoding="utf-8")
     assert "all modes within tolerance but the stated findings of `known-kinematic`" in report
@@ -185,8 +186,10 @@ def test_a_stated_finding_fails_the_mode_but_not_the_run(findings, tmp_path):
     )
     unknown = _cli(*args, "--engines", "unknown-kinematic", "--no-report")
     assert unknown.exit_code == 1, unknown.output
-    entry = json.loads(unknown.stdout)["engines"]["unknown-kinematic"]
+    doc = json.loads(unknown.stdout)
+    entry = doc["engines"]["unknown-kinematic"]
     assert entry["pass"] is False and entry["finding"] is None
+    assert entry["verdict"] == "fail" and doc["verdict"] == "fail"
 
 
 def test_a_mode_on_request_runs_only_when_named(findings):

@@ -15,9 +15,9 @@ True
 >>> xcheck.select_modes("formulations")
 ('native', 'formulation-I', 'formulation-II')
 
-:func:`compare` runs the comparison of ``xcheck run`` and returns one row per
-mode; :func:`run` returns the whole :class:`~xcheck.runner.RunResult` (the
-command line only adds printing, the reports and exit codes).
+:func:`run` runs the comparison of ``xcheck run`` and returns the whole
+:class:`~xcheck.runner.RunResult`: its ``verdict``, and its ``summary`` with one
+row per mode (the command line only adds printing, the reports and exit codes).
 :func:`simulate` integrates a mechanism's free motion (``xcheck simulate``);
 ``mech.draw(at=...)`` and ``mech.animate()`` picture it (no engine runs).
 
@@ -58,7 +58,6 @@ __all__ = [
     "load",
     "select_modes",
     "printed_answers",
-    "compare",
     "run",
     "simulate",
     "limit_warnings",
@@ -661,8 +660,21 @@ def run(
     Returns
     -------
     RunResult
-        ``passed`` says whether every mode met its tolerance; ``outcomes`` has
-        each mode's table of differences by category.
+        ``verdict`` ("pass", "pass with findings" or "fail"), ``summary`` (a
+        DataFrame, one row per mode; a notebook shows it as a table) and
+        ``outcomes``, each mode's table of differences by category.
+
+    Examples
+    --------
+    >>> import xcheck
+    >>> run = xcheck.run("fourbar", engines="formulations", samples=21)
+    >>> run.verdict
+    'pass'
+    >>> print(run.summary[["mode", "kind", "verdict"]].to_string(index=False))
+              mode      kind verdict
+            native    native    pass
+     formulation-I kinematic    pass
+    formulation-II kinematic    pass
     """
     from .runner import run_mechanism
 
@@ -676,89 +688,6 @@ def run(
         kinematics = load(name, models, branch).kinematics
     textbook, _ = printed_answers(kinematics, comparisons)
     return run_mechanism(kinematics, select_modes(engines), samples, branch, textbook, progress=progress, jobs=jobs)
-
-
-#: the columns of :func:`compare`'s table
-SUMMARY_COLUMNS = ("engine", "mode", "kind", "verdict", "category", "error", "tolerance", "reason")
-
-
-def summary(result: "RunResult") -> pd.DataFrame:
-    """One row per mode of a run: engine, mode, kind (native, kinematic,
-    dynamic), verdict ("pass", "fail", "finding": it fails only where its
-    engine is known to be wrong, "failed": it did not run through, "not
-    applicable"), the category whose relative error is largest against its
-    tolerance, that error and tolerance (relative: see
-    :class:`xcheck.runner.ModeOutcome`), and the reason of a mode that failed
-    or does not apply, or its finding."""
-    import pandas as pd
-
-    rows = []
-    for mode, outcome in result.outcomes.items():
-        worst: tuple[float, str, float, float] | None = None  # (ratio, category, relative, tolerance)
-        for category, relative, limit in zip(
-            outcome.categories.get("category", []),
-            outcome.categories.get("relative", []),
-            outcome.categories.get("tolerance", []),
-        ):
-            relative, limit = float(relative), float(limit)
-            ratio = relative / limit if limit > 0 else math.inf
-            if worst is None or not ratio <= worst[0]:
-                worst = (ratio, str(category), relative, limit)
-        rows.append(
-            {
-                "engine": "xcheck" if mode == "native" else engines.engine_of(mode).name,
-                "mode": mode,
-                "kind": "native" if mode == "native" else engines.mode(mode).kind,
-                "verdict": outcome.verdict,
-                "category": worst[1] if worst else None,
-                "error": worst[2] if worst else math.nan,
-                "tolerance": worst[3] if worst else math.nan,
-                "reason": outcome.reason or outcome.finding or None,
-            }
-        )
-    for mode, reason in result.not_applicable.items():
-        rows.append(
-            {
-                "engine": engines.engine_of(mode).name,
-                "mode": mode,
-                "kind": engines.mode(mode).kind,
-                "verdict": "not applicable",
-                "category": None,
-                "error": math.nan,
-                "tolerance": math.nan,
-                "reason": reason,
-            }
-        )
-    return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
-
-
-def compare(
-    name: str | Path | Kinematics | Assembled,
-    engines: str | Sequence[str] | None = None,
-    samples: int = 181,
-    branch: str | None = None,
-    models: str | Path | None = None,
-    comparisons: str | Path | None = None,
-    progress=None,
-) -> pd.DataFrame:
-    """Run the requested modes against the native solution (:func:`run`) and
-    return its :func:`summary`: one row per mode.
-
-    ``xcheck.results`` is the module of the comparison's arithmetic; this
-    function is ``xcheck.api.compare`` or, at the top level,
-    ``xcheck.compare_engines``.
-
-    >>> import xcheck
-    >>> table = xcheck.compare_engines("fourbar", engines="formulations", samples=21)
-    >>> print(table[["mode", "kind", "verdict"]].to_string(index=False))
-              mode      kind verdict
-            native    native    pass
-     formulation-I kinematic    pass
-    formulation-II kinematic    pass
-    >>> bool((table.error <= table.tolerance).all())
-    True
-    """
-    return summary(run(name, engines, samples, branch, models, comparisons, progress))
 
 
 def simulate(

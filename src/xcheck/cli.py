@@ -515,8 +515,11 @@ def run_command(
 ):
     """Compare every solver and engine mode with the exact native solution over the feasible input range.
 
-    Exit code 0 when every mode is within its tolerance, 1 when any is not (the
-    table says which quantity, where, by how much), 2 for bad input. With
+    Each mechanism gets one verdict: "pass" (every mode within its tolerance),
+    "pass with findings" (every failure is an engine's stated finding, see
+    `xcheck engines`) or "fail" (the table says which quantity, where, by how
+    much). Exit code 0 for pass and pass with findings, 1 when any mechanism
+    fails, 2 for bad input. With
     --json only the JSON is written (stdout; every wall-clock time under its
     "timings" key): add --report for the Markdown reports and figures too.
 
@@ -586,8 +589,11 @@ def run_command(
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
         raise typer.Exit(2)
-    if not all(r.passed for r in results):
-        raise typer.Exit(1)
+    from .runner import EXIT_CODES
+
+    code = max((EXIT_CODES[r.verdict] for r in results), default=0)
+    if code:
+        raise typer.Exit(code)
 
 
 def _run_model(

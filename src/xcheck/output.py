@@ -489,7 +489,14 @@ def run_json(run) -> dict:
                     "estimate": _number(row.estimate),
                     "measured": _number(row.relative),
                 }
-        entry.update({"pass": outcome.passed, "reason": outcome.reason or None, "finding": outcome.finding or None})
+        entry.update(
+            {
+                "verdict": outcome.verdict,
+                "pass": outcome.passed,
+                "reason": outcome.reason or None,
+                "finding": outcome.finding or None,
+            }
+        )
         engines[mode] = entry
     forces = {}
     for row in run.force_table.itertuples():
@@ -511,7 +518,7 @@ def run_json(run) -> dict:
         "mechanism": run.mechanism.name,
         "samples": int(run.native.inputs.shape[0]),
         "branch": run.branch,
-        "pass": run.passed,
+        "verdict": run.verdict,
         "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
         "engines": engines,
         "not_applicable": run.not_applicable,
@@ -533,13 +540,12 @@ def print_run(console: Console, run) -> None:
     from .runner import CATEGORIES
 
     mech = run.mechanism
-    status = (
-        "[red]some modes beyond tolerance[/red]"
-        if not run.passed
-        else "[green]all modes within tolerance[/green]"
-        if not run.findings
-        else "[green]all modes within tolerance[/green] but the engines' stated findings"
-    )
+    status = {
+        "pass": "[green]pass[/green]: every mode within its tolerance",
+        "pass with findings": "[yellow]pass with findings[/yellow]: every mode within its tolerance but the "
+        "engines' stated findings",
+        "fail": "[red]fail[/red]: some modes beyond their tolerance",
+    }[run.verdict]
     console.print(f"[bold]{mech.name}[/bold] — {mech.title}: {status} ({run.seconds:.1f} s)")
     table = Table(box=None, pad_edge=False, header_style="bold")
     table.add_column("mode", no_wrap=True)

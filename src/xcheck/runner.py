@@ -65,6 +65,9 @@ __all__ = [
     "NATIVE_TOLERANCE",
     "ModeOutcome",
     "RunResult",
+    "VERDICTS",
+    "EXIT_CODES",
+    "SUMMARY_COLUMNS",
     "run_mechanism",
     "sweep_inputs",
     "versions",
@@ -204,6 +207,14 @@ class ModeOutcome:
         return "pass" if self.passed else "finding" if self.finding else "fail"
 
 
+#: the verdicts of a run, best first (:attr:`RunResult.verdict`)
+VERDICTS = ("pass", "pass with findings", "fail")
+#: the exit code of ``xcheck run`` per verdict; 2 is bad input
+EXIT_CODES = {"pass": 0, "pass with findings": 0, "fail": 1}
+#: the columns of :attr:`RunResult.summary`
+SUMMARY_COLUMNS = ("engine", "mode", "kind", "verdict", "category", "error", "tolerance", "reason")
+
+
 @dataclass
 class RunResult:
     """Everything ``xcheck run`` found for one mechanism."""
@@ -240,6 +251,75 @@ class RunResult:
     def findings(self) -> dict[str, str]:
         """Mode name to its stated finding, for the modes that fail only there."""
         return {mode: o.finding for mode, o in self.outcomes.items() if o.finding}
+
+    @property
+    def verdict(self) -> str:
+        """The run's one verdict (:data:`VERDICTS`): "pass" when every mode,
+        the reactions and the power balance are within their tolerances, "pass
+        with findings" when every failure is an engine's stated finding
+        (:attr:`findings`), else "fail". The exit code of ``xcheck run`` follows
+        it (:data:`EXIT_CODES`)."""
+        if not self.passed:
+            return "fail"
+        return "pass with findings" if self.findings else "pass"
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        """One row per mode (:data:`SUMMARY_COLUMNS`): engine, mode, kind
+        (native, kinematic, dynamic), verdict ("pass"; "finding": it fails
+        only where its engine is known to be wrong; "fail"; "failed": it did
+        not run through; "not applicable"), the category whose relative error
+        is largest against its tolerance, that error and tolerance (relative:
+        see :class:`ModeOutcome`), and the reason of a mode that failed or does
+        not apply, or its finding."""
+        rows = []
+        for mode, outcome in self.outcomes.items():
+            worst: tuple[float, str, float, float] | None = None  # (ratio, category, relative, tolerance)
+            for category, relative, limit in zip(
+                outcome.categories.get("category", []),
+                outcome.categories.get("relative", []),
+                outcome.categories.get("tolerance", []),
+            ):
+                relative, limit = float(relative), float(limit)
+                ratio = relative / limit if limit > 0 else math.inf
+                if worst is None or not ratio <= worst[0]:
+                    worst = (ratio, str(category), relative, limit)
+            rows.append(
+                {
+                    "engine": "xcheck" if mode == "native" else engines.engine_of(mode).name,
+                    "mode": mode,
+                    "kind": "native" if mode == "native" else engines.mode(mode).kind,
+                    "verdict": outcome.verdict,
+                    "category": worst[1] if worst else None,
+                    "error": worst[2] if worst else math.nan,
+                    "tolerance": worst[3] if worst else math.nan,
+                    "reason": outcome.reason or outcome.finding or None,
+                }
+            )
+        for mode, reason in self.not_applicable.items():
+            rows.append(
+                {
+                    "engine": engines.engine_of(mode).name,
+                    "mode": mode,
+                    "kind": engines.mode(mode).kind,
+                    "verdict": "not applicable",
+                    "category": None,
+                    "error": math.nan,
+                    "tolerance": math.nan,
+                    "reason": reason,
+                }
+            )
+        return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+
+    def __repr__(self) -> str:
+        return f"<RunResult {self.mechanism.name}: {self.verdict}, {len(self.outcomes)} modes run>"
+
+    def _repr_html_(self) -> str:
+        """The summary as an HTML table under a line with the verdict (a notebook shows this)."""
+        from html import escape
+
+        head = f"<p><b>{escape(self.mechanism.name)}</b>: {escape(self.verdict)} ({self.seconds:.1f} s)</p>"
+        return head + self.summary.to_html(index=False, na_rep="", float_format=lambda v: f"{v:.3g}")
 
     def worst(self) -> tuple[str, str, float, float] | None:
         """(mode, category, relative error, tolerance) of the largest error
