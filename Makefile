@@ -1,30 +1,36 @@
 # The two commands of the README: `make run` and `make test`. Both create the
-# virtual environment and install xcheck with its dependencies on first use.
+# virtual environment and install xcheck with its dependencies on first use;
+# `make docs` builds the documentation site into docs/_build/html.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint docs bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,all]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,docs,all]'
 	touch $(STAMP)
 
 run: $(STAMP)
 	$(BIN)/xcheck run fourbar
 
-test: lint
+test: lint docs
 	$(BIN)/python -m pytest -q -n auto
+
+# the documentation site: warnings are errors (a page that names a missing page,
+# a docstring that does not parse); the engines' tables come from the registry
+docs: $(STAMP)
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
 
-# the figures of issue 17's table, each printed with its command (CLI: wall and CPU
+# every benchmark of docs/benchmarks.md, each printed with its command (CLI: wall and CPU
 # medians of N runs); what the runs write goes to BENCH_OUT, never into reports/
 BENCH_OUT ?= $${TMPDIR:-/tmp}/xcheck-bench
 bench: $(STAMP)
@@ -41,4 +47,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck fuzz --count 20 --seed 1 --out $(BENCH_OUT)/fuzz
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache
+	rm -rf $(VENV) build src/*.egg-info .pytest_cache docs/_build

@@ -217,7 +217,7 @@ class Result:
         return pd.concat(parts, ignore_index=True).sort_values(["sample", "kind"], kind="stable", ignore_index=True)
 
     def plot(self, point: str | None = None, body: str | None = None) -> "Figure":
-        """A figure of a point's x, |v|, |a| and a body's angle, omega, alpha
+        """A figure of a point's x, speed, acceleration magnitude and a body's angle, omega, alpha
         against the input that varies (display units of the file).
 
         Parameters

@@ -15,6 +15,7 @@ from rich.text import Text
 from .kinematics import InputRange, Kinematics, Solution, Status
 
 __all__ = [
+    "mode_trust",
     "solution_json",
     "print_solution",
     "range_text",
@@ -24,6 +25,22 @@ __all__ = [
     "run_json",
     "print_run",
 ]
+
+
+def mode_trust(mode) -> str:
+    """What a mode (:class:`xcheck.engines.Mode`) can be trusted for, in one figure:
+    a kinematic mode's position bound, a dynamic mode's expected order of
+    convergence in positions (or its fixed position bound), "benchmark" for free motion."""
+    tolerance = mode.tolerance
+    if mode.kind == "kinematic":
+        return f"exact to {tolerance.position:.0e} of the size"
+    if mode.kind == "dynamic":
+        order = mode.orders.get("position")
+        if order is not None:
+            return f"converges at order {order:g}"
+        rates = mode.orders.get("velocity")
+        return f"positions to {tolerance.position:.0e}" + (f", rates at order {rates:g}" if rates else "")
+    return "benchmark (no verdict)"
 
 
 def _number(value) -> float | None:

@@ -1,0 +1,88 @@
+"""Sphinx directives that write the engines' facts from xcheck's registry, so that a
+page never restates by hand what an engine declares (and an engine added to the
+registry appears in the table with no edit here).
+
+``{xcheck-engines}``: one row per registered engine. ``{xcheck-engine} NAME``: the
+facts of one engine (modes, kinds, what each is trusted for, tolerances' bases,
+findings, install).
+"""
+
+from __future__ import annotations
+
+from docutils.parsers.rst import Directive, directives
+from docutils.statemachine import StringList
+
+from xcheck import engines
+from xcheck.output import mode_trust
+
+
+def _cell(text: str) -> str:
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+class _Markdown(Directive):
+    def _parse(self, lines: list[str]) -> list:
+        from docutils import nodes
+
+        container = nodes.container()
+        self.state.nested_parse(StringList(lines, source="xcheck registry"), self.content_offset, container)
+        return container.children
+
+
+class EnginesTable(_Markdown):
+    """The table of every registered engine."""
+
+    has_content = False
+
+    def run(self):
+        lines = ["| engine | modes | trusted for | stated findings | install |", "|---|---|---|---|---|"]
+        for engine in engines.engines():
+            modes = "<br>".join(f"`{m.name}` ({m.kind})" for m in engine.modes)
+            trust = "<br>".join(_cell(mode_trust(m)) for m in engine.modes)
+            findings = "<br>".join(f"`{m.name}`: {', '.join(m.findings)}" for m in engine.modes if m.findings)
+            page = f"[{engine.title}]({engine.name}.md)"
+            lines.append(
+                f"| {page} | {modes} | {trust} | {findings or '—'} | `{_cell(engine.install) or 'with xcheck'}` |"
+            )
+        return self._parse(lines)
+
+
+class EngineFacts(_Markdown):
+    """The facts one engine declares."""
+
+    required_arguments = 1
+    has_content = False
+
+    def run(self):
+        engine = engines.engine(self.arguments[0])
+        lines = [
+            f"{_cell(engine.notes)}",
+            "",
+            f"Install: `{engine.install or 'with xcheck'}`"
+            + (f"; packages: {', '.join(f'`{d}`' for d in engine.distributions)}" if engine.distributions else "")
+            + (f"; writes `{engine.export_format}` files (`xcheck export`)" if engine.export_format else "")
+            + ".",
+            "",
+            "| mode | kind | trusted for | tolerance and its basis |",
+            "|---|---|---|---|",
+        ]
+        for mode in engine.modes:
+            lines.append(
+                f"| `{mode.name}` | {mode.kind}{' (on request)' if mode.on_request else ''} | "
+                f"{_cell(mode_trust(mode))} | {_cell(mode.tolerance.basis)} |"
+            )
+        if engine.force_tolerance is not None:
+            lines += [
+                "",
+                f"Joint reactions and driving efforts: within {engine.force_tolerance:g} ({engine.force_basis}).",
+            ]
+        for mode in engine.modes:
+            for category, text in mode.findings.items():
+                lines += ["", f"**Stated finding** (`{mode.name}`, {category}): {_cell(text)}"]
+        return self._parse(lines)
+
+
+def setup(app):
+    directives.register_directive("xcheck-engines", EnginesTable)
+    directives.register_directive("xcheck-engine", EngineFacts)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}
