@@ -1038,7 +1038,10 @@ def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
 @_reports_errors
 def fuzz_command(
     count: Annotated[int, typer.Option("--count", help="Random mechanisms to generate (1 to 100000).")] = 100,
-    seed: Annotated[int, typer.Option("--seed", help="The campaign's seed: the same seed, the same mechanisms.")] = 0,
+    seed: Annotated[
+        int,
+        typer.Option("--seed", help="The campaign's seed (0 to 2**63 - 1): the same seed, the same mechanisms."),
+    ] = 0,
     kinds: Annotated[
         str, typer.Option("--kinds", help="Comma-separated kinds: fourbar, slider-crank, scotch-yoke.")
     ] = "fourbar,slider-crank,scotch-yoke",
@@ -1063,22 +1066,24 @@ def fuzz_command(
 ):
     """Run every mode on random mechanisms; one Parquet row per mechanism and mode.
 
-    Rerunning with the same --out skips the cases done. Exit code 0 when no mode
-    failed, 1 when any did (see OUT/failures.md: each class with a reproducer file), 2 for bad input.
+    Rerunning with the same --out skips the cases done; it must ask for the same
+    --kinds, --engines and --samples (OUT/campaign.json keeps them). A file in OUT
+    that xcheck did not write is never replaced: the campaign stops before it
+    starts. Exit code 0 when no mode failed, 1 when any did (see OUT/failures.md:
+    each class with a reproducer file), 2 for bad input.
 
     Examples: xcheck fuzz --count 40 --seed 1;  xcheck fuzz --count 5000 --scheduler tcp://host:8786 --out big
     """
     from . import fuzz as campaign
 
-    if not 1 <= count <= 100_000:
-        raise InputError(f"--count: expected a whole number from 1 to 100000, found {count}")
+    arguments.whole_number(count, "--count", 1, campaign.MAX_CASES)
+    arguments.seed(seed, "--seed")
     arguments.samples(samples, "--samples")
     workers = arguments.processes(workers, "--workers")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: expected a directory for the campaign, found a file")
     chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
     campaign.generate(seed, 0, chosen)  # checks the kinds
     modes = campaign.campaign_modes() if engines is None else select_modes(engines)
+    arguments.writable_directory(out, "--out", "the campaign")
     progress = _progress_bar(False, label="fuzz", stdout_terminal=False)  # a long campaign: shown even when piped
     with progress:
         task = progress.add_task("", total=None)
@@ -1092,7 +1097,7 @@ def fuzz_command(
     command = f"xcheck fuzz --count {count} --seed {seed} --kinds {','.join(chosen)}" + (
         f" --engines {engines}" if engines else ""
     )
-    write_atomic(out / "failures.md", campaign.failure_report(rows, command))
+    campaign.write_failure_report(out, rows, command)
     table = Table(title=f"xcheck fuzz: {rows.case.nunique()} cases (seed {seed})")
     for column in ("mode", "cases", "passed", "failed", "error", "not applicable"):
         table.add_column(column, justify="left" if column == "mode" else "right")
