@@ -230,3 +230,17 @@ def test_limits_are_documented():
     docs = (Path(__file__).resolve().parents[1] / "docs" / "mechanism-format.md").read_text(encoding="utf-8")
     for limit in (MAX_BODIES, MAX_FILE_BYTES, MAX_SAMPLES, MAX_AT_STATES):
         assert str(limit) in docs, limit
+
+
+def test_too_many_outputs_are_counted_whole(tmp_path):
+    """1 000 001 outputs were refused as "found 1e+06", below the limit they exceed."""
+    from xcheck.model._free_motion import MAX_OUTPUTS
+
+    text = (MODELS / "benchmarks" / "iftomm-a01.toml").read_text(encoding="utf-8")
+    text = text.replace("duration = 10\noutput_step = 0.01", "duration = 1.000001\noutput_step = 1e-6")
+    err = library_error(write(tmp_path, text))
+    assert (err.field, err.expected, err.found) == (
+        "free_motion.output_step",
+        f"at most {MAX_OUTPUTS} outputs over the duration",
+        "1000001 (1.000001 s / 1e-06 s)",
+    )

@@ -204,7 +204,7 @@ def read_free_motion(
         reader.fail(
             "free_motion.output_step",
             f"at most {MAX_OUTPUTS} outputs over the duration",
-            f"{duration / output_step:.6g}",
+            f"{round(duration / output_step)} ({duration:.12g} s / {output_step:.12g} s)",
         )
     by_name = {d.name: d for d in drivers}
     at = dict(assembly_at)
