@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import null_space, solve_triangular
 
+from ..joints import _equations as eq
+from ..joints._terms import Coincidence, Poses
 from ..kinematics import Kinematics, Solution, Status, rotate
 
 __all__ = [
@@ -245,12 +247,9 @@ class _Joints:
     Rows: the coincidences (2 each), then the other terms."""
 
     def __init__(self, system):
-        from ..kinematics._system import _Coincidence, _Poses
-
-        self._poses = _Poses
         terms = system.terms[: len(system.terms) - system.n_drivers]
-        coincidences = [t for t in terms if isinstance(t, _Coincidence)]
-        self.others = [t for t in terms if not isinstance(t, _Coincidence)]
+        coincidences = [t for t in terms if isinstance(t, Coincidence)]
+        self.others = [t for t in terms if not isinstance(t, Coincidence)]
         self.n, ground = system.n, system.n // 3  # the ground is a padded body of zero coordinates
         self.a = np.array([ground if t.a < 0 else t.a for t in coincidences], dtype=int)
         self.b = np.array([ground if t.b < 0 else t.b for t in coincidences], dtype=int)
@@ -275,10 +274,8 @@ class _Joints:
         c, sn = np.cos(padded[2::3]), np.sin(padded[2::3])
         turned = [padded]
         for index, s in ((self.a, self.s_a), (self.b, self.s_b)):
-            ci, si = c[index], sn[index]
             arm = np.empty((len(index), 2))
-            arm[:, 0] = ci * s[:, 0] - si * s[:, 1]
-            arm[:, 1] = si * s[:, 0] + ci * s[:, 1]
+            arm[:, 0], arm[:, 1] = eq.turn(c[index], sn[index], s[:, 0], s[:, 1])
             turned.append(arm)
         self._last_key, self._last = key, (turned[0], turned[1], turned[2])
         return self._last
@@ -286,23 +283,25 @@ class _Joints:
     def residual(self, q: np.ndarray) -> np.ndarray:
         padded, ra, rb = self._turned(q)
         r = padded.reshape(-1, 3)[:, :2]
-        values = [(r[self.a] + ra - r[self.b] - rb).ravel()]
+        ends = (*r[self.a].T, *ra.T, *r[self.b].T, *rb.T)
+        values = [np.stack(eq.coincidence_residual(*ends), axis=1).ravel()]
         if self.others:
-            poses, zero = self._poses(q[None]), np.zeros((1, 0))
+            poses, zero = Poses(q[None]), np.zeros((1, 0))
             values += [t.residual(poses, zero)[0] for t in self.others]
         return np.concatenate(values)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         _, ra, rb = self._turned(q)
         out = np.zeros((self.rows, self.n + 3))
-        for index, arm, sign in ((self.a, ra, 1.0), (self.b, rb, -1.0)):
+        a0, a1, b0, b1 = eq.coincidence_jacobian(ra[:, 0], ra[:, 1], rb[:, 0], rb[:, 1])
+        for index, sign, angle in ((self.a, 1.0, (a0, a1)), (self.b, -1.0, (b0, b1))):
             out[self.x_rows, 3 * index] = sign
             out[self.y_rows, 3 * index + 1] = sign
-            out[self.x_rows, 3 * index + 2] = -sign * arm[:, 1]
-            out[self.y_rows, 3 * index + 2] = sign * arm[:, 0]
+            out[self.x_rows, 3 * index + 2] = angle[0]
+            out[self.y_rows, 3 * index + 2] = angle[1]
         out = out[:, : self.n]
         if self.others:
-            poses, start = self._poses(q[None]), 2 * len(self.a)
+            poses, start = Poses(q[None]), 2 * len(self.a)
             for t in self.others:
                 block = np.zeros((1, t.rows, self.n))
                 t.jacobian(poses, block)
@@ -313,9 +312,10 @@ class _Joints:
     def gamma(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         _, ra, rb = self._turned(q)
         w = np.concatenate([qd, np.zeros(3)])[2::3]
-        values = [(ra * (w[self.a] ** 2)[:, None] - rb * (w[self.b] ** 2)[:, None]).ravel()]
+        gamma = eq.coincidence_gamma(ra[:, 0], ra[:, 1], w[self.a], rb[:, 0], rb[:, 1], w[self.b])
+        values = [np.stack(gamma, axis=1).ravel()]
         if self.others:
-            poses, zero = self._poses(q[None], qd[None]), np.zeros((1, 0))
+            poses, zero = Poses(q[None], qd[None]), np.zeros((1, 0))
             values += [t.gamma(poses, zero)[0] for t in self.others]
         return np.concatenate(values)
 
@@ -400,8 +400,9 @@ class _Dynamics:
         self.mass_factor = 1.0 / (d[:, None] * d[None, :] * self.mass_scale)
         self.load_factor = 1.0 / (d * self.mass_scale)
         positive = bool(np.all(self.bodies.mass > 0.0) and np.all(self.bodies.inertia > 0.0))
-        pairs = [(a, b) for a, b in zip(self.joints.a, self.joints.b)] + [(t.a, t.b) for t in self.joints.others]
-        distinct = all(a != b for a, b in pairs)  # a row on two slots of one body would count it twice
+        rows = [(a, b) for a, b in zip(self.joints.a, self.joints.b)] + [t.bodies for t in self.joints.others]
+        moving = [[k for k in row if k >= 0] for row in rows]
+        distinct = all(len(set(k)) == len(k) for k in moving)  # a row on two slots of one body would count it twice
         self.banded = positive and distinct and self.joints.rows >= BANDED_FROM
         self.start = start_vector(self.joints.rows)
 

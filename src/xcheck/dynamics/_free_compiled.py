@@ -10,8 +10,9 @@ compiled code (a plain-Python step costs about 1.3 ms on the double
 four-bar, most of it interpreter overhead around 3 x 3 and 15 x 15 algebra).
 
 Constraint terms (rows in this order): point coincidences (2 rows each,
-metres), then in the system's order points on lines (1 row, metres) and
-relative angles (1 row, radians). Body index -1 is the ground.
+metres), then in the system's order the other terms (projections, 1 row,
+metres; angle rows, 1 row, radians or metres), their equations those of
+:mod:`xcheck.joints._equations`. Body index -1 is the ground.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..joints import _equations as eq
+from ..joints._terms import ANGLES, GEOMETRY
 from ._free import (
     BANDED_LEAST_SQUARES_BELOW,
     EIGEN_ITERATIONS,
@@ -32,10 +35,21 @@ from ._free import (
     SINGULAR_THRESHOLD,
 )
 
-__all__ = ["Packed", "integrate", "KIND_LINE", "KIND_ANGLE"]
+__all__ = ["Packed", "integrate"]
 
-KIND_LINE = 1
-KIND_ANGLE = 2
+#: bodies a constraint row may involve (a gear pair's two gears and their carrier)
+SLOTS = 3
+
+_inline = njit(cache=True, inline="always")
+_turn = _inline(eq.turn)
+_coincidence_residual = _inline(eq.coincidence_residual)
+_coincidence_jacobian = _inline(eq.coincidence_jacobian)
+_coincidence_gamma = _inline(eq.coincidence_gamma)
+_projection_offset = _inline(eq.projection_offset)
+_projection_residual = _inline(eq.projection_residual)
+_projection_jacobian = _inline(eq.projection_jacobian)
+_projection_gamma = _inline(eq.projection_gamma)
+_angles_residual = _inline(eq.angles_residual)
 
 
 class Packed:
@@ -51,15 +65,11 @@ class Packed:
         self.c_a = np.where(joints.a == ground, -1, joints.a).astype(np.int64)
         self.c_b = np.where(joints.b == ground, -1, joints.b).astype(np.int64)
         self.c_sa, self.c_sb = np.ascontiguousarray(joints.s_a), np.ascontiguousarray(joints.s_b)
-        others = joints.others
-        self.o_kind = np.array([KIND_ANGLE if t.is_angle else KIND_LINE for t in others], dtype=np.int64)
-        self.o_a = np.array([t.a for t in others], dtype=np.int64)
-        self.o_b = np.array([t.b for t in others], dtype=np.int64)
-        zero = np.zeros(2)
-        self.o_sq = np.array([getattr(t, "s_q", zero) for t in others], dtype=float).reshape(-1, 2)
-        self.o_w = np.array([getattr(t, "w", zero) for t in others], dtype=float).reshape(-1, 2)
-        self.o_sp = np.array([getattr(t, "s_p", zero) for t in others], dtype=float).reshape(-1, 2)
-        self.o_offset = np.array([getattr(t, "offset", 0.0) for t in others], dtype=float)
+        packed = [t.packed() for t in joints.others]  # projections and angle rows, in the system's order
+        self.o_kind = np.array([kind for kind, *_ in packed], dtype=np.int64)
+        self.o_bodies = np.array([bodies for _, bodies, *_ in packed], dtype=np.int64).reshape(-1, 3)
+        self.o_geometry = np.array([geometry for *_, geometry, _ in packed], dtype=float).reshape(-1, GEOMETRY)
+        self.o_offset = np.array([offset for *_, offset in packed], dtype=float)
         self.gravity = np.asarray(dyn.gravity, dtype=float)
         self.l_body = np.array([k // 3 for k, *_ in dyn.loads], dtype=np.int64)
         self.l_point = np.array([p for _, p, *_ in dyn.loads], dtype=float).reshape(-1, 2)
@@ -87,19 +97,20 @@ class Packed:
 
     def _band(self, dyn) -> None:
         """The structure of J M^-1 J^T for :func:`_constrained_banded` (used where
-        ``dyn.banded``): each row's bodies (m, 2; -1 the ground), per body the rows on it
+        ``dyn.banded``): each row's bodies (m, SLOTS; -1 the ground or none), per body the rows on it
         (CSR: ``body_ptr`` (B + 1,), ``body_row`` and ``body_slot``, which of the row's
         two bodies it is), the rows' positions in a reverse Cuthill-McKee order (m,)
         and the half-bandwidth there, and the iterations' start in that order (m,)."""
         from scipy.sparse import csr_matrix
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        pairs = [(a, b) for a, b in zip(self.c_a, self.c_b) for _ in range(2)]
-        pairs += list(zip(self.o_a, self.o_b))
-        rows, bodies = len(pairs), len(self.mass)
-        self.row_body = np.array(pairs, dtype=np.int64).reshape(rows, 2)
+        slots = [(a, b, -1) for a, b in zip(self.c_a, self.c_b) for _ in range(2)]
+        slots += [tuple(row) for row in self.o_bodies]
+        rows, bodies = len(slots), len(self.mass)
+        self.row_body = np.array(slots, dtype=np.int64).reshape(rows, SLOTS)
         on = [
-            [(r, slot) for r in range(rows) for slot in range(2) if self.row_body[r, slot] == k] for k in range(bodies)
+            [(r, slot) for r in range(rows) for slot in range(SLOTS) if self.row_body[r, slot] == k]
+            for k in range(bodies)
         ]
         self.body_ptr = np.cumsum([0] + [len(e) for e in on]).astype(np.int64)
         self.body_row = np.array([r for e in on for r, _ in e], dtype=np.int64)
@@ -116,7 +127,7 @@ class Packed:
         self.start = np.empty(rows)
         self.start[self.position] = dyn.start
         # each row's columns, ascending: the three coordinates of each of its bodies
-        self.row_columns = np.full((rows, 6), -1, dtype=np.int64)
+        self.row_columns = np.full((rows, 3 * SLOTS), -1, dtype=np.int64)
         self.row_width = np.zeros(rows, dtype=np.int64)
         for r in range(rows):
             columns = sorted({3 * k + i for k in self.row_body[r] if k >= 0 for i in range(3)})
@@ -125,7 +136,7 @@ class Packed:
 
     def structure(self) -> tuple:
         """The band structure in :func:`integrate`'s ``structure`` order, then each
-        row's columns (m, 6; -1 past ``row_width``) for :func:`_constrained`."""
+        row's columns (m, 3 SLOTS; -1 past ``row_width``) for :func:`_constrained`."""
         return (
             self.row_body,
             self.body_ptr,
@@ -149,11 +160,8 @@ class Packed:
             self.c_b,
             self.c_sb,
             self.o_kind,
-            self.o_a,
-            self.o_sq,
-            self.o_w,
-            self.o_b,
-            self.o_sp,
+            self.o_bodies,
+            self.o_geometry,
             self.o_offset,
             self.gravity,
             self.l_body,
@@ -187,6 +195,12 @@ def _frame(q, body):
 
 
 @njit(cache=True)
+def _angle(q, body):
+    """phi of a body (the ground: 0)."""
+    return q[3 * body + 2] if body >= 0 else 0.0
+
+
+@njit(cache=True)
 def _rate(qd, body):
     """(xd, yd, omega) of a body (the ground: zeros)."""
     if body < 0:
@@ -195,106 +209,105 @@ def _rate(qd, body):
 
 
 @njit(cache=True)
-def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, out):
+def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, out):
     row = 0
     for t in range(len(c_a)):
         xa, ya, ca, sa = _frame(q, c_a[t])
         xb, yb, cb, sb = _frame(q, c_b[t])
-        out[row] = xa + (ca * c_sa[t, 0] - sa * c_sa[t, 1]) - xb - (cb * c_sb[t, 0] - sb * c_sb[t, 1])
-        out[row + 1] = ya + (sa * c_sa[t, 0] + ca * c_sa[t, 1]) - yb - (sb * c_sb[t, 0] + cb * c_sb[t, 1])
+        ax, ay = _turn(ca, sa, c_sa[t, 0], c_sa[t, 1])
+        bx, by = _turn(cb, sb, c_sb[t, 0], c_sb[t, 1])
+        out[row], out[row + 1] = _coincidence_residual(xa, ya, ax, ay, xb, yb, bx, by)
         row += 2
+    g = o_geometry
     for t in range(len(o_kind)):
-        a, b = o_a[t], o_b[t]
-        if o_kind[t] == KIND_ANGLE:
-            phi_a = q[3 * a + 2] if a >= 0 else 0.0
-            phi_b = q[3 * b + 2] if b >= 0 else 0.0
-            out[row] = phi_b - phi_a - o_offset[t]
+        a, b, c = o_bodies[t, 0], o_bodies[t, 1], o_bodies[t, 2]
+        if o_kind[t] == ANGLES:
+            pa, pb, pc = _angle(q, a), _angle(q, b), _angle(q, c)
+            out[row] = _angles_residual(pa, pb, pc, g[t, 6], g[t, 7], g[t, 8], o_offset[t])
         else:
             xa, ya, ca, sa = _frame(q, a)
             xb, yb, cb, sb = _frame(q, b)
-            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
-            dx = xb + (cb * o_sp[t, 0] - sb * o_sp[t, 1]) - xa - (ca * o_sq[t, 0] - sa * o_sq[t, 1])
-            dy = yb + (sb * o_sp[t, 0] + cb * o_sp[t, 1]) - ya - (sa * o_sq[t, 0] + ca * o_sq[t, 1])
-            out[row] = wx * dx + wy * dy
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            out[row] = _projection_residual(wx, wy, dx, dy)
         row += 1
 
 
 @njit(cache=True)
-def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
+def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
     """Phi_q into ``out`` (m, n): only its structural entries, the same at every
     call, are written; the rest of ``out`` must be zero (:func:`integrate`'s buffer
     is; zeroing it per call cost more than the banded solve on 81 bars)."""
     row = 0
     for t in range(len(c_a)):
-        for body, s0, s1, sign in ((c_a[t], c_sa[t, 0], c_sa[t, 1], 1.0), (c_b[t], c_sb[t, 0], c_sb[t, 1], -1.0)):
-            if body < 0:
-                continue
-            _, _, c, s = _frame(q, body)
-            k = 3 * body
-            out[row, k] = sign
-            out[row + 1, k + 1] = sign
-            out[row, k + 2] = -sign * (s * s0 + c * s1)
-            out[row + 1, k + 2] = sign * (c * s0 - s * s1)
+        a, b = c_a[t], c_b[t]
+        _, _, ca, sa = _frame(q, a)
+        _, _, cb, sb = _frame(q, b)
+        ax, ay = _turn(ca, sa, c_sa[t, 0], c_sa[t, 1])
+        bx, by = _turn(cb, sb, c_sb[t, 0], c_sb[t, 1])
+        a0, a1, b0, b1 = _coincidence_jacobian(ax, ay, bx, by)
+        if a >= 0:
+            k = 3 * a
+            out[row, k], out[row + 1, k + 1] = 1.0, 1.0
+            out[row, k + 2], out[row + 1, k + 2] = a0, a1
+        if b >= 0:
+            k = 3 * b
+            out[row, k], out[row + 1, k + 1] = -1.0, -1.0
+            out[row, k + 2], out[row + 1, k + 2] = b0, b1
         row += 2
+    g = o_geometry
     for t in range(len(o_kind)):
-        a, b = o_a[t], o_b[t]
-        if o_kind[t] == KIND_ANGLE:
-            if b >= 0:
-                out[row, 3 * b + 2] = 1.0
-            if a >= 0:
-                out[row, 3 * a + 2] = -1.0
+        a, b = o_bodies[t, 0], o_bodies[t, 1]
+        if o_kind[t] == ANGLES:
+            for slot in range(SLOTS):
+                body = o_bodies[t, slot]
+                if body >= 0 and g[t, 6 + slot] != 0.0:
+                    out[row, 3 * body + 2] = g[t, 6 + slot]
         else:
             xa, ya, ca, sa = _frame(q, a)
             xb, yb, cb, sb = _frame(q, b)
-            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
-            qx, qy = ca * o_sq[t, 0] - sa * o_sq[t, 1], sa * o_sq[t, 0] + ca * o_sq[t, 1]
-            px, py = cb * o_sp[t, 0] - sb * o_sp[t, 1], sb * o_sp[t, 0] + cb * o_sp[t, 1]
-            dx, dy = xb + px - xa - qx, yb + py - ya - qy
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            phi_b, phi_a = _projection_jacobian(wx, wy, qx, qy, px, py, dx, dy)
             if b >= 0:
                 k = 3 * b
-                out[row, k], out[row, k + 1] = wx, wy
-                out[row, k + 2] = wx * -py + wy * px
+                out[row, k], out[row, k + 1], out[row, k + 2] = wx, wy, phi_b
             if a >= 0:
                 k = 3 * a
-                out[row, k], out[row, k + 1] = -wx, -wy
-                out[row, k + 2] = (-wy * dx + wx * dy) - (wx * -qy + wy * qx)
+                out[row, k], out[row, k + 1], out[row, k + 2] = -wx, -wy, phi_a
         row += 1
 
 
 @njit(cache=True)
-def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, out):
+def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
     row = 0
     for t in range(len(c_a)):
         _, _, ca, sa = _frame(q, c_a[t])
         _, _, cb, sb = _frame(q, c_b[t])
         wa, wb = _rate(qd, c_a[t])[2], _rate(qd, c_b[t])[2]
-        ax, ay = ca * c_sa[t, 0] - sa * c_sa[t, 1], sa * c_sa[t, 0] + ca * c_sa[t, 1]
-        bx, by = cb * c_sb[t, 0] - sb * c_sb[t, 1], sb * c_sb[t, 0] + cb * c_sb[t, 1]
-        out[row] = ax * wa**2 - bx * wb**2
-        out[row + 1] = ay * wa**2 - by * wb**2
+        ax, ay = _turn(ca, sa, c_sa[t, 0], c_sa[t, 1])
+        bx, by = _turn(cb, sb, c_sb[t, 0], c_sb[t, 1])
+        out[row], out[row + 1] = _coincidence_gamma(ax, ay, wa, bx, by, wb)
         row += 2
+    g = o_geometry
     for t in range(len(o_kind)):
-        if o_kind[t] == KIND_ANGLE:
+        if o_kind[t] == ANGLES:
             out[row] = 0.0
         else:
-            a, b = o_a[t], o_b[t]
+            a, b = o_bodies[t, 0], o_bodies[t, 1]
             xa, ya, ca, sa = _frame(q, a)
             xb, yb, cb, sb = _frame(q, b)
             xda, yda, wa = _rate(qd, a)
             xdb, ydb, wb = _rate(qd, b)
-            wx, wy = ca * o_w[t, 0] - sa * o_w[t, 1], sa * o_w[t, 0] + ca * o_w[t, 1]
-            qx, qy = ca * o_sq[t, 0] - sa * o_sq[t, 1], sa * o_sq[t, 0] + ca * o_sq[t, 1]
-            px, py = cb * o_sp[t, 0] - sb * o_sp[t, 1], sb * o_sp[t, 0] + cb * o_sp[t, 1]
-            dx, dy = xb + px - xa - qx, yb + py - ya - qy
-            ddx = xdb + wb * -py - xda - wa * -qy
-            ddy = ydb + wb * px - yda - wa * qx
-            quadratic = (
-                -(wa**2) * (wx * dx + wy * dy)
-                + 2.0 * wa * (-wy * ddx + wx * ddy)
-                - wb**2 * (wx * px + wy * py)
-                + wa**2 * (wx * qx + wy * qy)
-            )
-            out[row] = -quadratic
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            out[row] = _projection_gamma(wx, wy, qx, qy, px, py, dx, dy, xda, yda, wa, xdb, ydb, wb)
         row += 1
 
 
@@ -508,11 +521,11 @@ def _constrained(
     :data:`LEAST_SQUARES_BELOW` (above it, it drops nothing and equals the plain solve).
 
     J enters only through each row's columns (``row_columns``, ascending: at most
-    six, where a dense loop visits all n), added in the order the dense sums
+    nine, where a dense loop visits all n), added in the order the dense sums
     take, so the results are those of the dense loops but for the sign of an
     exact zero."""
     m, n = jac.shape
-    sj = np.empty((m, 6))  # the scaled J on each row's columns
+    sj = np.empty((m, 3 * SLOTS))  # the scaled J on each row's columns
     for r in range(m):
         for e in range(row_width[r]):
             j = row_columns[r, e]
@@ -649,7 +662,7 @@ def _constrained_banded(
     mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
 ):
     """As ``_Dynamics._constrained_banded``: (x, singularity measure or NaN). M^-1 by
-    3 x 3 blocks, J by its (at most two) bodies per row, J M^-1 J^T assembled body
+    3 x 3 blocks, J by its (at most three) bodies per row, J M^-1 J^T assembled body
     by body in the rows' banded order and factored as banded; the least-squares
     solve (dense SVD) only where that factor does not exist or below
     :data:`BANDED_LEAST_SQUARES_BELOW`."""
@@ -682,12 +695,12 @@ def _constrained_banded(
             for j in range(3):
                 total += inverse[k, i, j] * load[o + j] / (d[o + j] * mass_scale)
             free[o + i] = total
-    rows = np.zeros((m, 2, 3))  # scaled J on each row's two bodies
-    solved = np.zeros((m, 2, 3))  # M^-1 applied to them
+    rows = np.zeros((m, SLOTS, 3))  # scaled J on each row's bodies
+    solved = np.zeros((m, SLOTS, 3))  # M^-1 applied to them
     rhs = np.empty(m)
     for r in range(m):
         total = scale_rows[r] * gap[r]
-        for slot in range(2):
+        for slot in range(SLOTS):
             k = row_body[r, slot]
             if k < 0:
                 continue
@@ -762,13 +775,13 @@ def _times(matrix, vector):
 
 @njit(cache=True)
 def _rows_times(jac, vector, structure):
-    """jac @ vector, (m, n) by (n,); on the banded path through each row's (at most two) bodies."""
+    """jac @ vector, (m, n) by (n,); on the banded path through each row's (at most three) bodies."""
     if structure[5][0] == 0:
         return _times(jac, vector)
     row_body = structure[0]
     out = np.zeros(jac.shape[0])
     for r in range(jac.shape[0]):
-        for slot in range(2):
+        for slot in range(SLOTS):
             k = row_body[r, slot]
             if k >= 0:
                 for i in range(3 * k, 3 * k + 3):
@@ -779,17 +792,17 @@ def _rows_times(jac, vector, structure):
 @njit(cache=True)
 def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
-    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, gravity,
+    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, gravity,
      l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, scale_rows, d, mass_scale, _,
      r_body, r_law, l_law) = model  # fmt: skip
     m_buf, j_buf, _, g_buf, f_buf = buffers
     _mass(q, mass, inertia, com, m_buf)
-    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
+    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, j_buf)
     _forces(
         q, qd, t, mass, com, gravity, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law,
         f_buf,
     )  # fmt: skip
-    _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, g_buf)
+    _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, g_buf)
     return _solve(
         m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale, structure, work
     )[0]
@@ -798,10 +811,10 @@ def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
 @njit(cache=True)
 def _residual_metres(model, buffers, q):
     """The largest loop-closure violation, m (angles times the size)."""
-    (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
+    (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, _,
      _, _, _, _, _, _, _, row_is_angle, _, _, _, size, _, _, _) = model  # fmt: skip
     r_buf = buffers[2]
-    _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
+    _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, r_buf)
     largest = 0.0
     for i in range(len(r_buf)):
         largest = max(largest, abs(r_buf[i]) * (size if row_is_angle[i] else 1.0))
@@ -811,7 +824,7 @@ def _residual_metres(model, buffers, q):
 @njit(cache=True)
 def _project(model, structure, work, buffers, q, qd):
     """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
-    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, _,
+    (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, _,
      _, _, _, _, _, _, _, _, scale_rows, d, mass_scale, size, _, _, _) = model  # fmt: skip
     m_buf, j_buf, r_buf, _, _ = buffers
     zero = np.zeros(len(q))
@@ -821,15 +834,15 @@ def _project(model, structure, work, buffers, q, qd):
         if gap <= tolerance:
             break
         _mass(q, mass, inertia, com, m_buf)
-        _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
-        _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, o_offset, r_buf)
+        _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, j_buf)
+        _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, r_buf)
         step = _solve(
             m_buf, j_buf, zero, -r_buf, True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
         )[0]
         q = q + step
         gap = _residual_metres(model, buffers, q)
     _mass(q, mass, inertia, com, m_buf)
-    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_a, o_sq, o_w, o_b, o_sp, j_buf)
+    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, j_buf)
     correction, singular = _solve(
         m_buf,
         j_buf,
@@ -850,7 +863,7 @@ def _project(model, structure, work, buffers, q, qd):
 @njit(cache=True)
 def _energy_of(model, q, qd):
     """T + V, J."""
-    (mass, inertia, com, _, _, _, _, _, _, _, _, _, _, _, gravity,
+    (mass, inertia, com, _, _, _, _, _, _, _, _, gravity,
      _, _, _, _, s_body, s_point, s_law, _, _, _, _, _, r_body, r_law, _) = model  # fmt: skip
     return _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law)
 
@@ -858,7 +871,7 @@ def _energy_of(model, q, qd):
 @njit(cache=True)
 def _power_of(model, q, qd, t):
     """Power of the loads at t (s) and of the dampers, W."""
-    (_, _, _, _, _, _, _, _, _, _, _, _, _, _, _,
+    (_, _, _, _, _, _, _, _, _, _, _, _,
      l_body, l_point, l_force, l_torque, s_body, s_point, s_law,
      _, _, _, _, _, r_body, r_law, l_law) = model  # fmt: skip
     return _power(q, qd, t, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law)
@@ -886,7 +899,7 @@ def integrate(model, structure, q0, qd0, h, per_output, outputs, output_step):
     passes : (P,) times of singular passes, s; failed : the output index at
     which the state went non-finite, or -1.
     """
-    n, rows = len(q0), len(model[23])
+    n, rows = len(q0), len(model[20])
     buffers = (np.zeros((n, n)), np.zeros((rows, n)), np.empty(rows), np.empty(rows), np.empty(n))
     q_out, qd_out, qdd_out = np.empty((outputs + 1, n)), np.empty((outputs + 1, n)), np.empty((outputs + 1, n))
     residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)

@@ -17,9 +17,9 @@ still improves, so every sample takes the reference's iterations (up to a
 step more or less where its residual sits at the round-off floor, since the
 two LU factorisations round differently).
 
-Constraint terms (rows in the system's order): point coincidences (2 rows,
-metres), projections (1 row, metres), relative angles (1 row, radians); body
-index -1 is the ground.
+Constraint terms (rows in the system's order) are the system's terms as flat
+arrays (:meth:`Packed.terms`), their equations those of :mod:`xcheck.joints._equations`,
+compiled and inlined here; body index -1 is the ground.
 """
 
 from __future__ import annotations
@@ -29,13 +29,22 @@ import math
 import numpy as np
 from numba import njit
 
+from ..joints import _equations as eq
+from ..joints._terms import COINCIDENCE, GEOMETRY, PROJECTION
 from ._banded import band_lu, band_norm1, band_solve, inverse_norm1_estimate
 
 __all__ = ["Packed", "predict_atlas", "newton_rounds", "check_and_finish", "finish"]
 
-KIND_COINCIDENCE = 0
-KIND_PROJECTION = 1
-KIND_ANGLE = 2
+_inline = njit(cache=True, inline="always")
+_turn = _inline(eq.turn)
+_coincidence_residual = _inline(eq.coincidence_residual)
+_coincidence_jacobian = _inline(eq.coincidence_jacobian)
+_coincidence_gamma = _inline(eq.coincidence_gamma)
+_projection_offset = _inline(eq.projection_offset)
+_projection_residual = _inline(eq.projection_residual)
+_projection_jacobian = _inline(eq.projection_jacobian)
+_projection_gamma = _inline(eq.projection_gamma)
+_angles_residual = _inline(eq.angles_residual)
 
 #: from this many coordinates, Phi_q is factorised as a band matrix
 #: (:meth:`Packed._layout`, :mod:`._banded`), and the singularity measure is
@@ -53,31 +62,17 @@ class Packed:
     """A :class:`ConstraintSystem`'s terms as flat arrays (SI units)."""
 
     def __init__(self, system) -> None:
-        from ._system import _Coincidence, _Projection
-
         m = len(system.terms)
         self.kind = np.empty(m, dtype=np.int64)
-        self.a = np.empty(m, dtype=np.int64)
-        self.b = np.empty(m, dtype=np.int64)
-        self.s1 = np.zeros((m, 2))
-        self.s2 = np.zeros((m, 2))
-        self.w = np.zeros((m, 2))
+        self.bodies = np.full((m, 3), -1, dtype=np.int64)
+        self.geometry = np.zeros((m, GEOMETRY))
         self.offset = np.zeros(m)
         self.driver = np.full(m, -1, dtype=np.int64)
         self.row = np.asarray(system._offsets[:m], dtype=np.int64)
         for t, term in enumerate(system.terms):
-            self.a[t], self.b[t] = term.a, term.b
+            self.kind[t], self.bodies[t], self.geometry[t], self.offset[t] = term.packed()
             if term.driver is not None:
                 self.driver[t] = term.driver
-            if isinstance(term, _Coincidence):
-                self.kind[t] = KIND_COINCIDENCE
-                self.s1[t], self.s2[t] = term.s_a, term.s_b
-            elif isinstance(term, _Projection):
-                self.kind[t] = KIND_PROJECTION
-                self.s1[t], self.s2[t], self.w[t] = term.s_q, term.s_p, term.w
-            else:
-                self.kind[t] = KIND_ANGLE
-                self.offset[t] = term.offset
         self.n = system.n
         self.size = float(system.size)
         #: residual_metres' factor per row: size for angle rows, 1 otherwise
@@ -91,7 +86,7 @@ class Packed:
 
     def terms(self) -> tuple:
         """The term arrays in the kernels' argument order."""
-        return (self.kind, self.a, self.b, self.s1, self.s2, self.w, self.offset, self.driver, self.row)
+        return (self.kind, self.bodies, self.geometry, self.offset, self.driver, self.row)
 
     def structure(self) -> tuple:
         """Where the kernels keep Phi_q: ``layout`` (4, n), None where dense, and ``band`` (3,);
@@ -118,16 +113,16 @@ class Packed:
         from scipy.sparse import csgraph, csr_matrix
 
         bodies = n // 3
-        pairs = [(a, b) for a, b in zip(self.a, self.b) if a >= 0 and b >= 0]
-        first = np.array([a for a, b in pairs] + [b for a, b in pairs] + list(range(bodies)), dtype=np.int64)
-        second = np.array([b for a, b in pairs] + [a for a, b in pairs] + list(range(bodies)), dtype=np.int64)
+        pairs = [(a, b) for row in self.bodies for a in row for b in row if a >= 0 and b >= 0 and a != b]
+        first = np.array([a for a, b in pairs] + list(range(bodies)), dtype=np.int64)
+        second = np.array([b for a, b in pairs] + list(range(bodies)), dtype=np.int64)
         graph = csr_matrix((np.ones(len(first)), (first, second)), shape=(bodies, bodies))
         body_pos = np.empty(bodies, dtype=np.int64)
         body_pos[csgraph.reverse_cuthill_mckee(graph, symmetric_mode=True)] = np.arange(bodies)
         col_pos = (3 * body_pos[:, None] + np.arange(3)).ravel()
 
         def placed(t: int) -> tuple[int, int]:
-            at = sorted(body_pos[body] for body in (self.a[t], self.b[t]) if body >= 0)
+            at = sorted(body_pos[body] for body in self.bodies[t] if body >= 0)
             return at[0], at[-1]
 
         counts = np.diff(np.append(self.row, rows))
@@ -140,7 +135,7 @@ class Packed:
         offsets = [
             col_pos[3 * body + c] - row_pos[self.row[t] + j]
             for t in range(len(self.kind))
-            for body in (self.a[t], self.b[t])
+            for body in self.bodies[t]
             if body >= 0
             for j in range(counts[t])
             for c in range(3)
@@ -194,37 +189,31 @@ def _pose(q, pose):
         pose[body, 4] = math.sin(phi)
 
 
-@njit(cache=True, inline="always")
-def _turn(c, s, v0, v1):
-    """A(phi) v from cos phi, sin phi (the ground's 1, 0 give v itself)."""
-    return c * v0 - s * v1, s * v0 + c * v1
-
-
 @njit(cache=True)
-def _residual(pose, inputs, kind, ta, tb, s1, s2, w, offset, driver, row, out):
+def _residual(pose, inputs, kind, bodies, geometry, offset, driver, row, out):
     """Phi(q, c) of one sample into out (rows,)."""
+    g = geometry
     for t in range(len(kind)):
-        a, b, r = ta[t], tb[t], row[t]
+        a, b, r = bodies[t, 0], bodies[t, 1], row[t]
         xa, ya, pa, ca, sa = pose[a, 0], pose[a, 1], pose[a, 2], pose[a, 3], pose[a, 4]
         xb, yb, pb, cb, sb = pose[b, 0], pose[b, 1], pose[b, 2], pose[b, 3], pose[b, 4]
-        if kind[t] == KIND_COINCIDENCE:
-            ax, ay = _turn(ca, sa, s1[t, 0], s1[t, 1])
-            bx, by = _turn(cb, sb, s2[t, 0], s2[t, 1])
-            out[r] = xa + ax - xb - bx
-            out[r + 1] = ya + ay - yb - by
-        elif kind[t] == KIND_PROJECTION:
-            wx, wy = _turn(ca, sa, w[t, 0], w[t, 1])
-            qx, qy = _turn(ca, sa, s1[t, 0], s1[t, 1])
-            px, py = _turn(cb, sb, s2[t, 0], s2[t, 1])
-            value = wx * (xb + px - xa - qx) + wy * (yb + py - ya - qy)
-            if driver[t] >= 0:
-                value = value - inputs[driver[t]]
-            out[r] = value
+        if kind[t] == COINCIDENCE:
+            ax, ay = _turn(ca, sa, g[t, 0], g[t, 1])
+            bx, by = _turn(cb, sb, g[t, 2], g[t, 3])
+            out[r], out[r + 1] = _coincidence_residual(xa, ya, ax, ay, xb, yb, bx, by)
+            continue
+        if kind[t] == PROJECTION:
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            value = _projection_residual(wx, wy, dx, dy)
         else:
-            value = pb - pa - offset[t]
-            if driver[t] >= 0:
-                value = value - inputs[driver[t]]
-            out[r] = value
+            pc = pose[bodies[t, 2], 2]
+            value = _angles_residual(pa, pb, pc, g[t, 6], g[t, 7], g[t, 8], offset[t])
+        if driver[t] >= 0:
+            value = value - inputs[driver[t]]
+        out[r] = value
 
 
 @njit(cache=True)
@@ -240,92 +229,84 @@ def _set(out, layout, kl, r, k, value):
 
 
 @njit(cache=True)
-def _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out):
+def _jacobian(pose, kind, bodies, geometry, row, layout, band, out):
     """Phi_q of one sample into out: (rows, n) where ``layout`` is None, else
     banded (n, 2 kl + ku + 1) as :meth:`Packed._layout` says."""
     out.fill(0.0)
     kl = band[0]
+    g = geometry
     for t in range(len(kind)):
-        a, b, r = ta[t], tb[t], row[t]
+        a, b, r = bodies[t, 0], bodies[t, 1], row[t]
         xa, ya, ca, sa = pose[a, 0], pose[a, 1], pose[a, 3], pose[a, 4]
         xb, yb, cb, sb = pose[b, 0], pose[b, 1], pose[b, 3], pose[b, 4]
-        if kind[t] == KIND_COINCIDENCE:
+        if kind[t] == COINCIDENCE:
+            ax, ay = _turn(ca, sa, g[t, 0], g[t, 1])
+            bx, by = _turn(cb, sb, g[t, 2], g[t, 3])
+            a0, a1, b0, b1 = _coincidence_jacobian(ax, ay, bx, by)
             if a >= 0:
-                ax, ay = _turn(ca, sa, s1[t, 0], s1[t, 1])
                 k = 3 * a
                 _set(out, layout, kl, r, k, 1.0)
                 _set(out, layout, kl, r + 1, k + 1, 1.0)
-                _set(out, layout, kl, r, k + 2, 1.0 * -ay)
-                _set(out, layout, kl, r + 1, k + 2, 1.0 * ax)
+                _set(out, layout, kl, r, k + 2, a0)
+                _set(out, layout, kl, r + 1, k + 2, a1)
             if b >= 0:
-                bx, by = _turn(cb, sb, s2[t, 0], s2[t, 1])
                 k = 3 * b
                 _set(out, layout, kl, r, k, -1.0)
                 _set(out, layout, kl, r + 1, k + 1, -1.0)
-                _set(out, layout, kl, r, k + 2, -1.0 * -by)
-                _set(out, layout, kl, r + 1, k + 2, -1.0 * bx)
-        elif kind[t] == KIND_PROJECTION:
-            wx, wy = _turn(ca, sa, w[t, 0], w[t, 1])
-            qx, qy = _turn(ca, sa, s1[t, 0], s1[t, 1])
-            px, py = _turn(cb, sb, s2[t, 0], s2[t, 1])
-            dx, dy = xb + px - xa - qx, yb + py - ya - qy
+                _set(out, layout, kl, r, k + 2, b0)
+                _set(out, layout, kl, r + 1, k + 2, b1)
+        elif kind[t] == PROJECTION:
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            phi_b, phi_a = _projection_jacobian(wx, wy, qx, qy, px, py, dx, dy)
             if b >= 0:
                 k = 3 * b
                 _set(out, layout, kl, r, k, wx)
                 _set(out, layout, kl, r, k + 1, wy)
-                _set(out, layout, kl, r, k + 2, wx * -py + wy * px)
+                _set(out, layout, kl, r, k + 2, phi_b)
             if a >= 0:
                 k = 3 * a
                 _set(out, layout, kl, r, k, -wx)
                 _set(out, layout, kl, r, k + 1, -wy)
-                _set(out, layout, kl, r, k + 2, (-wy * dx + wx * dy) - (wx * -qy + wy * qx))
+                _set(out, layout, kl, r, k + 2, phi_a)
         else:
-            if b >= 0:
-                _set(out, layout, kl, r, 3 * b + 2, 1.0)
-            if a >= 0:
-                _set(out, layout, kl, r, 3 * a + 2, -1.0)
+            for slot in range(3):
+                body = bodies[t, slot]
+                if body >= 0 and g[t, 6 + slot] != 0.0:
+                    _set(out, layout, kl, r, 3 * body + 2, g[t, 6 + slot])
 
 
 @njit(cache=True)
-def _gamma(pose, qd, cdd, kind, ta, tb, s1, s2, w, driver, row, out):
+def _gamma(pose, qd, cdd, kind, bodies, geometry, driver, row, out):
     """gamma of one sample into out (rows,)."""
+    g = geometry
     for t in range(len(kind)):
-        a, b, r = ta[t], tb[t], row[t]
+        a, b, r = bodies[t, 0], bodies[t, 1], row[t]
         xa, ya, ca, sa = pose[a, 0], pose[a, 1], pose[a, 3], pose[a, 4]
         xb, yb, cb, sb = pose[b, 0], pose[b, 1], pose[b, 3], pose[b, 4]
         wa = qd[3 * a + 2] if a >= 0 else 0.0
         wb = qd[3 * b + 2] if b >= 0 else 0.0
-        if kind[t] == KIND_COINCIDENCE:
-            ax, ay = _turn(ca, sa, s1[t, 0], s1[t, 1])
-            bx, by = _turn(cb, sb, s2[t, 0], s2[t, 1])
-            out[r] = ax * (wa * wa) - bx * (wb * wb)
-            out[r + 1] = ay * (wa * wa) - by * (wb * wb)
-        elif kind[t] == KIND_PROJECTION:
+        if kind[t] == COINCIDENCE:
+            ax, ay = _turn(ca, sa, g[t, 0], g[t, 1])
+            bx, by = _turn(cb, sb, g[t, 2], g[t, 3])
+            out[r], out[r + 1] = _coincidence_gamma(ax, ay, wa, bx, by, wb)
+            continue
+        value = 0.0
+        if kind[t] == PROJECTION:
             xda = qd[3 * a] if a >= 0 else 0.0
             yda = qd[3 * a + 1] if a >= 0 else 0.0
             xdb = qd[3 * b] if b >= 0 else 0.0
             ydb = qd[3 * b + 1] if b >= 0 else 0.0
-            wx, wy = _turn(ca, sa, w[t, 0], w[t, 1])
-            qx, qy = _turn(ca, sa, s1[t, 0], s1[t, 1])
-            px, py = _turn(cb, sb, s2[t, 0], s2[t, 1])
-            dx, dy = xb + px - xa - qx, yb + py - ya - qy
-            ddx = xdb + wb * -py - xda - wa * -qy
-            ddy = ydb + wb * px - yda - wa * qx
-            quadratic = (
-                -(wa * wa) * (wx * dx + wy * dy)
-                + 2.0 * wa * (-wy * ddx + wx * ddy)
-                - (wb * wb) * (wx * px + wy * py)
-                + (wa * wa) * (wx * qx + wy * qy)
-            )
-            value = -quadratic
-            if driver[t] >= 0:
-                value = value + cdd[driver[t]]
-            out[r] = value
-        else:
-            value = 0.0
-            if driver[t] >= 0:
-                value = value + cdd[driver[t]]
-            out[r] = value
+            wx, wy = _turn(ca, sa, g[t, 4], g[t, 5])
+            qx, qy = _turn(ca, sa, g[t, 0], g[t, 1])
+            px, py = _turn(cb, sb, g[t, 2], g[t, 3])
+            dx, dy = _projection_offset(xa, ya, qx, qy, xb, yb, px, py)
+            value = _projection_gamma(wx, wy, qx, qy, px, py, dx, dy, xda, yda, wa, xdb, ydb, wb)
+        if driver[t] >= 0:
+            value = value + cdd[driver[t]]
+        out[r] = value
 
 
 @njit(cache=True)
@@ -466,10 +447,10 @@ def _solve(lu, piv, layout, band, x, work):
 
 
 @njit(cache=True)
-def _least_squares_step(pose, kind, ta, tb, s1, s2, w, row, phi, n, step):
+def _least_squares_step(pose, kind, bodies, geometry, row, phi, n, step):
     """step = lstsq(Phi_q, phi) at an exactly singular Jacobian, from a dense Phi_q."""
     dense = np.empty((len(phi), n))
-    _jacobian(pose, kind, ta, tb, s1, s2, w, row, None, np.zeros(4, dtype=np.int64), dense)
+    _jacobian(pose, kind, bodies, geometry, row, None, np.zeros(4, dtype=np.int64), dense)
     step[:] = np.linalg.lstsq(dense, phi, rcond=-1.0)[0]
 
 
@@ -565,11 +546,8 @@ def newton_rounds(
     inputs,
     attempt,
     kind,
-    ta,
-    tb,
-    s1,
-    s2,
-    w,
+    bodies,
+    geometry,
     offset,
     driver,
     row,
@@ -615,20 +593,20 @@ def newton_rounds(
                 continue
             _pose(q[i], pose)
             if round_ == 0:  # the starting residuals, and the first round's right-hand sides
-                _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
+                _residual(pose, inputs[i], kind, bodies, geometry, offset, driver, row, phi)
                 residual[i] = _metres(phi, metres)
                 if not residual[i] > stop or max_iter == 0:
                     continue
             elif not residual[i] > stop:
                 continue
             else:
-                _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
+                _residual(pose, inputs[i], kind, bodies, geometry, offset, driver, row, phi)
             active = True
-            _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jac)
+            _jacobian(pose, kind, bodies, geometry, row, layout, band, jac)
             for r in range(n):
                 step[r] = phi[r]
             if _factorise(jac, piv, layout, band) == 0.0:  # exactly singular: least squares, as solve_linear
-                _least_squares_step(pose, kind, ta, tb, s1, s2, w, row, phi, n, step)
+                _least_squares_step(pose, kind, bodies, geometry, row, phi, n, step)
             else:
                 _solve(jac, piv, layout, band, step, work)
             finite = True
@@ -637,7 +615,7 @@ def newton_rounds(
                 if not np.isfinite(trial[j]):
                     finite = False
             _pose(trial, pose)
-            _residual(pose, inputs[i], kind, ta, tb, s1, s2, w, offset, driver, row, phi)
+            _residual(pose, inputs[i], kind, bodies, geometry, offset, driver, row, phi)
             new = _metres(phi, metres)
             finite = finite and np.isfinite(new)
             if finite:
@@ -652,7 +630,7 @@ def newton_rounds(
 
 
 @njit(cache=True)
-def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row, layout, band):
+def correct(q, samples, rhs, kind, bodies, geometry, offset, driver, row, layout, band):
     """One Newton step with a given right-hand side, in place: q[i] -= Phi_q(q[i])^-1
     rhs[j] for i = samples[j] (the long-double residuals of :func:`._newton.polish`);
     a sample whose Jacobian is exactly singular, or whose step is not finite, is left."""
@@ -665,7 +643,7 @@ def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row, layou
     for j in range(len(samples)):
         i = samples[j]
         _pose(q[i], pose)
-        _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jac)
+        _jacobian(pose, kind, bodies, geometry, row, layout, band, jac)
         sign = _factorise(jac, piv, layout, band)
         if sign == 0.0 or sign != sign:
             continue
@@ -682,9 +660,9 @@ def correct(q, samples, rhs, kind, ta, tb, s1, s2, w, offset, driver, row, layou
 
 
 @njit(cache=True)
-def _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, out):
+def _scaled_jacobian(pose, kind, bodies, geometry, row, layout, band, jacobian_scale, out):
     """The dimensionless Phi_q (entries times ``jacobian_scale`` (rows, n)) into out."""
-    _jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, out)
+    _jacobian(pose, kind, bodies, geometry, row, layout, band, out)
     if layout is not None:
         n, kl = out.shape[0], band[0]
         for i in range(n):
@@ -759,11 +737,8 @@ def _rates(
     row_scale,
     coordinate_scale,
     kind,
-    ta,
-    tb,
-    s1,
-    s2,
-    w,
+    bodies,
+    geometry,
     driver,
     row,
     n_kinematic,
@@ -800,7 +775,7 @@ def _rates(
     for r in range(n):
         vector[r] = 0.0 * row_scale[r] if r < n_kinematic else rates[i, r - n_kinematic] * row_scale[r]
     _times_inverse(inverse, lu, piv, layout, band, vector, work, coordinate_scale, qd[i])
-    _gamma(pose, qd[i], cdd[i], kind, ta, tb, s1, s2, w, driver, row, vector)
+    _gamma(pose, qd[i], cdd[i], kind, bodies, geometry, driver, row, vector)
     for r in range(n):
         vector[r] = vector[r] * row_scale[r]
     _times_inverse(inverse, lu, piv, layout, band, vector, work, coordinate_scale, qdd[i])
@@ -827,11 +802,8 @@ def check_and_finish(
     row_scale,
     coordinate_scale,
     kind,
-    ta,
-    tb,
-    s1,
-    s2,
-    w,
+    bodies,
+    geometry,
     driver,
     row,
     layout,
@@ -869,7 +841,7 @@ def check_and_finish(
                 if v != v:
                     break
         _pose(q[i], pose)
-        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, scaled)
+        _scaled_jacobian(pose, kind, bodies, geometry, row, layout, band, jacobian_scale, scaled)
         _copy(scaled, lu)
         sign = _factorise(lu, piv, layout, band)
         on_branch = correction <= max_correction and (sign == base_sign[i] or sign == 0.0)
@@ -893,11 +865,8 @@ def check_and_finish(
                 row_scale,
                 coordinate_scale,
                 kind,
-                ta,
-                tb,
-                s1,
-                s2,
-                w,
+                bodies,
+                geometry,
                 driver,
                 row,
                 n_kinematic,
@@ -925,11 +894,8 @@ def finish(
     row_scale,
     coordinate_scale,
     kind,
-    ta,
-    tb,
-    s1,
-    s2,
-    w,
+    bodies,
+    geometry,
     driver,
     row,
     layout,
@@ -950,7 +916,7 @@ def finish(
     pose = _new_pose(n)
     for i in idx:
         _pose(q[i], pose)
-        _scaled_jacobian(pose, kind, ta, tb, s1, s2, w, row, layout, band, jacobian_scale, scaled)
+        _scaled_jacobian(pose, kind, bodies, geometry, row, layout, band, jacobian_scale, scaled)
         _copy(scaled, lu)
         sign = _factorise(lu, piv, layout, band)
         _rates(
@@ -971,11 +937,8 @@ def finish(
             row_scale,
             coordinate_scale,
             kind,
-            ta,
-            tb,
-            s1,
-            s2,
-            w,
+            bodies,
+            geometry,
             driver,
             row,
             n_kinematic,

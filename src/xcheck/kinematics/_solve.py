@@ -730,7 +730,7 @@ class Kinematics:
         for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
             chunk = converged[start : start + POLISH_CHUNK]
             fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms, *structure)
-        kernel_terms = (*terms[:6], *terms[7:])  # no angle offsets
+        kernel_terms = (*terms[:3], *terms[4:])  # no angle offsets
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms, *structure)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
         fast.check_and_finish(

@@ -1,0 +1,2 @@
+"""Joint types: each one class that carries its behaviour, and the constraint
+terms and equations they are made of."""
