@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import doctest
 import math
+import os
 import warnings
 
 import numpy as np
@@ -118,7 +119,7 @@ def _one_line(call, *needles):
         (lambda m: m.sweep(samples=-5), ("samples: expected a whole number from 2 to 100000, found -5",)),
         (lambda m: m.sweep(samples=math.nan), ("samples:", "found nan")),
         (lambda m: m.animate(frames=10**9), ("frames: expected a whole number from 2 to 100000",)),
-        (lambda m: m.animate(frames=5, interval=-1), ("interval: expected a time in milliseconds above 0",)),
+        (lambda m: m.animate(frames=5, interval=-1), ("interval: expected a finite number above 0 ms, found -1",)),
         (lambda m: m.sweep(samples=5).draw(5), ("i: expected a whole number from 0 to 4, found 5",)),
         (lambda m: m.sweep(samples=5).plot(point="Z"), ("point: expected one of A, D, B, C", "found 'Z'")),
         (lambda m: m.sweep(samples=5).plot(body=["crank"]), ("body: expected one of crank, coupler, rocker",)),
@@ -177,3 +178,52 @@ def test_the_command_line_applies_the_same_rule(tmp_path, args, line):
     result = invoke(*args, "--out", str(tmp_path / "out"))
     assert result.returncode == 2 and result.stderr.splitlines() == [line]
     assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+@pytest.mark.parametrize(
+    "call, needle",
+    [
+        (lambda m: m.solve(at=True), "at: expected numbers, found True"),
+        (lambda m: m.solve(at="30"), "at: expected numbers, found '30'"),
+        (lambda m: m.solve(at=[30, [40]]), "at: expected numbers"),
+        (lambda m: m.solve(at=1 + 2j), "at: expected numbers, found (1+2j)"),
+        (lambda m: m.solve(at=0.5, si=1), "si: expected True or False, found 1"),
+        (lambda m: m.draw(at=0.5, si="yes"), "si: expected True or False, found 'yes'"),
+        (lambda m: m.animate(frames=3, interval=True), "interval: expected a finite number above 0 ms, found True"),
+        (lambda m: m.animate(frames=3, interval=math.inf), "interval: expected a finite number above 0 ms, found inf"),
+        (lambda m: m.sweep(samples=3).plot(point=0), "point: expected one of A, D, B, C, K, F, found 0"),
+        (lambda m: m.sweep(samples=3).plot(body=""), "body: expected one of crank, coupler, rocker, found ''"),
+    ],
+)
+def test_values_of_the_wrong_type_are_named(fourbar, call, needle):
+    _one_line(lambda: call(fourbar), needle)
+
+
+@pytest.mark.parametrize(
+    "call, needle",
+    [
+        (lambda: xcheck.load(5), "name: expected a path (str or os.PathLike), found 5"),
+        (lambda: xcheck.load(""), "name: expected a path (str or os.PathLike), found ''"),
+        (lambda: xcheck.load("fourbar", models=3.5), "models: expected a path (str or os.PathLike), found 3.5"),
+        (lambda: xcheck.load(FOURBAR, branch=["upper"]), "branch: expected a string, found ['upper']"),
+        (lambda: xcheck.load_mechanism(None), "path: expected a path (str or os.PathLike), found None"),
+        (lambda: xcheck.select_modes("native", kinds="free"), "kinds: expected a tuple of kinds among"),
+        (lambda: xcheck.printed_answers(xcheck.load(FOURBAR).kinematics, 0), "comparisons: expected a path"),
+        (lambda: xcheck.api.run(FOURBAR, engines="native", samples=5, progress=3), "progress: expected a function"),
+        (lambda: xcheck.api.run(FOURBAR, engines="native", samples=5, branch=np.zeros(2)), "branch: expected a string"),
+    ],
+)
+def test_entries_name_an_argument_of_the_wrong_type(call, needle):
+    _one_line(call, needle)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_fifo_named_as_a_mechanism_file_does_not_hang(tmp_path):
+    """`xcheck list DIR` with a FIFO named x.toml there hung in open(); nothing writes
+    to it, so it reads as an empty file, one line among the others' rows."""
+    (tmp_path / "fourbar.toml").write_bytes((MODELS / "fourbar.toml").read_bytes())
+    os.mkfifo(tmp_path / "x.toml")
+    result = invoke("list", str(tmp_path))
+    assert result.returncode == 2 and "fourbar" in result.stdout
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"xcheck: error: {tmp_path / 'x.toml'}: ")

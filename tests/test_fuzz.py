@@ -44,8 +44,11 @@ def test_same_seed_same_files_other_seed_other_files():
 
 def test_kinds_are_chosen_and_checked():
     assert {fuzz.generate(3, i, ("slider-crank",)).kind for i in range(10)} == {"slider-crank"}
-    with pytest.raises(fuzz.InputError, match="--kinds"):
+    with pytest.raises(
+        fuzz.InputError, match=r"^kinds: expected kinds among fourbar, slider-crank, scotch-yoke, found"
+    ):
         fuzz.generate(3, 0, ("fourbar", "crank"))
+    assert fuzz.generate(3, 0, "slider-crank").kind == "slider-crank"  # a comma-separated string, as --kinds
 
 
 def _assembles_where_drawn(count: int) -> set:

@@ -29,7 +29,6 @@ the sweeps); a driver whose law stands still gives a static position. Give
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -229,14 +228,8 @@ class Result:
         from matplotlib.figure import Figure
 
         sol, mech, units = self.solution, self.mechanism, self.mechanism.units
-        point = point or _fastest_point(sol)
-        body = body or _output_body(sol)
-        for argument, given, names in (
-            ("point", point, list(mech.point_owners)),
-            ("body", body, [b.name for b in mech.moving_bodies]),
-        ):
-            if given not in names:
-                raise InputError(f"{argument}: expected one of {', '.join(names)}, found {arguments.shown(given)}")
+        point = _fastest_point(sol) if point is None else arguments.text(point, "point", list(mech.point_owners))
+        body = _output_body(sol) if body is None else arguments.text(body, "body", [b.name for b in mech.moving_bodies])
         k = int(np.argmax(np.ptp(sol.inputs, axis=0))) if len(sol.status) > 1 else 0
         driver = mech.drivers[k]
         factor = units.angle_factor if driver.quantity == "angle" else units.length_factor
@@ -332,10 +325,13 @@ class Assembled:
             Naming the file and the argument.
         """
         where = f"{self.mechanism.path}: {name}"
+        si = arguments.flag(si, "si")
         try:
-            np.asarray(values, dtype=float)
-        except (ValueError, TypeError):
-            raise InputError(f"{where}: expected numbers, found {arguments.shown(values)}") from None
+            kind = np.asarray(values).dtype.kind
+        except (ValueError, TypeError):  # ragged nesting
+            kind = "O"
+        if kind not in "iuf":  # not bools, strings, complex numbers or objects
+            raise InputError(f"{where}: expected numbers, found {arguments.shown(values)}")
         try:
             arr = self.kinematics.input_array(values)
         except ValueError as err:
@@ -480,8 +476,7 @@ class Assembled:
         from .drawing import Pose, draw_pose, guide_extents
 
         frames = arguments.whole_number(frames, "frames", 2, arguments.MAX_SAMPLES)
-        if not (isinstance(interval, (int, float)) and 0.0 < interval < math.inf):
-            raise InputError(f"interval: expected a time in milliseconds above 0, found {arguments.shown(interval)}")
+        interval = arguments.number(interval, "interval", 0.0, unit="ms")
         sol = self.sweep(samples=frames).solution
         good = np.flatnonzero(sol.status <= Status.NEAR_SINGULAR)
         if not good.size:
@@ -548,7 +543,10 @@ def load(name: str | Path, models: str | Path | None = None, branch: str | None 
         If there is no such mechanism, its file is bad, or it does not assemble;
         the message is one line naming the file and the field.
     """
-    kinematics = Kinematics(load_mechanism(model_path(str(name), models_dir(models))))
+    directory = models_dir(None if models is None else arguments.path(models, "models"))
+    kinematics = Kinematics(load_mechanism(model_path(str(arguments.path(name, "name")), directory)))
+    if branch is not None:
+        arguments.text(branch, "branch")
     kinematics.assemble(branch)
     return Assembled(kinematics, kinematics._branch_name(branch))
 
@@ -576,6 +574,10 @@ def select_modes(
     InputError
         If a name is neither a mode nor a group, or none is given.
     """
+    if not (isinstance(kinds, tuple) and kinds and all(k in engines.KINDS for k in kinds)):
+        raise InputError(
+            f"kinds: expected a tuple of kinds among {', '.join(engines.KINDS)}, found {arguments.shown(kinds)}"
+        )
     every = ("native", *(m.name for m in engines.modes(kinds)))
     groups = engines.groups(kinds)
     if chosen is None:
@@ -620,6 +622,8 @@ def printed_answers(kinematics: Kinematics, comparisons: str | Path | None = Non
         If the comparisons file is bad.
     """
     path = Path(kinematics.mechanism.path)
+    if comparisons is not None:
+        comparisons = arguments.path(comparisons, "comparisons")
     found = comparisons_path(path, comparisons_dir(path, comparisons))
     if found is None:
         return None, ""
@@ -680,6 +684,10 @@ def run(
 
     samples = arguments.samples(samples)
     jobs = arguments.processes(jobs)
+    if branch is not None:
+        arguments.text(branch, "branch")
+    if progress is not None and not callable(progress):
+        raise InputError(f"progress: expected a function or None, found {arguments.shown(progress)}")
     if isinstance(name, Assembled):
         kinematics, branch = name.kinematics, branch or name.branch
     elif isinstance(name, Kinematics):

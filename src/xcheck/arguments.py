@@ -21,6 +21,7 @@ import math
 import numbers
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,10 @@ __all__ = [
     "samples",
     "processes",
     "seed",
+    "number",
+    "path",
+    "text",
+    "flag",
     "finite",
     "writable_directory",
     "shown",
@@ -93,6 +98,73 @@ def processes(value: object, name: str = "jobs") -> int:
 def seed(value: object, name: str = "seed") -> int:
     """A campaign's seed: a whole number from 0 to :data:`MAX_SEED`."""
     return whole_number(value, name, 0, MAX_SEED)
+
+
+def number(value: object, name: str, low: float = -math.inf, high: float = math.inf, unit: str = "") -> float:
+    """``value`` as a float, if it is a finite real number above ``low`` and at most ``high``.
+
+    A bool, a string, a complex number, NaN or anything else is refused.
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected a finite number above {low} and at most {high}, found {value}"``.
+    """
+    real = math.nan
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        real = float(value)
+    if not (math.isfinite(real) and low < real <= high):
+        unit = f" {unit}" if unit else ""
+        bounds = [
+            f"above {low:g}{unit}" if low > -math.inf else "",
+            f"at most {high:g}{unit}" if high < math.inf else "",
+        ]
+        raise InputError(
+            f"{name}: expected a finite number {' and '.join(b for b in bounds if b)}".rstrip()
+            + f", found {shown(value)}"
+        )
+    return real
+
+
+def path(value: object, name: str) -> Path:
+    """``value`` as a :class:`~pathlib.Path`, if it is a non-empty ``str`` or ``os.PathLike`` naming one.
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected a path (str or os.PathLike), found {value}"``.
+    """
+    text = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+    if not isinstance(text, str) or not text or "\0" in text:
+        raise InputError(f"{name}: expected a path (str or os.PathLike), found {shown(value)}")
+    return Path(text)
+
+
+def text(value: object, name: str, allowed: Sequence[str] | None = None) -> str:
+    """``value`` if it is a string (one of ``allowed`` where given).
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected a string, found {value}"`` (or one of ``allowed``).
+    """
+    if not isinstance(value, str) or (allowed is not None and value not in allowed):
+        expected = f"one of {', '.join(allowed)}" if allowed is not None else "a string"
+        raise InputError(f"{name}: expected {expected}, found {shown(value)}")
+    return value
+
+
+def flag(value: object, name: str) -> bool:
+    """``value`` if it is a bool (NumPy's too).
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected True or False, found {value}"``.
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name}: expected True or False, found {shown(value)}")
+    return bool(value)
 
 
 def finite(values: np.ndarray, name: str, given: object = None) -> np.ndarray:

@@ -1080,8 +1080,7 @@ def fuzz_command(
     arguments.seed(seed, "--seed")
     arguments.samples(samples, "--samples")
     workers = arguments.processes(workers, "--workers")
-    chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
-    campaign.generate(seed, 0, chosen)  # checks the kinds
+    chosen = campaign.chosen_kinds(kinds, "--kinds")
     modes = campaign.campaign_modes() if engines is None else select_modes(engines)
     arguments.writable_directory(out, "--out", "the campaign")
     progress = _progress_bar(False, label="fuzz", stdout_terminal=False)  # a long campaign: shown even when piped

@@ -41,6 +41,7 @@ __all__ = [
     "KINDS",
     "Case",
     "generate",
+    "chosen_kinds",
     "case_file",
     "run_case",
     "fuzz",
@@ -397,7 +398,27 @@ def _scotch_yoke(rng: np.random.Generator, name: str, scale: float, masses: bool
 _DRAW: dict[str, Callable] = {"fourbar": _fourbar, "slider-crank": _slider_crank, "scotch-yoke": _scotch_yoke}
 
 
-def generate(seed: int, index: int, kinds: Sequence[str] = KINDS) -> Case:
+def chosen_kinds(kinds: str | Sequence[str], name: str = "kinds") -> tuple[str, ...]:
+    """The kinds a campaign draws from: a comma-separated string or a sequence,
+    each one of :data:`KINDS`.
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected kinds among ..., found ..."``.
+    """
+    if isinstance(kinds, str):
+        chosen = tuple(k.strip() for k in kinds.split(",") if k.strip())
+    elif isinstance(kinds, Sequence) and all(isinstance(k, str) for k in kinds):
+        chosen = tuple(kinds)
+    else:
+        chosen = ()
+    if not chosen or any(k not in _DRAW for k in chosen):
+        raise InputError(f"{name}: expected kinds among {', '.join(KINDS)}, found {arguments.shown(kinds)}")
+    return chosen
+
+
+def generate(seed: int, index: int, kinds: str | Sequence[str] = KINDS) -> Case:
     """Case ``index`` of the campaign ``seed``: a random assemblable mechanism
     of one of ``kinds``, at a scale from 1 cm to 1 km, with or without masses.
 
@@ -406,9 +427,7 @@ def generate(seed: int, index: int, kinds: Sequence[str] = KINDS) -> Case:
     InputError
         If a kind is unknown.
     """
-    unknown = [k for k in kinds if k not in _DRAW]
-    if unknown or not kinds:
-        raise InputError(f"--kinds: expected kinds among {', '.join(KINDS)}, found {','.join(kinds) or 'none'!r}")
+    kinds = chosen_kinds(kinds)
     rng = np.random.default_rng([seed, index])
     kind = str(rng.choice(list(kinds)))
     scale = _log_uniform(rng, 0.01, 1000.0)
@@ -752,7 +771,7 @@ def fuzz(
     out: str | Path,
     count: int = 100,
     seed: int = 0,
-    kinds: Sequence[str] = KINDS,
+    kinds: str | Sequence[str] = KINDS,
     modes: Sequence[str] | None = None,
     samples: int = 181,
     workers: int | None = None,
@@ -801,9 +820,9 @@ def fuzz(
     samples = arguments.samples(samples)
     processes = arguments.processes(workers, "workers")
     batch = arguments.whole_number(batch, "batch", 1, MAX_CASES)
-    generate(seed, 0, kinds)  # checks the kinds
+    kinds = chosen_kinds(kinds)
     chosen = campaign_modes() if modes is None else select_modes(modes)
-    out = arguments.writable_directory(out, "out", "the campaign")
+    out = arguments.writable_directory(arguments.path(out, "out"), "out", "the campaign")
     _claim(out, {"kinds": list(kinds), "modes": sorted(chosen), "samples": samples})
     done = set(read_rows(out).case)
     cases = [generate(seed, i, kinds) for i in range(count)]

@@ -16,6 +16,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from .. import arguments
 from ..errors import ModelError
 from ..units import (
     ACCELERATION_UNITS,
@@ -73,10 +74,15 @@ def load_mechanism(path: str | Path) -> Mechanism:
     ModelError
         If the file cannot be read, is not valid TOML, or fails a check.
     """
-    path = Path(path)
+    path = arguments.path(path, "path")
     expected = f"a mechanism file of at most {MAX_FILE_BYTES} bytes"
     try:
-        with path.open("rb") as file:
+        # a FIFO nothing writes to would block open() for ever: opened without
+        # waiting, it reads as empty; one being written to reads as it comes
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(descriptor, True)
+        with os.fdopen(descriptor, "rb") as file:
             size = os.fstat(file.fileno()).st_size
             if size > MAX_FILE_BYTES:  # refused before reading, let alone parsing
                 raise ModelError(str(path), "", expected, f"{size} bytes")
