@@ -7,6 +7,7 @@ import io
 import json
 import math
 import sys
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
@@ -37,6 +38,7 @@ from .kinematics import Kinematics, Status
 from .model import MAX_INSTANTS, Mechanism, load_mechanism
 from .output import (
     print_run,
+    print_run_totals,
     print_simulation,
     print_solution,
     print_textbook,
@@ -221,21 +223,34 @@ def _range_json(kin: Kinematics, rng) -> dict:
 def engines_command(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
 ):
-    """List the engines xcheck judges: their modes, whether they can run here (or why not), what they write.
+    """List the engines xcheck judges: their modes, what each can be trusted for, the stated findings.
 
+    One row per mode: its engine and version (or why it cannot run here), its
+    kind, what it can be trusted for in one figure, and the quantities where
+    its engine is known to be wrong (a stated finding); --json has the
+    findings' text and each engine's notes, the documentation a page per engine.
     Engines come from xcheck and from installed packages (entry-point group
     "xcheck.engines"); a plug-in that cannot be loaded is listed with its reason.
 
     Examples: xcheck engines;  xcheck engines --json
     """
+    from .output import engine_version, mode_trust, print_engines
+
     rows: list[dict[str, Any]] = [
         {
             "name": e.name,
             "title": e.title,
+            "version": engine_version(e),
             "available": not e.available(),
             "reason": e.available() or None,
             "modes": [
-                {"name": m.name, "kind": m.kind, "on_request": m.on_request, "findings": dict(m.findings)}
+                {
+                    "name": m.name,
+                    "kind": m.kind,
+                    "trusted_for": mode_trust(m),
+                    "on_request": m.on_request,
+                    "findings": dict(m.findings),
+                }
                 for m in e.modes
             ],
             "forces": e.force_tolerance is not None,
@@ -248,25 +263,9 @@ def engines_command(
     if as_json:
         typer.echo(json.dumps({"engines": rows, "plugin_errors": problems}, indent=2, ensure_ascii=False))
         return
-    table = Table(header_style="bold")
-    for header in ("engine", "modes", "status", "forces", "writes", "notes"):
-        table.add_column(header, overflow="fold")
-    for row in rows:
-        table.add_row(
-            escape(row["name"]),
-            escape(
-                "\n".join(
-                    f"{m['name']} ({m['kind']}{', on request: --engines ' + m['name'] if m['on_request'] else ''}"
-                    f"{', stated finding: ' + ', '.join(m['findings']) if m['findings'] else ''})"
-                    for m in row["modes"]
-                )
-            ),
-            "ready" if row["available"] else escape(row["reason"]),
-            "yes" if row["forces"] else "no",
-            escape(row["export_format"] or "-"),
-            escape(row["notes"]),
-        )
-    wide_console().print(table)
+    print_engines(wide_console(), rows)
+    for name, reason in problems.items():
+        typer.echo(f"xcheck: error: entry point {name!r} of group {registry.ENTRY_POINT_GROUP!r}: {reason}", err=True)
 
 
 @app.command("solve")
@@ -525,6 +524,7 @@ def run_command(
 
     Examples: xcheck run fourbar;  xcheck run all --json;  xcheck run task-2-1 --engines mujoco,formulations
     """
+    started = time.perf_counter()
     arguments.samples(samples, "--samples")
     jobs = arguments.processes(jobs, "--jobs")
     if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
@@ -585,6 +585,8 @@ def run_command(
             if report:
                 console.print(f"  report: {reports_dir(Path(run.mechanism.path), out) / (run.mechanism.name + '.md')}")
             console.print()
+        if len(names) > 1:
+            print_run_totals(console, results, len(names) - len(results), time.perf_counter() - started)
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
@@ -773,7 +775,7 @@ def simulate_command(
 
         result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs)
     reference = result.reference
-    failure = None
+    failure, written = None, None
     if report:
         target = reports_dir(path, out)
         command = (
@@ -785,14 +787,14 @@ def simulate_command(
             + _shown_option("--out", out)
         )
         try:  # a report that cannot be written is one line; the results still print
-            write_simulation_report(result, target, command)
+            written = write_simulation_report(result, target, command)
             update_index(target, [simulation_entry(result)], indexed_names(path), command)
         except OSError as err:
             failure = f"{target}: expected a directory where the report can be written, found {err.strerror or err}"
     if as_json:
         typer.echo(json.dumps(simulation_json(reference, result), indent=2, allow_nan=False, ensure_ascii=False))
     else:
-        print_simulation(wide_console(), reference, result)
+        print_simulation(wide_console(), reference, result, None if written is None else _shown_path(Path(written)))
     if failure is not None:
         raise InputError(failure)
     if not reference.converged:
@@ -1110,6 +1112,37 @@ def fuzz_command(
     console.print(f"Rows: {escape(str(out / 'results'))}; failure classes: {escape(str(out / 'failures.md'))}")
     if int(counts.failed.sum() + counts.error.sum()):
         raise typer.Exit(1)
+
+
+def _escape_help_markup(application: typer.Typer) -> None:
+    """Escape the help texts of every command and parameter for the terminal's
+    renderer, which reads square brackets as markup ("of [units]" showed as "of ").
+
+    Typer renders help with rich markup; xcheck's help is plain text, so each
+    text is escaped once here rather than at each of its many definitions."""
+    import inspect
+    from typing import get_type_hints
+
+    from typer.models import ParameterInfo
+
+    done: set[int] = set()  # Annotated options shared by several commands are escaped once
+    for info in [application.registered_callback, *application.registered_commands]:
+        if info is None or info.callback is None:
+            continue
+        if info.help is None and info.callback.__doc__:
+            info.help = escape(inspect.cleandoc(info.callback.__doc__))
+        # typer evaluates the (string) annotations anew each time it builds the
+        # command: they are evaluated once here, so that the escaped texts stay
+        function = inspect.unwrap(info.callback)
+        function.__annotations__ = hints = get_type_hints(function, include_extras=True)
+        for hint in hints.values():
+            for meta in getattr(hint, "__metadata__", ()):
+                if isinstance(meta, ParameterInfo) and meta.help and id(meta) not in done:
+                    done.add(id(meta))
+                    meta.help = escape(meta.help)
+
+
+_escape_help_markup(app)
 
 
 def main() -> None:

@@ -16,6 +16,9 @@ from .kinematics import InputRange, Kinematics, Solution, Status
 
 __all__ = [
     "mode_trust",
+    "engine_version",
+    "print_engines",
+    "print_run_totals",
     "solution_json",
     "print_solution",
     "range_text",
@@ -25,6 +28,52 @@ __all__ = [
     "run_json",
     "print_run",
 ]
+
+
+def engine_version(engine) -> str:
+    """The installed version of an engine's first distribution ("xcheck X" for
+    one that needs none), or "" where it is not installed."""
+    from importlib import metadata
+
+    from . import __version__
+
+    if not engine.distributions:
+        return f"xcheck {__version__}"
+    try:
+        return metadata.version(engine.distributions[0])
+    except metadata.PackageNotFoundError:
+        return ""
+
+
+#: the quantity categories a finding may name, as ``xcheck engines`` shows them
+_CATEGORY_WORDS = {"omega": "angular velocity", "alpha": "angular acceleration"}
+
+
+def print_engines(console: Console, rows: list[dict]) -> None:
+    """``xcheck engines``: one line per mode (rows as its JSON has them)."""
+    table = Table(box=None, pad_edge=False, header_style="bold")
+    for header in ("engine", "version", "mode", "kind", "trusted for", "stated findings"):
+        table.add_column(header, no_wrap=header != "stated findings")
+    for row in rows:
+        version = row["version"] if row["available"] else f"[red]{escape(row['reason'])}[/red]"
+        for k, mode in enumerate(row["modes"]):
+            findings = ", ".join(_CATEGORY_WORDS.get(c, c) for c in mode["findings"]) or "—"
+            kind = mode["kind"] + (" (on request)" if mode["on_request"] else "")
+            table.add_row(
+                escape(row["name"]) if k == 0 else "",
+                version if k == 0 else "",
+                escape(mode["name"]),
+                kind,
+                escape(mode["trusted_for"]),
+                f"[yellow]{escape(findings)}[/yellow]" if mode["findings"] else findings,
+            )
+    print_table(console, table)
+    console.print(
+        "trusted for: a kinematic mode's largest position error per mechanism size; a dynamic mode's expected "
+        "order of convergence as the time step halves. How each engine is modelled, its settings and the "
+        "evidence of its findings: the documentation's engine pages; --json has the findings' text.",
+        highlight=False,
+    )
 
 
 def mode_trust(mode) -> str:
@@ -719,47 +768,98 @@ def _free_mode_json(outcome) -> dict:
     }
 
 
-def print_simulation(console, reference, result=None) -> None:
-    """The tables of ``xcheck simulate``: the final state and what backs it, and
-    each free mode's ladder against the reference."""
+def print_simulation(console, reference, result=None, report: str | None = None) -> None:
+    """``xcheck simulate``'s summary: what backs the native reference, one line
+    per free mode (its best run against the reference, SI units in the headers),
+    and where the report is (``report``). The final state and every run of each
+    ladder are in the report and the JSON."""
     doc = simulation_json(reference, result)
     native = doc["native"]
-    table = Table(
-        title=f"{doc['mechanism']}: free motion, native reference at t = {doc['duration']:g} s", header_style="bold"
-    )
-    for header in ("point / body", "x [m]", "y [m]", "vx [m/s]", "vy [m/s]", "angle [rad]", "omega [rad/s]"):
-        table.add_column(escape(header), justify="left" if header == "point / body" else "right")
-    for label, p in native["final"]["points"].items():
-        table.add_row(escape(label), *(_g(v) for v in (*p["position"], *p["velocity"])), "", "")
-    for name, b in native["final"]["bodies"].items():
-        table.add_row(escape(name), *(_g(v) for v in b["position"]), "", "", _g(b["angle"]), _g(b["omega"]))
-    console.print(table)
     estimate = native["error_estimate"]
+    state = "converged" if estimate["converged"] else "[red]NOT converged[/red]"
     console.print(
-        f"error estimate {_g(estimate['largest'])} m ({_g(estimate['relative'])} of the size; "
-        f"{'converged' if estimate['converged'] else '[red]NOT converged[/red]'}) at step {_g(native['step'])} s; "
-        f"loop closure before each projection <= {_g(native['loop_closure'])} m; energy balance "
-        f"{_g(native['energy_balance']['largest'])} J; singular positions passed at "
-        f"{', '.join(f'{t:.4g}' for t in native['singular_passes']) or 'none'} s; "
-        f"CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs.",
+        f"[bold]{escape(doc['mechanism'])}[/bold] — free motion for {doc['duration']:g} s: native reference "
+        f"{state}, error <= {_e(estimate['largest'])} m ({_e(estimate['relative'])} of the size) at a step of "
+        f"{_e(native['step'])} s",
         highlight=False,
     )
-    from .simulation import LADDER_COLUMNS as columns
-
-    for mode, entry in doc["engines"].items():
-        failure = "" if entry["ok"] else f"[red]failed[/red]: {escape(entry['reason'] or '')}"
-        console.print(f"[bold]{escape(mode)}[/bold]: {failure}")
-        if not entry["ladder"]:
-            continue
-        table = Table(header_style="bold")
-        shown = [c for c in columns if any(c in row for row in entry["ladder"])]
-        for column in shown:
-            table.add_column(escape(column.replace("_", " ")), overflow="fold")
-        for row in entry["ladder"]:
-            table.add_row(*(escape(_cell(row.get(c))) for c in shown))
-        console.print(table)
+    passes = native["singular_passes"]
+    console.print(
+        f"  loops closed to {_e(native['loop_closure'])} m before each projection; energy balance "
+        f"{_e(native['energy_balance']['largest'])} J; singular positions passed: "
+        + (f"{len(passes)} (first at {passes[0]:.4g} s)" if passes else "none")
+        + f"; CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs",
+        highlight=False,
+    )
+    if doc["engines"]:
+        table = Table(box=None, pad_edge=False, header_style="bold")
+        headers = (
+            "mode",
+            "runs",
+            "best run",
+            "error [m]",
+            "order",
+            "loop drift [m]",
+            "energy drift [J]",
+            "CPU [s per s]",
+            "breakdowns",
+        )
+        for header in headers:
+            table.add_column(
+                escape(header), justify="left" if header in ("mode", "best run", "breakdowns") else "right"
+            )
+        for mode, entry in doc["engines"].items():
+            ladder = entry["ladder"]
+            ran = [row for row in ladder if row.get("status") == "ok" and row.get("position_error") is not None]
+            broken = len(ladder) - len(ran)
+            if not entry["ok"] or not ran:
+                why = entry["reason"] or "no run reached the end"
+                table.add_row(escape(mode), str(len(ladder)), f"[red]failed[/red]: {escape(why)}", *[""] * 6)
+                continue
+            best = min(ran, key=lambda row: row["position_error"])
+            table.add_row(
+                escape(mode),
+                str(len(ladder)),
+                escape(f"{best.get('setting', '')} {best.get('integrator', '')} {_e(best.get('timestep'))} s".strip()),
+                _e(best["position_error"]),
+                "—" if best.get("observed_order") is None else f"{best['observed_order']:.2g}",
+                _e(best.get("loop_drift")),
+                _e(best.get("energy_drift")),
+                _e(best.get("cpu_per_simulated_second")),
+                f"{broken} of {len(ladder)}" if broken else "none",
+            )
+        print_table(console, table)
+        console.print(
+            "  best run: the setting and step of the smallest largest point error against the reference; order: "
+            "observed as the step halves; breakdowns: runs that blew up or left the branch",
+            highlight=False,
+        )
     for mode, reason in doc["not_applicable"].items():
-        console.print(f"{escape(mode)}: not run ({escape(reason)})", highlight=False)
+        console.print(f"  {escape(mode)}: not run ({escape(reason)})", highlight=False)
+    console.print(f"report: {escape(report)}" if report else "report: not written (--no-report)", highlight=False)
+
+
+def print_run_totals(console: Console, runs: list, failed_files: int, seconds: float) -> None:
+    """The last line of ``xcheck run`` over several mechanisms: their verdicts,
+    the modes passed, the stated findings, the modes failed, and the wall time."""
+    verdicts = [run.verdict for run in runs]
+    outcomes = [outcome for run in runs for outcome in run.outcomes.values()]
+    passed = sum(outcome.passed for outcome in outcomes)
+    findings = sum(bool(outcome.finding) for outcome in outcomes)
+    failed = len(outcomes) - passed - findings
+    counts = ", ".join(f"{verdicts.count(v)} {v}" for v in ("pass", "pass with findings", "fail") if verdicts.count(v))
+    style = "red" if failed or failed_files or "fail" in verdicts else "green"
+    console.print(
+        f"[{style}]{len(runs) + failed_files} mechanisms[/{style}]"
+        + (f" ({counts}" + (f", {failed_files} not run: bad input" if failed_files else "") + ")")
+        + f"; modes: {passed} of {len(outcomes)} passed, {findings} stated findings, {failed} failed; {seconds:.0f} s",
+        highlight=False,
+    )
+
+
+def _e(value) -> str:
+    """A measured value in three significant digits ("—" where there is none)."""
+    return "—" if value is None else f"{value:.3g}"
 
 
 def _cell(value) -> str:
