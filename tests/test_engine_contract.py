@@ -100,7 +100,13 @@ def test_toy_engines_are_listed_and_selectable(toys):
     assert listed.exit_code == 0, listed.output
     by_name = {e["name"]: e for e in json.loads(listed.stdout)["engines"]}
     assert by_name["toy"]["modes"] == [
-        {"name": "toy-kinematic", "kind": "kinematic", "on_request": False, "findings": {}}
+        {
+            "name": "toy-kinematic",
+            "kind": "kinematic",
+            "trusted_for": "exact to 1e-6 of the size",
+            "on_request": False,
+            "findings": {},
+        }
     ]
     assert by_name["absent"]["available"] is False
     assert "toy (toy-kinematic)" in " ".join(_cli("list").stdout.split())  # however the line wraps

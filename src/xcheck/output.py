@@ -82,14 +82,19 @@ def mode_trust(mode) -> str:
     convergence in positions (or its fixed position bound), "benchmark" for free motion."""
     tolerance = mode.tolerance
     if mode.kind == "kinematic":
-        return f"exact to {tolerance.position:.0e} of the size"
+        return f"exact to {_short(tolerance.position)} of the size"
     if mode.kind == "dynamic":
         order = mode.orders.get("position")
         if order is not None:
             return f"converges at order {order:g}"
         rates = mode.orders.get("velocity")
-        return f"positions to {tolerance.position:.0e}" + (f", rates at order {rates:g}" if rates else "")
+        return f"positions to {_short(tolerance.position)}" + (f", rates at order {rates:g}" if rates else "")
     return "benchmark (no verdict)"
+
+
+def _short(value: float) -> str:
+    """A bound in one significant digit, 1e-6 rather than 1e-06."""
+    return f"{value:.0e}".replace("e-0", "e-").replace("e+0", "e")
 
 
 def _number(value) -> float | None:
