@@ -1,0 +1,556 @@
+"""A campaign of hostile and careless inputs, drawn from a seed as ``xcheck fuzz``
+draws mechanisms: bad arguments to every entry of the Python API, output folders
+holding a user's files, folders of mechanism files that are not all files,
+installed plug-ins that exit, interrupt or hang, and addresses where no Dask
+scheduler answers.
+
+Scenario ``i`` of a surface is drawn from ``numpy.random.default_rng([SEED,
+surface, i])`` alone, and its id says what it holds: a failure is its own
+reproducer. Every scenario must end cleanly -- a result, or exit code 2 with one
+line saying what was expected and what was found (``InputError`` from Python) --
+in bounded time, and leave every file of the user's as it was. The oracle also
+knows which scenarios must run and which must be refused, so that refusing
+everything cannot pass.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import faulthandler
+import math
+import os
+import re
+import stat
+import subprocess
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import MODELS, ROOT, install_plug_in, invoke
+
+import xcheck
+from xcheck import api, fuzz
+from xcheck.engines import _registry
+from xcheck.errors import XcheckError
+
+#: the campaign's seed
+SEED = 32
+#: the longest a scenario may take, s (a hang fails the test run instead of blocking it)
+WATCHDOG = 120.0
+#: the longest an error line may be
+MAX_LINE = 500
+
+
+@contextlib.contextmanager
+def _bounded(seconds: float = WATCHDOG):
+    """Fail loudly (tracebacks of every thread, then exit) if the block hangs."""
+    faulthandler.dump_traceback_later(seconds, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+
+
+def _rng(surface: int, index: int) -> np.random.Generator:
+    return np.random.default_rng([SEED, surface, index])
+
+
+def _pick(rng: np.random.Generator, items):
+    return items[int(rng.integers(len(items)))]
+
+
+# ----------------------------------------------------------------------------- what a user keeps
+
+
+@dataclass
+class Keepsakes:
+    """The user's things in a scratch folder: each path and what it was."""
+
+    root: Path
+    items: dict[str, tuple] = field(default_factory=dict)
+
+    def snapshot(self, path: Path) -> tuple:
+        info = os.lstat(path)
+        if stat.S_ISLNK(info.st_mode):
+            return ("link", os.readlink(path))
+        if stat.S_ISDIR(info.st_mode):
+            return ("folder",)
+        if stat.S_ISREG(info.st_mode):
+            return ("file", path.read_bytes(), stat.S_IMODE(info.st_mode))
+        return ("other", stat.S_IFMT(info.st_mode))
+
+    def keep(self, path: Path) -> None:
+        self.items[str(path)] = self.snapshot(path)
+
+    def changed(self) -> list[str]:
+        """The user's paths that are gone or differ."""
+        lost = []
+        for name, before in self.items.items():
+            try:
+                now = self.snapshot(Path(name))
+            except FileNotFoundError:
+                now = ("gone",)
+            if now != before:
+                lost.append(f"{name}: {before[0]} -> {now[0]}")
+        return lost
+
+
+#: a line as Python prints an exception that nothing caught
+_UNCAUGHT = re.compile(r"^(Traceback \(most recent call last\)|[\w.]*(Error|Exception|Interrupt|Exit)\b)", re.M)
+
+
+def _clean(result, allowed: tuple[int, ...], must: int | None = None, errors: int = 1) -> list[str]:
+    """What is wrong with a command's outcome: an exit code outside ``allowed``
+    (or other than ``must``), a traceback, or an exit 2 that is not ``errors``
+    error lines, each saying what was expected and what was found."""
+    problems = []
+    if _UNCAUGHT.search(result.stdout + result.stderr):
+        problems.append(f"a traceback: {result.stderr[-600:]!r}")
+    if result.returncode not in allowed or (must is not None and result.returncode != must):
+        problems.append(f"exit code {result.returncode} (expected {must if must is not None else allowed})")
+    if result.returncode == 2:
+        lines = [line for line in result.stderr.splitlines() if not line.startswith("xcheck: warning:")]
+        if len(lines) != errors or not all(line.startswith("xcheck: error: ") for line in lines):
+            problems.append(f"not {errors} error line(s): {result.stderr[-600:]!r}")
+        for line in lines:
+            if "expected" not in line or "found" not in line or len(line) > MAX_LINE:
+                problems.append(f"an error line that does not say what was expected and found: {line[:600]!r}")
+    return problems
+
+
+# ----------------------------------------------------------------------------- surface 1: the Python API
+
+#: values no argument should take silently to a wrong answer
+HOSTILE = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    -1,
+    0,
+    -0.0,
+    10**30,
+    -(10**30),
+    1e308,
+    2.5,
+    True,
+    None,
+    "",
+    "abc",
+    "30",
+    "nan",
+    "\x00",
+    [],
+    [[]],
+    [math.nan],
+    [1, [2]],
+    {},
+    {"crank": 30},
+    object(),
+    1 + 2j,
+    b"x",
+    ...,
+    np.zeros((2, 2, 2)),
+    np.zeros(0),
+    np.array([np.nan]),
+    np.float64(np.nan),
+    np.int64(-3),
+    np.bool_(True),
+    Path("/nonexistent/xcheck.toml"),
+]
+
+_FOURBAR = str(MODELS / "fourbar.toml")
+_TWO_INPUTS = str(MODELS / "two-body-arm.toml")
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fourbar, arm = xcheck.load(_FOURBAR), xcheck.load(_TWO_INPUTS)
+        return {"fourbar": fourbar, "arm": arm, "sweep": fourbar.sweep(samples=5)}
+
+
+#: each entry of the API and one argument of it: (label, call(loaded, value)), other arguments good
+#: and small (a valid value drawn here must be cheap to run)
+ENTRIES: list[tuple[str, Callable]] = [
+    ("Assembled.solve(at=)", lambda m, v: m["fourbar"].solve(at=v)),
+    ("Assembled.solve(rates=)", lambda m, v: m["fourbar"].solve(at=30, rates=v)),
+    ("Assembled.solve(accelerations=)", lambda m, v: m["fourbar"].solve(at=30, rates=1, accelerations=v)),
+    ("Assembled.solve(si=)", lambda m, v: m["fourbar"].solve(at=0.5, si=v)),
+    ("Assembled.solve(at=) of two inputs", lambda m, v: m["arm"].solve(at=v)),
+    ("Assembled.sweep(samples=)", lambda m, v: m["fourbar"].sweep(samples=v)),
+    ("Assembled.draw(at=)", lambda m, v: m["fourbar"].draw(at=v)),
+    ("Assembled.draw(si=)", lambda m, v: m["fourbar"].draw(at=0.5, si=v)),
+    ("Assembled.animate(frames=)", lambda m, v: m["fourbar"].animate(frames=v)),
+    ("Assembled.animate(interval=)", lambda m, v: m["fourbar"].animate(frames=3, interval=v)),
+    ("Result.draw(i)", lambda m, v: m["sweep"].draw(v)),
+    ("Result.plot(point=)", lambda m, v: m["sweep"].plot(point=v)),
+    ("Result.plot(body=)", lambda m, v: m["sweep"].plot(body=v)),
+    ("load(name)", lambda m, v: xcheck.load(v)),
+    ("load(models=)", lambda m, v: xcheck.load("fourbar", models=v)),
+    ("load(branch=)", lambda m, v: xcheck.load(_FOURBAR, branch=v)),
+    ("load_mechanism(path)", lambda m, v: xcheck.load_mechanism(v)),
+    ("select_modes(chosen)", lambda m, v: xcheck.select_modes(v)),
+    ("select_modes(kinds=)", lambda m, v: xcheck.select_modes("native", kinds=v)),
+    ("printed_answers(comparisons=)", lambda m, v: xcheck.printed_answers(m["fourbar"].kinematics, v)),
+    ("run(samples=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=v)),
+    ("run(engines=)", lambda m, v: api.run(_FOURBAR, engines=v, samples=5)),
+    ("run(branch=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, branch=v)),
+    ("run(jobs=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, jobs=v)),
+    ("run(comparisons=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, comparisons=v)),
+    ("run(progress=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, progress=v)),
+    ("fuzz(count=)", lambda m, v: fuzz.fuzz(m["out"], count=v, modes="formulations", workers=1, samples=5)),
+    ("fuzz(seed=)", lambda m, v: fuzz.fuzz(m["out"], count=1, seed=v, modes="formulations", workers=1, samples=5)),
+    ("fuzz(kinds=)", lambda m, v: fuzz.fuzz(m["out"], count=1, kinds=v, modes="formulations", workers=1, samples=5)),
+    ("fuzz(modes=)", lambda m, v: fuzz.fuzz(m["out"], count=1, modes=v, workers=1, samples=5)),
+    ("fuzz(workers=)", lambda m, v: fuzz.fuzz(m["out"], count=1, modes="formulations", workers=v, samples=5)),
+    ("fuzz(batch=)", lambda m, v: fuzz.fuzz(m["out"], count=1, modes="formulations", workers=1, batch=v, samples=5)),
+    ("fuzz(out)", lambda m, v: fuzz.fuzz(v, count=1, modes="formulations", workers=1, samples=5)),
+]
+
+#: values that would be valid but too costly for a campaign, per entry (a valid draw of these is skipped)
+_COSTLY = {
+    "Assembled.sweep(samples=)": lambda v: 200 < v <= 100_000,
+    "Assembled.animate(frames=)": lambda v: 20 < v <= 100_000,
+    "run(samples=)": lambda v: 200 < v <= 100_000,
+    "run(jobs=)": lambda v: 1 < v <= 256,
+    "fuzz(count=)": lambda v: 1 < v <= 100_000,
+    "fuzz(workers=)": lambda v: 1 < v <= 256,
+    "fuzz(out)": lambda v: isinstance(v, (str, os.PathLike)) and bool(os.fspath(v)),  # a folder of the machine's
+    "run(engines=)": lambda v: v is None,  # every engine: minutes
+    "fuzz(modes=)": lambda v: v is None,
+}
+
+
+def _costly(label: str, value) -> bool:
+    rule = _COSTLY.get(label)
+    if rule is None:
+        return False
+    try:
+        return bool(rule(value))
+    except (TypeError, ValueError):
+        return False  # not a number: no cost
+
+
+API_DRAWS = 4 * len(ENTRIES)
+
+
+@pytest.mark.filterwarnings("ignore:Animation was deleted without rendering")  # animate()'s answer, unused
+@pytest.mark.parametrize("index", range(API_DRAWS))
+def test_an_api_entry_given_a_hostile_value_answers_or_says_why(index, loaded, tmp_path, monkeypatch):
+    """One entry, one argument, a value from :data:`HOSTILE`: a result, or an
+    :class:`~xcheck.XcheckError` (an ``InputError`` is a ``ValueError``) in one
+    line; never another exception, never a hang."""
+    rng = _rng(1, index)
+    label, call = ENTRIES[index % len(ENTRIES)]  # each entry in turn, a value drawn
+    value = _pick(rng, HOSTILE)
+    if _costly(label, value):
+        pytest.skip(f"{label} {value!r}: valid and costly")
+    monkeypatch.chdir(tmp_path)
+    context = {**loaded, "out": tmp_path / "campaign"}
+    with _bounded(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            call(context, value)
+        except XcheckError as err:
+            message = str(err)
+            assert message and "\n" not in message and len(message) <= MAX_LINE, f"{label} {value!r}: {message!r}"
+        except BaseException as err:  # noqa: BLE001 - the finding
+            pytest.fail(f"{label} {value!r}: {type(err).__name__}: {err}"[:MAX_LINE])
+
+
+# ----------------------------------------------------------------------------- surface 2: a campaign's folder
+
+#: things a user may keep in the folder given to ``fuzz --out``: name -> whether
+#: the campaign must refuse to start beside it (it would have to replace it)
+USER_THINGS = {
+    "README.md": False,
+    "index.json": False,
+    "notes.md": False,
+    ".notes.md.20251126": False,
+    ".draft.md.backup_1": False,
+    ".photos.2025abcd/": False,
+    "results-of-mine.parquet": False,
+    "failures.md": True,
+    "failures.md (a folder)": True,
+    "failures.md (a FIFO)": True,
+    "failures.md (a link)": True,
+    "campaign.json": True,
+    "cases/ a case file": True,
+    "results/ a stray part": True,
+    "results/ a part of other columns": True,
+    "results/ without campaign.json": True,
+}
+
+#: option values and whether they must be refused
+OPTIONS = [
+    ((), False),
+    (("--seed", "7"), False),
+    (("--seed", "-1"), True),
+    (("--seed", "123456789012345678901234567890"), True),
+    (("--samples", "2"), True),
+    (("--count", "0"), True),
+    (("--workers", "0"), True),
+    (("--kinds", "fourbar,hexapod"), True),
+    (("--engines", "nosuch"), True),
+]
+
+
+def _make(out: Path, thing: str, keep: Keepsakes) -> None:
+    """Put the user's ``thing`` into ``out`` and note it."""
+    outside = out.parent / "outside.md"
+    if thing.endswith("/"):
+        (out / thing).mkdir()
+        (out / thing / "photo.jpg").write_bytes(b"\xff\xd8 a photo")
+        keep.keep(out / thing / "photo.jpg")
+    elif thing == "failures.md (a folder)":
+        (out / "failures.md").mkdir()
+        (out / "failures.md" / "keep.txt").write_text("mine", encoding="utf-8")
+        keep.keep(out / "failures.md" / "keep.txt")
+    elif thing == "failures.md (a FIFO)":
+        os.mkfifo(out / "failures.md")
+        keep.keep(out / "failures.md")
+    elif thing == "failures.md (a link)":
+        outside.write_text(fuzz._REPORT_MARK + "\nmine, though it looks like xcheck's\n", encoding="utf-8")
+        (out / "failures.md").symlink_to(outside)
+        keep.keep(outside)
+        keep.keep(out / "failures.md")
+    elif thing == "cases/ a case file":
+        (out / "cases").mkdir(exist_ok=True)
+        for seed in (0, 7):
+            path = out / "cases" / f"{fuzz.generate(seed, 0).name}.toml"
+            path.write_text("# my own mechanism\n", encoding="utf-8")
+            keep.keep(path)
+    elif thing.startswith("results/"):
+        (out / "results").mkdir(exist_ok=True)
+        path = out / "results" / "part-000000-mine.parquet"
+        if thing == "results/ a stray part":
+            path.write_bytes(b"PAR1 not really")
+        elif thing == "results/ a part of other columns":
+            pd.DataFrame({"mine": [1.0]}).to_parquet(path)
+        else:
+            pd.DataFrame({c: [] for c in fuzz.COLUMNS}).to_parquet(path)
+        keep.keep(path)
+    else:
+        (out / thing).write_text(f"the user's {thing}\n", encoding="utf-8")
+        keep.keep(out / thing)
+
+
+FOLDER_DRAWS = 14
+
+
+def _folder_draw(index: int) -> tuple[list[str], tuple[str, ...], bool]:
+    """Scenario ``index``: the user's things in the folder, the options, and
+    whether the campaign must refuse. About half the scenarios must run."""
+    rng = _rng(2, index)
+    harmless = [t for t, conflict in USER_THINGS.items() if not conflict and rng.uniform() < 0.4]
+    conflicts = [t for t, conflict in USER_THINGS.items() if conflict and (hasattr(os, "mkfifo") or "FIFO" not in t)]
+    things = harmless + ([_pick(rng, conflicts)] if rng.uniform() < 0.35 else [])
+    options, bad_option = _pick(rng, OPTIONS) if rng.uniform() < 0.35 else OPTIONS[int(rng.integers(2))]
+    return things, options, bad_option or any(USER_THINGS[t] for t in things)
+
+
+def test_the_folder_scenarios_hold_runs_and_refusals():
+    outcomes = [_folder_draw(i)[2] for i in range(FOLDER_DRAWS)]
+    assert 4 <= sum(outcomes) <= FOLDER_DRAWS - 4
+
+
+@pytest.mark.parametrize("index", range(FOLDER_DRAWS))
+def test_a_campaign_beside_a_users_files_runs_or_refuses_and_keeps_them(index, tmp_path):
+    things, options, refuse = _folder_draw(index)
+    out = tmp_path / "proj"
+    out.mkdir()
+    keep = Keepsakes(out)
+    for thing in things:
+        _make(out, thing, keep)
+    args = ("fuzz", "--count", "1", "--engines", "formulations", "--workers", "1", "--samples", "21", *options)
+    with _bounded():
+        result = invoke(*args, "--out", str(out))
+    problems = _clean(result, (0, 1, 2), 2 if refuse else None)
+    if not refuse and result.returncode == 2:
+        problems.append("refused a folder it could use")
+    problems += [f"changed the user's {c}" for c in keep.changed()]
+    assert not problems, f"{things} {options}: {problems}"
+
+
+# ----------------------------------------------------------------------------- surface 3: folders of mechanism files
+
+#: entries of a models folder that are not mechanism files, each its own error line
+NOT_FILES = ["a FIFO", "a folder", "a link loop", "a link to nothing", "empty", "binary", "too large", "/dev/zero"]
+
+
+def _not_a_file(folder: Path, kind: str, name: str) -> bool:
+    """Put an entry ``name``.toml of ``kind`` into ``folder``; False where this machine cannot."""
+    path = folder / f"{name}.toml"
+    if kind == "a FIFO":
+        if not hasattr(os, "mkfifo"):
+            return False
+        os.mkfifo(path)
+    elif kind == "a folder":
+        path.mkdir()
+    elif kind == "a link loop":
+        path.symlink_to(path)
+    elif kind == "a link to nothing":
+        path.symlink_to(folder / "nowhere" / "x.toml")
+    elif kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "binary":
+        path.write_bytes(bytes(range(256)) * 8)
+    elif kind == "too large":
+        with open(path, "wb") as big:
+            big.truncate(50_000_000)  # sparse: no disk written
+    elif kind == "/dev/zero":
+        if not Path("/dev/zero").exists():
+            return False
+        path.symlink_to("/dev/zero")
+    return True
+
+
+MODEL_FOLDER_DRAWS = 6
+
+
+@pytest.mark.parametrize("index", range(MODEL_FOLDER_DRAWS))
+def test_list_over_a_folder_of_things_that_are_not_mechanism_files(index, tmp_path):
+    """``xcheck list DIR`` lists the good files and gives one line for each entry
+    it could not read, whatever it is, without hanging."""
+    rng = _rng(3, index)
+    folder = tmp_path / "models"
+    folder.mkdir()
+    (folder / "fourbar.toml").write_bytes((MODELS / "fourbar.toml").read_bytes())
+    kinds = [k for k in NOT_FILES if rng.uniform() < 0.5] or [_pick(rng, NOT_FILES)]
+    made = [f"bad{i}" for i, kind in enumerate(kinds) if _not_a_file(folder, kind, f"bad{i}")]
+    with _bounded():
+        result = invoke("list", str(folder))
+    problems = _clean(result, (0, 2), 2 if made else 0, errors=len(made))
+    lines = result.stderr.splitlines()
+    if sorted(line.split(f"{folder}/", 1)[-1].split(".toml")[0] for line in lines) != sorted(made):
+        problems.append(f"not one line per bad entry: {lines}")
+    if "fourbar" not in result.stdout:
+        problems.append("the good file was not listed")
+    assert not problems, f"{kinds}: {problems}"
+
+
+# ----------------------------------------------------------------------------- surface 4: plug-ins
+
+#: plug-ins that must not load: name -> (module source, entry_points.txt line or None for the usual)
+BROKEN_PLUG_INS = {
+    "exit0": ("import sys\nsys.exit(0)\n", None),
+    "exit3": ("raise SystemExit(3)\n", None),
+    "interrupt": ("raise KeyboardInterrupt\n", None),
+    "error": ("raise RuntimeError('no licence')\n", None),
+    "syntax": ("def (:\n", None),
+    "missing": ("import xcheck_no_such_module_at_all\n", None),
+    "notengine": ("X = 42\n", None),
+    "sleeps": ("import time\ntime.sleep(600)\n", None),
+    "loops": ("while True:\n    pass\n", None),
+    "takenname": (
+        "from xcheck import engines\nclass X(engines.Engine):\n    name = 'mujoco'\n",
+        None,
+    ),
+    "takenmode": (
+        "from xcheck import engines\nfrom xcheck.tolerances import Tolerance\n"
+        "class X(engines.Engine):\n    name = 'takenmode'\n"
+        "    modes = (engines.Mode('native', 'kinematic', Tolerance(1, 1, 1, 1, 'any')),)\n",
+        None,
+    ),
+    "badvalue": ("", "badvalue = xcheck_plug_badvalue:X:Y:Z"),
+    "malformed": ("", "this line has no equals sign"),
+}
+
+_GOOD_PLUG_IN = """
+from xcheck import engines
+from xcheck.tolerances import Tolerance
+
+
+class Plugged(engines.Engine):
+    name = "plugged"
+    modes = (engines.Mode("plugged-kinematic", "kinematic", Tolerance(1, 1, 1, 1, "anything")),)
+"""
+
+COMMANDS = [
+    ("engines", "--json"),
+    ("list", _FOURBAR),
+    ("run", _FOURBAR, "--engines", "native,formulations", "--no-report", "--samples", "21"),
+]
+
+PLUG_IN_DRAWS = 3
+
+
+@pytest.mark.parametrize("index", range(PLUG_IN_DRAWS))
+def test_a_site_of_broken_plug_ins_never_stops_a_command(index, tmp_path):
+    rng = _rng(4, index)
+    site = tmp_path / "site"
+    site.mkdir()
+    install_plug_in(site, "xcheck_plug_good", _GOOD_PLUG_IN, "[xcheck.engines]\nplugged = xcheck_plug_good:Plugged\n")
+    chosen = [name for name in BROKEN_PLUG_INS if rng.uniform() < 0.4]
+    expected = set()
+    for name in chosen:
+        source, line = BROKEN_PLUG_INS[name]
+        module = f"xcheck_plug_{name}"
+        install_plug_in(site, module, source, f"[xcheck.engines]\n{line or f'{name} = {module}:X'}\n")
+        expected.add(str(site / f"{module}-1.0.dist-info") if name == "malformed" else name)
+    command = _pick(rng, COMMANDS)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")]),
+        _registry.TIMEOUT_ENV: "1",
+    }
+    started = time.monotonic()
+    result = subprocess.run(
+        [sys.executable, "-m", "xcheck", *command], env=env, capture_output=True, text=True, timeout=WATCHDOG
+    )
+    problems = _clean(result, (0,), 0)
+    if time.monotonic() - started > 60:
+        problems.append(f"took {time.monotonic() - started:.0f} s")
+    warned = {line.split("'")[1] for line in result.stderr.splitlines() if line.startswith("xcheck: warning: plug-in ")}
+    if warned != expected:
+        problems.append(f"warned of {sorted(warned)}, expected {sorted(expected)}")
+    if command[0] != "run" and "plugged" not in result.stdout:
+        problems.append("the good plug-in is not listed")
+    assert not problems, f"{chosen} {command[0]}: {problems}"
+
+
+# ----------------------------------------------------------------------------- surface 5: a scheduler that is not one
+
+STRANGERS = ["silent", "http", "garbage", "closes", "closed port"]
+
+
+@pytest.mark.parametrize("index", range(2))
+def test_a_stranger_at_the_scheduler_address_is_one_line(index, tmp_path, monkeypatch):
+    from test_fuzz_folder import _stranger
+
+    rng = _rng(5, index)
+    kind = _pick(rng, STRANGERS)
+    monkeypatch.setattr(fuzz, "SCHEDULER_TIMEOUT", 1.0)
+    answers = {"silent": None, "http": b"HTTP/1.1 400 Bad\r\n\r\n", "garbage": bytes(rng.integers(0, 256, 512))}
+    answers["closes"] = b""
+    server = contextlib.nullcontext("tcp://127.0.0.1:9") if kind == "closed port" else _stranger(answers[kind])
+    with server as address, _bounded():
+        result = invoke("fuzz", "--count", "1", "--engines", "formulations", "--scheduler", address,
+                        "--out", str(tmp_path / "campaign"))  # fmt: skip
+    problems = _clean(result, (2,), 2)
+    assert not problems, f"{kind}: {problems}"
+
+
+# ----------------------------------------------------------------------------- the oracle can fail
+
+
+def test_the_oracle_sees_a_changed_file_and_an_unclean_exit(tmp_path):
+    """The checks above are not vacuous: a user file rewritten, a second error
+    line, a traceback and a refusal of a usable folder are each reported."""
+    (tmp_path / "README.md").write_text("mine", encoding="utf-8")
+    keep = Keepsakes(tmp_path)
+    keep.keep(tmp_path / "README.md")
+    (tmp_path / "README.md").write_text("# Reports", encoding="utf-8")
+    assert keep.changed() == [f"{tmp_path / 'README.md'}: file -> file"]
+    done = subprocess.CompletedProcess
+    assert _clean(done([], 2, "", "xcheck: error: a: expected b, found c\nxcheck: error: d\n"), (2,))
+    assert _clean(done([], 1, "", 'Traceback (most recent call last):\n  File "x"\nValueError: x\n'), (0, 1))
+    assert _clean(done([], 2, "", "xcheck: error: a: expected b, found c\n"), (0, 1, 2), 0)
+    assert not _clean(done([], 2, "", "xcheck: error: a: expected b, found c\n"), (0, 1, 2), 2)
