@@ -230,3 +230,12 @@ def test_a_real_ctrl_c_while_a_plug_in_hangs_still_stops_xcheck(tmp_path):
             run.communicate()
     assert time.monotonic() - signalled < 10
     assert run.returncode == 130 and "Traceback" not in stderr
+
+
+def test_naming_a_plug_in_that_could_not_load_says_why(tmp_path):
+    site = _site(tmp_path, "exit3")
+    result = _xcheck(site, "run", str(MODELS / "fourbar.toml"), "--engines", "exit3", "--no-report")
+    assert result.returncode == 2
+    (error,) = [line for line in result.stderr.splitlines() if line.startswith("xcheck: error: ")]
+    assert error.startswith("xcheck: error: --engines: expected modes or groups among native, ")
+    assert error.endswith(", found 'exit3' (a plug-in of that name could not be loaded: its import called sys.exit(3))")

@@ -600,8 +600,10 @@ def select_modes(
         elif item in groups:
             picked.extend(groups[item])
         else:
+            broken = engines.load_problems().get(item)
             raise InputError(
                 f"--engines: expected modes or groups among {', '.join(every)}, {', '.join(groups)}, found {item!r}"
+                + (f" (a plug-in of that name could not be loaded: {broken})" if broken else "")
             )
     if not picked:
         raise InputError(
