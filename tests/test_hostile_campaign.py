@@ -33,6 +33,8 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import MODELS, ROOT, install_plug_in, invoke
+from test_fuzz_folder import _stranger
+from test_plug_ins import _GOOD
 
 import xcheck
 from xcheck import api, fuzz
@@ -463,16 +465,6 @@ BROKEN_PLUG_INS = {
     "malformed": ("", "this line has no equals sign"),
 }
 
-_GOOD_PLUG_IN = """
-from xcheck import engines
-from xcheck.tolerances import Tolerance
-
-
-class Plugged(engines.Engine):
-    name = "plugged"
-    modes = (engines.Mode("plugged-kinematic", "kinematic", Tolerance(1, 1, 1, 1, "anything")),)
-"""
-
 COMMANDS = [
     ("engines", "--json"),
     ("list", _FOURBAR),
@@ -487,7 +479,7 @@ def test_a_site_of_broken_plug_ins_never_stops_a_command(index, tmp_path):
     rng = _rng(4, index)
     site = tmp_path / "site"
     site.mkdir()
-    install_plug_in(site, "xcheck_plug_good", _GOOD_PLUG_IN, "[xcheck.engines]\nplugged = xcheck_plug_good:Plugged\n")
+    install_plug_in(site, "xcheck_plug_good", _GOOD, "[xcheck.engines]\nplugged = xcheck_plug_good:Plugged\n")
     chosen = [name for name in BROKEN_PLUG_INS if rng.uniform() < 0.4]
     expected = set()
     for name in chosen:
@@ -523,8 +515,6 @@ STRANGERS = ["silent", "http", "garbage", "closes", "closed port"]
 
 @pytest.mark.parametrize("index", range(2))
 def test_a_stranger_at_the_scheduler_address_is_one_line(index, tmp_path, monkeypatch):
-    from test_fuzz_folder import _stranger
-
     rng = _rng(5, index)
     kind = _pick(rng, STRANGERS)
     monkeypatch.setattr(fuzz, "SCHEDULER_TIMEOUT", 1.0)
