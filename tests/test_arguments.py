@@ -227,3 +227,16 @@ def test_a_fifo_named_as_a_mechanism_file_does_not_hang(tmp_path):
     assert result.returncode == 2 and "fourbar" in result.stdout
     (line,) = result.stderr.splitlines()
     assert line.startswith(f"xcheck: error: {tmp_path / 'x.toml'}: ")
+
+
+@pytest.mark.parametrize(
+    "value, found", [(0, "0"), (-1, "-1"), (math.nan, "nan"), ("2", "'2'"), (True, "True"), (2e6, "2000000.0")]
+)
+def test_a_duration_is_checked_alike_from_python_and_the_command_line(value, found):
+    with pytest.raises(InputError) as caught:
+        xcheck.simulate("iftomm-a01", duration=value)
+    assert str(caught.value) == f"duration: expected a time above 0 s and at most 1e6 s, found {found}"
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        result = invoke("simulate", "iftomm-a01", "--duration", str(value), "--no-report")
+        assert result.returncode == 2
+        assert result.stderr.startswith("xcheck: error: --duration: expected a time above 0 s and at most 1e6 s, found")

@@ -39,6 +39,8 @@ __all__ = [
     "processes",
     "seed",
     "number",
+    "duration",
+    "MAX_DURATION",
     "path",
     "text",
     "flag",
@@ -123,6 +125,26 @@ def number(value: object, name: str, low: float = -math.inf, high: float = math.
             f"{name}: expected a finite number {' and '.join(b for b in bounds if b)}".rstrip()
             + f", found {shown(value)}"
         )
+    return real
+
+
+#: Longest simulated time of a free motion, s
+MAX_DURATION = 1e6
+
+
+def duration(value: object, name: str = "duration") -> float:
+    """A simulated time, s: a finite number above 0 and at most :data:`MAX_DURATION`.
+
+    Raises
+    ------
+    InputError
+        ``"{name}: expected a time above 0 s and at most 1e6 s, found {value}"``.
+    """
+    real = math.nan
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        real = float(value)
+    if not 0.0 < real <= MAX_DURATION:
+        raise InputError(f"{name}: expected a time above 0 s and at most 1e6 s, found {shown(value)}")
     return real
 
 
