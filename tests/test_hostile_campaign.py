@@ -207,6 +207,8 @@ ENTRIES: list[tuple[str, Callable]] = [
     ("run(jobs=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, jobs=v)),
     ("run(comparisons=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, comparisons=v)),
     ("run(progress=)", lambda m, v: api.run(_FOURBAR, engines="native", samples=5, progress=v)),
+    ("simulate(duration=)", lambda m, v: xcheck.simulate("iftomm-a01", duration=v)),
+    ("simulate(branch=)", lambda m, v: xcheck.simulate("iftomm-a01", duration=0.05, branch=v)),
     ("fuzz(count=)", lambda m, v: fuzz.fuzz(m["out"], count=v, modes="formulations", workers=1, samples=5)),
     ("fuzz(seed=)", lambda m, v: fuzz.fuzz(m["out"], count=1, seed=v, modes="formulations", workers=1, samples=5)),
     ("fuzz(kinds=)", lambda m, v: fuzz.fuzz(m["out"], count=1, kinds=v, modes="formulations", workers=1, samples=5)),
@@ -226,13 +228,14 @@ _COSTLY = {
     "fuzz(workers=)": lambda v: 1 < v <= 256,
     "fuzz(out)": lambda v: isinstance(v, (str, os.PathLike)) and bool(os.fspath(v)),  # a folder of the machine's
     "run(engines=)": lambda v: v is None,  # every engine: minutes
+    "simulate(duration=)": lambda v: v is None or 0.05 < v <= 1e6,  # the file's 10 s, or more
     "fuzz(modes=)": lambda v: v is None,
 }
 
 
 def _costly(label: str, value) -> bool:
     rule = _COSTLY.get(label)
-    if rule is None:
+    if rule is None or isinstance(value, (bool, np.bool_)):  # a bool is no count or time
         return False
     try:
         return bool(rule(value))
