@@ -1,6 +1,10 @@
 """The exported engine files open as they should: the MJCF assembled at qpos0
 with the tight settings and mass-free visuals, the URDF parsable with visuals
 on every link and ROS names, its loops file giving the assembled joint values.
+These are the writers' files with every number exact, as the engine modes load
+them; the committed files (the same with their numbers rounded to 12
+significant digits, so that any machine writes the same text) are checked
+current by test_mujoco and test_pinocchio.
 
 Tolerances, measured on every bundled mechanism and benchmark (2026-11,
 ``mj_forward`` at qpos0 against ``Kinematics.assemble``): body positions at most
@@ -31,7 +35,7 @@ from xcheck.engines.mujoco.mjcf import (
     layout,
     mjcf_text,
 )
-from xcheck.engines.pinocchio.modes import build
+from xcheck.engines.pinocchio.modes import build, export_files
 from xcheck.engines.pinocchio.modes import joint_coordinates as pin_coordinates
 from xcheck.engines.pinocchio.urdf import ROS_NAME, UrdfNames, ros_name
 from xcheck.kinematics import Status
@@ -47,13 +51,12 @@ def _file(name: str):
 
 
 def _mjcf(name: str, tmp_path) -> tuple[Kinematics, mujoco.MjModel]:
-    """The committed MJCF of a model (checked current by test_mujoco), or the
-    writer's for a benchmark (not exported), loaded from a path."""
+    """The writer's MJCF of a model, every number exact (as the engine's modes
+    load it; the committed file, the same rounded to 12 significant digits, is
+    checked current by test_mujoco), loaded from a path."""
     kin = Kinematics(load_mechanism(_file(name)))
-    path = MODELS / "mjcf" / f"{name}.xml"
-    if not path.is_file():
-        path = tmp_path / f"{name}.xml"
-        path.write_text(mjcf_text(kin))
+    path = tmp_path / f"{name}.xml"
+    path.write_text(mjcf_text(kin))
     return kin, mujoco.MjModel.from_xml_path(str(path))
 
 
@@ -121,7 +124,7 @@ def test_mjcf_settings_and_visuals_leave_the_mass_alone(name, tmp_path):
     """The tight equality settings, stated in a comment; every moving body has a
     visual geom that neither collides nor adds mass (explicit inertials)."""
     kin, model = _mjcf(name, tmp_path)
-    text = (MODELS / "mjcf" / f"{name}.xml").read_text()
+    text = (tmp_path / f"{name}.xml").read_text()
     assert "Solver settings: the tight ones xcheck's dynamic mode verifies" in text
     if model.neq:
         np.testing.assert_array_equal(model.eq_solref, np.tile(TIGHT_SOLREF, (model.neq, 1)))
@@ -156,13 +159,17 @@ def test_urdf_parses_with_visuals_and_ros_names(name):
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES)
-def test_urdf_loops_file_gives_the_assembly(name):
+def test_urdf_loops_file_gives_the_assembly(name, tmp_path):
     """The loops file beside the URDF: each loop's frames exist, and the joint
-    values at the assembly close every loop (to round-off) in the URDF model."""
-    path = MODELS / "urdf" / f"{name}.urdf"
-    loops = json.loads((MODELS / "urdf" / f"{name}.loops.json").read_text())
-    model = pin.buildModelFromUrdf(str(path))
+    values at the assembly close every loop (to round-off) in the URDF model.
+    The writer's files with every number exact (the committed ones, the same
+    rounded to 12 significant digits, are checked current by test_pinocchio)."""
     kin = Kinematics(load_mechanism(_file(name)))
+    files = export_files(kin)
+    path = tmp_path / f"{name}.urdf"
+    path.write_text(files[path.name])
+    loops = json.loads(files[f"{name}.loops.json"])
+    model = pin.buildModelFromUrdf(str(path))
     assert set(loops["assembly"]) == {model.names[j] for j in range(1, model.njoints)}
     q = pin.neutral(model)
     for j in range(1, model.njoints):

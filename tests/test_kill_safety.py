@@ -1,4 +1,4 @@
-"""A run killed at any moment leaves every report file whole or absent (issue 18).
+"""A run killed at any moment leaves every report file whole or absent.
 
 The real ``xcheck run`` is started as a process and sent SIGKILL at seeded
 random moments, ten times, into one output directory. After each kill every
@@ -23,12 +23,14 @@ from pathlib import Path
 import pytest
 from conftest import MODELS, ROOT
 
+from xcheck.fileio import MANIFEST, MARK, PENDING_MARKDOWN, STAGING_MARK
+
 XCHECK = Path(sys.executable).with_name("xcheck")
 COMMAND = ["run", "fourbar", "--engines", "formulations", "--samples", "31", "--quiet"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: zero length, type, CRC
-#: hidden staging as tempfile names it: "." + name + "." + 8 characters
-STAGING = re.compile(r"\.(fourbar|fourbar\.old|fourbar\.md|README\.md|index\.json)\.[a-z0-9_]{8}")
+#: hidden staging as xcheck names it: "." + name + ".xcheck-" + kind + "-" + 8 characters
+STAGING = re.compile(r"\.(fourbar|fourbar\.md|README\.md|index\.json)\.xcheck-(tmp|staging|retired)-[a-z0-9]{8}")
 
 
 def _start(out: Path) -> subprocess.Popen:
@@ -45,7 +47,7 @@ def _start(out: Path) -> subprocess.Popen:
 
 def _check_report(path: Path) -> None:
     text = path.read_text(encoding="utf-8")
-    assert text.startswith("# fourbar: "), path
+    assert text.startswith(MARK) and text.splitlines()[1].startswith("# fourbar: "), path
     assert "\n## Versions\n" in text, path
     assert text.endswith("\n") and text.rstrip("\n").splitlines()[-1].startswith("Reproduce: `xcheck run fourbar"), (
         f"{path} does not end with the command that reproduces it"
@@ -55,7 +57,7 @@ def _check_report(path: Path) -> None:
 
 def _check_index(path: Path) -> None:
     text = path.read_text(encoding="utf-8")
-    assert text.startswith("# Reports\n"), path
+    assert text.startswith(MARK) and text.splitlines()[1] == "# Reports", path
     assert text.endswith("|\n") and text.splitlines()[-1].startswith("| [fourbar](fourbar.md) |"), path
 
 
@@ -92,7 +94,13 @@ def _check_directory(out: Path) -> list[str]:
             names = {p.name for p in entry.iterdir()}
             assert "drawing.png" in names, names
             for image in entry.iterdir():
-                _check_image(image)
+                if image.name == MANIFEST:  # the report's evidence: whole JSON listing the folder's figures
+                    listed = set(json.loads(image.read_text(encoding="utf-8"))["files"])
+                    assert listed == names - {MANIFEST, PENDING_MARKDOWN, STAGING_MARK}, (listed, names)
+                elif image.name == PENDING_MARKDOWN:  # killed between the unit's two renames
+                    _check_report(image)
+                elif image.name != STAGING_MARK:  # killed just after the swap
+                    _check_image(image)
         else:
             raise AssertionError(f"unexpected entry {entry.name} in {out}")
     return staging

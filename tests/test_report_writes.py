@@ -1,6 +1,6 @@
-"""Reports written by runs that are killed or run side by side (issue 18): the
-hidden staging a killed run leaves is removed at the next write (and nothing
-else is), and the index's read-modify-write holds the directory's lock."""
+"""Reports written by runs that are killed or run side by side: the hidden
+staging a killed run leaves is removed at the next write (and nothing else
+is), and the index's read-modify-write holds the directory's lock."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from xcheck.catalog import model_names
 from xcheck.cli import app
+from xcheck.fileio import STAGING_MARK, marked
 from xcheck.report import update_index
 
 
@@ -25,18 +26,27 @@ def _touch(path, data: bytes = b"stale") -> None:
 def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
     out = tmp_path / "reports"
     # what a run killed while writing leaves: staging with some images, an empty
-    # staging folder, a retired report folder, temporary Markdown files
-    _touch(out / ".fourbar.k3j4h5g6" / "drawing.png")
-    (out / ".scotch-yoke.abcdefgh").mkdir()
-    _touch(out / ".fourbar.old.a1b2c3d4" / "fourbar" / "motion.gif")
-    _touch(out / ".README.md.zz99yy88")
-    _touch(out / ".fourbar.md.q1w2e3r4")
-    # what xcheck did not write stays, hidden or not
+    # staging folder, a retired report folder, temporary Markdown files; each
+    # with a temporary's name of xcheck's, a folder with its mark
+    staging = out / ".fourbar.xcheck-staging-k3j4h5g6"
+    _touch(staging / STAGING_MARK, b"")
+    _touch(staging / "drawing.png")
+    _touch(out / ".scotch-yoke.xcheck-staging-abcd1234" / STAGING_MARK, b"")
+    _touch(out / ".fourbar.xcheck-retired-a1b2c3d4" / STAGING_MARK, b"")
+    _touch(out / ".fourbar.xcheck-retired-a1b2c3d4" / "fourbar" / "motion.gif")
+    _touch(out / ".README.md.xcheck-tmp-99aa88bb")
+    _touch(out / ".fourbar.md.xcheck-tmp-01234567")
+    # what xcheck did not write stays, hidden or not, however much it looks like a temporary
     keep = [
         ".git/config",
         ".notes.abcdefgh/mine.txt",
         ".mine.txt.abcdefgh",
         ".other.old.a1b2c3d5/other/x.png",
+        ".README.md.zz99yy88",
+        ".notes.md.20251126",
+        ".draft.md.backup_1",
+        ".photos.2025abcd/a.jpg",
+        ".fourbar.xcheck-staging-99999999/mine.txt",
         "notes.md",
     ]
     for name in keep:
@@ -65,9 +75,7 @@ def test_staging_left_by_a_killed_run_is_removed_at_the_next_write(tmp_path):
 
 def test_index_update_waits_for_the_directory_lock(tmp_path):
     entry = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
-    worker = threading.Thread(
-        target=update_index, args=(tmp_path, [entry], set(model_names(MODELS)), "xcheck run fourbar")
-    )
+    worker = threading.Thread(target=update_index, args=(tmp_path, [entry], set(model_names(MODELS))))
     fd = os.open(tmp_path, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # another run writing the reports
@@ -88,15 +96,17 @@ def test_the_index_is_built_from_its_data_not_from_its_markdown(tmp_path):
     first = {"name": "fourbar", "title": "Four-bar", "passed": True, "worst": "-", "textbook": "-"}
     second = {"name": "slider-crank", "title": "Slider-crank", "passed": False, "worst": "x", "textbook": "-"}
     keep = set(model_names(MODELS))
-    update_index(tmp_path, [first], keep, "xcheck run fourbar")
-    (tmp_path / "README.md").write_text("| [edited](edited.md) | by hand | pass | - | - |\n", encoding="utf-8")
-    update_index(tmp_path, [second], keep, "xcheck run slider-crank")
+    update_index(tmp_path, [first], keep)
+    index = tmp_path / "README.md"
+    mark = index.read_text(encoding="utf-8").splitlines()[0]  # xcheck's, kept: edited but still xcheck's file
+    index.write_text(f"{mark}\n| [edited](edited.md) | by hand | pass | - | - |\n", encoding="utf-8")
+    update_index(tmp_path, [second], keep)
     index = (tmp_path / "README.md").read_text(encoding="utf-8")
     assert "[fourbar](fourbar.md)" in index and "[slider-crank](slider-crank.md)" in index
     assert "edited" not in index
     gone = {"name": "removed-model", "title": "gone", "passed": True, "worst": "-", "textbook": "-"}
-    update_index(tmp_path, [gone], keep, "xcheck run removed-model")
-    update_index(tmp_path, [first], keep, "xcheck run fourbar")
+    update_index(tmp_path, [gone], keep)
+    update_index(tmp_path, [first], keep)
     assert "removed-model" not in (tmp_path / "README.md").read_text(encoding="utf-8")  # not in the folder
 
 
@@ -108,8 +118,9 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
     import xcheck.report as report
 
     out = tmp_path / "reports"
-    _touch(out / "fourbar.md", b"old report")
-    _touch(out / "fourbar" / "drawing.png", b"old image")
+    old_report = marked("old report\n", "the report of fourbar").encode()
+    _touch(out / "fourbar.md", old_report)
+    _touch(out / "fourbar" / "drawing.png", b"old image")  # a report folder of an earlier version
 
     complete = report.complete_reports
 
@@ -126,13 +137,13 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
         report.write_report(run, out, "xcheck run fourbar", gif=False)
     except KeyboardInterrupt:
         pass
-    assert (out / "fourbar.md").read_bytes() == b"old report"
+    assert (out / "fourbar.md").read_bytes() == old_report
     pending = out / "fourbar" / ".report.md"
     assert pending.is_file() and (out / "fourbar" / "drawing.png").read_bytes() != b"old image"
     new_text = pending.read_text(encoding="utf-8")
     assert "fourbar/drawing.png" in new_text
     monkeypatch.undo()
-    update_index(out, [], {"fourbar"}, "xcheck run fourbar")  # any later writer in the folder completes it first
+    update_index(out, [], {"fourbar"})  # any later writer in the folder completes it first
     assert (out / "fourbar.md").read_text(encoding="utf-8") == new_text
     assert not pending.exists()
     assert not [p for p in out.iterdir() if p.name.startswith(".")]

@@ -452,7 +452,7 @@ def test_a_folder_xcheck_did_not_write_is_never_replaced(tmp_path):
     mine.mkdir(parents=True)
     (mine / "notes.txt").write_text("mine")
     result = _cli("run", tmp_path / "fourbar-200.toml", "--engines", "formulations", "--samples", "11", "-q")
-    assert result.exit_code == 2 and "is not a report's image folder" in result.stderr
+    assert result.exit_code == 2 and "a folder xcheck did not write" in result.stderr
     assert (mine / "notes.txt").read_text() == "mine"
 
 

@@ -49,6 +49,7 @@ from .output import (
     textbook_json,
     wide_console,
 )
+from .precision import canonical_numbers, drift
 from .units import evaluate_expression
 
 if TYPE_CHECKING:
@@ -568,10 +569,12 @@ def run_command(
                 entries.append(entry)
             if run is not None:
                 results.append(run)
-    command = f"xcheck run {_shown_model(name)}{options}"
     for target in {t for t, _, _ in entries}:
         model_file = next(f for t, f, _ in entries if t == target)
-        update_index(target, [e for t, _, e in entries if t == target], indexed_names(model_file), command)
+        try:
+            update_index(target, [e for t, _, e in entries if t == target], indexed_names(model_file))
+        except XcheckError as err:
+            failures.append(str(err))
     if as_json:
         documents = [run_json(r) for r in results]
         if name == "all" or documents:
@@ -617,6 +620,11 @@ def _run_model(
         kin = cache.cached_kinematics(load_mechanism(path))
         kin.assemble(branch)
         label = kin.mechanism.name
+        if report:  # what is in the report's way is said before the work, not after
+            from .report import claim_index, claim_report
+
+            claim_report(reports_dir(path, out), label)
+            claim_index(reports_dir(path, out))
         textbook, _ = printed_answers(kin, comparisons)
         run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs)
         cache.store(kin)
@@ -629,12 +637,14 @@ def _run_model(
     tell(label, "report" if report else "done")  # native
     if not report:
         return run, None, []
-    from .report import index_entry, write_report
+    from .report import write_report
 
     target = reports_dir(path, out)
     try:  # a report that cannot be written is reported; the run's results still count
-        write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif, jobs=jobs)
-        return run, (target, path, index_entry(run)), []
+        _, entry = write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif, jobs=jobs)
+        return run, (target, path, entry), []
+    except XcheckError as err:
+        problem = str(err)
     except OSError as err:
         problem = (
             f"{target}: expected a directory where the report of {label} can be written, found {err.strerror or err}"
@@ -753,7 +763,7 @@ def simulate_command(
 
     Examples: xcheck simulate iftomm-a02;  xcheck simulate iftomm-a01 --duration 2 --json
     """
-    from .report import simulation_entry, update_index, write_simulation_report
+    from .report import update_index, write_simulation_report
     from .simulation import simulate_all
 
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
@@ -763,6 +773,11 @@ def simulate_command(
     path = model_path(name, models_dir(models))
     kin = Kinematics(load_mechanism(path))
     kin.assemble(branch)
+    if report:  # what is in the report's way is said before the work, not after
+        from .report import claim_index, claim_report
+
+        claim_report(reports_dir(path, out), kin.mechanism.name)
+        claim_index(reports_dir(path, out))
     bar = _progress_bar(quiet or as_json)
     with bar:
         # one step for the native reference (its step ladder in the description), one per mode
@@ -787,8 +802,10 @@ def simulate_command(
             + _shown_option("--out", out)
         )
         try:  # a report that cannot be written is one line; the results still print
-            written = write_simulation_report(result, target, command)
-            update_index(target, [simulation_entry(result)], indexed_names(path), command)
+            written, entry = write_simulation_report(result, target, command)
+            update_index(target, [entry], indexed_names(path))
+        except XcheckError as err:
+            failure = str(err)
         except OSError as err:
             failure = f"{target}: expected a directory where the report can be written, found {err.strerror or err}"
     if as_json:
@@ -824,7 +841,8 @@ def export_command(
         bool,
         typer.Option(
             "--check",
-            help="Write nothing; list each file that is missing or differs from what would be written, exit 1 if any.",
+            help="Write nothing; list each file that is missing or differs from what would be written beyond the "
+            "precision of its numbers (12 significant digits), with the first value that moved; exit 1 if any.",
         ),
     ] = False,
     models: ModelsOption = None,
@@ -832,13 +850,17 @@ def export_command(
     """Write the engine model files (models/mjcf/NAME.xml, models/urdf/NAME.urdf, models/sdf/NAME.sdf,
     models/benchmarks/exudyn/NAME.py) from the mechanism files and the benchmarks.
 
-    Each file is written whole or not at all (a temporary file renamed). A
-    mechanism that cannot be exported is reported in one line on stderr (file,
-    field, expected, found) and the others are still exported; the exit code
-    is then 2. A format that does not apply to a mechanism (an Exudyn script
-    needs [free_motion], Drake's SDF no pin-in-slot) or whose engine is not
-    installed is skipped, said so in one line. With --check, each file is
-    listed as "missing" or "stale".
+    Computed numbers are written to 12 significant digits of their scale (a
+    length's: the mechanism's size), so every machine writes the same text; a
+    file that agrees with what would be written within that precision is left
+    as it is. Each file is written whole or not at all (a temporary file
+    renamed). A mechanism that cannot be exported is reported in one line on
+    stderr (file, field, expected, found) and the others are still exported;
+    the exit code is then 2. A format that does not apply to a mechanism (an
+    Exudyn script needs [free_motion], Drake's SDF no pin-in-slot) or whose
+    engine is not installed is skipped, said so in one line. With --check,
+    each file is listed as "missing" or "stale", a stale one with the first
+    line or value that moved.
 
     Examples: xcheck export;  xcheck export fourbar --format mjcf;  xcheck export --check
     """
@@ -864,7 +886,8 @@ def export_command(
             try:
                 if writer.available():
                     raise registry.NotApplicable(writer.available())
-                texts = writer.export_files(kin)
+                with canonical_numbers() as units:  # the same text on every machine
+                    texts = writer.export_files(kin)
             except registry.NotApplicable as err:  # the engine cannot hold it, or is not installed: no file
                 typer.echo(f"skipped {f} of {kin.mechanism.name}: {err.reason}")
                 continue
@@ -876,10 +899,11 @@ def export_command(
                 # a bundled file of an installed package exports into ./models, not into the package
                 target = (Path("models") if installed(path) else path.parent) / subdirectory / file_name
                 current = target.read_text(encoding="utf-8") if target.is_file() else None
-                if current == text:
+                moved = None if current is None else drift(current, text, units)
+                if current is not None and moved is None:  # the same, within the precision of its numbers
                     continue
                 if check:
-                    outdated.append(("missing" if current is None else "stale", target))
+                    outdated.append(("missing", target, "") if moved is None else ("stale", target, f": {moved}"))
                     continue
                 try:
                     write_atomic(target, text)
@@ -891,8 +915,8 @@ def export_command(
                     failed += 1
                     continue
                 typer.echo(f"wrote {target}")
-    for state, target in outdated:
-        typer.echo(f"{state}: {target}")
+    for state, target, why in outdated:
+        typer.echo(f"{state}: {target}{why}")
     if failed:
         raise typer.Exit(2)
     if outdated:

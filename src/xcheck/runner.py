@@ -51,6 +51,7 @@ from .tolerances import (
     CONDITIONING_FACTOR,
     ENGINE_CONDITIONING_FACTOR,
     Tolerance,
+    conditioned_round_off,
     convergence_round_off,
     length_ratio,
     power_round_off,
@@ -73,6 +74,8 @@ __all__ = [
     "versions",
     "convergence_table",
     "force_tolerance",
+    "force_round_off",
+    "condition_number",
     "energy_tolerance",
     "ORDER_MARGIN",
     "convergence_limit",
@@ -321,20 +324,6 @@ class RunResult:
         head = f"<p><b>{escape(self.mechanism.name)}</b>: {escape(self.verdict)} ({self.seconds:.1f} s)</p>"
         return head + self.summary.to_html(index=False, na_rep="", float_format=lambda v: f"{v:.3g}")
 
-    def worst(self) -> tuple[str, str, float, float] | None:
-        """(mode, category, relative error, tolerance) of the largest error
-        relative to its tolerance, over the modes that ran, but those failing
-        only in their stated findings (:attr:`findings`); None if none."""
-        best = None
-        for outcome in self.outcomes.values():
-            if outcome.finding:
-                continue
-            for _, row in outcome.categories.iterrows():
-                ratio = row.relative / row.tolerance if row.tolerance > 0 else math.inf
-                if best is None or ratio > best[0]:
-                    best = (ratio, (outcome.mode, row.category, float(row.relative), float(row.tolerance)))
-        return None if best is None else best[1]
-
 
 def is_static(mechanism) -> bool:
     """True when no driver moves: every state of the sweep is a static position
@@ -404,6 +393,7 @@ def _categorise(
                 "rms": float(np.sqrt(np.mean(part.rms.to_numpy() ** 2))),
                 "relative": float(relative.iloc[worst]),
                 "tolerance": limit,
+                "round_off": conditioned_round_off(category, condition, tolerance.conditioning_factor),
                 "floor": float(part["floor"].max()) if "floor" in part else math.nan,
                 "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
                 "missing": missing,
@@ -551,6 +541,8 @@ def _native_self_check(
                 "rms": float(np.sqrt(np.mean(gap**2))),
                 "relative": relative,
                 "tolerance": tolerance.limit(category),
+                # residuals of the equations are backward errors: round-off the conditioning does not amplify
+                "round_off": conditioned_round_off(category, 1.0),
                 "floor": floors.get(category, math.nan),
                 "passed": relative <= tolerance.limit(category),
                 "worst": "constraint equations",
@@ -563,7 +555,7 @@ def _native_self_check(
     return ModeOutcome("native", True, reason, bool(table.passed.all()) and not failed, table)
 
 
-def _condition(solution: Solution) -> float:
+def condition_number(solution: Solution) -> float:
     """The largest condition number of the scaled constraint Jacobian over a
     solution's determined samples (1 if none)."""
     good = (solution.status <= 1) & (solution.singularity > 0)
@@ -632,7 +624,7 @@ def _judge(kinematics: Kinematics, mode: str, result: ModeResult, floors: dict[s
     trajectory = result.trajectories[0]
     reference = native_at(kinematics, trajectory, branch)
     details = differences(kinematics, trajectory, branch=branch, native=reference, floors=floors)
-    categories = _categorise(kinematics, details, tolerance, _condition(reference))
+    categories = _categorise(kinematics, details, tolerance, condition_number(reference))
     if engines.mode(mode).kind == "dynamic" and not categories.empty:
         categories = _convergence_verdict(kinematics, mode, result, categories, tolerance, floors, branch)
     return trajectory, reference, details, categories
@@ -827,11 +819,12 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
         progress("forces")
     states = window_states(kinematics, branch)
     run.native_forces = inverse_dynamics(states)
-    condition = _condition(states)
+    condition = condition_number(states)
     run.forces = compare_forces(kinematics, sources, branch)
     table = force_summary(run.forces)
     ratio = length_ratio(kinematics.mechanism)
     table["tolerance"] = [force_tolerance(source, condition, ratio) for source in table.engine]
+    table["round_off"] = [force_round_off(source, condition, ratio) for source in table.engine]
     table["passed"] = table.ok & (table.max_rel <= table.tolerance)
     table["basis"], table["refinements"], table["refinement_failure"] = "", 0, ""
     for i in table.index[table.ok & ~table.passed]:
@@ -843,6 +836,7 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
         run.no_energy = f"over the simulation window, {err}"
         return
     energy["tolerance"] = energy_tolerance(condition, ratio)
+    energy["round_off"] = power_round_off(condition, ratio)
     energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
     run.energy = energy
 
@@ -935,13 +929,17 @@ def force_tolerance(source: str, condition: float = 1.0, ratio: float = 1.0) -> 
     (3.2e-12 unequilibrated). Over the models with mass data kappa is 2 to 156
     (task-2-1): Newton-Euler's bound stays 1e-12 up to kappa = 21 and is 5.4e-11
     at task-2-1, an engine's 1e-12 up to kappa = 6.7 and 5.4e-10 at task-2-1."""
-    if source == "newton-euler":  # the native states themselves
-        bound: float | None = NEWTON_EULER_TOLERANCE
-        factor = CONDITIONING_FACTOR
-    else:  # the engine's own double-precision computation (MuJoCo 14 eps kappa^2 ratio at s1-00158)
-        bound = engines.engine(source).force_tolerance
-        factor = ENGINE_CONDITIONING_FACTOR
-    return math.nan if bound is None else max(bound, power_round_off(condition, ratio, factor))
+    bound = NEWTON_EULER_TOLERANCE if source == "newton-euler" else engines.engine(source).force_tolerance
+    return math.nan if bound is None else max(bound, force_round_off(source, condition, ratio))
+
+
+def force_round_off(source: str, condition: float = 1.0, ratio: float = 1.0) -> float:
+    """The round-off of a force source's reactions and efforts relative to the
+    native ones (:func:`~xcheck.tolerances.power_round_off`): 10 eps kappa^2
+    ratio for Newton-Euler at the native states, 100 for an engine's own
+    double-precision computation (MuJoCo 14 eps kappa^2 ratio at s1-00158)."""
+    factor = CONDITIONING_FACTOR if source == "newton-euler" else ENGINE_CONDITIONING_FACTOR
+    return power_round_off(condition, ratio, factor)
 
 
 def versions() -> dict[str, str]:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ModelError
+from ..fileio import reserved_name
 from ..units import (
     ACCELERATION_UNITS,
     ANGLE_UNITS,
@@ -242,6 +243,9 @@ class _Reader:
                 "and the exported files)",
                 ascii(name) if len(name) <= 60 else ascii(name[:57]) + "...",
             )
+        reserved = reserved_name(name)
+        if reserved is not None:
+            self.fail("mechanism.name", "a name that names its own report beside the others", f"{name!r}: {reserved}")
         title = self.text(meta.get("title", name), "mechanism.title")
         source = self.string(meta.get("source", ""), "mechanism.source")
         notes = self.string(meta.get("notes", ""), "mechanism.notes")

@@ -1,14 +1,24 @@
-"""Markdown reports of comparison runs: reports/NAME.md with its images in
-reports/NAME/, and reports/README.md indexing them.
+"""Markdown reports of comparison runs: reports/NAME.md with its figures and
+its evidence in reports/NAME/, and reports/README.md indexing them.
 
-A report is written as one unit: its images and its Markdown are written
-into a fresh staging directory beside the old one; nothing is replaced until
-all are written. Then the staging directory replaces the old image directory
-and the Markdown, carried in it, is renamed into place last (two renames). A
-run killed between those renames leaves the new Markdown waiting in the new
-image directory; the next writer, taking the directory's file lock, first
-completes such a unit (:func:`xcheck.fileio.complete_reports`) and removes what
-killed writers left.
+The reports folder is shared with the user: xcheck writes and replaces only
+files it can tell it wrote (:mod:`xcheck.fileio`: its mark in the Markdown, the
+folder's manifest, the index's generator), and stops with one line naming
+anything else in its way. A mechanism named as the index (README, index.json)
+or another report (NAME.md) is refused when it is loaded.
+
+A report is written as one unit: its figures, its evidence
+(:mod:`._evidence`) and its Markdown are written into a fresh staging folder
+beside the old one; nothing is replaced until all are written. Then the
+staging folder replaces the old one and the Markdown, carried in it, is
+renamed into place last (two renames). A run killed between those renames
+leaves the new Markdown waiting in the new folder; the next writer, taking
+the directory's file lock, first completes such a unit
+(:func:`xcheck.fileio.complete_reports`) and removes what killed writers left.
+
+A run of some modes (``--engines``) updates their parts of the report and
+keeps the other modes' parts, marked with the run that produced them, and
+any figure that shows them (:func:`._evidence.merge`).
 """
 
 from __future__ import annotations
@@ -16,38 +26,84 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
-from ..fileio import PENDING_MARKDOWN, complete_reports, directory_lock, remove_stale_staging, write_atomic
+from ..fileio import (
+    MANIFEST,
+    PENDING_MARKDOWN,
+    RESERVED_NAMES,
+    STAGING_MARK,
+    claim,
+    complete_reports,
+    directory_lock,
+    marked,
+    read_json,
+    remove_stale_staging,
+    temporary_name,
+    write_atomic,
+)
 from ..runner import RunResult
 from . import _figures
-from ._markdown import index_markdown, report_markdown, textbook_text, worst_text
+from ._evidence import Evidence, merge, produced, read_evidence
+from ._markdown import index_markdown, mode_parts, passed, report_markdown, source_parts, textbook_text, worst_text
 
 __all__ = [
     "write_report",
     "write_simulation_report",
+    "claim_report",
+    "claim_index",
     "write_index",
     "read_index",
     "update_index",
-    "index_entry",
-    "simulation_entry",
     "INDEX_DATA",
 ]
 
 
-def write_report(run: RunResult, directory: str | Path, command: str, gif: bool = True, jobs: int = 1) -> Path:
-    """Write reports/NAME.md and reports/NAME/*.png|gif for one run; returns the Markdown path.
+def claim_report(directory: str | Path, name: str) -> None:
+    """Check that the report of mechanism ``name`` may be written in
+    ``directory``: its name is no index file's, and NAME.md and NAME/ are
+    absent or xcheck's (:func:`xcheck.fileio.claim`).
+
+    Raises
+    ------
+    InputError
+        Naming what is in the way (left as it is).
+    """
+    if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
+        raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
+    claim(Path(directory), [f"{name}.md", name], "a report")
+
+
+def write_report(
+    run: RunResult, directory: str | Path, command: str, gif: bool = True, jobs: int = 1
+) -> tuple[Path, dict]:
+    """Write reports/NAME.md and reports/NAME/ (figures and evidence) for one run.
 
     One writer at a time per directory (:func:`xcheck.fileio.directory_lock`),
-    which first removes the staging that killed runs left there. With ``jobs``
-    > 1, one worker process draws part of the figures (the same bytes), unless
-    an engine registered at run time took part (a worker does not know it).
+    which first removes the staging that killed runs left there. The modes of
+    an earlier report that the run did not run are kept, with the figures that
+    show them (see the module's notes). With ``jobs`` > 1, one worker process
+    draws part of the figures (the same bytes), unless an engine registered at
+    run time took part (a worker does not know it).
+
+    Returns
+    -------
+    path : Path
+        The report's Markdown.
+    entry : dict
+        Its line of the index (:func:`update_index`).
+
+    Raises
+    ------
+    InputError
+        Where NAME.md or NAME/ is something xcheck did not write (nothing is written).
     """
+    directory = Path(directory)
     with directory_lock(directory):
         complete_reports(directory)
         remove_stale_staging(directory)
-        return _write_report(run, Path(directory), command, gif, jobs)
+        claim_report(directory, run.mechanism.name)
+        return _write_report(run, directory, command, gif, jobs)
 
 
 #: the report's images: file name, the figure function of :mod:`._figures` (bytes,
@@ -80,9 +136,33 @@ def _known_here_only(run: RunResult) -> bool:
     return any(m != "native" and not known_to_workers(m) for m in (*run.outcomes, *run.not_applicable))
 
 
-def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs: int = 1) -> Path:
+def _figure_modes(run: RunResult, function: str) -> list[str]:
+    """The modes (and force sources) a figure of the run shows."""
+    from .. import engines
+
+    modes = [m for m in run.outcomes if m != "native"]
+    if function in ("quantities", "error_plots"):
+        return modes
+    if function == "convergence_plot":
+        return [m for m in modes if engines.mode(m).kind == "dynamic"]
+    if function == "forces_plot":
+        return [str(source) for source in run.force_table.get("engine", [])]
+    return []
+
+
+def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs: int = 1) -> tuple[Path, dict]:
     name = run.mechanism.name
     wanted = [(file, function, key) for file, function, key in _IMAGES if gif or function != "motion_gif"]
+    made = produced(command)
+    fresh = Evidence(
+        "run",
+        name,
+        mode_parts(run, made),
+        source_parts(run, made),
+        {file: {"modes": _figure_modes(run, function), "produced": made} for file, function, _ in wanted},
+    )
+    evidence = merge(fresh, read_evidence(directory / name, "run", name))
+    drawing = [(file, function, key) for file, function, key in wanted if file not in evidence.kept]
 
     def render(staging: Path) -> str:
         drawn: dict[str, bytes | None] = {}
@@ -90,48 +170,76 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
             from .._parallel import process_pool
 
             with process_pool(1) as pool:
-                away = {f: pool.submit(_figure, f, run) for _, f, _ in wanted if f in _WORKER_SHARE}
-                drawn.update({f: _figure(f, run) for _, f, _ in wanted if f not in away})
+                away = {f: pool.submit(_figure, f, run) for _, f, _ in drawing if f in _WORKER_SHARE}
+                drawn.update({f: _figure(f, run) for _, f, _ in drawing if f not in away})
                 drawn.update({f: future.result() for f, future in away.items()})
         else:
-            drawn.update({f: _figure(f, run) for _, f, _ in wanted})
-        images = {}
-        for file, function, key in wanted:
+            drawn.update({f: _figure(f, run) for _, f, _ in drawing})
+        images = _keep_figures(directory / name, staging, evidence, {key: file for file, _, key in wanted})
+        for file, function, key in drawing:
             data = drawn[function]
-            if data is not None:
-                (staging / file).write_bytes(data)
-                images[key] = f"{name}/{file}"
-        return report_markdown(run, images, command)
+            if data is None:
+                evidence.figures.pop(file, None)
+                continue
+            (staging / file).write_bytes(data)
+            images[key] = f"{name}/{file}"
+        return report_markdown(run, evidence, images, command)
 
-    return _replace_report(directory, name, render)
+    path = _replace_report(directory, name, evidence, render)
+    entry = {
+        "name": name,
+        "title": run.mechanism.title,
+        "passed": passed(run, evidence),
+        "findings": [m for m, p in evidence.modes.items() if p.get("finding")],
+        "worst": worst_text(evidence),
+        "textbook": textbook_text(run),
+    }
+    return path, entry
 
 
-def _replace_report(directory: Path, name: str, render) -> Path:
-    """Write reports/NAME/ and reports/NAME.md as one unit: the images
-    ``render(staging)`` puts in a staging folder (it must write drawing.png, the
-    mark of a report folder) and the Markdown it returns, written beside them;
-    then the folder is swapped in and the Markdown renamed out of it, last."""
-    directory.mkdir(parents=True, exist_ok=True)
-    if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
-        raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
-    existing = directory / name
-    if existing.exists() and not (existing.is_dir() and (existing / "drawing.png").is_file()):
-        raise FileExistsError(
-            f"{existing} exists and is not a report's image folder: xcheck replaces only folders it wrote"
-        )
-    staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=directory))
+def _keep_figures(old: Path, staging: Path, evidence: Evidence, keys: dict[str, str]) -> dict[str, str]:
+    """Copy the figures ``evidence`` keeps from the old report folder into the
+    staging folder; returns their Markdown keys -> paths (a kept figure whose
+    file is gone is dropped)."""
+    images = {}
+    for key, file in keys.items():
+        if file not in evidence.kept:
+            continue
+        if (old / file).is_file() and not (old / file).is_symlink():
+            shutil.copyfile(old / file, staging / file)
+            images[key] = f"{old.name}/{file}"
+        else:
+            evidence.figures.pop(file, None)
+            evidence.kept.discard(file)
+    return images
+
+
+def _replace_report(directory: Path, name: str, evidence: Evidence, render) -> Path:
+    """Write reports/NAME/ and reports/NAME.md as one unit: the figures
+    ``render(staging)`` puts in a staging folder, the evidence as the folder's
+    manifest, and the Markdown it returns, written beside them; then the folder
+    is swapped in and the Markdown renamed out of it, last. Call it holding
+    the directory's lock, NAME.md and NAME/ claimed (:func:`claim_report`)."""
+    staging = directory / temporary_name(name, "staging")
     umask = os.umask(0)
     os.umask(umask)
-    os.chmod(staging, 0o777 & ~umask)
+    staging.mkdir(0o777 & ~umask)
+    (staging / STAGING_MARK).touch()
     try:
         text = render(staging)
-        (staging / PENDING_MARKDOWN).write_text(text, encoding="utf-8")
+        files = sorted(p.name for p in staging.iterdir() if p.name != STAGING_MARK)
+        document = evidence.document(files)
+        (staging / MANIFEST).write_text(json.dumps(document, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+        (staging / PENDING_MARKDOWN).write_text(marked(text, f"the report of {name}"), encoding="utf-8")
         target = directory / name
         retired = None
         if target.exists():
-            retired = Path(tempfile.mkdtemp(prefix=f".{name}.old.", dir=directory))
+            retired = directory / temporary_name(name, "retired")
+            retired.mkdir()
+            (retired / STAGING_MARK).touch()
             os.replace(target, retired / name)
         os.replace(staging, target)
+        (target / STAGING_MARK).unlink()
         if retired is not None:
             shutil.rmtree(retired, ignore_errors=True)
     except BaseException:
@@ -141,87 +249,104 @@ def _replace_report(directory: Path, name: str, render) -> Path:
     return directory / f"{name}.md"
 
 
-def write_simulation_report(result, directory: str | Path, command: str) -> Path:
-    """Write reports/NAME.md and reports/NAME/*.png for a free-motion run
-    (:class:`xcheck.simulation.SimulationResult`); returns the Markdown path."""
+def write_simulation_report(result, directory: str | Path, command: str) -> tuple[Path, dict]:
+    """Write reports/NAME.md and reports/NAME/ (figures and evidence) for a
+    free-motion run (:class:`xcheck.simulation.SimulationResult`), keeping the
+    parts of the free modes it did not run as :func:`write_report` does.
+    Returns the Markdown's path and its line of the index."""
     from . import _simulation
 
     name = result.kinematics.mechanism.name
-
-    def render(staging: Path) -> str:
-        images = {}
-        for key, data in _simulation.figures(result).items():
-            (staging / f"{key}.png").write_bytes(data)
-            images[key] = f"{name}/{key}.png"
-        return _simulation.markdown(result, images, command)
+    directory = Path(directory)
+    made = produced(command)
+    fresh = Evidence(
+        "simulate",
+        name,
+        _simulation.mode_parts(result, made),
+        figures={f"{key}.png": {"modes": m, "produced": made} for key, m in _simulation.figure_modes(result).items()},
+    )
 
     with directory_lock(directory):
         complete_reports(directory)
         remove_stale_staging(directory)
-        return _replace_report(Path(directory), name, render)
+        claim_report(directory, name)
+        evidence = merge(fresh, read_evidence(directory / name, "simulate", name))
 
+        def render(staging: Path) -> str:
+            keys = {key: f"{key}.png" for key in _simulation.figure_modes(result)}
+            images = _keep_figures(directory / name, staging, evidence, keys)
+            drawn = _simulation.figures(result)
+            for key, file in keys.items():
+                if file in evidence.kept:
+                    continue
+                if key not in drawn:
+                    evidence.figures.pop(file, None)
+                    continue
+                (staging / file).write_bytes(drawn[key])
+                images[key] = f"{name}/{file}"
+            return _simulation.markdown(result, evidence, images, command)
 
-def index_entry(run: RunResult) -> dict:
-    """The line of reports/README.md for one run."""
-    return {
-        "name": run.mechanism.name,
-        "title": run.mechanism.title,
-        "passed": run.passed,
-        "findings": list(run.findings),
-        "worst": worst_text(run),
-        "textbook": textbook_text(run),
+        path = _replace_report(directory, name, evidence, render)
+    reference = result.reference
+    ran = ", ".join(m for m, p in evidence.modes.items() if "section" in p) or "native only"
+    entry = {
+        "name": name,
+        "title": result.kinematics.mechanism.title,
+        "passed": bool(reference.converged),
+        "worst": f"free motion: reference error {reference.relative:.2g} of the size ({ran})",
+        "textbook": "—",
     }
+    return path, entry
 
 
 #: the index's data beside its Markdown: the entries README.md is built from
 INDEX_DATA = "index.json"
 
 
-def simulation_entry(result) -> dict:
-    """The line of reports/README.md for a free-motion run."""
-    reference = result.reference
-    ran = ", ".join(result.outcomes) or "native only"
-    return {
-        "name": result.kinematics.mechanism.name,
-        "title": result.kinematics.mechanism.title,
-        "passed": bool(reference.converged),
-        "worst": f"free motion: reference error {reference.relative:.2g} of the size ({ran})",
-        "textbook": "—",
-    }
-
-
-def write_index(entries: list[dict], directory: str | Path, command: str) -> Path:
-    """Write reports/README.md and its data (:data:`INDEX_DATA`) from index entries."""
+def write_index(entries: list[dict], directory: str | Path) -> Path:
+    """Write reports/README.md and its data (:data:`INDEX_DATA`) from index
+    entries. Call it holding the directory's lock, the index's files claimed."""
     directory = Path(directory)
     ordered = sorted(entries, key=lambda e: e["name"])
     write_atomic(
         directory / INDEX_DATA,
-        json.dumps({"written_by": command, "entries": ordered}, indent=1, ensure_ascii=False) + "\n",
+        json.dumps({"generator": "xcheck", "entries": ordered}, indent=1, ensure_ascii=False) + "\n",
     )
     path = directory / "README.md"
-    write_atomic(path, index_markdown(ordered, command))
+    write_atomic(path, marked(index_markdown(ordered), "the index of the reports"))
     return path
 
 
 def read_index(directory: str | Path) -> list[dict]:
     """The entries of a reports directory's index (from :data:`INDEX_DATA`; none
     where it is missing or not xcheck's)."""
-    path = Path(directory) / INDEX_DATA
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        return [e for e in data["entries"] if isinstance(e, dict) and isinstance(e.get("name"), str)]
-    except (OSError, ValueError, KeyError, TypeError):
+    document = read_json(Path(directory) / INDEX_DATA)
+    if not isinstance(document, dict) or not isinstance(document.get("entries"), list):
         return []
+    return [e for e in document["entries"] if isinstance(e, dict) and isinstance(e.get("name"), str)]
 
 
-def update_index(directory: str | Path, entries: list[dict], keep: set[str], command: str) -> Path:
+def claim_index(directory: str | Path) -> None:
+    """Check that the index may be written in ``directory`` (its files absent
+    or xcheck's; :func:`xcheck.fileio.claim`), raising InputError otherwise."""
+    claim(Path(directory), list(RESERVED_NAMES), "the index of the reports")
+
+
+def update_index(directory: str | Path, entries: list[dict], keep: set[str]) -> Path:
     """Add these entries to a reports directory's index, keeping the entries
-    already there whose mechanisms are in ``keep`` (the folder's models);
-    ``command`` is the run that wrote it last. The read and the write are one
-    step under the directory's lock, so concurrent runs keep each other's lines."""
+    already there whose mechanisms are in ``keep`` (the folder's models). The
+    read and the write are one step under the directory's lock, so concurrent
+    runs keep each other's lines.
+
+    Raises
+    ------
+    InputError
+        Where README.md or index.json there is a file xcheck did not write.
+    """
     with directory_lock(directory):
         complete_reports(directory)
+        claim_index(directory)
         known = {e["name"]: e for e in read_index(directory)}
         known.update({e["name"]: e for e in entries})
         fresh = {e["name"] for e in entries}
-        return write_index([e for n, e in known.items() if n in keep or n in fresh], directory, command)
+        return write_index([e for n, e in known.items() if n in keep or n in fresh], directory)

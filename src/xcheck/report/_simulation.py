@@ -23,9 +23,10 @@ from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
 from ..runner import versions  # noqa: E402
 from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
 from . import _figures  # noqa: E402
-from ._markdown import _g, _table  # noqa: E402
+from ._evidence import Evidence  # noqa: E402
+from ._markdown import _g, _image, _provenance, _table  # noqa: E402
 
-__all__ = ["figures", "markdown"]
+__all__ = ["figures", "figure_modes", "mode_parts", "markdown"]
 
 
 def _png(figure, **options) -> bytes:
@@ -143,18 +144,55 @@ def _setting(trajectory) -> str:
     return ", ".join(parts)
 
 
-def markdown(result: SimulationResult, images: dict[str, str], command: str) -> str:
-    """The report's Markdown; ``images`` maps figure keys to paths relative to it."""
+def mode_parts(result: SimulationResult, made: dict) -> dict[str, dict]:
+    """What the report shows of each free mode of the run (JSON: its section,
+    or why it did not run), with ``made``, where it comes from."""
+    parts = {}
+    columns = [c for c in LADDER_COLUMNS if c != "order"]  # the orders follow the table
+    for mode, outcome in result.outcomes.items():
+        lines = [f"**`{mode}`**" + ("" if outcome.ok else f" — failed: {outcome.reason}")]
+        summary = outcome.summary
+        if summary is not None and not summary.empty:
+            shown = [c for c in columns if c in summary]
+            rows = [[_cell(row[c]) for c in shown] for _, row in summary.iterrows()]
+            lines.append(_table([c.replace("_", " ") for c in shown], rows))
+        if outcome.study is not None and not outcome.study.empty:
+            orders = outcome.study.dropna(subset=["order"])
+            if not orders.empty:
+                lines.append(
+                    "Observed orders (position error between consecutive steps of a series): "
+                    + "; ".join(f"{r.series} {r.order:.2f} at {r.timestep:g} s" for r in orders.itertuples())
+                    + "."
+                )
+        parts[mode] = {"section": "\n\n".join(lines), "ran": bool(outcome.ok), "produced": made}
+    for mode, reason in result.not_applicable.items():
+        parts[mode] = {"not_run": reason, "produced": made}
+    return parts
+
+
+def figure_modes(result: SimulationResult) -> dict[str, list[str]]:
+    """The free modes each figure of :func:`figures` shows (by key)."""
+    drawn = [m for m, o in result.outcomes.items() if o.ok and o.trajectories]
+    timed = [m for m, o in result.outcomes.items() if o.summary is not None and "cpu_seconds" in o.summary]
+    return {"drawing": [], "energy": [], "errors": drawn, "work-precision": timed}
+
+
+def markdown(result: SimulationResult, evidence: Evidence, images: dict[str, str], command: str) -> str:
+    """The report's Markdown: ``result``'s reference and the free modes of
+    ``evidence`` (the run's, and those kept from earlier runs, marked);
+    ``images`` maps figure keys to paths relative to it."""
     mech = result.kinematics.mechanism
     reference = result.reference
     motion = reference.motion
     spec = mech.free_motion
     passes = ", ".join(f"{t:.4g}" for t in motion.singular_passes) or "none"
+    marks, provenance = _provenance(evidence)
     lines = [
         f"# {mech.name}: {mech.title} — free motion",
         f"Source: {mech.source or '—'}. Released for {motion.times[-1]:g} s"
         + (f" (outputs every {spec.output_step:g} s)" if spec is not None else "")
         + ".",
+        provenance,
         mech.notes.strip(),
         f"![the mechanism]({images['drawing']})",
         "## The native reference",
@@ -181,27 +219,18 @@ def markdown(result: SimulationResult, images: dict[str, str], command: str) -> 
         "## Engines in free motion",
     ]
     if "errors" in images:
-        lines.append(f"![error against time]({images['errors']})\n\n![work-precision]({images['work-precision']})")
-    columns = [c for c in LADDER_COLUMNS if c != "order"]  # the orders follow the table
-    for mode, outcome in result.outcomes.items():
-        head = f"**`{mode}`**" + ("" if outcome.ok else f" — failed: {outcome.reason}")
-        lines.append(head)
-        summary = outcome.summary
-        if summary is not None and not summary.empty:
-            shown = [c for c in columns if c in summary]
-            rows = [[_cell(row[c]) for c in shown] for _, row in summary.iterrows()]
-            lines.append(_table([c.replace("_", " ") for c in shown], rows))
-        if outcome.study is not None and not outcome.study.empty:
-            orders = outcome.study.dropna(subset=["order"])
-            if not orders.empty:
-                lines.append(
-                    "Observed orders (position error between consecutive steps of a series): "
-                    + "; ".join(f"{r.series} {r.order:.2f} at {r.timestep:g} s" for r in orders.itertuples())
-                    + "."
-                )
-    for mode, reason in result.not_applicable.items():
-        lines.append(f"`{mode}`: not run ({reason}).")
-    if not result.outcomes and not result.not_applicable:
+        lines.append(_image("error against time", images["errors"], marks.get("errors.png", "")))
+    if "work-precision" in images:
+        lines.append(_image("work-precision", images["work-precision"], marks.get("work-precision.png", "")))
+    ran = {m: p for m, p in evidence.modes.items() if "section" in p}
+    for mode, part in ran.items():
+        head = f"**`{mode}`**"
+        section = part["section"]
+        lines.append(section.replace(head, head + marks.get(mode, ""), 1) if section.startswith(head) else section)
+    for mode, part in evidence.modes.items():
+        if "not_run" in part:
+            lines.append(f"`{mode}`{marks.get(mode, '')}: not run ({part['not_run']}).")
+    if not evidence.modes:
         lines.append("No free-motion mode ran (none registered, or `--engines native`).")
     lines += [
         "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),

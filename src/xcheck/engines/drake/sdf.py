@@ -11,8 +11,9 @@ the child, its name the mechanism's joint's with ``.joint`` (SDFormat wants
 links and joints named apart). A body without mass properties gets the Pinocchio export's defaults
 (:func:`xcheck.engines.pinocchio.model.mass_properties`), listed in the file.
 Gravity (a world property in SDFormat), springs and loads have no element
-Drake parses here; the file's comment states them. Floats are written with
-``repr`` so that they read back bit for bit. A pin-in-slot joint or a loop cut
+Drake parses here; the file's comment states them. Exported, the computed
+numbers are canonical (:func:`xcheck.precision.number`: 12 significant digits
+of their scale); in memory they read back bit for bit. A pin-in-slot joint or a loop cut
 at a prismatic joint is not converted, as in free motion
 (:class:`~xcheck.engines.NotApplicable`).
 """
@@ -25,6 +26,7 @@ import numpy as np
 
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Prismatic, Revolute
+from xcheck.precision import number, numbers
 from xcheck.topology import spanning_tree
 
 from .free import refuse
@@ -37,12 +39,19 @@ def _name(text: str) -> str:
     return escape(text, {'"': "&quot;"})
 
 
-def _num(value: float) -> str:
-    return repr(float(value))
+def _num(value: float, scale: float = 0.0) -> str:
+    """A number of the file (:func:`xcheck.precision.number`: canonical when exported)."""
+    return repr(number(value, scale))
 
 
-def _vec(*values: float) -> str:
-    return " ".join(_num(v) for v in values)
+def _vec(*values: float, scale: float = 0.0) -> str:
+    """A vector of the file, each component on the scale of the largest (or ``scale``)."""
+    return " ".join(repr(v) for v in numbers(values, scale))
+
+
+def _pose(x: float, y: float, phi: float, size: float) -> str:
+    """A ``<pose>``: the position (m, on the scale of the mechanism's size) and the angle about z (rad)."""
+    return f"{_vec(x, y, 0.0, scale=size)} {_vec(0.0, 0.0, phi, scale=np.pi)}"
 
 
 def sdf_text(kinematics: Kinematics) -> str:
@@ -56,6 +65,7 @@ def sdf_text(kinematics: Kinematics) -> str:
     from xcheck.engines.pinocchio.model import mass_properties
 
     mech = kinematics.mechanism
+    size = mech.size
     topology = spanning_tree(mech)
     refuse(mech, topology)
     q = kinematics.assemble()
@@ -95,9 +105,9 @@ def sdf_text(kinematics: Kinematics) -> str:
         x, y, phi = (float(v) for v in pose[body.name])
         body_lines += [
             f'    <link name="{_name(body.name)}">',
-            f"      <pose>{_vec(x, y, 0.0, 0.0, 0.0, phi)}</pose>",
+            f"      <pose>{_pose(x, y, phi, size)}</pose>",
             "      <inertial>",
-            f"        <pose>{_vec(com[0], com[1], 0.0, 0.0, 0.0, 0.0)}</pose>",
+            f"        <pose>{_pose(com[0], com[1], 0.0, size)}</pose>",
             f"        <mass>{_num(mass)}</mass>",
             f"        <inertia><ixx>{_num(inertia)}</ixx><iyy>{_num(inertia)}</iyy><izz>{_num(inertia)}</izz>"
             "<ixy>0.0</ixy><ixz>0.0</ixz><iyz>0.0</iyz></inertia>",
@@ -122,10 +132,10 @@ def sdf_text(kinematics: Kinematics) -> str:
         parent = "ground" if tj.parent == GROUND else tj.parent
         body_lines += [
             f'    <joint name="{_name(j.name)}.joint" type="{kind}">',
-            f"      <pose>{_vec(point[0], point[1], 0.0, 0.0, 0.0, 0.0)}</pose>",
+            f"      <pose>{_pose(point[0], point[1], 0.0, size)}</pose>",
             f"      <parent>{_name(parent)}</parent>",
             f"      <child>{_name(tj.child)}</child>",
-            f"      <axis><xyz>{_vec(*axis)}</xyz></axis>",
+            f"      <axis><xyz>{_vec(*axis, scale=1.0)}</xyz></axis>",
             "    </joint>",
         ]
     for cut in topology.cuts:
@@ -137,8 +147,8 @@ def sdf_text(kinematics: Kinematics) -> str:
             "    <drake:ball_constraint>",
             f"      <drake:ball_constraint_body_A>{_name(a)}</drake:ball_constraint_body_A>",
             f"      <drake:ball_constraint_body_B>{_name(b)}</drake:ball_constraint_body_B>",
-            f"      <drake:ball_constraint_p_AP>{_vec(pa[0], pa[1], 0.0)}</drake:ball_constraint_p_AP>",
-            f"      <drake:ball_constraint_p_BQ>{_vec(pb[0], pb[1], 0.0)}</drake:ball_constraint_p_BQ>",
+            f"      <drake:ball_constraint_p_AP>{_vec(pa[0], pa[1], 0.0, scale=size)}</drake:ball_constraint_p_AP>",
+            f"      <drake:ball_constraint_p_BQ>{_vec(pb[0], pb[1], 0.0, scale=size)}</drake:ball_constraint_p_BQ>",
             "    </drake:ball_constraint>",
         ]
     return "\n".join([*lines, *body_lines, "  </model>", "</sdf>", ""])

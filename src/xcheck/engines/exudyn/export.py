@@ -21,6 +21,7 @@ import numpy as np
 from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics
 from xcheck.model import LoadLaw
+from xcheck.precision import number
 
 from .free import FREE_SETTINGS, FREE_STEPS, build_system
 
@@ -37,14 +38,30 @@ def export_files(kinematics: Kinematics) -> dict[str, str]:
     return {f"{kinematics.mechanism.name}.py": script(kinematics)}
 
 
-def _value(value) -> str:
-    """Python source of one item field (numbers written to round-trip exactly)."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
+def _plain(value):
+    """A field's value with arrays as (nested) lists."""
+    return value.tolist() if isinstance(value, np.ndarray) else value
+
+
+def _floats(value) -> list[float]:
+    """The floats of a field's value, nested lists flattened."""
     if isinstance(value, float):
+        return [value]
+    if isinstance(value, (list, tuple)):
+        return [f for v in value for f in _floats(v)]
+    return []
+
+
+def _value(value, scale: float = 0.0) -> str:
+    """Python source of one item field: a vector's numbers on ``scale`` (the largest
+    magnitude of the field over the file), a number on its own relative to itself
+    (:func:`xcheck.precision.number`: canonical when exported, else exact)."""
+    value = _plain(value)
+    if isinstance(value, float):
+        value = number(value, scale)
         return repr(value) if math.isfinite(value) else f"float({str(value)!r})"
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
+        return "[" + ", ".join(_value(v, scale) for v in value) + "]"
     return repr(value)
 
 
@@ -81,25 +98,36 @@ def script(kinematics: Kinematics) -> str:
     laws: list[str] = []
     lines: list[str] = []
     data = mbs.systemData
+    items = []
     for kind, count in (*_KINDS, ("Load", "NumberOfLoads")):
         for index in range(getattr(data, count)()):
             item = dict(getattr(mbs, f"Get{kind}")(index))
             if kind == "Node" and index in names:
                 item["name"] = names[index]
-            fields = []
-            for key, value in item.items():
-                if key.startswith("V") and key != "Vshow":
-                    continue  # drawing data, and nothing the dynamics reads
-                if isinstance(value, dict) and "function" in value:  # a load's time law
-                    law = getattr(value["function"], "law", None)
-                    if law is None:
-                        raise NotApplicable(f"{kind.lower()} {index}: a user function xcheck cannot write")
-                    function = f"law_{len(laws)}"
-                    laws.append(_law_function(function, law))
-                    fields.append(f"{key!r}: {function}")
-                    continue
-                fields.append(f"{key!r}: {_value(value)}")
-            lines.append(f"mbs.Add{kind}({{{', '.join(fields)}}})")
+            # drawing data (V...) is nothing the dynamics reads
+            items.append((kind, index, {k: v for k, v in item.items() if not k.startswith("V") or k == "Vshow"}))
+    # a vector field's scale: its largest magnitude over the file (the state's
+    # coordinates and velocities, positions, loads), so round-off of a zero is 0
+    scales: dict[str, float] = {}
+    for _, _, item in items:
+        for key, value in item.items():
+            plain = _plain(value)
+            if isinstance(plain, (list, tuple)):
+                magnitudes = [abs(f) for f in _floats(plain) if math.isfinite(f)]
+                scales[key] = max([scales.get(key, 0.0), *magnitudes])
+    for kind, index, item in items:
+        fields = []
+        for key, value in item.items():
+            if isinstance(value, dict) and "function" in value:  # a load's time law
+                law = getattr(value["function"], "law", None)
+                if law is None:
+                    raise NotApplicable(f"{kind.lower()} {index}: a user function xcheck cannot write")
+                function = f"law_{len(laws)}"
+                laws.append(_law_function(function, law))
+                fields.append(f"{key!r}: {function}")
+                continue
+            fields.append(f"{key!r}: {_value(value, scales.get(key, 0.0))}")
+        lines.append(f"mbs.Add{kind}({{{', '.join(fields)}}})")
     setting, dt = FREE_SETTINGS[0], min(FREE_STEPS[0], spec.output_step / 10.0)
     steps = max(1, round(spec.duration / dt))
     header = (

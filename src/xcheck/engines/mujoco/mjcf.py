@@ -47,6 +47,7 @@ from xcheck.errors import XcheckError
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.motion import simulation_window
+from xcheck.precision import number, numbers
 from xcheck.topology import Topology, TreeJoint, carrier_share, spanning_tree
 
 __all__ = [
@@ -104,15 +105,20 @@ CARRIER_INERTIA = 1e-9
 CARRIER_INERTIA_FLOOR = 1e-14
 
 
-def _num(x: float) -> str:
+def _text(x: float) -> str:
     """A float as the shortest text that reads back to the same double."""
-    x = float(x) + 0.0  # no negative zero
-    text = repr(x)
+    text = repr(float(x) + 0.0)  # no negative zero
     return text[:-2] if text.endswith(".0") else text
 
 
-def _vec(*values: float) -> str:
-    return " ".join(_num(v) for v in values)
+def _num(x: float, scale: float = 0.0) -> str:
+    """A number of the file (:func:`xcheck.precision.number`: canonical when exported)."""
+    return _text(number(x, scale))
+
+
+def _vec(*values: float, scale: float = 0.0) -> str:
+    """A vector of the file, each component on the scale of the largest (or ``scale``)."""
+    return " ".join(_text(v) for v in numbers(values, scale))
 
 
 @dataclass(frozen=True)
@@ -465,6 +471,10 @@ def mjcf_text(kinematics: Kinematics) -> str:
     qpos = joint_coordinates(mech, lay, kinematics.assemble())
     refs = {mj.name: float(v) for mj, v in zip(lay.joints, qpos)}
 
+    def _ref(name: str, kind: str) -> str:
+        """A joint's value at the assembly: an angle (on the scale of pi) or a slide (of the size)."""
+        return _num(refs[name], np.pi if kind == "hinge" else size)
+
     root = ET.Element("mujoco", model=mech.name)
     defaults = [name for name, p in masses.items() if p.default]
     header = [
@@ -553,14 +563,14 @@ def mjcf_text(kinematics: Kinematics) -> str:
         for cut in lay.topology.cuts:
             if isinstance(cut, Prismatic) and cut.body_b == body:
                 xy = mech.body(body).points[cut.point]
-                attrs = {"name": weld_site(cut), "pos": _vec(xy[0], xy[1], 0.0)}
+                attrs = {"name": weld_site(cut), "pos": _vec(xy[0], xy[1], 0.0, scale=size)}
                 if cut.angle != 0.0:
                     attrs["axisangle"] = _vec(0.0, 0.0, 1.0, -cut.angle)
                 ET.SubElement(el, "site", attrs)
 
     worldbody = ET.SubElement(root, "worldbody")
     for label, xy in mech.ground.points.items():
-        ET.SubElement(worldbody, "site", name=_site(GROUND, label), pos=_vec(xy[0], xy[1], 0.0))
+        ET.SubElement(worldbody, "site", name=_site(GROUND, label), pos=_vec(xy[0], xy[1], 0.0, scale=size))
     add_weld_sites(worldbody, GROUND)
 
     children = _children(lay.topology)
@@ -593,12 +603,12 @@ def mjcf_text(kinematics: Kinematics) -> str:
         # ... written at the assembly: the body's pose at its reference coordinates, each
         # joint's anchor and axis expressed in that frame (see _assembled)
         (angle, pos), moved = _assembled((angle, pos), moves, refs)
-        attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0)}
-        if angle != 0.0:
+        attrs = {"name": body.name, "pos": _vec(pos[0], pos[1], 0.0, scale=size)}
+        if number(angle, np.pi) != 0.0:  # an angle at round-off of 0 is 0, on every machine
             attrs["axisangle"] = _vec(0.0, 0.0, 1.0, angle)
         el = ET.SubElement(parent_el, "body", attrs)
         for name, kind, at, axis in moved:
-            j_attrs = {"name": name, "type": kind, "pos": _vec(at[0], at[1], 0.0), "ref": _num(refs[name])}
+            j_attrs = {"name": name, "type": kind, "pos": _vec(at[0], at[1], 0.0, scale=size), "ref": _ref(name, kind)}
             if kind == "hinge":
                 j_attrs["axis"] = "0 0 -1" if axis[0] < 0 else "0 0 1"
             else:
@@ -608,7 +618,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
         ET.SubElement(
             el,
             "inertial",
-            pos=_vec(props.com[0], props.com[1], 0.0),
+            pos=_vec(props.com[0], props.com[1], 0.0, scale=size),
             mass=_num(props.mass),
             diaginertia=_vec(props.inertia, props.inertia, props.inertia),
         )
@@ -616,12 +626,18 @@ def mjcf_text(kinematics: Kinematics) -> str:
         pts = [body.points[lbl] for lbl in labels]
         if len(pts) == 1:
             ET.SubElement(
-                el, "geom", type="box", pos=_vec(pts[0][0], pts[0][1], 0.0), size=_vec(3 * radius, 2 * radius, radius)
+                el,
+                "geom",
+                type="box",
+                pos=_vec(pts[0][0], pts[0][1], 0.0, scale=size),
+                size=_vec(3 * radius, 2 * radius, radius),
             )
         for p, q in zip(pts, pts[1:]):
-            ET.SubElement(el, "geom", type="capsule", size=_num(radius), fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0))
+            ET.SubElement(
+                el, "geom", type="capsule", size=_num(radius), fromto=_vec(p[0], p[1], 0.0, q[0], q[1], 0.0, scale=size)
+            )
         for label, xy in zip(labels, pts):
-            ET.SubElement(el, "site", name=_site(body.name, label), pos=_vec(xy[0], xy[1], 0.0))
+            ET.SubElement(el, "site", name=_site(body.name, label), pos=_vec(xy[0], xy[1], 0.0, scale=size))
         add_weld_sites(el, body.name)
         for child in children.get(body.name, []):
             add_body(el, child)
@@ -631,7 +647,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
         for cut in _carried(lay.topology, body):
             name, line = carrier_name(cut), mech.body(body).points[cut.line_point]
             at = line + refs[name] * np.asarray(cut.direction, dtype=float)  # the carrier at the assembly
-            el = ET.SubElement(parent_el, "body", name=name, pos=_vec(at[0], at[1], 0.0))
+            el = ET.SubElement(parent_el, "body", name=name, pos=_vec(at[0], at[1], 0.0, scale=size))
             ET.SubElement(
                 el,
                 "joint",
@@ -639,13 +655,13 @@ def mjcf_text(kinematics: Kinematics) -> str:
                 type="slide",
                 pos="0 0 0",
                 axis=_vec(cut.direction[0], cut.direction[1], 0.0),
-                ref=_num(refs[name]),
+                ref=_ref(name, "slide"),
             )
             props = carriers[name]
             ET.SubElement(
                 el,
                 "inertial",
-                pos=_vec(props.com[0], props.com[1], 0.0),
+                pos=_vec(props.com[0], props.com[1], 0.0, scale=size),
                 mass=_num(props.mass),
                 diaginertia=_vec(props.inertia, props.inertia, props.inertia),
             )
@@ -696,7 +712,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
         ET.SubElement(actuator, "velocity", name=f"{driver.name}.velocity", joint=mj_joint, kv=_num(kv))
 
     keyframe = ET.SubElement(root, "keyframe")
-    ET.SubElement(keyframe, "key", name="reference", qpos=" ".join(_num(v) for v in qpos))
+    ET.SubElement(keyframe, "key", name="reference", qpos=" ".join(_ref(mj.name, mj.kind) for mj in lay.joints))
 
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"

@@ -3,8 +3,9 @@
 URDF describes trees only, so the files are two: ``NAME.urdf`` (the tree, with
 the same joints, placements, inertias and frame names as the programmatic
 Pinocchio model) and ``NAME.loops.json`` (each loop cut: the two point links
-that must coincide, and the inputs). Floats are written with ``repr`` so that
-they read back bit for bit.
+that must coincide, and the inputs). Exported, the computed numbers are
+canonical (:func:`xcheck.precision.number`: 12 significant digits of their
+scale, so every machine writes the same text); in memory they read back bit for bit.
 
 Link layout, for every tree joint: the moving joint hangs a massless link
 ``"<joint>.link"`` whose frame is the joint frame; the body link (named after
@@ -29,6 +30,7 @@ import re
 import numpy as np
 
 from xcheck.model import GROUND, Prismatic, Revolute
+from xcheck.precision import number, numbers
 
 from .model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
 
@@ -68,33 +70,40 @@ class UrdfNames:
         return self.renamed[name]
 
 
-def _num(x: float) -> str:
-    return repr(float(x) + 0.0)  # + 0.0 turns -0.0 into 0.0
+def _num(x: float, scale: float = 0.0) -> str:
+    """A number of the file (:func:`xcheck.precision.number`: canonical when exported)."""
+    return repr(number(x, scale))
 
 
-def _vec(*values: float) -> str:
-    return " ".join(_num(v) for v in values)
+def _vec(*values: float, scale: float = 0.0) -> str:
+    """A vector of the file, each component on the scale of the largest (or ``scale``)."""
+    return " ".join(repr(v) for v in numbers(values, scale))
+
+
+def _origin(xyz, rpy, size: float) -> str:
+    """An ``<origin>``'s attributes: a position (m, on the scale of the mechanism's size) and angles (rad)."""
+    return f'xyz="{_vec(*xyz, scale=size)}" rpy="{_vec(*rpy, scale=math.pi)}"'
 
 
 def _comment(text: str) -> str:
     return text.replace("--", "- -")
 
 
-def _fixed(lines: list[str], n: UrdfNames, parent: str, child: str, xy, angle: float = 0.0) -> None:
+def _fixed(lines: list[str], n: UrdfNames, size: float, parent: str, child: str, xy, angle: float = 0.0) -> None:
     lines += [
         f'  <joint name="{n(fixed_joint(child))}" type="fixed">',
         f'    <parent link="{n(parent)}"/>',
         f'    <child link="{n(child)}"/>',
-        f'    <origin xyz="{_vec(xy[0], xy[1], 0.0)}" rpy="{_vec(0.0, 0.0, angle)}"/>',
+        f"    <origin {_origin((xy[0], xy[1], 0.0), (0.0, 0.0, angle), size)}/>",
         "  </joint>",
     ]
 
 
-def _inertial(body) -> list[str]:
+def _inertial(body, size: float) -> list[str]:
     izz = body.inertia
     return [
         "    <inertial>",
-        f'      <origin xyz="{_vec(body.com[0], body.com[1], 0.0)}" rpy="0.0 0.0 0.0"/>',
+        f'      <origin xyz="{_vec(body.com[0], body.com[1], 0.0, scale=size)}" rpy="0.0 0.0 0.0"/>',
         f'      <mass value="{_num(body.mass)}"/>',
         f'      <inertia ixx="{_num(0.5 * izz)}" ixy="0.0" ixz="0.0" iyy="{_num(0.5 * izz)}" '
         f'iyz="0.0" izz="{_num(izz)}"/>',
@@ -102,10 +111,12 @@ def _inertial(body) -> list[str]:
     ]
 
 
-def _visual(geometry: str, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0), colour: str = "link") -> list[str]:
+def _visual(
+    geometry: str, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0), colour: str = "link", size: float = 0.0
+) -> list[str]:
     return [
         "    <visual>",
-        f'      <origin xyz="{_vec(*xyz)}" rpy="{_vec(*rpy)}"/>',
+        f"      <origin {_origin(xyz, rpy, size)}/>",
         f"      <geometry>{geometry}</geometry>",
         f'      <material name="{colour}"/>',
         "    </visual>",
@@ -116,13 +127,13 @@ def _sphere(radius: float, colour: str = "point") -> list[str]:
     return _visual(f'<sphere radius="{_num(radius)}"/>', colour=colour)
 
 
-def _bars(points: list[np.ndarray], radius: float) -> list[str]:
+def _bars(points: list[np.ndarray], radius: float, size: float) -> list[str]:
     """Visuals of a body: a cylinder between each pair of consecutive points (a
     box at a body of one point); only the picture, not the mass."""
     out: list[str] = []
     if len(points) == 1:
         p = points[0]
-        out += _visual(f'<box size="{_vec(6 * radius, 4 * radius, 2 * radius)}"/>', (p[0], p[1], 0.0))
+        out += _visual(f'<box size="{_vec(6 * radius, 4 * radius, 2 * radius)}"/>', (p[0], p[1], 0.0), size=size)
     for p, q in zip(points, points[1:]):
         length = float(np.hypot(*(q - p)))
         if length == 0.0:
@@ -130,7 +141,7 @@ def _bars(points: list[np.ndarray], radius: float) -> list[str]:
         mid = 0.5 * (p + q)
         yaw = math.atan2(q[1] - p[1], q[0] - p[0])
         geometry = f'<cylinder radius="{_num(radius)}" length="{_num(length)}"/>'
-        out += _visual(geometry, (mid[0], mid[1], 0.0), (0.0, 0.5 * math.pi, yaw))
+        out += _visual(geometry, (mid[0], mid[1], 0.0), (0.0, 0.5 * math.pi, yaw), size=size)
     return out or _sphere(radius, "link")
 
 
@@ -142,7 +153,7 @@ def _blocks(lines: list[str], n: UrdfNames, spec: TreeSpec, body: str, radius: f
     """The block frames of prismatic cuts on ``body``: fixed links turned by -angle."""
     for owner, name, xy, angle in spec.blocks:
         if owner == body:
-            _fixed(lines, n, body, name, xy, angle)
+            _fixed(lines, n, spec.mechanism.size, body, name, xy, angle)
             _link(lines, n, name, _visual(f'<box size="{_vec(4 * radius, 2 * radius, 2 * radius)}"/>'))
 
 
@@ -193,7 +204,8 @@ def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
             "1 kg at the centroid of the body's points, Izz = m L^2 / 12 with L the largest distance",
             "between two of its points, at least a tenth of the mechanism's size.",
         ]
-    radius = VISUAL_FRACTION * mech.size
+    size = mech.size
+    radius = VISUAL_FRACTION * size
     lines = (
         ['<?xml version="1.0"?>', "<!--"]
         + [f"  {_comment(h)}" for h in header]
@@ -207,7 +219,7 @@ def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
     )
     _link(lines, n, GROUND, _visual(f'<box size="{_vec(2 * radius, 2 * radius, radius)}"/>', colour="ground"))
     for label, xy in mech.ground.points.items():
-        _fixed(lines, n, GROUND, point_frame(GROUND, label), xy)
+        _fixed(lines, n, size, GROUND, point_frame(GROUND, label), xy)
         _link(lines, n, point_frame(GROUND, label), _sphere(1.5 * radius, "ground"))
     _blocks(lines, n, spec, GROUND, radius)
     carriers = {c.link: c for c in spec.carriers}
@@ -221,11 +233,11 @@ def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
             f'  <joint name="{n(js.name)}" type="{kind}">',
             f'    <parent link="{n(js.parent)}"/>',
             f'    <child link="{n(js.link)}"/>',
-            f'    <origin xyz="{_vec(js.origin[0], js.origin[1], 0.0)}" rpy="{_vec(0.0, 0.0, js.angle)}"/>',
-            f'    <axis xyz="{_vec(*js.axis)}"/>',
+            f"    <origin {_origin((js.origin[0], js.origin[1], 0.0), (0.0, 0.0, js.angle), size)}/>",
+            f'    <axis xyz="{_vec(*js.axis, scale=1.0)}"/>',
         ]
         if kind == "prismatic":
-            limit = _num(10.0 * mech.size)
+            limit = _num(10.0 * size)
             lines.append(f'    <limit lower="-{limit}" upper="{limit}" effort="0" velocity="0"/>')
         lines.append("  </joint>")
         marker = (
@@ -234,17 +246,17 @@ def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
             else _visual(f'<box size="{_vec(3 * radius, 2 * radius, radius)}"/>', colour="point")
         )
         if js.link in carriers:
-            _link(lines, n, js.link, [*_inertial(carriers[js.link]), *marker])
+            _link(lines, n, js.link, [*_inertial(carriers[js.link], size), *marker])
         else:
             _link(lines, n, js.link, marker)
         body = hung.get(js.link)
         if body is None:
             continue
-        _fixed(lines, n, js.link, body.name, body.offset)
+        _fixed(lines, n, size, js.link, body.name, body.offset)
         own = points.get(body.name, [])
-        _link(lines, n, body.name, [*_inertial(body), *_bars([xy for _, xy in own], radius)])
+        _link(lines, n, body.name, [*_inertial(body, size), *_bars([xy for _, xy in own], radius, size)])
         for label, xy in own:
-            _fixed(lines, n, body.name, point_frame(body.name, label), xy)
+            _fixed(lines, n, size, body.name, point_frame(body.name, label), xy)
             _link(lines, n, point_frame(body.name, label), _sphere(1.5 * radius))
         _blocks(lines, n, spec, body.name, radius)
     changed = [(old, new) for old, new in n.renamed.items() if old != new]
@@ -286,7 +298,7 @@ def loops_json(spec: TreeSpec, n: UrdfNames | None = None, assembly: dict[str, f
             "carrier (a prismatic joint along the line), held to the pin by CONTACT_3D (x, y act) or to "
             "the block frame by CONTACT_6D (x, y and rotation z act)."
         ),
-        "gravity": [float(g) + 0.0 for g in mech.gravity] + [0.0],
+        "gravity": [*numbers(mech.gravity), 0.0],
         "loops": [_loop(cut, n) for cut in spec.cuts],
         "inputs": [
             {"driver": name, "joint": n(joint), "sign": int(sign), "quantity": mech.drivers[k].quantity}
@@ -294,7 +306,9 @@ def loops_json(spec: TreeSpec, n: UrdfNames | None = None, assembly: dict[str, f
         ],
     }
     if assembly is not None:
-        doc["assembly"] = {n(js.name): float(assembly[js.name]) + 0.0 for js in spec.joints}
+        doc["assembly"] = {
+            n(js.name): number(assembly[js.name], math.pi if js.kind == "revolute" else mech.size) for js in spec.joints
+        }
     doc["names"] = dict(sorted(n.renamed.items()))
     return json.dumps(doc, indent=2) + "\n"
 
