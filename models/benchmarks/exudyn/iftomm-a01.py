@@ -16,7 +16,7 @@ import exudyn as exu
 SC = exu.SystemContainer()
 mbs = SC.AddSystem()
 
-mbs.AddNode({'nodeType': 'RigidBody2D', 'referenceCoordinates': [-1.0, 3.2820035428884744e-22, 3.141592653589793], 'initialCoordinates': [0.0, 0.0, 0.0], 'initialVelocities': [0.0, 0.0, 0.0], 'name': 'link', 'Vshow': False})
+mbs.AddNode({'nodeType': 'RigidBody2D', 'referenceCoordinates': [-1.0, 0.0, 3.14159265359], 'initialCoordinates': [0.0, 0.0, 0.0], 'initialVelocities': [0.0, 0.0, 0.0], 'name': 'link', 'Vshow': False})
 mbs.AddObject({'objectType': 'Ground', 'referencePosition': [0.0, 0.0, 0.0], 'referenceRotation': [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], 'referenceHT': [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], 'name': 'object0', 'Vshow': False})
 mbs.AddObject({'objectType': 'RigidBody2D', 'mass': 1.0, 'inertia': 1e-12, 'centerOfMass': [0.0, 0.0], 'nodeNumber': 0, 'name': 'object1', 'Vshow': False})
 mbs.AddObject({'objectType': 'JointRevolute2D', 'markerNumbers': [0, 1], 'activeConnector': True, 'name': 'object2', 'Vshow': False})
