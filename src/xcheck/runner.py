@@ -157,7 +157,9 @@ class ModeOutcome:
         mechanism size, angle in rad, others per the largest magnitude of
         that quantity over all bodies and points, but at least ``floor``, its
         physical floor from :func:`xcheck.results.scale_floors`), tolerance,
-        passed, worst (the body or point), worst_input (first driver, SI);
+        round_off (the bound below which the difference is round-off:
+        :func:`xcheck.tolerances.conditioned_round_off`), passed, worst (the
+        body or point), worst_input (first driver, SI);
         a dynamic mode's also the basis of its verdict (expected_order,
         observed_order, coarse_error, coarse_step, step, estimate, basis:
         see :func:`_convergence_verdict`), its tolerance the limit found there,
@@ -323,6 +325,20 @@ class RunResult:
 
         head = f"<p><b>{escape(self.mechanism.name)}</b>: {escape(self.verdict)} ({self.seconds:.1f} s)</p>"
         return head + self.summary.to_html(index=False, na_rep="", float_format=lambda v: f"{v:.3g}")
+
+    def worst(self) -> tuple[str, str, float, float] | None:
+        """(mode, category, relative error, tolerance) of the largest error
+        relative to its tolerance, over the modes that ran, but those failing
+        only in their stated findings (:attr:`findings`); None if none."""
+        best = None
+        for outcome in self.outcomes.values():
+            if outcome.finding:
+                continue
+            for _, row in outcome.categories.iterrows():
+                ratio = row.relative / row.tolerance if row.tolerance > 0 else math.inf
+                if best is None or ratio > best[0]:
+                    best = (ratio, (outcome.mode, row.category, float(row.relative), float(row.tolerance)))
+        return None if best is None else best[1]
 
 
 def is_static(mechanism) -> bool:

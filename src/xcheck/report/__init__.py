@@ -193,6 +193,7 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         "findings": [m for m, p in evidence.modes.items() if p.get("finding")],
         "worst": worst_text(evidence),
         "textbook": textbook_text(run),
+        "command": command,
     }
     return path, entry
 
@@ -295,6 +296,7 @@ def write_simulation_report(result, directory: str | Path, command: str) -> tupl
         "passed": bool(reference.converged),
         "worst": f"free motion: reference error {reference.relative:.2g} of the size ({ran})",
         "textbook": "—",
+        "command": command,
     }
     return path, entry
 

@@ -487,13 +487,22 @@ def index_markdown(entries: list[dict]) -> str:
                 + (f" (findings: {', '.join(f'`{m}`' for m in e.get('findings', ()))})" if e.get("findings") else ""),
                 e["worst"],
                 e["textbook"],
+                f"`{e['command']}`" if e.get("command") else "—",
             ]
         )
     return (
         "# Reports\n\nOne report per mechanism: every engine mode against the exact native solution, and "
-        "the printed answers checked value by value; each report names the command that reproduces it.\n\n"
+        "the printed answers checked value by value.\n\n"
         + _table(
-            ["mechanism", "title", "result", "largest difference relative to its tolerance", "printed answers"], rows
+            [
+                "mechanism",
+                "title",
+                "result",
+                "largest difference relative to its tolerance",
+                "printed answers",
+                "reproduce",
+            ],
+            rows,
         )
         + "\n"
     )
