@@ -16,6 +16,7 @@ import numpy as np
 from matplotlib import patches
 from matplotlib.figure import Figure
 
+from .joints import LineJoint
 from .kinematics import Solution, rotate
 from .model import Mechanism, PinInSlot, Prismatic, Revolute
 
@@ -96,6 +97,7 @@ def _joint_labels(mech: Mechanism) -> dict[str, list[str]]:
         if isinstance(joint, Revolute):
             pairs = [(joint.body_a, joint.point_a), (joint.body_b, joint.point_b)]
         else:
+            assert isinstance(joint, LineJoint)
             pairs = [(joint.body_a, joint.line_point), (joint.body_b, joint.point)]
         for body, label in pairs:
             if label not in used[body]:
@@ -322,6 +324,7 @@ def draw_pose(
             ax.add_patch(arrow)
             ax.annotate(driver.name, b, xytext=(4, -10), textcoords="offset points", color="crimson", fontsize=8)
         else:
+            assert isinstance(joint, LineJoint)
             p = pose.point(joint.body_b, joint.point)
             d = pose.direction(joint.body_a, joint.direction) * sign
             n = np.array([-d[1], d[0]])

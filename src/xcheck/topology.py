@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ModelError
+from .joints import LineJoint
 from .kinematics import rotate
-from .model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
+from .model import GROUND, Joint, Mechanism
 
 __all__ = ["TreeJoint", "Topology", "spanning_tree", "carrier_share"]
 
@@ -75,7 +76,7 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
     driven = {d.joint: d.name for d in mechanism.drivers}
     order = sorted(
         range(len(mechanism.joints)),
-        key=lambda i: (mechanism.joints[i].name not in driven, isinstance(mechanism.joints[i], Revolute), i),
+        key=lambda i: (mechanism.joints[i].name not in driven, mechanism.joints[i].tree_rank, i),
     )
     root = {b.name: b.name for b in mechanism.bodies}
 
@@ -127,7 +128,7 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
 
 
 def carrier_share(
-    mechanism: Mechanism, cut: Prismatic | PinInSlot, held: tuple[float, np.ndarray, float] | None, line_mass: float
+    mechanism: Mechanism, cut: LineJoint, held: tuple[float, np.ndarray, float] | None, line_mass: float
 ) -> tuple[tuple[float, np.ndarray, float], tuple[float, np.ndarray, float] | None]:
     """The mass a cut's carrier takes from the body it is held to, keeping the
     mechanism's mass distribution exact.
@@ -147,7 +148,8 @@ def carrier_share(
 
     Parameters
     ----------
-    cut : PinInSlot or Prismatic
+    cut : LineJoint
+        A prismatic joint (with a ``locked_angle``) or a pin in a slot.
     held : (mass kg, com (2,) m, inertia kg m^2) or None
         ``body_b``'s mass properties in its frame; None for the ground.
     line_mass : float, kg
@@ -163,11 +165,11 @@ def carrier_share(
     """
     if held is None:
         m = 0.5 * line_mass
-        return (m, np.zeros(2), 0.0 if isinstance(cut, PinInSlot) else m * mechanism.size**2), None
+        return (m, np.zeros(2), 0.0 if cut.locked_angle is None else m * mechanism.size**2), None
     m, c, inertia = float(held[0]), np.asarray(held[1], dtype=float), float(held[2])
     p = mechanism.body(cut.body_b).points[cut.point]
-    if isinstance(cut, Prismatic):
-        return (0.5 * m, rotate(cut.angle, c - p), 0.5 * inertia), (0.5 * m, c, 0.5 * inertia)
+    if cut.locked_angle is not None:
+        return (0.5 * m, rotate(cut.locked_angle, c - p), 0.5 * inertia), (0.5 * m, c, 0.5 * inertia)
     d2 = float((p - c) @ (p - c))
     mc = min(0.5 * m, inertia * m / (2.0 * m * d2 + inertia))
     return (mc, np.zeros(2), 0.0), (m - mc, (m * c - mc * p) / (m - mc), inertia - m * mc * d2 / (m - mc))

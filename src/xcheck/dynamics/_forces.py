@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
-from ..model import Mechanism, PinInSlot, Prismatic, Revolute
+from ..model import Mechanism
 
 __all__ = [
     "JOINT_QUANTITIES",
@@ -36,24 +36,14 @@ __all__ = [
     "Forces",
     "require_constant_loads",
     "require_mass_data",
-    "joint_quantities",
     "quantity_unit",
 ]
 
-#: per joint: quantity -> shape suffix (2: a vector in the global frame)
+#: per joint: quantity -> shape suffix (2: a vector in the global frame); a joint
+#: type's ``quantities`` say which it carries
 JOINT_QUANTITIES = {"reaction": 2, "normal": 0, "moment": 0}
 #: per driver
 DRIVER_QUANTITIES = {"effort": 0}
-
-
-def joint_quantities(joint) -> tuple[str, ...]:
-    """The quantities a joint of this type carries."""
-    if isinstance(joint, Revolute):
-        return ("reaction",)
-    if isinstance(joint, Prismatic):
-        return ("reaction", "normal", "moment")
-    assert isinstance(joint, PinInSlot)
-    return ("reaction", "normal")
 
 
 def quantity_unit(mechanism: Mechanism, kind: str, name: str, quantity: str) -> str:

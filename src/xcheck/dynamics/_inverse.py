@@ -36,9 +36,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..joints import Action, Joint
 from ..kinematics import Solution, Status
-from ..model import GROUND, Driver, Joint, Mechanism, Prismatic, Revolute
-from ._forces import Forces, joint_quantities, require_constant_loads, require_mass_data
+from ..model import GROUND, Driver, Mechanism
+from ._forces import Forces, require_constant_loads, require_mass_data
 
 __all__ = ["AppliedLoad", "applied_loads", "inverse_dynamics", "newton_euler", "body_dynamics"]
 
@@ -215,15 +216,9 @@ def _solve(matrices: np.ndarray, rhs: np.ndarray, good: np.ndarray) -> tuple[np.
 def _empty(mech: Mechanism, n: int) -> tuple[dict, dict]:
     joints = {}
     for joint in mech.joints:
-        joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(joint)}
+        joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint.quantities}
     drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     return joints, drivers
-
-
-def _line_frame(solution: Solution, joint) -> tuple[np.ndarray, np.ndarray]:
-    """Global unit direction u and left normal n = R u of a line joint, (N, 2) each."""
-    u = _rot(solution.body(joint.body_a)["angle"], joint.direction)
-    return u, _perp(u)
 
 
 def inverse_dynamics(solution: Solution) -> Forces:
@@ -272,19 +267,8 @@ def inverse_dynamics(solution: Solution) -> Forces:
     joints, drivers = _empty(mech, n_samples)
     row = 0
     for joint in mech.joints:
-        out = joints[joint.name]
-        if isinstance(joint, Revolute):
-            # Phi = r_a + A_a s_a - r_b - A_b s_b: the constraint force on b is -lambda
-            out["reaction"] = -multipliers[:, row : row + 2]
-            row += 2
-            continue
-        _, normal = _line_frame(solution, joint)
-        out["normal"] = multipliers[:, row]
-        out["reaction"] = multipliers[:, row, None] * normal
-        row += 1
-        if isinstance(joint, Prismatic):
-            out["moment"] = multipliers[:, row]  # phi_b - phi_a = angle: a couple +lambda on b
-            row += 1
+        joints[joint.name].update(joint.reactions(multipliers[:, row : row + joint.rows], solution))
+        row += joint.rows
     for k, driver in enumerate(mech.drivers):
         drivers[driver.name]["effort"] = multipliers[:, system.n_kinematic + k]
     return Forces(
@@ -324,55 +308,30 @@ def newton_euler(solution: Solution) -> Forces:
     d = np.zeros((n_samples, n, n))
     column = 0
 
-    def act(col: int, body: str, sign: float, direction: np.ndarray | None, at: np.ndarray | None) -> None:
-        """Column ``col``: a unit force along ``direction`` (N, 2) at ``at`` (N, 2) on
-        ``body`` (with ``sign``), or a unit couple if ``direction`` is None."""
-        if body == GROUND:
+    def act(col: int, action: Action) -> None:
+        """Column ``col``: a unit reaction's or effort's force or couple on one body."""
+        if action.body == GROUND:
             return
-        i = 3 * index[body]
-        if direction is None:
-            d[:, i + 2, col] += sign
+        i = 3 * index[action.body]
+        if action.direction is None:
+            d[:, i + 2, col] += action.scale
             return
-        d[:, i : i + 2, col] += sign * direction
-        d[:, i + 2, col] += sign * _cross(at - bodies[body]["com"], direction)
+        force = action.scale * action.direction
+        d[:, i : i + 2, col] += force
+        d[:, i + 2, col] += _cross(action.at - bodies[action.body]["com"], force)
 
-    def point(body: str, label: str) -> np.ndarray:
-        return solution.point(label, body)["position"]
-
-    layout: list[tuple[Joint | Driver, str, int]] = []  # (joint or driver, quantity, column)
+    layout: list[tuple[Joint | Driver, int, int]] = []  # (joint or driver, first column, columns)
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            at = point(joint.body_b, joint.point_b)
-            for axis in range(2):
-                e = np.zeros((n_samples, 2))
-                e[:, axis] = 1.0
-                act(column + axis, joint.body_b, 1.0, e, at)
-                act(column + axis, joint.body_a, -1.0, e, at)
-            layout.append((joint, "reaction", column))
-            column += 2
-            continue
-        _, normal = _line_frame(solution, joint)
-        at = point(joint.body_b, joint.point)
-        act(column, joint.body_b, 1.0, normal, at)
-        act(column, joint.body_a, -1.0, normal, at)
-        layout.append((joint, "normal", column))
-        column += 1
-        if isinstance(joint, Prismatic):
-            act(column, joint.body_b, 1.0, None, None)
-            act(column, joint.body_a, -1.0, None, None)
-            layout.append((joint, "moment", column))
-            column += 1
+        columns = joint.reaction_actions(solution)
+        for k, actions in enumerate(columns):
+            for action in actions:
+                act(column + k, action)
+        layout.append((joint, column, len(columns)))
+        column += len(columns)
     for driver in mech.drivers:
-        joint = mech.joint(driver.joint)
-        if isinstance(joint, Revolute):
-            act(column, joint.body_b, 1.0, None, None)
-            act(column, joint.body_a, -1.0, None, None)
-        else:
-            direction, _ = _line_frame(solution, joint)
-            at = point(joint.body_b, joint.point)
-            act(column, joint.body_b, 1.0, direction, at)
-            act(column, joint.body_a, -1.0, direction, at)
-        layout.append((driver, "effort", column))
+        for action in mech.joint(driver.joint).driver_actions(solution):
+            act(column, action)
+        layout.append((driver, column, 1))
         column += 1
 
     rhs = np.zeros((n_samples, n))
@@ -384,16 +343,12 @@ def newton_euler(solution: Solution) -> Forces:
     unknowns, residual = _solve(d, np.where(good[:, None], rhs, 0.0), good)
 
     joints, drivers = _empty(mech, n_samples)
-    for owner, quantity, col in layout:
-        if quantity == "reaction":
-            joints[owner.name]["reaction"] = unknowns[:, col : col + 2]
-        elif quantity == "normal":
-            joints[owner.name]["normal"] = unknowns[:, col]
-            joints[owner.name]["reaction"] = unknowns[:, col, None] * _line_frame(solution, owner)[1]
-        elif quantity == "moment":
-            joints[owner.name]["moment"] = unknowns[:, col]
+    for owner, first, count in layout:
+        values = unknowns[:, first : first + count]
+        if isinstance(owner, Driver):
+            drivers[owner.name]["effort"] = values[:, 0]
         else:
-            drivers[owner.name]["effort"] = unknowns[:, col]
+            joints[owner.name].update(owner.reactions_from_unknowns(values, solution))
     return Forces(
         "native-newton-euler",
         solution.inputs,

@@ -100,6 +100,18 @@ class Term:
         """(kind, three body indices (-1: none or the ground), geometry (GEOMETRY,), offset)."""
         raise NotImplementedError
 
+    def residual(self, poses: Poses, c: np.ndarray) -> np.ndarray:
+        """Its rows of Phi(q, c), (N, rows)."""
+        raise NotImplementedError
+
+    def jacobian(self, poses: Poses, out: np.ndarray) -> None:
+        """Its rows of Phi_q into ``out`` (N, rows, n), zero where not written."""
+        raise NotImplementedError
+
+    def gamma(self, poses: Poses, cdd: np.ndarray) -> np.ndarray:
+        """Its rows of gamma, (N, rows), with the drivers' input accelerations ``cdd`` (N, k)."""
+        raise NotImplementedError
+
 
 def _geometry(*parts: tuple[int, object]) -> np.ndarray:
     out = np.zeros(GEOMETRY)

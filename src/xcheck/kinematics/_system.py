@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from ..joints._terms import Angles, Coincidence, Poses, Projection, relative_angle, rotate
-from ..model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from ..joints._terms import Angles, Poses, rotate
+from ..model import GROUND, Mechanism
 
 __all__ = ["ConstraintSystem", "rotate"]
 
@@ -57,8 +57,8 @@ class ConstraintSystem:
         self.body_index[GROUND] = -1
         self.n = 3 * len(self.body_names)
         self.size = mechanism.size
-        joint_terms = [t for joint in mechanism.joints for t in self._joint_terms(joint)]
-        driver_terms = [self._driver_term(d, k) for k, d in enumerate(mechanism.drivers)]
+        joint_terms = [t for joint in mechanism.joints for t in joint.terms(self._local)]
+        driver_terms = [mechanism.joint(d.joint).driver_term(self._local, k) for k, d in enumerate(mechanism.drivers)]
         self.terms = joint_terms + driver_terms
         self.n_kinematic = sum(t.rows for t in joint_terms)
         self.n_drivers = len(driver_terms)
@@ -69,29 +69,6 @@ class ConstraintSystem:
     # -- building ---------------------------------------------------------
     def _local(self, body: str, label: str) -> tuple[int, np.ndarray]:
         return self.body_index[body], self.mechanism.body(body).points[label]
-
-    def _joint_terms(self, joint) -> list:
-        if isinstance(joint, Revolute):
-            a, s_a = self._local(joint.body_a, joint.point_a)
-            b, s_b = self._local(joint.body_b, joint.point_b)
-            return [Coincidence(a, s_a, b, s_b)]
-        a, s_q = self._local(joint.body_a, joint.line_point)
-        b, s_p = self._local(joint.body_b, joint.point)
-        normal = np.array([-joint.direction[1], joint.direction[0]])
-        terms: list[Projection | Angles] = [Projection(a, s_q, normal, b, s_p)]
-        if isinstance(joint, Prismatic):
-            terms.append(relative_angle(a, b, joint.angle))
-        return terms
-
-    def _driver_term(self, driver, k: int):
-        joint = self.mechanism.joint(driver.joint)
-        a, b = self.body_index[joint.body_a], self.body_index[joint.body_b]
-        if isinstance(joint, Revolute):
-            return relative_angle(a, b, 0.0, driver=k)
-        assert isinstance(joint, (Prismatic, PinInSlot))
-        _, s_q = self._local(joint.body_a, joint.line_point)
-        _, s_p = self._local(joint.body_b, joint.point)
-        return Projection(a, s_q, joint.direction, b, s_p, driver=k)
 
     # -- evaluation -------------------------------------------------------
     def residual(self, q: np.ndarray, c: np.ndarray, kinematic_only: bool = False) -> np.ndarray:

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..joints import JOINT_TYPES, Joint
+
 if TYPE_CHECKING:
     from ..units import Units
     from ._load import _Reader
@@ -137,26 +139,28 @@ def read_springs(reader: _Reader, value: Any, bodies: list[Body], units: Units) 
     return springs
 
 
+def pivot_joint(reader: _Reader, value: Any, field: str, joints: list[Joint]) -> Joint:
+    """The joint named ``value``, one whose bodies turn about a pivot (a rotational
+    spring or a joint torque acts across it); otherwise the reader fails at ``field``."""
+    by_name = {j.name: j for j in joints}
+    if not isinstance(value, str) or value not in by_name or not by_name[value].pivots:
+        kinds = " or ".join(kind for kind, cls in JOINT_TYPES.items() if cls.pivots)
+        pivots = [j.name for j in joints if j.pivots]
+        why = f" (a {by_name[value].kind} joint does not turn about a pivot)" if value in by_name else ""
+        reader.fail(field, f"a {kinds} joint ({', '.join(pivots) or 'none'})", _describe(value) + why)
+    return by_name[value]
+
+
 def read_rotational_springs(reader: _Reader, value: Any, joints: list, units: Units) -> list[RotationalSpring]:
     """``[[rotational_springs]]``: name, joint (a revolute or pin-in-slot joint),
     stiffness (N m/rad), rest_angle (angle unit, default 0), damping (N m s/rad, default 0)."""
-    from ._mechanism import Prismatic
-
     if not isinstance(value, list):
         reader.fail("rotational_springs", "a list of [[rotational_springs]]", _describe(value))
-    by_name = {j.name: j for j in joints}
-    turning = [j.name for j in joints if not isinstance(j, Prismatic)]
     springs: list[RotationalSpring] = []
     for i, spec in enumerate(value):
         where = f"rotational_springs[{i}]"
         spec = reader.table(spec, where, ("name", "joint", "stiffness", "rest_angle", "damping"))
-        joint = spec.get("joint")
-        if not isinstance(joint, str) or joint not in by_name or isinstance(by_name[joint], Prismatic):
-            reader.fail(
-                f"{where}.joint",
-                f"a revolute or pin-in-slot joint ({', '.join(turning) or 'none'})",
-                _describe(joint) + (" (a prismatic joint does not turn)" if joint in by_name else ""),
-            )
+        j = pivot_joint(reader, spec.get("joint"), f"{where}.joint", joints)
         stiffness = reader.number(spec.get("stiffness"), f"{where}.stiffness")
         if stiffness < 0.0:
             reader.fail(f"{where}.stiffness", "a stiffness of at least 0 N m/rad", repr(spec.get("stiffness")))
@@ -167,8 +171,7 @@ def read_rotational_springs(reader: _Reader, value: Any, joints: list, units: Un
         name = reader.text(spec.get("name", f"rotational spring {i + 1}"), f"{where}.name")
         if any(s.name == name for s in springs):
             reader.fail(f"{where}.name", "a name no other rotational spring has", repr(name))
-        j = by_name[joint]
-        springs.append(RotationalSpring(name, joint, j.body_a, j.body_b, stiffness, rest, damping))
+        springs.append(RotationalSpring(name, j.name, j.body_a, j.body_b, stiffness, rest, damping))
     return springs
 
 

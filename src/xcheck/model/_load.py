@@ -19,6 +19,7 @@ import numpy as np
 from .. import arguments
 from ..errors import ModelError
 from ..fileio import reserved_name
+from ..joints import JOINT_TYPES
 from ..units import (
     ACCELERATION_UNITS,
     ANGLE_UNITS,
@@ -28,7 +29,7 @@ from ..units import (
     Units,
     evaluate_expression,
 )
-from ._free_motion import read_free_motion, read_rotational_springs, read_springs
+from ._free_motion import pivot_joint, read_free_motion, read_rotational_springs, read_springs
 from ._mechanism import (
     GROUND,
     Assembly,
@@ -62,7 +63,7 @@ _TOP_KEYS = (
     "rotational_springs",
     "free_motion",
 )
-_JOINT_TYPES = ("revolute", "prismatic", "pin-in-slot")
+_JOINT_TYPES = tuple(JOINT_TYPES)
 #: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
 _TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
 
@@ -418,10 +419,11 @@ class _Reader:
             if pair[0] == pair[1]:
                 self.fail(f"{field}.bodies", "two different bodies", f"{pair[0]!r} twice")
             a, b = bodies[pair[0]], bodies[pair[1]]
-            if kind == "revolute":
-                joint = self.revolute(spec, field, a, b)
-            else:
-                joint = self.line_joint(spec, field, kind, a, b, units)
+            joint = (
+                self.revolute(spec, field, a, b)
+                if kind == "revolute"
+                else self.line_joint(spec, field, kind, a, b, units)
+            )
             if joint.name in names:
                 self.fail(f"{field}.name", "a name no other joint has", repr(joint.name))
             names.add(joint.name)
@@ -495,8 +497,9 @@ class _Reader:
                 owners.setdefault(label, []).append(b.name)
         groups = {label: _UnionFind() for label, names in owners.items() if len(names) > 1}
         for j in joints:
-            if isinstance(j, Revolute) and j.point_a == j.point_b and j.point_a in groups:
-                groups[j.point_a].union(j.body_a, j.body_b)
+            label = j.shared_label()
+            if label in groups:
+                groups[label].union(j.body_a, j.body_b)
         for label, group in groups.items():
             first, *others = owners[label]
             root = group.find(first)
@@ -519,12 +522,7 @@ class _Reader:
         """
         used: dict[str, dict[str, None]] = {b.name: {} for b in bodies}  # ordered sets
         for j in joints:
-            ends: tuple[tuple[str, str], ...]
-            if isinstance(j, Revolute):
-                ends = ((j.body_a, j.point_a), (j.body_b, j.point_b))
-            else:  # the sliding point; the line's points only place the line
-                ends = ((j.body_b, j.point),)
-            for body, label in ends:
+            for body, label in j.anchors():
                 used[body][label] = None
         for b in bodies:
             labels = list(used[b.name])
@@ -578,7 +576,14 @@ class _Reader:
                 self.fail(f"{field}.joint", "a joint no other driver drives", repr(joint_name))
             driven.add(joint_name)
             joint = by_name[joint_name]
-            quantity = "angle" if isinstance(joint, Revolute) else "slide"
+            quantity = joint.driven_quantity
+            if quantity is None:
+                drivable = [j.name for j in joints if j.driven_quantity is not None]
+                self.fail(
+                    f"{field}.joint",
+                    f"a joint that can be driven ({', '.join(drivable) or 'none'})",
+                    f"{joint_name!r}, a {joint.kind} joint",
+                )
             q_scale, rate_scale = self.input_scales(quantity, units)
             kind = self.choice(spec.get("motion", "constant-rate"), f"{field}.motion", MotionLaw.KINDS)
             allowed = {
@@ -849,21 +854,12 @@ class _Reader:
                 "only a 'torque' with 'joint' (an actuator between the joint's bodies)",
                 f"'{extra[0]}' as well",
             )
-        by_name = {j.name: j for j in joints}
-        turning = [j.name for j in joints if not isinstance(j, Prismatic)]
-        joint = spec.get("joint")
-        if not isinstance(joint, str) or joint not in by_name or isinstance(by_name[joint], Prismatic):
-            self.fail(
-                f"{field}.joint",
-                f"a revolute or pin-in-slot joint ({', '.join(turning) or 'none'})",
-                _describe(joint) + (" (a prismatic joint does not turn)" if joint in by_name else ""),
-            )
+        joint = pivot_joint(self, spec.get("joint"), f"{field}.joint", joints)
         if "torque" not in spec:
             self.fail(f"{field}.torque", "a torque (N m) across the joint", "none")
         torque = self.number(spec["torque"], f"{field}.torque")
         name = self.text(spec.get("name", f"load {i + 1}"), f"{field}.name")
-        j = by_name[joint]
-        pairs = [(j.body_b, name, torque), (j.body_a, f"{name} (reaction)", -torque)]
+        pairs = [(joint.body_b, name, torque), (joint.body_a, f"{name} (reaction)", -torque)]
         zero = np.zeros(2)
         return [Load(label, body, zero, zero, value, None, law) for body, label, value in pairs if body != GROUND]
 

@@ -13,6 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import ModelError
+from ..joints import Joint, PinInSlot, Prismatic, Revolute
 from ..units import Units
 from ._free_motion import FreeMotionSpec, RotationalSpring, Spring
 
@@ -70,66 +71,6 @@ class Body:
 
     def __post_init__(self):
         object.__setattr__(self, "points", _frozen_points(self.points))
-
-
-@dataclass(frozen=True)
-class Revolute:
-    """A pin joint: point ``point_a`` of ``body_a`` coincides with ``point_b`` of ``body_b``."""
-
-    name: str
-    body_a: str
-    body_b: str
-    point_a: str
-    point_b: str
-
-    kind = "revolute"
-    #: constraint equations (degrees of freedom removed)
-    rows = 2
-
-
-@dataclass(frozen=True)
-class _LineJoint:
-    """Point ``point`` of ``body_b`` stays on a line fixed in ``body_a``.
-
-    The line passes through ``line_point`` of ``body_a`` with the unit
-    direction ``direction`` (body_a frame). The slide displacement of the joint
-    is ``direction . (r_point - r_line_point)`` in m.
-    """
-
-    name: str
-    body_a: str
-    body_b: str
-    line_point: str
-    direction: np.ndarray
-    point: str
-
-    def __post_init__(self):
-        d = np.array(self.direction, dtype=float).reshape(2)
-        d = d / math.hypot(*d)
-        d.flags.writeable = False
-        object.__setattr__(self, "direction", d)
-
-
-@dataclass(frozen=True)
-class Prismatic(_LineJoint):
-    """A block sliding along a line, relative rotation locked at ``angle`` rad
-    (``phi_b - phi_a``)."""
-
-    angle: float = 0.0
-
-    kind = "prismatic"
-    rows = 2
-
-
-@dataclass(frozen=True)
-class PinInSlot(_LineJoint):
-    """A pin sliding along a slot, relative rotation free."""
-
-    kind = "pin-in-slot"
-    rows = 1
-
-
-Joint = Revolute | Prismatic | PinInSlot
 
 
 @dataclass(frozen=True)

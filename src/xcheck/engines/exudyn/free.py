@@ -52,6 +52,7 @@ import pandas as pd
 
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.results import ModeResult, Trajectory, convergence_study
@@ -219,6 +220,7 @@ def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
                 ei.ObjectJointRevolute2D(markerNumbers=markers, visualization=ei.VObjectJointRevolute2D(show=False))
             )
             continue
+        assert isinstance(joint, LineJoint)
         # (p_line - p_pin) . A_a n = 0 with marker 0 the pin (body_b) and marker 1 the line (body_a);
         # a prismatic joint also keeps the pin's axis A_b t0 (= A_a d at the locked angle) normal to A_a n
         d = np.asarray(joint.direction, dtype=float)
@@ -341,6 +343,7 @@ def _joint_gaps(mech: Mechanism, points: dict, angles: dict) -> np.ndarray:
             gap = where(joint.body_a, joint.point_a) - where(joint.body_b, joint.point_b)
             value = np.hypot(gap[:, 0], gap[:, 1])
         else:
+            assert isinstance(joint, LineJoint)
             phi_a = angles[joint.body_a] if joint.body_a != GROUND else 0.0
             d = rotate(phi_a, np.asarray(joint.direction, dtype=float)) if joint.body_a != GROUND else joint.direction
             d = np.broadcast_to(np.asarray(d, dtype=float), (len(next(iter(angles.values()))), 2))

@@ -38,8 +38,9 @@ import numpy as np
 import pandas as pd
 
 from xcheck.errors import XcheckError
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Mechanism, Revolute
+from xcheck.model import GROUND, Mechanism
 from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import free_errors, ladder_steps, left_branch
 
@@ -103,7 +104,7 @@ def joint_velocities(mechanism: Mechanism, lay: Layout, q: np.ndarray, qd: np.nd
         if mj.kind == "hinge":
             qvel.append(frames[joint.body_b][3] - frames[joint.body_a][3])
         else:
-            assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
+            assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
             phi_a, w_a = frames[joint.body_a][1], frames[joint.body_a][3]
             direction = rotate(phi_a, joint.direction)
             turning = w_a * np.array([-direction[1], direction[0]])

@@ -31,7 +31,8 @@ import copy
 import mujoco
 import numpy as np
 
-from xcheck.dynamics import Forces, applied_loads, determined_states, joint_quantities
+from xcheck.dynamics import Forces, applied_loads, determined_states
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
 
@@ -101,7 +102,7 @@ def inverse_forces(
     body_ids = {b.name: dyn.body(b.name).id for b in mech.moving_bodies}
     joints, drivers = {}, {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     for joint in mech.joints:
-        joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(joint)}
+        joints[joint.name] = {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint.quantities}
     driven = {d.joint: k for k, d in enumerate(mech.drivers)}
     residual = np.zeros(n)
     jacp_a, jacp_b, jacr_a, jacr_b = (np.zeros((3, nv)) for _ in range(4))
@@ -162,7 +163,7 @@ def inverse_forces(
                 data.xfrc_applied[body, 3:] += np.cross(arm, sign * f) + sign * couple
             out = joints[cut.name]
             out["reaction"][i] = -f[:2]  # f acts on body_a (through the carrier): body_a on body_b is -f
-            if not isinstance(cut, Revolute):
+            if isinstance(cut, LineJoint):
                 u = rotate(_angle(data, body_ids, cut.body_a), cut.direction)
                 out["normal"][i] = -f[:2] @ np.array([-u[1], u[0]])
                 if has_moment:  # about the sliding point, where both sites are
@@ -180,6 +181,7 @@ def inverse_forces(
             if isinstance(joint, Revolute):
                 out["reaction"][i] = sign * force
                 continue
+            assert isinstance(joint, LineJoint)
             at = _site_position(dyn, data, joint.body_b, joint.point)
             moment = wrench[2] + _cross(reference[:2] - at, force)
             force_ab, moment_ab = sign * force, sign * moment

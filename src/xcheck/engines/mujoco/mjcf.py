@@ -44,6 +44,7 @@ import numpy as np
 
 from xcheck.engines._contract import positive_inertia
 from xcheck.errors import XcheckError
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.motion import simulation_window
@@ -350,7 +351,7 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
         if mj.kind == "hinge":
             qpos.append(frames[joint.body_b][1] - frames[joint.body_a][1])
         else:
-            assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
+            assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
             direction = rotate(frames[joint.body_a][1], joint.direction)
             qpos.append(float(direction @ (world(joint.body_b, joint.point) - world(joint.body_a, joint.line_point))))
     return np.array(qpos)
@@ -580,9 +581,11 @@ def mjcf_text(kinematics: Kinematics) -> str:
         parent = mech.body(tj.parent)
         # the two points that coincide at zero joint coordinates: the pin's, or the
         # line point (body_a) and the sliding point (body_b)
-        point_a, point_b = (
-            (joint.point_a, joint.point_b) if isinstance(joint, Revolute) else (joint.line_point, joint.point)
-        )
+        if isinstance(joint, Revolute):
+            point_a, point_b = joint.point_a, joint.point_b
+        else:
+            assert isinstance(joint, LineJoint)
+            point_a, point_b = joint.line_point, joint.point
         angle = joint.angle if isinstance(joint, Prismatic) else 0.0  # phi_b - phi_a, locked
         if tj.reversed:
             s_parent, s_child, angle = parent.points[point_b], body.points[point_a], -angle
@@ -595,7 +598,7 @@ def mjcf_text(kinematics: Kinematics) -> str:
             if kind == "hinge":
                 axis = np.array([-1.0 if tj.reversed else 1.0, 0.0])  # (sign of z, unused)
             else:
-                assert not isinstance(joint, Revolute)  # a slide belongs to a line joint
+                assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
                 # the line's direction in the child frame (reversed: the child carries the line
                 # and moves against it)
                 axis = -joint.direction if tj.reversed else rotate(-angle, joint.direction)

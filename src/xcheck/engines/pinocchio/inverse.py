@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from xcheck.dynamics import Forces, applied_loads, determined_states, joint_quantities
+from xcheck.dynamics import Forces, applied_loads, determined_states
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics
 from xcheck.model import GROUND, Prismatic, Revolute
 
@@ -74,9 +75,7 @@ def inverse_forces(
     body_joint = {name: model.frames[fid].parentJoint for name, fid in pm.body_frames.items()}
     point_ids = pm.point_frames
 
-    joints = {
-        j.name: {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in joint_quantities(j)} for j in mech.joints
-    }
+    joints = {j.name: {q: np.full((n, 2) if q == "reaction" else n, np.nan) for q in j.quantities} for j in mech.joints}
     drivers = {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
     driven = {d.joint: k for k, d in enumerate(mech.drivers)}
     residual, closure = np.zeros(n), np.zeros(n)
@@ -139,7 +138,7 @@ def inverse_forces(
                     cut_forces.append((jid, _force(sign * f, at, sign * couple)))
             out = joints[cut.name]
             out["reaction"][i] = -f  # f acts on body_a: body_a on body_b is -f
-            if not isinstance(cut, Revolute):
+            if isinstance(cut, LineJoint):
                 line = np.eye(3) if cut.body_a == GROUND else data.oMf[pm.body_frames[cut.body_a]].rotation
                 u = line[:2, :2] @ cut.direction
                 out["normal"][i] = -f @ np.array([-u[1], u[0]])
@@ -159,6 +158,7 @@ def inverse_forces(
             if isinstance(joint, Revolute):
                 out["reaction"][i] = force
                 continue
+            assert isinstance(joint, LineJoint)
             at = data.oMf[point_ids[point_frame(joint.body_b, joint.point)]].translation[:2]
             moment = sign * world.angular[2] - (at[0] * force[1] - at[1] * force[0])
             line = np.eye(3) if joint.body_a == GROUND else data.oMf[pm.body_frames[joint.body_a]].rotation

@@ -45,6 +45,7 @@ import numpy as np
 import pinocchio as pin
 
 from xcheck.errors import ModelError
+from xcheck.joints import LineJoint
 from xcheck.kinematics import rotate
 from xcheck.model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
 from xcheck.topology import carrier_share, spanning_tree
@@ -244,6 +245,7 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
             if tj.driver:
                 drivers[tj.driver] = (j.name, -1.0 if tj.reversed else 1.0)
         else:
+            assert isinstance(j, LineJoint)
             s_line = mechanism.body(j.body_a).points[j.line_point]
             s_point = mechanism.body(j.body_b).points[j.point]
             d = j.direction
@@ -284,7 +286,7 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
 
     blocks = []
     for cut in topology.cuts:  # carriers of the cuts at pin-in-slot and prismatic joints
-        if isinstance(cut, Revolute):
+        if not isinstance(cut, LineJoint):
             continue
         line = mechanism.body(cut.body_a).points[cut.line_point]
         name = carrier_joint(cut)
@@ -315,7 +317,7 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     props = {body.name: mass_properties(body, size) for body in mechanism.moving_bodies}
     carriers = []
     for cut in topology.cuts if carrier_mass else ():
-        if isinstance(cut, Revolute):
+        if not isinstance(cut, LineJoint):
             continue
         held = props.get(cut.body_b)
         line_mass = props[cut.body_a][0] if cut.body_a in props else 1.0
@@ -523,6 +525,7 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
             frames = [frame_id[f"{carrier_joint(cut)}.link"], block_frames[block_frame(cut)]]
             kind = pin.ContactType.CONTACT_6D
         else:
+            assert isinstance(cut, LineJoint)
             frames = [frame_id[f"{carrier_joint(cut)}.link"], point_frames[point_frame(cut.body_b, cut.point)]]
         for fid in frames:
             frame = model.frames[fid]
@@ -572,7 +575,7 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
             q[idx] = pose(child)[1] - pose(parent)[1]
         else:
             j = mech.joint(js.tree_joint)
-            assert not isinstance(j, Revolute)  # a prismatic Pinocchio joint belongs to a line joint
+            assert isinstance(j, LineJoint)  # a prismatic Pinocchio joint belongs to a line joint
             gap = where(j.body_b, mech.body(j.body_b).points[j.point]) - where(
                 j.body_a, mech.body(j.body_a).points[j.line_point]
             )

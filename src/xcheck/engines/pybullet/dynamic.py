@@ -26,6 +26,7 @@ import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, empty_states, ladder
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
@@ -79,7 +80,7 @@ def _inputs(kinematics: Kinematics, frames) -> tuple[np.ndarray, np.ndarray]:
             values.append(pb - pa)
             rates.append(wb - wa)
             continue
-        assert not isinstance(joint, Revolute)  # a slide driver: a prismatic joint or a pin-in-slot
+        assert isinstance(joint, LineJoint)  # a slide driver: a prismatic joint or a pin-in-slot
         line = np.asarray(mech.body(joint.body_a).points[joint.line_point], dtype=float)
         point = np.asarray(mech.body(joint.body_b).points[joint.point], dtype=float)
         phi_a, omega_a = state(joint.body_a)

@@ -64,6 +64,7 @@ import pandas as pd
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.dynamics._free import FreeReference
 from xcheck.engines._contract import NotApplicable, positive_inertia
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
 from xcheck.results import ModeResult, Trajectory, convergence_study
@@ -347,6 +348,7 @@ def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarr
             _, _, phi0, omega0 = state(tj.parent)
             value, rate = phi - phi0 - mb.turns[name], omega - omega0
         else:
+            assert isinstance(j, LineJoint)
             r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
             r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
             u = rotate(phi_a, j.direction)

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from xcheck.joints import LineJoint
 from xcheck.model import GROUND, Mechanism, Prismatic, Revolute
 
 from .scene import Scene
@@ -34,6 +35,7 @@ def snapshot(scene: Scene) -> dict:
             grounded = GROUND in (joint.body_a, joint.body_b)
             shot["pins"].append((scene.world_point(joint.body_b, joint.point_b), grounded))
         else:
+            assert isinstance(joint, LineJoint)
             body, start, end = scene.grooves[joint.name]
             ends = [scene.bodies[body].local_to_world(tuple(p)) for p in (start, end)]
             shot["grooves"].append(

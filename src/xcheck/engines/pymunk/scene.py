@@ -50,8 +50,9 @@ import numpy as np
 import pymunk as pm
 
 from xcheck.engines._contract import positive_inertia
+from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, Solution, Status, rotate
-from xcheck.model import GROUND, Mechanism, MotionLaw, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism, MotionLaw, Prismatic, Revolute
 from xcheck.motion import SimulationWindow, simulation_window
 
 __all__ = ["DEFAULT_MASS", "Scene", "build_scene", "native_window"]
@@ -82,11 +83,9 @@ def _groove_free_com(mechanism: Mechanism, name: str, centroid: np.ndarray) -> n
     exists: the common pin if the body carries pins (and it lies on every line
     the body carries), else the centroid's projection on the body's common line.
     """
-    lines = [j for j in mechanism.joints if isinstance(j, (Prismatic, PinInSlot)) and j.body_a == name]
+    lines = [j for j in mechanism.joints if isinstance(j, LineJoint) and j.body_a == name]
     pins = [
-        mechanism.body(name).points[j.point]
-        for j in mechanism.joints
-        if isinstance(j, (Prismatic, PinInSlot)) and j.body_b == name
+        mechanism.body(name).points[j.point] for j in mechanism.joints if isinstance(j, LineJoint) and j.body_b == name
     ]
     if not lines and not pins:
         return None
@@ -221,7 +220,7 @@ class Scene:
         mech, tol = self.mechanism, 1e-9 * self.mechanism.size
         found = []
         for joint in mech.joints:
-            if not isinstance(joint, (Prismatic, PinInSlot)):
+            if not isinstance(joint, LineJoint):
                 continue
             line_body, pin_body = self.bodies[joint.body_a], self.bodies[joint.body_b]
             if line_body.body_type == pm.Body.DYNAMIC:
@@ -275,6 +274,7 @@ class Scene:
                 d = self.world_point(joint.body_a, joint.point_a) - self.world_point(joint.body_b, joint.point_b)
                 gap = max(gap, float(math.hypot(*d)))
                 continue
+            assert isinstance(joint, LineJoint)
             a = self.bodies[joint.body_a]
             u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
@@ -294,7 +294,7 @@ class Scene:
             if driver.quantity == "angle":
                 q[k], qd[k] = b.angle - a.angle, b.angular_velocity - a.angular_velocity
                 continue
-            assert not isinstance(joint, Revolute)  # a slide is on a line joint
+            assert isinstance(joint, LineJoint)  # a slide is on a line joint
             u = rotate(a.angle, joint.direction)
             r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
             v = self.point_velocity(joint.body_b, joint.point) - self.point_velocity(joint.body_a, joint.line_point)
@@ -397,7 +397,7 @@ def build_scene(
 
     grooves = {}
     for joint in mech.joints:
-        if isinstance(joint, (Prismatic, PinInSlot)):
+        if isinstance(joint, LineJoint):
             low, high = _slide_extent(mech, native, joint)
             pad = _GROOVE_MARGIN[0] * (high - low) + _GROOVE_MARGIN[1] * mech.size
             base = mech.body(joint.body_a).points[joint.line_point]
@@ -458,6 +458,7 @@ def build_scene(
                     )
                 )
             else:
+                assert isinstance(joint, LineJoint)
                 _, start, end = grooves[joint.name]
                 made.append(
                     pm.GrooveJoint(a, b, tuple(start), tuple(end), tuple(mech.body(joint.body_b).points[joint.point]))
@@ -478,7 +479,7 @@ def build_scene(
         else:
             # a distance constraint from a fixed anchor behind the line point: its
             # length is the slide plus the back-off, never near zero
-            assert not isinstance(joint, Revolute)  # a slide is on a line joint
+            assert isinstance(joint, LineJoint)  # a slide is on a line joint
             backoff = _SERVO_BACKOFF * mech.size
             anchor = mech.body(joint.body_a).points[joint.line_point] - backoff * joint.direction
             servo = pm.PinJoint(a, b, tuple(anchor), tuple(mech.body(joint.body_b).points[joint.point]))

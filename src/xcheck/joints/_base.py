@@ -1,0 +1,130 @@
+"""The base every joint type derives from: what a joint has and the hooks a
+type fills in (after sympy's ``physics.mechanics.joint``: the base validates
+and wires, each type adds its geometry and small hooks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, ClassVar
+
+import numpy as np
+
+from ._terms import Term
+
+if TYPE_CHECKING:
+    from ..kinematics import Solution
+
+__all__ = ["Joint", "Action", "Locate"]
+
+#: (body name, point label) -> (the body's index, -1 for the ground; the point in its frame (2,), m)
+Locate = Callable[[str, str], tuple[int, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Action:
+    """What a unit value of a reaction or an effort does to one body: a force
+    ``scale * direction`` at ``at`` (global frame), or, with no direction, a
+    couple ``scale`` (counter-clockwise), for the per-body Newton-Euler form.
+
+    Attributes
+    ----------
+    body : str
+    scale : float
+    direction, at : ndarray, shape (N, 2), or None
+        Unit direction and point of application, m; None for a couple.
+    """
+
+    body: str
+    scale: float
+    direction: np.ndarray | None = None
+    at: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between two bodies.
+
+    ``body_a`` comes first: the order fixes the sign of its driven quantity and
+    of its reactions (``body_a`` acts on ``body_b``; see :mod:`xcheck.dynamics`).
+    A type adds its geometry as fields, sets the class attributes below and
+    implements the hooks; everything else (the solvers, the dynamics, the
+    file reader's checks, the engines' topology) asks the joint.
+
+    Class attributes
+    ----------------
+    kind : str
+        Its ``type`` in a mechanism file.
+    rows : int
+        Constraint rows: the degrees of freedom it removes.
+    driven_quantity : str or None
+        What a driver on it prescribes: ``"angle"`` (rad), ``"slide"`` (m), or
+        None where it cannot be driven.
+    quantities : tuple of str
+        Its reactions' quantities (``xcheck.dynamics.JOINT_QUANTITIES``).
+    pivots : bool
+        Its bodies turn relative to each other about a point of both: a
+        rotational spring or a joint torque may act across it.
+    tree_rank : int or None
+        An engine that builds a kinematic tree takes the joints of lower rank
+        first (after the driven ones) and closes the loops at the rest; None:
+        never a tree joint (a coupling, always closed by a constraint).
+    """
+
+    name: str
+    body_a: str
+    body_b: str
+
+    kind: ClassVar[str]
+    rows: ClassVar[int]
+    driven_quantity: ClassVar[str | None] = None
+    quantities: ClassVar[tuple[str, ...]] = ()
+    pivots: ClassVar[bool] = False
+    tree_rank: ClassVar[int | None] = 0
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        """The bodies whose motion it constrains."""
+        return (self.body_a, self.body_b)
+
+    def anchors(self) -> tuple[tuple[str, str], ...]:
+        """Its joint points as (body, label): two of one body must be apart."""
+        raise NotImplementedError
+
+    @property
+    def locked_angle(self) -> float | None:
+        """``phi_b - phi_a`` (rad) where it keeps its bodies' relative angle (an
+        engine closing a loop cut at it welds rather than pins), else None."""
+        return None
+
+    def shared_label(self) -> str | None:
+        """The label it joins on both bodies, where it pins the same label of each."""
+        return None
+
+    # -- kinematics -------------------------------------------------------
+    def terms(self, locate: Locate) -> list[Term]:
+        """Its constraint terms, ``rows`` rows in all."""
+        raise NotImplementedError
+
+    def driver_term(self, locate: Locate, driver: int) -> Term:
+        """The term that makes its driven quantity equal driver ``driver``'s input."""
+        raise TypeError(f"a {self.kind} joint cannot be driven")
+
+    # -- dynamics ---------------------------------------------------------
+    def reactions(self, multipliers: np.ndarray, solution: Solution) -> dict[str, np.ndarray]:
+        """Its reactions from the multipliers of its rows, (N, rows), in
+        M q'' - Phi_q^T lambda = Q: quantity -> (N, 2) or (N,), SI."""
+        raise NotImplementedError
+
+    def reaction_actions(self, solution: Solution) -> list[list[Action]]:
+        """Per unknown of its reactions in the Newton-Euler form, what a unit
+        value of it does to the bodies; :meth:`reactions_from_unknowns` reads them."""
+        raise NotImplementedError
+
+    def reactions_from_unknowns(self, unknowns: np.ndarray, solution: Solution) -> dict[str, np.ndarray]:
+        """Its reactions from the Newton-Euler unknowns, (N, len(reaction_actions))."""
+        raise NotImplementedError
+
+    def driver_actions(self, solution: Solution) -> list[Action]:
+        """What a unit driving effort does to the bodies (Newton-Euler form)."""
+        raise TypeError(f"a {self.kind} joint cannot be driven")
