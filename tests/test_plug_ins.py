@@ -158,7 +158,8 @@ def test_list_and_engines_name_the_plug_ins_they_could_not_load(tmp_path):
 
 def test_a_command_that_needs_no_engine_says_nothing_of_plug_ins(tmp_path):
     site = _site(tmp_path, "exit0")
-    result = _xcheck(site, "solve", str(MODELS / "fourbar.toml"), "--at", "30")
+    # slider-crank: a law its crank can follow, so solve has nothing to warn about at all
+    result = _xcheck(site, "solve", str(MODELS / "slider-crank.toml"), "--at", "30")
     assert result.returncode == 0 and result.stderr == ""
 
 

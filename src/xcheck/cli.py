@@ -36,6 +36,7 @@ from .errors import InputError, ModelError, XcheckError
 from .fileio import write_atomic
 from .kinematics import Kinematics, Status
 from .model import MAX_INSTANTS, Mechanism, load_mechanism
+from .motion import drive_warnings
 from .output import (
     print_run,
     print_run_totals,
@@ -156,6 +157,7 @@ def list_command(
             kin = cache.cached_kinematics(mech)  # the branch map of an unchanged file is not computed again
             dof = kin.mobility()
             ranges = [kin.input_range(k) for k in range(len(mech.drivers))]
+            warned = drive_warnings(kin)
             cache.store(kin)
         except XcheckError as err:
             failures.append(str(err))
@@ -168,6 +170,7 @@ def list_command(
                 "file": str(path),
                 "dof": dof["rank"],
                 "ranges": [_range_json(kin, rng) for rng in ranges],
+                "warnings": warned,
             }
         )
     if as_json:
@@ -197,6 +200,9 @@ def list_command(
             console.print(
                 f"Free-motion benchmarks (xcheck simulate NAME): {escape(', '.join(benchmarks))}.", highlight=False
             )
+        for row in rows:  # a law that asks more than the mechanism can do: said under the table, not as an error
+            for line in row["warnings"]:
+                console.print(f"[yellow]warning[/yellow]: {escape(line)}", highlight=False)
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
@@ -351,7 +357,8 @@ def solve_command(
     values = np.array(states)  # (N, k, 3)
     solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
     _check_statuses(kin, solution, labels, fields)
-    for line in limit_warnings(solution, branch):  # before the numbers that explode there
+    warned = [*drive_warnings(kin, branch), *limit_warnings(solution, branch)]
+    for line in warned:  # before the numbers that explode there
         typer.echo(f"xcheck: warning: {line}", err=True)
     # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
     # after the solution, which still prints
@@ -372,6 +379,7 @@ def solve_command(
     cache.store(kin)  # the printed answers' branches too
     if as_json:
         output = solution_json(solution, labels, forces)
+        output["warnings"] = warned
         if textbook is not None:
             output["textbook"] = textbook_json(textbook)
         typer.echo(json.dumps(output, indent=2, allow_nan=False, ensure_ascii=False))

@@ -15,7 +15,7 @@ import numpy as np
 from .errors import InputError
 from .kinematics import Kinematics
 
-__all__ = ["SimulationWindow", "law_states", "reached_span", "simulation_window", "sweep_span"]
+__all__ = ["SimulationWindow", "drive_warnings", "law_states", "reached_span", "simulation_window", "sweep_span"]
 
 
 @dataclass(frozen=True)
@@ -205,3 +205,48 @@ def sweep_span(kinematics: Kinematics, k: int, branch: str | None = None, margin
             f"({shown}), found one that never does"
         )
     return span
+
+
+def drive_warnings(kinematics: Kinematics, branch: str | None = None) -> list[str]:
+    """One line per driver whose motion law asks for more than its joint can do:
+    an angle driven round (at a constant rate or acceleration) where it cannot
+    turn fully, or a harmonic law swinging beyond the feasible range. Empty
+    when every law fits. Each line names the driver, its law and its range.
+
+    xcheck still sweeps and simulates only the feasible range (the part of it
+    the law reaches), so its results stand; what the file says would move the
+    mechanism into a limit position, where a real one locks or breaks.
+    """
+    from .output import range_text  # the display of a range, in the file's units
+
+    mech = kinematics.mechanism
+    lines = []
+    for k, driver in enumerate(mech.drivers):
+        law = driver.law
+        if law.static:
+            continue
+        rng = kinematics.input_range(k, branch)
+        if rng.full_turn:
+            continue
+        if law.kind != "harmonic" and driver.quantity == "angle":
+            if law.kind == "constant-rate":
+                how = f"at a constant rate of {law.rate / mech.units.angular_rate_factor:.6g} {mech.units.angular_rate}"
+            else:
+                how = "at a constant acceleration"
+            lines.append(
+                f"{mech.name}: {driver.name} is driven round {how}, but it cannot turn fully "
+                f"({range_text(kinematics, rng)}): the mechanism reaches a limit position there; "
+                "only the feasible range is swept"
+            )
+        elif law.kind == "harmonic":
+            low, high = law.centre - abs(law.amplitude), law.centre + abs(law.amplitude)
+            # a swing that turns at a limit position (an elliptic trammel's slide) is the design, not too far
+            slack = 1e-9 * (high - low)
+            if (rng.low is not None and low < rng.low - slack) or (rng.high is not None and high > rng.high + slack):
+                lines.append(
+                    f"{mech.name}: {driver.name} swings over "
+                    f"{mech.units.show_input(driver.quantity, low)} … {mech.units.show_input(driver.quantity, high)}, "
+                    f"beyond its feasible range ({range_text(kinematics, rng)}): the mechanism reaches a limit "
+                    "position there; only the feasible range is swept"
+                )
+    return lines

@@ -590,6 +590,7 @@ def run_json(run) -> dict:
         "samples": int(run.native.inputs.shape[0]),
         "branch": run.branch,
         "verdict": run.verdict,
+        "warnings": run.warnings,
         "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
         "engines": engines,
         "not_applicable": run.not_applicable,
@@ -618,6 +619,8 @@ def print_run(console: Console, run) -> None:
         "fail": "[red]fail[/red]: some modes beyond their tolerance",
     }[run.verdict]
     console.print(f"[bold]{mech.name}[/bold] — {mech.title}: {status} ({run.seconds:.1f} s)")
+    for line in run.warnings:
+        console.print(f"  [yellow]warning[/yellow]: {escape(line)}", highlight=False)
     table = Table(box=None, pad_edge=False, header_style="bold")
     table.add_column("mode", no_wrap=True)
     table.add_column("result", no_wrap=True)

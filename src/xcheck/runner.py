@@ -35,7 +35,7 @@ from .dynamics import (
 from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
-from .motion import law_states, simulation_window, sweep_span
+from .motion import drive_warnings, law_states, simulation_window, sweep_span
 from .results import (
     ModeResult,
     Trajectory,
@@ -67,6 +67,7 @@ __all__ = [
     "ModeOutcome",
     "RunResult",
     "VERDICTS",
+    "run_verdict",
     "EXIT_CODES",
     "SUMMARY_COLUMNS",
     "run_mechanism",
@@ -212,6 +213,18 @@ class ModeOutcome:
         return "pass" if self.passed else "finding" if self.finding else "fail"
 
 
+def run_verdict(mode_verdicts, others_pass: bool) -> str:
+    """The one rule of a run's verdict (:data:`VERDICTS`), from its modes'
+    verdicts (:attr:`ModeOutcome.verdict`) and whether its reactions and power
+    balance are within their tolerances: "fail" where a mode fails or failed or
+    the others do not pass, else "pass with findings" where a mode fails only in
+    its engine's stated findings, else "pass"."""
+    verdicts = list(mode_verdicts)
+    if not others_pass or any(v not in ("pass", "finding") for v in verdicts):
+        return "fail"
+    return "pass with findings" if "finding" in verdicts else "pass"
+
+
 #: the verdicts of a run, best first (:attr:`RunResult.verdict`)
 VERDICTS = ("pass", "pass with findings", "fail")
 #: the exit code of ``xcheck run`` per verdict; 2 is bad input
@@ -238,6 +251,8 @@ class RunResult:
     no_forces: str = ""
     no_energy: str = ""
     floors: dict = field(default_factory=dict)
+    #: what the file asks that the mechanism cannot do (:func:`xcheck.motion.drive_warnings`)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def mechanism(self):
@@ -247,10 +262,8 @@ class RunResult:
     def passed(self) -> bool:
         """Every mode within its tolerance, or failing only where its engine's
         stated findings say (:attr:`ModeOutcome.finding`), and the reactions
-        and the power balance within theirs: the run's exit status 0."""
-        forces_pass = self.force_table.empty or bool(self.force_table.passed.all())
-        energy_pass = self.energy is None or self.energy["passed"]
-        return all(o.passed or o.finding for o in self.outcomes.values()) and forces_pass and energy_pass
+        and the power balance within theirs: the :attr:`verdict` is not "fail"."""
+        return self.verdict != "fail"
 
     @property
     def findings(self) -> dict[str, str]:
@@ -264,9 +277,9 @@ class RunResult:
         with findings" when every failure is an engine's stated finding
         (:attr:`findings`), else "fail". The exit code of ``xcheck run`` follows
         it (:data:`EXIT_CODES`)."""
-        if not self.passed:
-            return "fail"
-        return "pass with findings" if self.findings else "pass"
+        forces_pass = self.force_table.empty or bool(self.force_table.passed.all())
+        energy_pass = self.energy is None or bool(self.energy["passed"])
+        return run_verdict([o.verdict for o in self.outcomes.values()], forces_pass and energy_pass)
 
     @property
     def summary(self) -> pd.DataFrame:
@@ -756,6 +769,7 @@ def run_mechanism(
             )
     runnable = [mode for mode in modes if mode not in reasons]
     run = RunResult(kinematics, branch_name, native, outcomes, {}, textbook or [], 0.0, floors=floors)
+    run.warnings = drive_warnings(kinematics, branch)
     arguments = (kinematics, native, samples, branch, floors)
     costs = [engines.mode(mode).cost for mode in runnable]
     if jobs > 1 and len(runnable) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING:

@@ -13,7 +13,7 @@ from ..api import limit_warnings
 from ..kinematics import Status
 from ..output import range_text
 from ..precision import shown
-from ..runner import CATEGORIES, RunResult, condition_number, convergence_table, tolerance, versions
+from ..runner import CATEGORIES, RunResult, condition_number, convergence_table, run_verdict, tolerance, versions
 from ..tolerances import conditioned_round_off
 from ._evidence import Evidence
 
@@ -431,13 +431,19 @@ def _forces_section(run: RunResult, evidence: Evidence, images: dict[str, str], 
     return text
 
 
-def passed(run: RunResult, evidence: Evidence) -> bool:
-    """Every mode of the report within its tolerance or failing only in its
-    stated findings, and the reactions and the power balance within theirs
-    (:attr:`xcheck.runner.RunResult.passed`, over the kept parts too)."""
-    modes = all(p.get("verdict", "pass") in ("pass", "finding") for p in evidence.modes.values())
+def report_verdict(run: RunResult, evidence: Evidence) -> str:
+    """The verdict of the report (:func:`xcheck.runner.run_verdict`) over its
+    evidence: the run's parts and those kept from earlier runs."""
     sources = all(p["passed"] for p in evidence.sources.values())
-    return modes and sources and (run.energy is None or bool(run.energy["passed"]))
+    return run_verdict(
+        [p.get("verdict", "pass") for p in evidence.modes.values()],
+        sources and (run.energy is None or bool(run.energy["passed"])),
+    )
+
+
+def passed(run: RunResult, evidence: Evidence) -> bool:
+    """The report's verdict is not "fail" (:func:`report_verdict`)."""
+    return report_verdict(run, evidence) != "fail"
 
 
 def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], command: str) -> str:
@@ -447,18 +453,17 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
     mech = run.mechanism
     marks, provenance = _provenance(evidence)
     findings = [m for m, p in evidence.modes.items() if p.get("finding")]
-    verdict = (
-        "**some modes beyond tolerance**"
-        if not passed(run, evidence)
-        else "all modes within tolerance"
-        if not findings
-        else f"all modes within tolerance but the stated findings of {', '.join(f'`{m}`' for m in findings)}"
-    )
+    verdict = {
+        "pass": "**pass** (every mode within its tolerance)",
+        "pass with findings": "**pass with findings** (every mode within its tolerance but the stated findings of "
+        f"{', '.join(f'`{m}`' for m in findings)})",
+        "fail": "**fail** (some modes beyond their tolerance)",
+    }[report_verdict(run, evidence)]
     sections = [
         f"# {mech.name}: {mech.title}",
         f"Source: {mech.source or '—'}. Result: {verdict}.",
         provenance,
-        "\n".join(f"> **Warning:** {line}." for line in limit_warnings(run.native, run.branch)),
+        "\n\n".join(f"> **Warning:** {line}." for line in [*run.warnings, *limit_warnings(run.native, run.branch)]),
         mech.notes.strip(),
         f"![the mechanism]({images['drawing']})" + (f"  ![motion]({images['gif']})" if "gif" in images else ""),
         "## Printed answers\n\n" + _textbook_section(run),
