@@ -384,6 +384,103 @@ def test_a_campaign_beside_a_users_files_runs_or_refuses_and_keeps_them(index, t
     assert not problems, f"{things} {options}: {problems}"
 
 
+# ----------------------------------------------------------------------------- surface 6: a reports folder
+
+#: what a user may keep in the folder given to ``run --out`` or ``simulate --out``
+#: (NAME: the mechanism's name): thing -> whether xcheck must refuse to write there
+REPORT_THINGS = {
+    "notes.md": False,
+    "notes/.report.md": False,
+    ".notes.md.20251126": False,
+    ".draft.md.backup_1": False,
+    ".photos.2025abcd/holiday.jpg": False,
+    ".NAME.xcheck-staging-0123abcd/mine.txt": False,
+    "other/NAME/drawing.png": False,
+    "README.md": True,
+    "index.json": True,
+    "NAME.md": True,
+    "NAME/drawing.png + thesis.tex": True,
+    "README.md (a link)": True,
+    "NAME.md (a FIFO)": True,
+}
+
+#: the commands that write reports: (arguments before --out, the mechanism's name)
+_RUN = ("run", str(ROOT / "tests" / "data" / "fourbar-200.toml"), "--engines", "native", "--samples", "11")
+REPORTERS = [
+    ((*_RUN, "--no-gif", "-q"), "fourbar-200"),
+    (("simulate", "iftomm-a01", "--duration", "0.05", "--engines", "native", "-q"), "iftomm-a01"),
+]  # fmt: skip
+
+#: names a mechanism may not take (the index's, or a report's Markdown)
+RESERVED = ["README", "readme", "README.md", "index.json", "Index.JSON", "notes.md"]
+
+
+def _report_draw(index: int) -> tuple[list[str], int, str | None, bool]:
+    """Scenario ``index``: the user's things, the command, a reserved name for the
+    mechanism (or None), and whether xcheck must refuse."""
+    rng = _rng(6, index)
+    harmless = [t for t, conflict in REPORT_THINGS.items() if not conflict and rng.uniform() < 0.5]
+    conflicts = [t for t, conflict in REPORT_THINGS.items() if conflict and (hasattr(os, "mkfifo") or "FIFO" not in t)]
+    things = harmless + ([_pick(rng, conflicts)] if rng.uniform() < 0.35 else [])
+    command = int(rng.integers(len(REPORTERS)))
+    reserved = _pick(rng, RESERVED) if command == 0 and rng.uniform() < 0.2 else None
+    return things, command, reserved, reserved is not None or any(REPORT_THINGS[t] for t in things)
+
+
+REPORT_DRAWS = 8
+
+
+def test_the_report_scenarios_hold_runs_and_refusals():
+    outcomes = [_report_draw(i)[3] for i in range(REPORT_DRAWS)]
+    assert 2 <= sum(outcomes) <= REPORT_DRAWS - 2
+
+
+@pytest.mark.parametrize("index", range(REPORT_DRAWS))
+def test_reports_beside_a_users_files_are_written_or_refused_and_keep_them(index, tmp_path):
+    things, command, reserved, refuse = _report_draw(index)
+    args, name = REPORTERS[command]
+    if reserved is not None:
+        renamed = tmp_path / "named.toml"
+        renamed.write_text(
+            Path(args[1]).read_text(encoding="utf-8").replace(f'name = "{name}"', f'name = "{reserved}"')
+        )
+        args = (args[0], str(renamed), *args[2:])
+    out = tmp_path / "proj"
+    out.mkdir()
+    keep = Keepsakes(out)
+    for thing in things:
+        thing = thing.replace("NAME", name)
+        if thing.endswith(" + thesis.tex"):
+            folder = out / thing.split("/")[0]
+            folder.mkdir()
+            for part in ("drawing.png", "thesis.tex"):
+                (folder / part).write_text(f"the user's {part}\n", encoding="utf-8")
+                keep.keep(folder / part)
+        elif thing.endswith(" (a link)"):
+            outside = tmp_path / "elsewhere.md"
+            outside.write_text("mine\n", encoding="utf-8")
+            (out / thing.split(" ")[0]).symlink_to(outside)
+            keep.keep(outside)
+            keep.keep(out / thing.split(" ")[0])
+        elif thing.endswith(" (a FIFO)"):
+            os.mkfifo(out / thing.split(" ")[0])
+            keep.keep(out / thing.split(" ")[0])
+        else:
+            path = out / thing
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(f"the user's {thing}\n", encoding="utf-8")
+            keep.keep(path)
+    with _bounded():
+        result = invoke(*args, "--out", str(out))
+    problems = _clean(result, (0, 1, 2), 2 if refuse else None)
+    if not refuse and result.returncode == 2:
+        problems.append("refused a folder it could use")
+    if not refuse and not (out / f"{name}.md").is_file():
+        problems.append("wrote no report")
+    problems += [f"changed the user's {c}" for c in keep.changed()]
+    assert not problems, f"{things} {args[0]} {reserved}: {problems}"
+
+
 # ----------------------------------------------------------------------------- surface 3: folders of mechanism files
 
 #: entries of a models folder that are not mechanism files, each its own error line
