@@ -15,9 +15,9 @@ from conftest import DATA, MODEL_NAMES
 from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
 
 from xcheck import Kinematics, Status
+from xcheck.engines import NotApplicable
 from xcheck.formulations import (
     FORMULATIONS,
-    NotApplicable,
     applicability,
     formulation,
     plan_loops,

@@ -6,7 +6,7 @@ Every check of user input raises :class:`ModelError` (or another
 
 from __future__ import annotations
 
-__all__ = ["XcheckError", "ModelError", "InputError"]
+__all__ = ["XcheckError", "ModelError", "InputError", "NotApplicable"]
 
 
 class XcheckError(Exception):
@@ -35,3 +35,12 @@ class ModelError(XcheckError, ValueError):
 
 class InputError(XcheckError, ValueError):
     """A request (input values, a name, an option) that cannot be answered."""
+
+
+class NotApplicable(Exception):
+    """A method (an engine's mode, a formulation, an export format) that does not
+    apply to a mechanism: not a failure, a result with its ``reason`` (one line)."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason

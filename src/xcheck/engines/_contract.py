@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from xcheck.errors import NotApplicable
 from xcheck.tolerances import Tolerance
 
 if TYPE_CHECKING:
@@ -109,14 +110,6 @@ def _installed(name: str) -> bool:
             return importlib.util.find_spec(name) is not None
         spec = importlib.machinery.PathFinder.find_spec(part, list(spec.submodule_search_locations))
     return spec is not None
-
-
-class NotApplicable(Exception):
-    """A mode that does not apply to a mechanism (not a failure): ``reason`` says why."""
-
-    def __init__(self, reason: str):
-        super().__init__(reason)
-        self.reason = reason
 
 
 @dataclass(frozen=True)

@@ -13,23 +13,22 @@ The general solver (:mod:`xcheck.kinematics`) is seed 000's formulation III
 
 Each is a function ``(kinematics, inputs, rates, accelerations, branch=None)
 -> Trajectory`` (registry :data:`FORMULATIONS`) that raises
-:class:`NotApplicable` with a one-line reason when the mechanism is outside
+:class:`~xcheck.engines.NotApplicable` with a one-line reason when the mechanism is outside
 its reach. Compare a result with the general solver by
 :func:`xcheck.results.differences`.
 """
 
 from __future__ import annotations
 
+from ..errors import NotApplicable
 from ..kinematics import Kinematics
 from ..results import ModeResult
 from ._closed_form import recognise, solve_closed_form
-from ._common import NotApplicable
 from ._vector_loops import LoopPlan, plan_loops, solve_vector_loops
 
 __all__ = [
     "FORMULATIONS",
     "LoopPlan",
-    "NotApplicable",
     "applicability",
     "formulation",
     "plan_loops",

@@ -28,12 +28,12 @@ from typing import NoReturn
 
 import numpy as np
 
+from ..errors import NotApplicable
 from ..kinematics import Kinematics
 from ..model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from ..results import Trajectory
 from ._common import (
     Frame,
-    NotApplicable,
     as_inputs,
     body_frames_from_q,
     build_trajectory,
@@ -73,7 +73,7 @@ def _shown(mech: Mechanism, lengths) -> list[str]:
 
 
 def _fail(mech: Mechanism, reason: str) -> NoReturn:
-    raise NotApplicable(SOURCE, mech.name, reason)
+    raise NotApplicable(reason)
 
 
 def _driven_crank(mech: Mechanism):

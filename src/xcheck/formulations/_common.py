@@ -14,7 +14,6 @@ from ..kinematics import NEAR_SINGULAR, SINGULAR, Kinematics, Status
 from ..results import Trajectory
 
 __all__ = [
-    "NotApplicable",
     "Frame",
     "as_inputs",
     "body_frames_from_q",
@@ -22,14 +21,6 @@ __all__ = [
     "status_from_singularity",
     "wrap",
 ]
-
-
-class NotApplicable(Exception):
-    """The formulation does not apply to this mechanism; ``reason`` says why (one line)."""
-
-    def __init__(self, formulation: str, mechanism: str, reason: str):
-        self.formulation, self.mechanism, self.reason = formulation, mechanism, reason
-        super().__init__(f"{formulation} does not apply to {mechanism}: {reason}")
 
 
 @dataclass

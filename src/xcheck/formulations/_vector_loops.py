@@ -31,12 +31,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import NotApplicable
 from ..kinematics import Kinematics
 from ..model import Mechanism, PinInSlot, Prismatic, Revolute
 from ..results import Trajectory
 from ._common import (
     Frame,
-    NotApplicable,
     as_inputs,
     body_frames_from_q,
     build_trajectory,
@@ -136,7 +136,7 @@ class LoopPlan:
 
 
 def _fail(mech: Mechanism, reason: str):
-    raise NotApplicable(SOURCE, mech.name, reason)
+    raise NotApplicable(reason)
 
 
 def _angle_ties(mech: Mechanism):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from xcheck.engines._contract import Engine, Mode, NotApplicable
+from xcheck.engines._contract import Engine, Mode
 from xcheck.tolerances import EXACT
 
 if TYPE_CHECKING:
@@ -45,14 +45,10 @@ class Formulations(Engine):
         branch: str | None = None,
         refine: int = 0,  # kinematic modes: no time step to refine
     ) -> ModeResult:
-        from xcheck.formulations import NotApplicable as Outside
         from xcheck.formulations import formulation
         from xcheck.results import ModeResult
 
-        try:
-            trajectory = formulation(mode)(
-                kinematics, native.inputs, native.input_rates, native.input_accelerations, branch=branch
-            )
-        except Outside as err:
-            raise NotApplicable(err.reason) from err
+        trajectory = formulation(mode)(
+            kinematics, native.inputs, native.input_rates, native.input_accelerations, branch=branch
+        )
         return ModeResult(mode, kinematics.mechanism.name, True, trajectories=[trajectory])
