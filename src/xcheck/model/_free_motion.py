@@ -203,11 +203,14 @@ def read_free_motion(
             f"a whole fraction of the duration ({duration:g} s)",
             repr(spec.get("output_step")),
         )
-    if round(duration / output_step) > MAX_OUTPUTS:
+    outputs = duration / output_step
+    if round(outputs) > MAX_OUTPUTS:
+        # whole up to 1e15 outputs (where a float still counts them exactly), then 3 digits
+        count = f"{round(outputs)}" if outputs < 1e15 else f"{outputs:.3g}"
         reader.fail(
             "free_motion.output_step",
             f"at most {MAX_OUTPUTS} outputs over the duration",
-            f"{round(duration / output_step)} ({duration:.12g} s / {output_step:.12g} s)",
+            f"{count} ({duration:.12g} s / {output_step:.12g} s)",
         )
     by_name = {d.name: d for d in drivers}
     at = dict(assembly_at)
