@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 from pathlib import Path
 
 import pytest
@@ -17,20 +19,74 @@ MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.toml"))
 
 @pytest.fixture(scope="session", autouse=True)
 def branch_map_cache(tmp_path_factory):
-    """The branch-map cache (xcheck.cache) of every test in a temporary
-    directory, never the user's: the command lines run here and in
-    subprocesses read $XCHECK_CACHE_DIR."""
-    import os
+    """xcheck's cache directory (xcheck.store: the branch maps, JAX's compiled
+    functions) of the whole test run in a temporary directory, never the
+    user's, and one for all the run's xdist workers (each worker's basetemp is
+    a folder of the run's), so that a mechanism's JAX compilation is paid once
+    per run, not once per worker. The results cache (xcheck.result_cache) is off:
+    every test computes what it checks (the cache's own tests turn it on, and
+    :func:`whole_run` shares one comparison per mechanism through it). The
+    command lines run here and in subprocesses read the environment."""
+    from xcheck.result_cache import RESULTS_ENV
+    from xcheck.store import CACHE_ENV
 
-    from xcheck.cache import CACHE_ENV
+    run_root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        run_root = run_root.parent
+    directory = run_root / "xcheck-cache"
+    directory.mkdir(exist_ok=True)
+    previous = {name: os.environ.get(name) for name in (CACHE_ENV, RESULTS_ENV)}
+    os.environ[CACHE_ENV] = str(directory)
+    os.environ[RESULTS_ENV] = "off"
+    yield directory
+    for name, value in previous.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
-    previous = os.environ.get(CACHE_ENV)
-    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("xcheck-cache"))
-    yield Path(os.environ[CACHE_ENV])
-    if previous is None:
-        os.environ.pop(CACHE_ENV, None)
-    else:
-        os.environ[CACHE_ENV] = previous
+
+@contextlib.contextmanager
+def results_cache_on():
+    """The results cache (xcheck.result_cache) on, in the run's cache directory, for
+    what runs inside (in this process and the subprocesses it starts)."""
+    from xcheck.result_cache import RESULTS_ENV
+
+    previous = os.environ.pop(RESULTS_ENV, None)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            os.environ[RESULTS_ENV] = previous
+
+
+#: the samples of a whole comparison shared between tests (:func:`whole_run`)
+WHOLE_RUN_SAMPLES = 61
+
+
+@pytest.fixture(scope="session")
+def whole_run(branch_map_cache):
+    """The whole comparison of a mechanism file (every mode, those run only on
+    request included; :data:`WHOLE_RUN_SAMPLES` samples), computed once for the
+    whole test run: the first worker to ask computes it into the run's results
+    cache while holding the file's lock, the others wait and read it from there.
+    A test that runs the same comparison through the command line with the
+    results cache on (:func:`results_cache_on`) reads the same results."""
+    import fcntl
+
+    from xcheck.runner import all_modes, run_mechanism
+
+    runs: dict[Path, object] = {}
+
+    def get(path: Path):
+        if path not in runs:
+            lock = branch_map_cache / f"whole-run-{path.stem}.lock"
+            with open(lock, "w") as held, results_cache_on():
+                fcntl.flock(held, fcntl.LOCK_EX)
+                runs[path] = run_mechanism(Kinematics(load_mechanism(path)), all_modes(), WHOLE_RUN_SAMPLES)
+        return runs[path]
+
+    return get
 
 
 @pytest.fixture(scope="session")

@@ -200,24 +200,33 @@ def fourbar_dynamic():
     return dynamic.run_dynamic(_kinematics(MODELS / "fourbar.toml"), duration=0.2, timesteps=(1e-3, 5e-4, 2.5e-4))
 
 
-def test_driven_mode_runs_by_default_and_states_its_finding():
-    """mjx-dynamic is in the default selection and in the kind's group; its accelerations
-    are its engine's stated finding (MJX's constraint lacks J-dot qd)."""
+def test_driven_mode_runs_on_request_and_states_its_finding():
+    """mjx-dynamic runs only on request (its compilation alone exceeds a default run's
+    budget): not in the default selection nor in the kind's group, but with its
+    engine's name or "all"; its accelerations are its engine's stated finding (MJX's
+    constraint lacks J-dot qd)."""
     import json
 
     from typer.testing import CliRunner
 
     import xcheck
     from xcheck.cli import app
+    from xcheck.runner import default_modes, left_out, left_out_text
 
     mode = engines.mode("mjx-dynamic")
-    assert not mode.on_request and mode.kind == "dynamic"
-    assert "mjx-dynamic" in xcheck.select_modes(None) and "mjx-dynamic" in xcheck.select_modes("dynamic")
+    assert mode.on_request and mode.kind == "dynamic" and "compilation" in mode.on_request_reason
+    assert "mjx-dynamic" not in xcheck.select_modes(None) and "mjx-dynamic" not in xcheck.select_modes("dynamic")
     assert xcheck.select_modes("mjx") == ("native", "mjx-dynamic")
+    assert "mjx-dynamic" in xcheck.select_modes("all") and set(xcheck.select_modes("all")) >= set(default_modes())
     assert set(mode.findings) == {"acceleration", "alpha"} and "J-dot qd" in mode.findings["acceleration"]
     listed = CliRunner().invoke(app, ["engines", "--json"])
     modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
-    assert not modes["mjx-dynamic"]["on_request"]
+    assert modes["mjx-dynamic"]["on_request"]
+    # a run of every default mode says, in one line, what it left out and why; a narrower one does not
+    assert left_out(default_modes()) == {"mjx-dynamic": mode.on_request_reason}
+    assert left_out(("native", "mujoco-kinematic")) == {} and left_out(xcheck.select_modes("all")) == {}
+    line = left_out_text(left_out(default_modes()))
+    assert "\n" not in line and "mjx-dynamic" in line and "--engines mjx" in line and "--engines all" in line
 
 
 def test_one_pass_rk4_is_mjx_rk4():

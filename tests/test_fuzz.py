@@ -339,14 +339,30 @@ def test_a_stated_finding_is_the_engines_result():
 
 def test_a_campaign_leaves_out_what_would_dominate_it():
     """fuzz's default selection is run's, less the modes marked campaigns=False
-    (MJX's driven mode: a compilation for every random mechanism); named, they run."""
+    (a mode whose cost on each random mechanism would dominate the campaign); named,
+    they run. MJX's driven mode (a compilation for every random mechanism) is out of
+    both: it runs only on request."""
     from xcheck import engines
     from xcheck.fuzz import campaign_modes
     from xcheck.runner import default_modes
+    from xcheck.tolerances import Tolerance
 
-    left_out = set(default_modes()) - set(campaign_modes())
-    assert left_out == {m.name for m in engines.modes() if not m.campaigns} & set(default_modes())
-    assert "mjx-dynamic" in left_out and "mujoco-dynamic" in campaign_modes()
+    class Dominating(engines.Engine):
+        name = "fuzz-dominating"
+        modes = (
+            engines.Mode(
+                "fuzz-dominating-kinematic", "kinematic", Tolerance(1e-6, 1e-12, 1e-12, 1e-12, "toy"), campaigns=False
+            ),
+        )
+
+    engines.register(Dominating())
+    try:
+        left_out = set(default_modes()) - set(campaign_modes())
+        assert left_out == {m.name for m in engines.modes() if not m.campaigns} & set(default_modes())
+        assert "fuzz-dominating-kinematic" in left_out and "mujoco-dynamic" in campaign_modes()
+    finally:
+        engines.unregister("fuzz-dominating")
+    assert "mjx-dynamic" not in campaign_modes() and not engines.mode("mjx-dynamic").campaigns
     assert campaign_modes()[0] == "native"
 
 

@@ -8,16 +8,16 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
-from conftest import MODEL_NAMES, MODELS
+from conftest import MODEL_NAMES, MODELS, WHOLE_RUN_SAMPLES, results_cache_on
 from typer.testing import CliRunner
 
 from xcheck import engines
 from xcheck.cli import app
 from xcheck.engines.mujoco import modes as mujoco_engine
-from xcheck.runner import CATEGORIES, all_modes, run_mechanism, tolerance
+from xcheck.runner import CATEGORIES, all_modes, tolerance
 
 ALL_MODES = all_modes()
-#: what runs with no selection: every mode but those run only on request (none at present)
+#: what runs with no selection: every mode but those run only on request (MJX's driven mode)
 DEFAULT_MODES = tuple(m for m in ALL_MODES if m == "native" or not engines.mode(m).on_request)
 
 
@@ -34,18 +34,18 @@ def test_every_mode_has_a_tolerance_and_one_engine():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", MODEL_NAMES)
-def test_every_mode_within_tolerance(kinematics, name):
-    """The whole comparison on every mechanism: every mode that applies runs,
-    and all are within their tolerances (the figures behind the dynamic
-    tolerances are in each engine's modes, xcheck.engines)."""
-    run = run_mechanism(kinematics(name), samples=61)
+def test_every_mode_within_tolerance(whole_run, name):
+    """The whole comparison on every mechanism: every mode that applies runs
+    (those run only on request too), and all are within their tolerances (the
+    figures behind the dynamic tolerances are in each engine's modes, xcheck.engines)."""
+    run = whole_run(MODELS / f"{name}.toml")
     failed = {
         m: (o.reason, o.categories.to_dict("records")) for m, o in run.outcomes.items() if not (o.passed or o.finding)
     }
     assert not failed and run.passed
     assert set(run.findings) <= {"mjx-dynamic"}  # MJX's accelerations, where the loops' J-dot qd is not zero
     ran = set(run.outcomes) | set(run.not_applicable)
-    assert ran == set(DEFAULT_MODES)
+    assert ran == set(ALL_MODES) and run.left_out == {}
     # formulation II applies to every model here; Exudyn's driven mode drives angles only;
     # PyBullet's and Drake's models hold no pin-in-slot
     mech = run.kinematics.mechanism
@@ -68,14 +68,21 @@ def test_every_mode_within_tolerance(kinematics, name):
         assert set(outcome.categories.category) == expected
 
 
-def test_json_summary_shape():
-    result = _cli("run", "fourbar", "--json", "--no-report", "--samples", "31")
+def test_json_summary_shape(whole_run):
+    """The JSON of every mode of the four-bar (the comparison of
+    test_every_mode_within_tolerance, read from the run's results cache)."""
+    whole_run(MODELS / "fourbar.toml")
+    with results_cache_on():
+        result = _cli(
+            "run", "fourbar", "--json", "--no-report", "--samples", str(WHOLE_RUN_SAMPLES), "--engines", "all"
+        )
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert doc["mechanism"] == "fourbar" and doc["samples"] == 31 and "pass" not in doc
+    assert doc["mechanism"] == "fourbar" and doc["samples"] == WHOLE_RUN_SAMPLES and "pass" not in doc
     # MJX's stated finding leaves the run's verdict a pass, with findings, and the exit code 0
     assert doc["verdict"] == "pass with findings"
-    assert set(doc["engines"]) == set(DEFAULT_MODES) and "mjx-dynamic" in doc["engines"]
+    assert set(doc["engines"]) == set(ALL_MODES) and "mjx-dynamic" in doc["engines"] and doc["left_out"] == {}
+    assert set(doc["cache"]["from_cache"]) >= set(ALL_MODES) - {"native"} and doc["cache"]["recomputed"] == {}
     for mode, entry in doc["engines"].items():
         # MJX's accelerations fail: its stated finding, which leaves the run's verdict a pass
         finding = mode == "mjx-dynamic"

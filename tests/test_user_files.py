@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from xcheck import Kinematics, load_mechanism
 from xcheck.cli import app
 from xcheck.model import parse_mechanism
-from xcheck.runner import default_modes, sweep_inputs
+from xcheck.runner import all_modes, sweep_inputs
 from xcheck.units import evaluate_expression
 
 DATA = Path(__file__).parent / "data"
@@ -330,14 +330,14 @@ def test_wedge_closed_form():
 @pytest.mark.parametrize("name", ["scotch-yoke", "elliptic-trammel", "fourbar-200", "wedge", "rocker-driven"])
 def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path):
     """The bar of issue 12: the user-written mechanisms through `xcheck run FILE`,
-    every mode within its tolerance (exit 0), none failing or refused."""
-    result = _cli("run", DATA / f"{name}.toml", "--out", tmp_path, "--json", "--samples", "61")
+    every mode (those run only on request too) within its tolerance (exit 0),
+    none failing or refused."""
+    result = _cli("run", DATA / f"{name}.toml", "--out", tmp_path, "--json", "--samples", "61", "--engines", "all")
     document = json.loads(result.stdout)
     failed = {m: e for m, e in document["engines"].items() if not (e.get("pass") or e.get("finding"))}
     assert result.exit_code == 0 and not failed, failed
     assert {m for m, e in document["engines"].items() if e.get("finding")} <= {"mjx-dynamic"}
-    default = set(default_modes())
-    assert set(document["engines"]) | set(document["not_applicable"]) == default
+    assert set(document["engines"]) | set(document["not_applicable"]) == set(all_modes())
     # Exudyn's driven mode drives joint angles only (the trammel's and the wedge's inputs are slides)
     slides = name in ("elliptic-trammel", "wedge")
     # PyBullet's and Drake's models hold no pin-in-slot (the yoke's and the wedge's slots)

@@ -561,10 +561,11 @@ def select_modes(
     chosen : str or sequence of str, optional
         Modes or groups (an engine's name such as ``"mujoco"``, or a kind:
         ``"kinematic"``, ``"dynamic"``; :func:`xcheck.engines.groups`), as a
-        comma-separated string (``--engines``) or a sequence; None: every mode
-        but those run only on request (:attr:`xcheck.engines.Mode.on_request`,
-        none of the built-in ones), which run when named, or their engine is
-        (``"costly"``), and not with a kind (``"dynamic"``).
+        comma-separated string (``--engines``) or a sequence; ``"all"``: every
+        mode; None: every mode but those run only on request
+        (:attr:`xcheck.engines.Mode.on_request`: MJX's driven mode), which run
+        when named, or their engine is (``"mjx"``), or with ``"all"``, and not
+        with a kind (``"dynamic"``).
     kinds : tuple of str
         The kinds of mode to choose from: the driven ones (``xcheck run``,
         default) or ``("free",)`` (``xcheck simulate``).
@@ -642,6 +643,7 @@ def run(
     comparisons: str | Path | None = None,
     progress=None,
     jobs: int = 1,
+    cache: bool = True,
 ) -> "RunResult":
     """Every requested mode on one mechanism against the exact native solution
     (``xcheck run`` without printing or reports).
@@ -651,7 +653,7 @@ def run(
     name : str, Path, Kinematics or Assembled
         A mechanism name, a file, or a loaded mechanism.
     engines : str or sequence of str, optional
-        As :func:`select_modes` (default: every mode).
+        As :func:`select_modes` (default: every mode but those run only on request).
     samples : int
         Samples of the sweeps over the feasible input range.
     progress : callable, optional
@@ -662,6 +664,10 @@ def run(
         asks for more than 1 must call this under ``if __name__ == "__main__":``
         (a worker imports the script; notebooks need nothing). Engines
         registered in this session (:func:`xcheck.engines.register`) run here.
+    cache : bool
+        Take each mode's results from the results cache where this code
+        computed them before, and keep what is computed (:mod:`xcheck.result_cache`);
+        False computes everything (the results are the same either way).
 
     Returns
     -------
@@ -697,7 +703,9 @@ def run(
     else:
         kinematics = load(name, models, branch).kinematics
     textbook, _ = printed_answers(kinematics, comparisons)
-    return run_mechanism(kinematics, select_modes(engines), samples, branch, textbook, progress=progress, jobs=jobs)
+    return run_mechanism(
+        kinematics, select_modes(engines), samples, branch, textbook, progress=progress, jobs=jobs, cache=cache
+    )
 
 
 def simulate(

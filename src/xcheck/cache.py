@@ -9,94 +9,52 @@ configuration over one turn of a crank. These are the exact floats the solver
 computed (JSON keeps every float64 digit), so a run from the cache gives the
 same results, bit for bit, as one without.
 
-An entry is a file named by the SHA-256 of the mechanism file's bytes,
-xcheck's version, NumPy's version and the source of the code that computes
-the map (so a changed solver never reads an old map). It lies in
-``platformdirs.user_cache_dir("xcheck")``, or in ``$XCHECK_CACHE_DIR``
-(``off`` turns the cache off): a line of JSON (the layout's number, the key,
-the SHA-256 of what follows), then the map as JSON. An entry is written whole or not at all
-(:func:`xcheck.fileio.write_atomic`) and is never trusted: one that cannot be
-read, whose checksum or key does not match, whose shapes do not fit the
-mechanism, or whose configurations do not close the mechanism's loops is
-ignored (and replaced). A cache that cannot be written is no error: the map is
-then computed on every call, as without a cache.
+An entry (:mod:`xcheck.store`: authenticated, made by the running code, read
+safely) is named by the SHA-256 of the canonical mechanism (its model, not the
+file's bytes: a comment or a reordered key changes nothing) and lies in the
+``branch-maps`` folder of xcheck's cache directory. What it supplies is also
+checked against the mechanism: shapes, branch and driver names, and loops
+closed by every configuration. An entry that fails any check is ignored, said
+so (the ``xcheck.cache`` logger) and replaced. A cache that cannot be written
+is no error: the map is then computed on every call, as without a cache.
 """
 
 from __future__ import annotations
 
-import hashlib
+import dataclasses
 import json
-import os
+import logging
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from . import __version__
-from .fileio import write_atomic
+from . import store as _store
 from .kinematics import InputRange, Kinematics, converged_tolerance
+from .store import CACHE_ENV, cache_dir
 
-__all__ = ["CACHE_ENV", "cache_dir", "entry_path", "restore", "store", "cached_kinematics"]
+__all__ = ["CACHE_ENV", "KIND", "cache_dir", "entry_path", "restore", "store", "cached_kinematics"]
 
-#: the environment variable that puts the cache elsewhere (a directory), or turns it off (``off``)
-CACHE_ENV = "XCHECK_CACHE_DIR"
-#: the layout of an entry; another value is a miss
-FORMAT = 1
-#: the modules whose code computes what is cached: their source is part of the key
-_CODE = (
-    "kinematics/_solve.py",
-    "kinematics/_newton.py",
-    "kinematics/_system.py",
-    "model/_load.py",
-    "model/_mechanism.py",
-    "units.py",
-)
-_code_digest: str | None = None
+#: the folder of the branch maps in the cache directory
+KIND = "branch-maps"
+#: the largest entry read or written, bytes (the largest bundled map is about 2 MB)
+MAX_BYTES = 64 * 2**20
+log = logging.getLogger("xcheck.cache")
 
 
-def cache_dir() -> Path | None:
-    """The directory of the entries: ``$XCHECK_CACHE_DIR``, else the user's
-    cache directory for xcheck; None when ``$XCHECK_CACHE_DIR`` is ``off``."""
-    chosen = os.environ.get(CACHE_ENV)
-    if chosen:
-        return None if chosen.strip().lower() == "off" else Path(chosen)
-    import platformdirs
-
-    return Path(platformdirs.user_cache_dir("xcheck"))
-
-
-def _code() -> str:
-    """SHA-256 of the source of the modules that compute the map."""
-    global _code_digest
-    if _code_digest is None:
-        digest = hashlib.sha256()
-        here = Path(__file__).resolve().parent
-        for name in _CODE:
-            try:
-                digest.update((here / name).read_bytes())
-            except OSError:  # installed without sources: the version alone keys the code
-                digest.update(name.encode())
-        _code_digest = digest.hexdigest()
-    return _code_digest
-
-
-def _key(kin: Kinematics) -> str | None:
-    """The entry's key: SHA-256 of the file's bytes and of what computes the
-    map; None for a mechanism that was not read from a file."""
+def _name(kin: Kinematics) -> str | None:
+    """The entry's name: SHA-256 of the canonical mechanism (without the path it
+    was read from); None where it cannot be digested."""
     try:
-        data = Path(kin.mechanism.path).read_bytes()
-    except (OSError, ValueError):
+        return _store.digest("branch map", dataclasses.replace(kin.mechanism, path=""))
+    except TypeError:
         return None
-    digest = hashlib.sha256(data)
-    digest.update(f"\0xcheck {__version__}\0numpy {np.__version__}\0{_code()}".encode())
-    return digest.hexdigest()
 
 
 def entry_path(kin: Kinematics) -> Path | None:
-    """Where the entry of a mechanism lies (None when there is no cache or no file)."""
-    directory = cache_dir()
-    key = _key(kin)
-    return None if directory is None or key is None else directory / f"{key}.json"
+    """Where the entry of a mechanism lies (None when there is no cache)."""
+    name = _name(kin)
+    return None if name is None else _store.entry_path(KIND, name)
 
 
 def _payload(kin: Kinematics) -> dict[str, Any]:
@@ -132,14 +90,14 @@ def store(kin: Kinematics) -> bool:
     a cache that cannot be written is silently passed over."""
     if not kin._assembled or getattr(kin, "_cached", None) == _known(kin):
         return False  # nothing computed, or nothing new since the entry was read or written
-    path = entry_path(kin)
-    if path is None:
+    name = _name(kin)
+    if name is None:
         return False
     try:
         payload = json.dumps(_payload(kin), allow_nan=False).encode()
-        header = {"format": FORMAT, "key": path.stem, "sha256": hashlib.sha256(payload).hexdigest()}
-        write_atomic(path, json.dumps(header).encode() + b"\n" + payload)
-    except (OSError, ValueError):  # no cache directory to write in, or values JSON cannot hold
+    except ValueError:  # values JSON cannot hold
+        return False
+    if not _store.write(KIND, name, payload, _store.made_by(), "", MAX_BYTES):
         return False
     kin._cached = _known(kin)  # type: ignore[attr-defined]
     return True
@@ -147,26 +105,28 @@ def store(kin: Kinematics) -> bool:
 
 def restore(kin: Kinematics) -> bool:
     """Give ``kin`` the branch map of its entry, if there is a sound one.
-    Returns whether it did; an unsound entry is ignored (see the module)."""
-    path = entry_path(kin)
-    if path is None:
+    Returns whether it did; an entry that is there but unsound is ignored and
+    said so (see the module)."""
+    name = _name(kin)
+    if name is None:
         return False
-    try:
-        first, _, payload = path.read_bytes().partition(b"\n")
-        header = json.loads(first)
-        if header["format"] != FORMAT or header["key"] != path.stem:
-            return False
-        if header["sha256"] != hashlib.sha256(payload).hexdigest():
-            return False  # truncated or altered
-        assembled, ranges, walked, turns = _parse(kin, json.loads(payload))
-    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError):
-        return False  # missing, unreadable, truncated or of another shape: a miss
-    kin._assembled.update(assembled)
-    kin._ranges.update(ranges)
-    kin._walked.update(walked)
-    kin._turns.update(turns)
-    kin._cached = _known(kin)  # type: ignore[attr-defined]
-    return True
+    found = _store.read(KIND, name, _store.made_by(), MAX_BYTES)
+    problem = found.problem
+    if found.payload is not None:
+        try:
+            assembled, ranges, walked, turns = _parse(kin, json.loads(found.payload))
+        except (ValueError, KeyError, TypeError, IndexError, AttributeError) as err:
+            problem = f"{_store.entry_path(KIND, name)}: does not fit {kin.mechanism.name} ({err})"
+        else:
+            kin._assembled.update(assembled)
+            kin._ranges.update(ranges)
+            kin._walked.update(walked)
+            kin._turns.update(turns)
+            kin._cached = _known(kin)  # type: ignore[attr-defined]
+            return True
+    if problem and not (found.stale and problem == found.problem):
+        log.warning("xcheck: cache: the branch map of %s: %s; computed again", kin.mechanism.name, problem)
+    return False
 
 
 def _parse(kin: Kinematics, payload: dict[str, Any]):

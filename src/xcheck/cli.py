@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import io
 import json
+import logging
 import math
 import sys
 import time
@@ -113,6 +114,14 @@ def _version(value: bool):
         raise typer.Exit()
 
 
+class _ToStderr(logging.Handler):
+    """What xcheck's loggers say (a cache entry not used, and why), one line each
+    on stderr: the stderr of the moment, which a test runner may have replaced."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        typer.echo(self.format(record), err=True)
+
+
 @app.callback()
 def _main(
     version: Annotated[
@@ -120,6 +129,9 @@ def _main(
     ] = False,
 ):
     """Exact kinematics of planar mechanisms, cross-checked against physics engines."""
+    said = logging.getLogger("xcheck")
+    if not any(isinstance(h, _ToStderr) for h in said.handlers):
+        said.addHandler(_ToStderr(logging.WARNING))
 
 
 @app.command("list")
@@ -273,6 +285,40 @@ def engines_command(
     print_engines(wide_console(), rows)
     for name, reason in problems.items():
         typer.echo(f"xcheck: error: entry point {name!r} of group {registry.ENTRY_POINT_GROUP!r}: {reason}", err=True)
+
+
+@app.command("cache")
+@_reports_errors
+def cache_command(
+    clear: Annotated[
+        bool, typer.Option("--clear", help="Remove every entry (branch maps, results, figures, JAX compilations).")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of lines.")] = False,
+):
+    """Show where xcheck keeps what it computed between runs, and how much; --clear empties it.
+
+    The directory is the user's cache directory for xcheck, or $XCHECK_CACHE_DIR
+    (`off`: no cache at all); $XCHECK_RESULTS_CACHE=off leaves the results out
+    (as `xcheck run --no-cache` does). Every entry is authenticated and made by
+    the running code: an edited, foreign or stale one is computed again.
+
+    Examples: xcheck cache;  xcheck cache --clear
+    """
+    from . import store
+
+    removed = store.clear() if clear else None
+    found = store.describe()
+    if as_json:
+        typer.echo(json.dumps({**found, **({} if removed is None else {"removed": removed})}, indent=2))
+        return
+    if found["directory"] is None:
+        typer.echo(f"the cache is off (${store.CACHE_ENV}=off)")
+        return
+    if removed is not None:
+        typer.echo(f"removed {removed} files")
+    typer.echo(f"cache directory: {found['directory']}")
+    for kind, counts in found["kinds"].items():
+        typer.echo(f"  {kind}: {counts['entries']} files, {counts['bytes'] / 2**20:.1f} MiB")
 
 
 @app.command("solve")
@@ -464,10 +510,10 @@ def run_command(
         typer.Option(
             "--engines",
             metavar="MODE[,MODE…]",
-            help="Modes to run (default: all but any marked on request; `xcheck engines` lists them): "
-            "native, the engines' modes (e.g. "
+            help="Modes to run (default: all but those run only on request, such as mjx-dynamic; `xcheck engines` "
+            "lists them): native, the engines' modes (e.g. "
             "mujoco-kinematic, pinocchio-dynamic), or groups: an engine's name (formulations, mujoco, "
-            "pinocchio, pymunk, ...) or a kind (kinematic, dynamic).",
+            "pinocchio, pymunk, mjx, ...), a kind (kinematic, dynamic), or all (every mode).",
         ),
     ] = None,
     samples: Annotated[
@@ -520,6 +566,14 @@ def run_command(
             show_default=False,
         ),
     ] = None,
+    use_cache: Annotated[
+        bool,
+        typer.Option(
+            "--cache/--no-cache",
+            help="Take each mode's results from the results cache where this code computed them before, and keep "
+            "what is computed (`xcheck cache` shows and clears it). --no-cache computes everything and keeps nothing.",
+        ),
+    ] = True,
 ):
     """Compare every solver and engine mode with the exact native solution over the feasible input range.
 
@@ -555,7 +609,7 @@ def run_command(
         + ("" if gif else " --no-gif")
     )
     results, entries, failures = [], [], []
-    settings = (directory, modes, samples, branch, comparisons, report, out, options, gif)
+    settings = (directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache)
     mode_jobs = jobs if len(names) == 1 else 1  # one mechanism: its modes at once; several: the mechanisms
     jobs = min(jobs, len(names))
     progress = _progress_bar(quiet or as_json)
@@ -610,10 +664,23 @@ def run_command(
 
 
 def _run_model(
-    model, directory, modes, samples, branch, comparisons, report, out, options, gif=True, step=None, jobs=1
+    model,
+    directory,
+    modes,
+    samples,
+    branch,
+    comparisons,
+    report,
+    out,
+    options,
+    gif=True,
+    use_cache=True,
+    step=None,
+    jobs=1,
 ):
     """One mechanism of ``xcheck run``: its comparison, its modes in ``jobs``
-    processes, and, if ``report``, its report. Returns (the run or None,
+    processes, and, if ``report``, its report; the caches (branch map,
+    results) read and written where ``use_cache``. Returns (the run or None,
     (reports directory, file, index entry) or None, failure lines).
     ``step(label, stage)`` is told of each stage; it is left out in a worker
     process (:func:`_run_models_in_parallel`)."""
@@ -625,7 +692,8 @@ def _run_model(
 
     try:  # one bad file is reported at the end; the others run
         path = model_path(model, directory)
-        kin = cache.cached_kinematics(load_mechanism(path))
+        mechanism = load_mechanism(path)
+        kin = cache.cached_kinematics(mechanism) if use_cache else Kinematics(mechanism)
         kin.assemble(branch)
         label = kin.mechanism.name
         if report:  # what is in the report's way is said before the work, not after
@@ -634,8 +702,11 @@ def _run_model(
             claim_report(reports_dir(path, out), label)
             claim_index(reports_dir(path, out))
         textbook, _ = printed_answers(kin, comparisons)
-        run = run_mechanism(kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs)
-        cache.store(kin)
+        run = run_mechanism(
+            kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs, cache=use_cache
+        )
+        if use_cache:
+            cache.store(kin)
     except XcheckError as err:
         if step is not None:
             step(model, "failed")  # the progress bar's share of the file's modes

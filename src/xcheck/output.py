@@ -534,8 +534,11 @@ def run_json(run) -> dict:
     the measured one; see :func:`xcheck.runner._convergence_verdict`).
     Every wall-clock time is under the one key ``timings`` (``seconds``: the
     whole run; ``engines``: per mode), so that two runs' JSON without it are
-    identical.
+    identical; ``cache`` says which results came from the results cache, and
+    when they were computed (:func:`xcheck.result_cache.provenance_json`): the JSON
+    without these two keys is the same with or without the cache.
     """
+    from .result_cache import provenance_json
     from .runner import CATEGORIES
 
     engines = {}
@@ -594,11 +597,13 @@ def run_json(run) -> dict:
         "scale_floors": {k: _number(v) for k, v in run.floors.items()} or None,
         "engines": engines,
         "not_applicable": run.not_applicable,
+        "left_out": run.left_out,
         "forces": forces,
         "energy": energy,
         "forces_not_computed": run.no_forces or None,
         "energy_not_computed": run.no_energy or None,
         "textbook": textbook_json(run.textbook),
+        "cache": provenance_json(run.provenance),
         "timings": {
             "seconds": round(run.seconds, 3),
             "engines": {mode: round(outcome.seconds, 3) for mode, outcome in run.outcomes.items()},
@@ -609,7 +614,8 @@ def run_json(run) -> dict:
 def print_run(console: Console, run) -> None:
     """The comparison table of one mechanism: per mode and category, the
     largest difference and its tolerance; the worst place of a failing mode."""
-    from .runner import CATEGORIES
+    from .result_cache import summary
+    from .runner import CATEGORIES, left_out_text
 
     mech = run.mechanism
     status = {
@@ -666,6 +672,8 @@ def print_run(console: Console, run) -> None:
         console.print(f"  {failure}")
     if run.not_applicable:
         console.print("  not applicable: " + "; ".join(f"{m} ({r})" for m, r in run.not_applicable.items()))
+    if run.left_out:
+        console.print(f"  {escape(left_out_text(run.left_out))}")
     if not run.force_table.empty:
         parts = []
         for row in run.force_table.itertuples():
@@ -688,6 +696,9 @@ def print_run(console: Console, run) -> None:
         mech.loads or mech.springs or mech.rotational_springs or len(mech.without_mass) < len(mech.moving_bodies)
     ):  # a file that asks for dynamics hears why there are no reactions; a kinematics-only one does not
         console.print(f"  joint reactions and driving effort: not computed ({escape(run.no_forces)})")
+    cached = summary(run.provenance)
+    if cached:
+        console.print(f"  {cached}")
     if run.textbook:
         counts = {v: sum(r["verdict"] == v for r in run.textbook) for v in ("agrees", "rounding", "disagrees")}
         console.print(

@@ -61,6 +61,8 @@ __all__ = [
     "is_static",
     "all_modes",
     "default_modes",
+    "left_out",
+    "left_out_text",
     "tolerance",
     "CATEGORIES",
     "NATIVE_TOLERANCE",
@@ -97,6 +99,29 @@ def default_modes(kinds: tuple[str, ...] = engines.DRIVEN_KINDS) -> tuple[str, .
     ``kinds`` but those run only on request (:attr:`xcheck.engines.Mode.on_request`),
     in the order of :func:`all_modes`."""
     return ("native", *(m.name for m in engines.modes(kinds) if not m.on_request))
+
+
+def left_out(modes) -> dict[str, str]:
+    """The modes run only on request (:attr:`xcheck.engines.Mode.on_request`)
+    that a selection of every default mode leaves out, each with its reason;
+    empty for a narrower selection (``--engines mujoco`` leaves nothing out)."""
+    if not set(default_modes()) <= set(modes):
+        return {}
+    return {
+        m.name: m.on_request_reason or "run on request"
+        for m in engines.modes(engines.DRIVEN_KINDS)
+        if m.on_request and m.name not in modes
+    }
+
+
+def left_out_text(left: dict[str, str]) -> str:
+    """The one line that says which modes a run left out and why ("" where none)."""
+    if not left:
+        return ""
+    asked = ", ".join(dict.fromkeys(f"--engines {engines.engine_of(mode).name}" for mode in left))
+    return f"left out, run only on request ({asked} or --engines all): " + "; ".join(
+        f"{mode} ({why})" for mode, why in left.items()
+    )
 
 
 #: quantity categories of the tables; body positions count with point positions
@@ -235,7 +260,15 @@ SUMMARY_COLUMNS = ("engine", "mode", "kind", "verdict", "category", "error", "to
 
 @dataclass
 class RunResult:
-    """Everything ``xcheck run`` found for one mechanism."""
+    """Everything ``xcheck run`` found for one mechanism.
+
+    ``provenance`` maps each mode that the results cache answered or kept to its
+    :class:`xcheck.result_cache.Provenance` (from the cache or computed, when, and
+    why an entry there was not used); empty where the cache was not used.
+    ``left_out`` maps the modes run only on request that a run of every
+    default mode did not run to why they wait to be asked for
+    (:func:`left_out`).
+    """
 
     kinematics: Kinematics
     branch: str
@@ -253,6 +286,8 @@ class RunResult:
     floors: dict = field(default_factory=dict)
     #: what the file asks that the mechanism cannot do (:func:`xcheck.motion.drive_warnings`)
     warnings: list[str] = field(default_factory=list)
+    provenance: dict = field(default_factory=dict)
+    left_out: dict = field(default_factory=dict)
 
     @property
     def mechanism(self):
@@ -725,6 +760,7 @@ def run_mechanism(
     textbook: list[dict] | None = None,
     progress=None,
     jobs: int = 1,
+    cache: bool = True,
 ) -> RunResult:
     """Run the native solver and the requested modes on one mechanism.
 
@@ -744,7 +780,14 @@ def run_mechanism(
         Modes run at once, each in a worker process (1: one after another in
         this process), where that could save time (:data:`PARALLEL_SAVING`).
         The results are those of a serial run.
+    cache : bool
+        Take each mode's outcome from the results cache where it holds one
+        made by this code, and keep what was computed there
+        (:mod:`xcheck.result_cache`; also off where ``$XCHECK_RESULTS_CACHE`` or
+        ``$XCHECK_CACHE_DIR`` is ``off``). The outcomes are the same either way.
     """
+    from . import result_cache
+
     start = time.perf_counter()
     static = is_static(kinematics.mechanism)
     branch_name = kinematics._branch_name(branch)
@@ -767,16 +810,25 @@ def run_mechanism(
             reasons[mode] = (
                 "the drivers stand still (every state is a static position): there is no motion to integrate"
             )
-    runnable = [mode for mode in modes if mode not in reasons]
     run = RunResult(kinematics, branch_name, native, outcomes, {}, textbook or [], 0.0, floors=floors)
     run.warnings = drive_warnings(kinematics, branch)
+    run.left_out = left_out(("native", *modes))
+    cached = {}
+    cache = cache and result_cache.enabled()
+    for mode in modes if cache else ():
+        if mode not in reasons:
+            parts, used = (mode, samples, branch_name), (engines.engine_of(mode),)
+            cached_outcome, run.provenance[mode] = result_cache.lookup(kinematics, mode, parts, used)
+            if cached_outcome is not None:
+                cached[mode] = cached_outcome
+    runnable = [mode for mode in modes if mode not in reasons and mode not in cached]
     arguments = (kinematics, native, samples, branch, floors)
     costs = [engines.mode(mode).cost for mode in runnable]
     if jobs > 1 and len(runnable) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING:
-        for mode in reasons:
-            if progress is not None:
+        for mode in modes:
+            if progress is not None and mode not in runnable:
                 progress(mode)
-        ran = _run_modes_in_parallel(run, runnable, modes, arguments, jobs, progress)
+        ran = _run_modes_in_parallel(run, runnable, modes, arguments, jobs, progress, cache)
     else:
         ran = {}
         for mode in modes:
@@ -784,7 +836,13 @@ def run_mechanism(
                 progress(mode)
             if mode in runnable:
                 ran[mode] = _run_or_not_applicable(mode, *arguments)
-        _add_forces(run, modes, branch, progress)
+        _add_forces(run, modes, branch, progress, cache)
+    for mode in runnable if cache else ():  # what ran through, or does not apply: a failure may be the machine's
+        if isinstance(ran[mode], NotApplicable) or ran[mode].ok:
+            parts, used = (mode, samples, branch_name), (engines.engine_of(mode),)
+            recomputed = run.provenance[mode].recomputed
+            run.provenance[mode] = result_cache.keep(kinematics, parts, used, ran[mode], recomputed)
+    ran.update(cached)
     for mode in modes:  # in the order asked for, however the modes ran
         if mode in reasons or isinstance(ran[mode], NotApplicable):
             run.not_applicable[mode] = reasons.get(mode) or ran[mode].reason
@@ -804,7 +862,7 @@ def _run_or_not_applicable(mode: str, kinematics: Kinematics, native: Solution, 
 
 
 def _run_modes_in_parallel(
-    run: RunResult, runnable: list[str], modes: tuple[str, ...], arguments: tuple, jobs: int, progress
+    run: RunResult, runnable: list[str], modes: tuple[str, ...], arguments: tuple, jobs: int, progress, cache: bool
 ) -> dict:
     """Each of the ``runnable`` modes in a pool of ``jobs`` worker processes, the
     costliest first (:attr:`xcheck.engines.Mode.cost`), while this process
@@ -820,7 +878,7 @@ def _run_modes_in_parallel(
     away = sorted((mode for mode in runnable if mode not in here), key=lambda mode: -engines.mode(mode).cost)
     with process_pool(max(1, min(jobs, len(away)))) as pool:
         futures = {pool.submit(_run_or_not_applicable, mode, *arguments): mode for mode in away}
-        _add_forces(run, modes, branch, progress)
+        _add_forces(run, modes, branch, progress, cache)
         ran = {}
         for mode in here:
             if progress is not None:
@@ -830,9 +888,16 @@ def _run_modes_in_parallel(
     return ran
 
 
-def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
+#: what :func:`_add_forces` sets on a run (and the results cache keeps)
+_FORCE_FIELDS = ("native_forces", "forces", "force_table", "energy", "no_energy")
+
+
+def _add_forces(run: RunResult, modes, branch: str | None, progress, cache: bool = False) -> None:
     """Reactions and efforts of every source against the native multipliers,
-    and the native power balance, when every moving body has mass data."""
+    and the native power balance, when every moving body has mass data; from
+    the results cache where ``cache`` and it holds them."""
+    from . import result_cache
+
     kinematics = run.kinematics
     try:
         require_mass_data(kinematics.mechanism)
@@ -847,6 +912,22 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress) -> None:
     ]
     if progress is not None:
         progress("forces")
+    parts, used = ("forces and energy", tuple(sources), run.branch), tuple(engines.engine(s) for s in sources[1:])
+    if cache:
+        kept, run.provenance["forces"] = result_cache.lookup(kinematics, "forces", parts, used)
+        if kept is not None:
+            for name in _FORCE_FIELDS:
+                setattr(run, name, kept[name])
+            return
+    _compute_forces(run, sources, branch)
+    if cache and all(r.ok for r in run.forces):
+        kept = {name: getattr(run, name) for name in _FORCE_FIELDS}
+        run.provenance["forces"] = result_cache.keep(kinematics, parts, used, kept, run.provenance["forces"].recomputed)
+
+
+def _compute_forces(run: RunResult, sources: list[str], branch: str | None) -> None:
+    """The work of :func:`_add_forces`."""
+    kinematics = run.kinematics
     states = window_states(kinematics, branch)
     run.native_forces = inverse_dynamics(states)
     condition = condition_number(states)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from ._contract import DRIVEN_KINDS, KINDS, Engine, Mode, NotApplicable, with_unit_mass
 from ._registry import (
+    ALL,
     ENTRY_POINT_GROUP,
     engine,
     engine_of,
@@ -41,6 +42,7 @@ __all__ = [
     "NotApplicable",
     "with_unit_mass",
     "ENTRY_POINT_GROUP",
+    "ALL",
     "engine",
     "engine_of",
     "engines",

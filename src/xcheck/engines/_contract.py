@@ -131,12 +131,15 @@ class Mode:
     style : mapping
         Matplotlib line style of the mode in plots.
     on_request : bool
-        Run only when asked for by name, or by its engine's name
-        (``--engines mjx``): not in the default selection, nor in a kind's
-        group (``--engines dynamic``); for a mode too costly to run every time
-        (none of the built-in modes at present; MJX's driven mode was, before
-        its compilation fell to 16 to 20 CPU s).
+        Run only when asked for by name, by its engine's name (``--engines
+        mjx``) or with every mode (``--engines all``): not in the default
+        selection, nor in a kind's group (``--engines dynamic``); for a mode
+        whose cost alone would exceed what a default run is allowed (MJX's
+        driven mode: its JAX compilation). A run of the default selection says
+        which were left out, and why (``on_request_reason``).
         See :func:`xcheck.select_modes` and :func:`xcheck.engines.groups`.
+    on_request_reason : str
+        Why it runs only on request, one line (for the run's "left out" line).
     campaigns : bool
         Run in a fuzz campaign's default selection (:func:`xcheck.fuzz.campaign_modes`);
         False for a mode whose cost on each random mechanism would dominate
@@ -160,6 +163,7 @@ class Mode:
     orders: Mapping[str, float | None] = field(default_factory=dict)
     style: Mapping[str, object] = field(default_factory=dict)
     on_request: bool = False
+    on_request_reason: str = ""
     campaigns: bool = True
     findings: Mapping[str, str] = field(default_factory=dict)
     cost: float = 1.0

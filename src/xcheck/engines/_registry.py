@@ -16,6 +16,7 @@ from ._contract import KINDS, Engine, Mode
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "ALL",
     "register",
     "unregister",
     "engines",
@@ -235,6 +236,8 @@ def _may_declare_plug_ins() -> bool:
 def _add(engine: Engine, replace: bool = False) -> None:
     if not engine.name:
         raise ValueError(f"{type(engine).__name__}: an engine needs a name")
+    if engine.name in (ALL, "native"):
+        raise ValueError(f"{type(engine).__name__}: {engine.name!r} is a reserved name (an --engines selection)")
     if engine.name in _registered and not replace:
         raise ValueError(f"an engine named {engine.name!r} is already registered")
     taken = {m.name: e.name for e in _registered.values() if e.name != engine.name for m in e.modes}
@@ -307,14 +310,20 @@ def engine_of(mode_name: str) -> Engine:
     raise ValueError(f"expected an engine mode among {', '.join(m.name for m in modes())}, found {mode_name!r}")
 
 
+#: the ``--engines`` group of every mode, those run only on request included
+ALL = "all"
+
+
 def groups(kinds: tuple[str, ...] = KINDS) -> dict[str, tuple[str, ...]]:
-    """``--engines`` shortcuts: each engine's name, and each kind, to its modes
-    of these kinds (default: all). An engine's group has every mode of it; a
-    kind's leaves out the modes run only on request (:attr:`Mode.on_request`)."""
+    """``--engines`` shortcuts: each engine's name, each kind, and :data:`ALL`
+    to their modes of these kinds (default: all kinds). An engine's group and
+    ``all`` have every mode; a kind's leaves out the modes run only on request
+    (:attr:`Mode.on_request`)."""
     found = {e.name: tuple(m.name for m in e.modes if m.kind in kinds) for e in engines()}
-    found = {name: chosen for name, chosen in found.items() if chosen}
+    found = {name: chosen for name, chosen in found.items() if chosen and name != ALL}
     for kind in kinds:
         found.setdefault(kind, tuple(m.name for m in modes((kind,)) if not m.on_request))
+    found[ALL] = tuple(m.name for m in modes(kinds))
     return found
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from decimal import Decimal
 from pathlib import Path
 
@@ -13,7 +14,16 @@ from ..api import limit_warnings
 from ..kinematics import Status
 from ..output import range_text
 from ..precision import shown
-from ..runner import CATEGORIES, RunResult, condition_number, convergence_table, run_verdict, tolerance, versions
+from ..runner import (
+    CATEGORIES,
+    RunResult,
+    condition_number,
+    convergence_table,
+    left_out_text,
+    run_verdict,
+    tolerance,
+    versions,
+)
 from ..tolerances import conditioned_round_off
 from ._evidence import Evidence
 
@@ -185,6 +195,9 @@ def _comparison_section(run: RunResult, evidence: Evidence, marks: dict[str, str
         text += (
             "\n\nNot applicable here: " + "; ".join(f"`{m}`{marks.get(m, '')}: {r}" for m, r in absent.items()) + "."
         )
+    if run.left_out:
+        line = re.sub(r"(--engines \S+?)([,)]| or)", r"`\1`\2", left_out_text(run.left_out))
+        text += "\n\n" + line[0].upper() + line[1:] + "."
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
         [[f"`{m}`{marks.get(m, '')}", *p["tolerance"]] for m, p in ran.items()],
@@ -474,10 +487,19 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
         "## Dynamic modes: error against time step\n\n" + _dynamic_section(evidence, images, marks),
         "## Joint reactions and driving effort\n\n" + _forces_section(run, evidence, images, marks),
         "## Native solver\n\n" + _solver_section(run),
+        _cached_text(run),
         "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),
         f"Reproduce: `{command}`",
     ]
     return "\n\n".join(s for s in sections if s) + "\n"
+
+
+def _cached_text(run: RunResult) -> str:
+    """The results taken from the cache and when they were computed, as a sentence ("" where none)."""
+    from ..result_cache import summary
+
+    line = summary(run.provenance)
+    return line and line[0].upper() + line[1:].replace("--no-cache", "`--no-cache`") + "."
 
 
 def index_markdown(entries: list[dict]) -> str:

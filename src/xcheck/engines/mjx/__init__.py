@@ -53,6 +53,10 @@ class MJX(Engine):
             findings={"acceleration": _ACCELERATIONS, "alpha": _ACCELERATIONS},
             # a compilation for every random mechanism: 39 s a case, 4 times the rest (fuzz --seed 6)
             campaigns=False,
+            # its compilation alone exceeds the 3 to 4 s a default run of a mechanism is allowed
+            on_request=True,
+            on_request_reason="its JAX compilation alone costs 16 to 20 CPU s per mechanism, 4 to 5 s from "
+            "JAX's cache: more than the other modes together",
             cost=12.8,
         ),
         Mode("mjx-free", "free", FREE_MOTION, style=dict(color="tab:cyan", lw=1, ls="-.")),

@@ -74,7 +74,6 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from xcheck.cache import cache_dir
 from xcheck.engines import NotApplicable
 from xcheck.engines.mujoco import dynamic as mujoco_dynamic
 from xcheck.engines.mujoco import free as mujoco_free
@@ -85,6 +84,7 @@ from xcheck.kinematics import Kinematics
 from xcheck.model import Mechanism
 from xcheck.results import ModeResult, Trajectory, convergence_study
 from xcheck.simulation import free_errors, ladder_steps, left_branch
+from xcheck.store import cache_dir
 
 __all__ = [
     "FREE_MODE",
@@ -175,7 +175,7 @@ CACHE_BYTES = 2**30
 
 def _persistent_cache(jax) -> None:
     """Keep JAX's compilations between runs: its persistent cache in ``jax/`` of
-    xcheck's cache directory (:func:`xcheck.cache.cache_dir`), unless
+    xcheck's cache directory (:func:`xcheck.store.cache_dir`), unless
     ``$JAX_COMPILATION_CACHE_DIR`` already names one or xcheck's cache is off.
     Set before JAX's first compilation, which fixes the cache for the process."""
     if jax.config.jax_compilation_cache_dir:

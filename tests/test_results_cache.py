@@ -1,0 +1,212 @@
+"""The results cache (xcheck.result_cache): the same results with and without it, an
+entry that is corrupt, edited, signed elsewhere or made by other code is
+computed again (and, but for the last, said so), keyed by the canonical
+mechanism, and shown, cleared and turned off as documented."""
+
+from __future__ import annotations
+
+import json
+import pickle
+
+import pytest
+from conftest import MODELS, invoke, results_cache_on
+
+from xcheck import result_cache, store
+
+#: few samples, the bundled models
+ARGS = ("--samples", "21", "--models", str(MODELS))
+
+
+@pytest.fixture
+def cache_on(tmp_path, monkeypatch):
+    """The results cache on, in a folder of this test's own."""
+    monkeypatch.setenv(store.CACHE_ENV, str(tmp_path / "cache"))
+    with results_cache_on():
+        yield tmp_path / "cache"
+
+
+def _run(*args: str) -> tuple[dict, str]:
+    done = invoke("run", "fourbar", "--json", *ARGS, *args)
+    assert done.returncode in (0, 1) and "Traceback" not in done.stderr, done.stderr
+    return json.loads(done.stdout), done.stderr
+
+
+def _without_timings_and_cache(document: dict) -> dict:
+    return {k: v for k, v in document.items() if k not in ("timings", "cache")}
+
+
+@pytest.mark.slow
+def test_the_same_results_and_report_with_and_without_the_cache(cache_on, tmp_path):
+    """Twice with the cache (the second run takes every mode and the reactions from it)
+    and once with --no-cache: the JSON is the same but for timings and the cache's
+    fields, and so are the reports' figures, byte for byte; the report and the
+    terminal say what came from the cache, and when it was computed."""
+    out = {name: tmp_path / name for name in ("first", "second", "none")}
+    first, _ = _run("--report", "--out", str(out["first"]), "--no-gif")
+    second, _ = _run("--report", "--out", str(out["second"]), "--no-gif")
+    fresh, _ = _run("--report", "--out", str(out["none"]), "--no-gif", "--no-cache")
+    modes = set(first["engines"]) - {"native"} | set(first["not_applicable"])
+    assert first["cache"]["from_cache"] == {} and fresh["cache"] == {"from_cache": {}, "recomputed": {}}
+    assert set(second["cache"]["from_cache"]) == modes | {"forces"}
+    assert _without_timings_and_cache(second) == _without_timings_and_cache(first) == _without_timings_and_cache(fresh)
+    for image in sorted(p.relative_to(out["first"]) for p in out["first"].rglob("*.png")):
+        assert (out["second"] / image).read_bytes() == (out["none"] / image).read_bytes(), image
+    report = (out["second"] / "fourbar.md").read_text(encoding="utf-8")
+    when = second["cache"]["from_cache"]["mujoco-kinematic"].replace("T", " ").replace("Z", " UTC")
+    assert "From the results cache:" in report and when in report
+    assert "From the results cache" not in (out["none"] / "fourbar.md").read_text(encoding="utf-8")
+    table = invoke("run", "fourbar", *ARGS, "--no-report")
+    assert "from the results cache:" in table.stdout and "--no-cache computes them again" in table.stdout
+
+
+def _entry(cache: object, mode: str) -> tuple:
+    """The path of a mode's entry (found by the mode's name inside the payload) and its parts."""
+    for path in sorted((cache / result_cache.KIND).glob("*.entry")):
+        header, _, payload = path.read_bytes().partition(b"\n")
+        value = pickle.loads(payload)
+        if getattr(value, "mode", None) == mode:
+            return path, json.loads(header), value
+    raise AssertionError(f"no entry of {mode}")
+
+
+def _signed(header: dict, payload: bytes, key: bytes) -> bytes:
+    import hashlib
+    import hmac
+
+    header = {k: v for k, v in header.items() if k != "mac"}
+    header["length"] = len(payload)
+    signed = json.dumps(header, sort_keys=True, separators=(",", ":")).encode()
+    header["mac"] = hmac.new(key, signed + b"\n" + payload, hashlib.sha256).hexdigest()
+    return json.dumps(header, sort_keys=True).encode() + b"\n" + payload
+
+
+def _edited(header: dict, value) -> bytes:
+    """The entry with its error multiplied by ten and its header kept (length fixed)."""
+    value.categories["max_abs"] = value.categories["max_abs"] * 10
+    payload = pickle.dumps(value)
+    head = dict(header, length=len(payload))
+    return json.dumps(head, sort_keys=True).encode() + b"\n" + payload
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "numbers edited", "signed elsewhere", "other version"])
+def test_a_damaged_or_foreign_entry_is_computed_again_and_said_so(cache_on, damage):
+    """Each damaged entry gives the results computed afresh, not its own, names the
+    entry and why on stderr (an entry of another version quietly: an upgrade is no
+    fault), and is replaced: the next run takes it from the cache again."""
+    engines = ("--engines", "mujoco-kinematic,formulation-II")
+    reference, _ = _run(*engines)
+    path, header, value = _entry(cache_on, "mujoco-kinematic")
+    good = path.read_bytes()
+    key = (cache_on / store.KEY_NAME).read_bytes()
+    payload = good.partition(b"\n")[2]
+    if damage == "truncated":
+        bad = good[: len(good) // 2]
+    elif damage == "garbage":
+        bad = b"\x00garbage\n" + payload
+    elif damage == "numbers edited":
+        bad = _edited(header, value)
+    elif damage == "signed elsewhere":
+        bad = _signed(header, payload, b"k" * store.KEY_BYTES)
+    else:
+        made = dict(header["made_by"], xcheck="0.0.1")
+        bad = _signed(dict(header, made_by=made), payload, key)
+    path.write_bytes(bad)
+    again, stderr = _run(*engines)
+    assert "mujoco-kinematic" not in again["cache"]["from_cache"] and "formulation-II" in again["cache"]["from_cache"]
+    assert "mujoco-kinematic" in again["cache"]["recomputed"]
+    assert _without_timings_and_cache(again) == _without_timings_and_cache(reference)
+    said = [line for line in stderr.splitlines() if "mujoco-kinematic of fourbar" in line]
+    if damage == "other version":
+        assert said == [] and "xcheck" in again["cache"]["recomputed"]["mujoco-kinematic"]
+    else:
+        assert len(said) == 1 and str(path) in said[0] and said[0].endswith("computed again"), stderr
+    assert path.read_bytes() != bad
+    third, _ = _run(*engines)
+    assert "mujoco-kinematic" in third["cache"]["from_cache"]
+
+
+def test_keyed_by_the_mechanism_not_the_file_bytes(cache_on, tmp_path):
+    """A comment changes nothing: the results come from the cache; another value of
+    the mechanism, other samples or another branch are other results."""
+    folder = tmp_path / "models"
+    folder.mkdir()
+    path = folder / "fourbar.toml"
+    text = (MODELS / "fourbar.toml").read_text(encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
+
+    def run(*args: str) -> set:
+        done = invoke("run", str(path), "--json", "--engines", "formulation-II", "--samples", "11", *args)
+        assert done.returncode == 0, done.stderr
+        return set(json.loads(done.stdout)["cache"]["from_cache"])
+
+    assert run() == set()
+    path.write_text("# a comment\n" + text, encoding="utf-8")
+    assert run() == {"formulation-II", "forces"}
+    assert run("--samples", "13") == {"forces"}  # the reactions are computed over the motion, not the sweep
+    assert run("--branch", "lower") == set()
+    path.write_text(text.replace("\ncrank = 60\n", "\ncrank = 61\n"), encoding="utf-8")
+    assert run() == set()
+
+
+def test_no_cache_reads_and_writes_nothing_and_clear_empties_it(cache_on):
+    _run("--engines", "formulations", "--no-cache")
+    assert not (cache_on / result_cache.KIND).exists()
+    _run("--engines", "formulations")
+    shown = json.loads(invoke("cache", "--json").stdout)
+    assert shown["directory"] == str(cache_on) and shown["kinds"]["results"]["entries"] == 3  # two modes, the reactions
+    cleared = invoke("cache", "--clear")
+    assert cleared.returncode == 0 and "removed" in cleared.stdout
+    assert not list((cache_on).rglob("*.entry")) and not (cache_on / store.KEY_NAME).exists()
+    second, _ = _run("--engines", "formulations")
+    assert second["cache"]["from_cache"] == {}
+
+
+def test_results_cache_off_by_environment(cache_on, monkeypatch):
+    monkeypatch.setenv(result_cache.RESULTS_ENV, "off")
+    _run("--engines", "formulations")
+    assert not (cache_on / result_cache.KIND).exists()
+
+
+def test_a_plug_in_engines_results_are_keyed_by_its_source(cache_on, tmp_path, monkeypatch):
+    """An engine from another package: its results are kept, and computed again once
+    its source changes (xcheck's own digest does not cover it)."""
+    import sys
+
+    from xcheck import Kinematics, engines, load_mechanism
+    from xcheck.runner import run_mechanism
+
+    source = (
+        "from conftest import shifted_sweep\n"
+        "from xcheck import engines\n"
+        "from xcheck.tolerances import Tolerance\n"
+        "class Toy(engines.Engine):\n"
+        "    name = 'cachetoy'\n"
+        "    modes = (engines.Mode('cachetoy-kinematic', 'kinematic', Tolerance(1e-6, 1, 1, 1, 'toy')),)\n"
+        "    def run(self, mode, kinematics, *, native, samples, branch=None):\n"
+        "        return shifted_sweep(mode, kinematics, native, SHIFT)\n"
+        "SHIFT = 1e-7\n"
+    )
+    (tmp_path / "cachetoy.py").write_text(source, encoding="utf-8")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import cachetoy
+
+    engines.register(cachetoy.Toy())
+    try:
+        kin = Kinematics(load_mechanism(MODELS / "fourbar.toml"))
+        modes = ("native", "cachetoy-kinematic")
+        assert not run_mechanism(kin, modes, 11).provenance["cachetoy-kinematic"].from_cache
+        assert run_mechanism(kin, modes, 11).provenance["cachetoy-kinematic"].from_cache
+        (tmp_path / "cachetoy.py").write_text(source.replace("SHIFT = 1e-7", "SHIFT = 2e-7"), encoding="utf-8")
+        assert not run_mechanism(kin, modes, 11).provenance["cachetoy-kinematic"].from_cache
+    finally:
+        engines.unregister("cachetoy")
+        sys.modules.pop("cachetoy", None)
+
+
+def test_an_unusable_cache_directory_is_no_error(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv(store.CACHE_ENV, str(blocker / "cache"))
+    with results_cache_on():
+        first, _ = _run("--engines", "formulations")
+    assert first["cache"] == {"from_cache": {}, "recomputed": {}}
