@@ -129,7 +129,7 @@ def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
     text = (MODELS / "fourbar.toml").read_text().replace("rate = 1.0            # rad/s (chosen)", "rate = 0")
     path = tmp_path / "still.toml"
     path.write_text(text.replace('name = "fourbar"', 'name = "still"').split("[[instants]]")[0])
-    result = _cli("run", path, "--engines", "formulations,dynamic", "--samples", "11", "--no-report", "--json")
+    result = _cli("run", path, "--engines", "formulations,dynamic,mjx", "--samples", "11", "--no-report", "--json")
     document = json.loads(result.stdout)
     assert result.exit_code == 0, result.output
     assert set(document["not_applicable"]) == {
