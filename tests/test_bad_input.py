@@ -197,10 +197,10 @@ CASES = [
     ),
     pytest.param(
         sub(FOURBAR, "length = 500", "length = 50"),
-        "assembly.branches.upper",
-        ["a sketch from which the mechanism assembles", "crank = 30 deg"],
-        ["none that closes the loops"],
-        id="sketch-does-not-assemble",
+        "assembly.at",  # a rocker too short to close the loop: not the sketch's fault
+        ["an input at which every loop closes"],
+        ["crank = 30 deg", "the loop ground - rocker - coupler - crank - ground cannot close", "rocker D-C 50"],
+        id="link-too-short-to-close",
     ),
     pytest.param(
         FOURBAR + "\n[extras]\nsize = 1\n",

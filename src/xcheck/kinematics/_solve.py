@@ -332,7 +332,11 @@ class Kinematics:
         # the weak pull towards a rough sketch leaves small gaps that Newton closes
         joints_close = joint_gap <= 1e-2 * system.size
         if not joints_close and dof["grubler"] == dof["drivers"]:
-            # the joints themselves cannot close near the sketch: the geometry or the sketch is wrong
+            # the joints cannot close near the sketch: the input (or a length) where no configuration
+            # closes a loop, or else a sketch of no branch
+            unclosed = self._unclosed_loop(fitted, c_ref, sketch)
+            if unclosed is not None:
+                raise ModelError(mech.path, "assembly.at", "an input at which every loop closes", unclosed)
             raise no_assembly(
                 f"the best fit leaves the joints {joint_gap / mech.units.length_factor:.3g} {mech.units.length} apart"
             )
@@ -383,7 +387,87 @@ class Kinematics:
             q[3 * i + 2] = phi
         return q
 
-    def _fit_sketch(self, q0, c_ref, sketch) -> np.ndarray:
+    def _unclosed_loop(self, fitted: np.ndarray, c_ref: np.ndarray, sketch) -> str | None:
+        """Where the loops cannot close at the reference inputs, whatever the
+        sketch: the loop through the joint left farthest apart by the least
+        squares of the constraints alone (no pull towards the sketch), with the
+        lengths around it; None where that fit closes them (the sketch was of
+        no branch)."""
+        system, mech = self.system, self.mechanism
+        units = mech.units
+        with np.errstate(all="ignore"):
+            q = self._fit_sketch(fitted, c_ref, sketch, weights=(0.0,), held=1e6)  # the inputs as given
+            phi = system.residual(q[None], c_ref[None], kinematic_only=True)[0]
+        gaps = np.abs(phi) * np.where(system.row_is_angle[: phi.size], system.size, 1.0)
+        if not np.all(np.isfinite(gaps)) or gaps.max(initial=0.0) <= 1e-6 * system.size:
+            return None
+        rows = np.cumsum([0] + [sum(t.rows for t in joint.terms(system._local)) for joint in mech.joints])
+        per_joint = [float(np.linalg.norm(gaps[a:b])) for a, b in zip(rows[:-1], rows[1:])]
+        worst = int(np.argmax(per_joint))
+        loop, joints = self._loop_through(worst)
+        if any(body == "ground" for body, _ in loop):  # read from the ground round
+            first = next(i for i, (body, _) in enumerate(loop) if body == "ground")
+            loop = loop[first:] + loop[:first]
+        short = sum(per_joint[k] for k in joints)  # the least squares share the gap among the loop's joints
+        where = ", ".join(f"{d.name} = {units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, c_ref))
+        joint = mech.joints[worst]
+        name = joint.shared_label() or "/".join(label for _, label in joint.anchors())
+        lengths = []
+        for body, (enter, leave) in loop:
+            points = mech.ground.points if body == "ground" else mech.body(body).points
+            if enter in points and leave in points and enter != leave:
+                length = float(np.hypot(*(np.asarray(points[leave]) - np.asarray(points[enter]))))
+                lengths.append(f"{body} {enter}-{leave} {length / units.length_factor:.6g}")
+        bodies = " - ".join([body for body, _ in loop] + [loop[0][0]])
+        return (
+            f"{where}, where the loop {bodies} cannot close: its joints stay {short / units.length_factor:.3g} "
+            f"{units.length} apart in all at best, most at {name} ({joint.body_a}, {joint.body_b})"
+            + (f"; the lengths around it ({units.length}): {', '.join(lengths)}" if lengths else "")
+        )
+
+    def _loop_through(self, index: int) -> tuple[list[tuple[str, tuple[str, str]]], list[int]]:
+        """The shortest loop of bodies closed by joint ``index``: (body, (the
+        label where the loop enters it, where it leaves)) in order, starting
+        with the joint's second body, and the indices of the loop's joints."""
+        mech = self.mechanism
+        joints = mech.joints
+
+        def label(joint, body: str) -> str:
+            own = [lbl for b, lbl in joint.anchors() if b == body]
+            return own[0] if own else (joint.shared_label() or "")
+
+        start, goal = joints[index].body_b, joints[index].body_a
+        previous: dict[str, tuple[str, int] | None] = {start: None}
+        frontier = [start]
+        while frontier and goal not in previous:
+            following = []
+            for body in frontier:
+                for k, joint in enumerate(joints):
+                    if k == index or body not in joint.bodies:
+                        continue
+                    other = joint.body_b if joint.body_a == body else joint.body_a
+                    if other not in previous:
+                        previous[other] = (body, k)
+                        following.append(other)
+            frontier = following
+        if goal not in previous:
+            return [(start, ("", "")), (goal, ("", ""))], [index]
+        path = [goal]  # goal back to start
+        via = []
+        while previous[path[-1]] is not None:
+            body, k = previous[path[-1]]  # type: ignore[misc]
+            via.append(k)
+            path.append(body)
+        path.reverse()
+        via.reverse()  # via[i] joins path[i] and path[i + 1]
+        loop = []
+        for i, body in enumerate(path):
+            enter = joints[index] if i == 0 else joints[via[i - 1]]
+            leave = joints[via[i]] if i < len(via) else joints[index]
+            loop.append((body, (label(enter, body), label(leave, body))))
+        return loop, [index, *via]
+
+    def _fit_sketch(self, q0, c_ref, sketch, weights=(1.0, 1e-1, 1e-2, 1e-3), held: float = 1.0) -> np.ndarray:
         """Least squares of the constraints plus a pull towards the sketched
         points, the pull relaxed in stages (1, 0.1, 0.01, 0.001) so that the
         fit closes the loops without wandering off the sketched branch."""
@@ -398,6 +482,7 @@ class Kinematics:
             return q0  # too few equations for least squares; Newton decides
         size = system.size
         row_scale = np.where(system.row_is_angle, 1.0, 1.0 / size)
+        row_scale[system.n_kinematic :] *= held  # the drivers' rows: held harder than the joints' with held > 1
 
         def residuals(q, weight):
             phi = system.residual(q[None], c_ref[None])[0] * row_scale
@@ -420,7 +505,7 @@ class Kinematics:
         from scipy.optimize import least_squares  # 0.3 s to import: only when a sketch is fitted
 
         q = q0
-        for weight in (1.0, 1e-1, 1e-2, 1e-3):
+        for weight in weights:
             q = least_squares(
                 residuals,
                 q,
