@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import json
 import math
 import os
 import re
+import shutil
 import stat
 import subprocess
 import sys
@@ -479,6 +481,182 @@ def test_reports_beside_a_users_files_are_written_or_refused_and_keep_them(index
         problems.append("wrote no report")
     problems += [f"changed the user's {c}" for c in keep.changed()]
     assert not problems, f"{things} {args[0]} {reserved}: {problems}"
+
+
+# ----------------------------------------------------------------------------- surface 7: the caches
+
+#: the commands whose answers a cache entry feeds (the branch maps; the modes' results for run)
+CACHED_COMMANDS = [
+    ("solve", _FOURBAR, "--at", "60", "--branch", "upper", "--json"),
+    ("solve", _FOURBAR, "--at", "100", "--branch", "lower", "--json"),
+    ("list", _FOURBAR, "--json"),
+    ("run", _FOURBAR, "--engines", "native,formulations", "--samples", "21", "--no-report", "--json"),
+]
+
+#: what may be done to a cache directory between two commands
+POISONS = [
+    "branches swapped",
+    "range narrowed",
+    "a digit changed",
+    "truncated",
+    "garbage",
+    "empty",
+    "a FIFO",
+    "a link to /dev/zero",
+    "a folder",
+    "a sparse giant",
+    "a link to a sound entry",
+    "key deleted",
+    "another key",
+    "key readable by all",
+    "key a FIFO",
+    "key a link to a file of the user's",
+    "the cache a file",
+]
+
+#: keys of the JSON that differ between two runs of the same question (wall times, where an answer came from)
+_VOLATILE = ("timing", "seconds", "cache", "computed", "provenance")
+
+
+def _differences(a, b, path: str = "") -> list[str]:
+    """Where two JSON answers differ: other keys, other text, or numbers apart by
+    more than 1e-9 of their size (a branch map restored from the cache gives the
+    same numbers as one computed, identical where measured; another branch or
+    range differs in the first digits)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        keys = {k for k in set(a) | set(b) if not any(v in k for v in _VOLATILE)}
+        return [d for k in sorted(keys) for d in _differences(a.get(k), b.get(k), f"{path}/{k}")]
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _differences(x, y, f"{path}[{i}]")]
+    numbers = (int, float)
+    if isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool) and not isinstance(b, bool):
+        return [] if abs(a - b) <= 1e-9 * max(abs(a), abs(b), 1e-300) else [f"{path}: {a!r} != {b!r}"]
+    return [] if a == b else [f"{path}: {str(a)[:60]!r} != {str(b)[:60]!r}"]
+
+
+@pytest.fixture(scope="module")
+def uncached():
+    """Each command's JSON answer with every cache off: the truth to compare with."""
+    from xcheck.result_cache import RESULTS_ENV
+    from xcheck.store import CACHE_ENV
+
+    answers = {}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(CACHE_ENV, "off")
+        patch.delenv(RESULTS_ENV, raising=False)
+        for command in CACHED_COMMANDS:
+            result = invoke(*command)
+            assert result.returncode == 0, result.stderr
+            answers[command] = json.loads(result.stdout)
+    return answers
+
+
+def _poison(cache: Path, poison: str, keep: Keepsakes) -> None:
+    """Do ``poison`` to every entry of the cache directory ``cache`` (or to its key)."""
+    from xcheck.store import KEY_NAME
+
+    key = cache / KEY_NAME
+    entries = [e for e in sorted(cache.glob("*/*.entry")) if e.is_file() and not e.is_symlink()]  # not poisoned yet
+    if poison == "key deleted":
+        key.unlink()
+    elif poison == "another key":
+        key.write_bytes(os.urandom(len(key.read_bytes())))
+    elif poison == "key readable by all":
+        key.chmod(0o644)
+    elif poison == "key a FIFO":
+        key.unlink()
+        os.mkfifo(key)
+    elif poison == "key a link to a file of the user's":
+        mine = cache.parent / "my-secret.txt"
+        mine.write_text("the user's own secret\n", encoding="utf-8")
+        keep.keep(mine)
+        key.unlink()
+        key.symlink_to(mine)
+    elif poison == "the cache a file":
+        shutil.rmtree(cache)
+        cache.write_text("the user's file where the cache was\n", encoding="utf-8")
+        keep.keep(cache)
+    for entry in entries if poison not in ("key deleted", "another key", "the cache a file") else []:
+        text = entry.read_bytes()
+        header, _, payload = text.partition(b"\n")
+        if poison in ("branches swapped", "range narrowed") and entry.parent.name == "branch-maps":
+            document = json.loads(payload)
+            if poison == "branches swapped" and {"upper", "lower"} <= set(document["assembled"]):
+                assembled = document["assembled"]
+                assembled["upper"], assembled["lower"] = assembled["lower"], assembled["upper"]
+            for item in document["ranges"] if poison == "range narrowed" else []:
+                if item["low"] is not None and item["high"] is not None:
+                    item["low"], item["high"] = math.radians(-60), math.radians(60)
+            edited = json.dumps(document).encode()
+            head = json.loads(header)
+            head["length"] = len(edited)  # a checksum anyone can recompute would now pass
+            entry.write_bytes(json.dumps(head).encode() + b"\n" + edited)
+        elif poison == "a digit changed":
+            entry.write_bytes(text.replace(b"0.", b"1.", 1))
+        elif poison == "truncated":
+            entry.write_bytes(text[: len(text) // 2])
+        elif poison == "garbage":
+            entry.write_bytes(os.urandom(len(text)))
+        elif poison == "empty":
+            entry.write_bytes(b"")
+        elif poison in ("a FIFO", "a link to /dev/zero", "a folder", "a sparse giant", "a link to a sound entry"):
+            entry.unlink()
+            if poison == "a FIFO":
+                os.mkfifo(entry)
+            elif poison == "a link to /dev/zero":
+                entry.symlink_to("/dev/zero")
+            elif poison == "a folder":
+                entry.mkdir()
+            elif poison == "a sparse giant":
+                with open(entry, "wb") as giant:
+                    giant.truncate(2**30)  # 1 GB, no disk used
+            else:
+                sound = entry.with_suffix(".sound")
+                sound.write_bytes(text)
+                entry.symlink_to(sound)
+
+
+CACHE_DRAWS = len(POISONS)
+
+
+def _cache_draw(index: int) -> tuple[tuple, list[str], tuple]:
+    """Scenario ``index``: the command that fills the cache, the poison (each in
+    turn: two would hide each other, as a cache made a file hides an edited
+    entry), and the command asked again (``run``, the costliest, in a quarter of them)."""
+    rng = _rng(7, index)
+    cheap = CACHED_COMMANDS[:3]
+    first = CACHED_COMMANDS[3] if index % 4 == 0 else _pick(rng, cheap)
+    then = CACHED_COMMANDS[3] if index % 4 == 1 else _pick(rng, cheap)
+    return first, [POISONS[index % len(POISONS)]], then
+
+
+@pytest.mark.skipif(not (hasattr(os, "mkfifo") and Path("/dev/zero").exists()), reason="FIFOs and /dev/zero")
+@pytest.mark.parametrize("index", range(CACHE_DRAWS))
+def test_a_poisoned_cache_never_changes_an_answer(index, tmp_path, monkeypatch, uncached):
+    """A command's answer fills the cache, the cache is poisoned, and the
+    command (or another) asked again answers exactly as with no cache at all:
+    in bounded time, exit 0, nothing of the user's touched."""
+    from xcheck.result_cache import RESULTS_ENV
+    from xcheck.store import CACHE_ENV
+
+    first, poisons, then = _cache_draw(index)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(CACHE_ENV, str(cache))
+    monkeypatch.delenv(RESULTS_ENV, raising=False)  # the modes' results cached too
+    keep = Keepsakes(tmp_path)
+    other = CACHED_COMMANDS[0] if first == CACHED_COMMANDS[1] else CACHED_COMMANDS[1]
+    with _bounded():
+        filled = invoke(*first)  # and the other branch: both in the map, for swapping
+        filled_too = invoke(*other)
+        for poison in poisons:
+            if cache.is_dir():
+                _poison(cache, poison, keep)
+        result = invoke(*then)
+    problems = _clean(filled, (0,), 0) + _clean(filled_too, (0,), 0) + _clean(result, (0,), 0)
+    if result.returncode == 0:
+        problems += _differences(uncached[then], json.loads(result.stdout))[:5]
+    problems += [f"changed the user's {c}" for c in keep.changed()]
+    assert not problems, f"{first[0]} then {poisons} then {then[0]} {then[2:4]}: {problems}"
 
 
 # ----------------------------------------------------------------------------- surface 3: folders of mechanism files
