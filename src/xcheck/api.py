@@ -245,7 +245,7 @@ class Result:
             ),
             (b["angle"] / units.angle_factor, f"angle of {body} [{units.angle}]"),
             (b["omega"] / units.angular_rate_factor, f"ω of {body} [{units.angular_rate}]"),
-            (b["alpha"] / units.angular_rate_factor, f"α of {body} [{units.angular_acceleration}]"),
+            (b["alpha"] / units.angular_acceleration_factor, f"α of {body} [{units.angular_acceleration}]"),
         ]
         figure = Figure(figsize=(12, 6.5))
         axes = figure.subplots(2, 3)

@@ -13,6 +13,7 @@ from rich.table import Table
 from rich.text import Text
 
 from .kinematics import InputRange, Kinematics, Solution, Status
+from .precision import shown
 
 __all__ = [
     "mode_trust",
@@ -336,7 +337,7 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
     mech = solution.mechanism
     u = mech.units
     L, A, W = u.length_factor, u.angle_factor, u.angular_rate_factor
-    V, AC = u.velocity_factor, u.acceleration_factor
+    V, AC, AL = u.velocity_factor, u.acceleration_factor, u.angular_acceleration_factor
     alpha_unit = u.angular_acceleration
     for i in range(solution.q.shape[0]):
         status = Status(int(solution.status[i]))
@@ -346,7 +347,7 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
                 inputs.append(
                     f"{d.name} = {_fmt(solution.inputs[i, k] / A)} {u.angle}, "
                     f"{_fmt(solution.input_rates[i, k] / W)} {u.angular_rate}, "
-                    f"{_fmt(solution.input_accelerations[i, k] / W)} {alpha_unit}"
+                    f"{_fmt(solution.input_accelerations[i, k] / AL)} {alpha_unit}"
                 )
             else:
                 inputs.append(
@@ -378,19 +379,20 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
             f"α [{alpha_unit}]",
         ):
             bodies.add_column(escape(header), justify="right" if header != "body" else "left", no_wrap=True)
+        bound = _state_round_off(solution, i)
         for b in mech.moving_bodies:
             s = solution.body(b.name)
             bodies.add_row(
                 b.name,
-                _fmt(s["position"][i, 0] / L),
-                _fmt(s["position"][i, 1] / L),
-                _fmt(s["angle"][i] / A),
-                _fmt(s["velocity"][i, 0] / V),
-                _fmt(s["velocity"][i, 1] / V),
-                _fmt(s["omega"][i] / W),
-                _fmt(s["acceleration"][i, 0] / AC),
-                _fmt(s["acceleration"][i, 1] / AC),
-                _fmt(s["alpha"][i] / W),
+                _at_round_off(s["position"][i, 0] / L, bound["position"] / L),
+                _at_round_off(s["position"][i, 1] / L, bound["position"] / L),
+                _at_round_off(s["angle"][i] / A, bound["angle"] / A),
+                _at_round_off(s["velocity"][i, 0] / V, bound["velocity"] / V),
+                _at_round_off(s["velocity"][i, 1] / V, bound["velocity"] / V),
+                _at_round_off(s["omega"][i] / W, bound["omega"] / W),
+                _at_round_off(s["acceleration"][i, 0] / AC, bound["acceleration"] / AC),
+                _at_round_off(s["acceleration"][i, 1] / AC, bound["acceleration"] / AC),
+                _at_round_off(s["alpha"][i] / AL, bound["alpha"] / AL),
             )
         print_table(console, bodies)
 
@@ -414,19 +416,59 @@ def print_solution(console: Console, solution: Solution, labels: list[str] | Non
             points.add_row(
                 label,
                 owner,
-                _fmt(p["position"][i, 0] / L),
-                _fmt(p["position"][i, 1] / L),
-                _fmt(v[0] / V),
-                _fmt(v[1] / V),
-                _fmt(float(np.hypot(*v)) / V),
-                _fmt(a[0] / AC),
-                _fmt(a[1] / AC),
-                _fmt(float(np.hypot(*a)) / AC),
+                _at_round_off(p["position"][i, 0] / L, bound["position"] / L),
+                _at_round_off(p["position"][i, 1] / L, bound["position"] / L),
+                _at_round_off(v[0] / V, bound["velocity"] / V),
+                _at_round_off(v[1] / V, bound["velocity"] / V),
+                _at_round_off(float(np.hypot(*v)) / V, bound["velocity"] / V),
+                _at_round_off(a[0] / AC, bound["acceleration"] / AC),
+                _at_round_off(a[1] / AC, bound["acceleration"] / AC),
+                _at_round_off(float(np.hypot(*a)) / AC, bound["acceleration"] / AC),
             )
         print_table(console, points)
         if forces is not None:
             _print_forces(console, solution, forces, i)
         console.print()
+
+
+def _at_round_off(value: float, bound: float) -> str:
+    """A value of a solution table (:func:`xcheck.precision.shown`, six digits):
+    "< bound" at round-off, but "0" where it is exactly zero (a ground point)."""
+    return "0" if value == 0.0 else shown(value, bound, 6)
+
+
+def _kappa(solution: Solution, i: int) -> float:
+    """The condition number of state ``i``'s scaled constraint Jacobian (inf where singular)."""
+    measure = float(solution.singularity[i])
+    return 1.0 / measure if measure > 0.0 and math.isfinite(measure) else math.inf
+
+
+def _state_round_off(solution: Solution, i: int) -> dict[str, float]:
+    """Per quantity category, the round-off of state ``i``'s values (SI): what
+    the state's conditioning allows (:func:`xcheck.tolerances.conditioned_round_off`,
+    kappa the inverse of the state's singularity measure) times the category's
+    scale at that state (the mechanism's size for positions; the largest speed,
+    angular rate times size, acceleration over its points and bodies for rates).
+    A value below it is noise: tables show it as "< bound", never its digits."""
+    from .tolerances import conditioned_round_off
+
+    mech, size = solution.mechanism, solution.kinematics.system.size
+    kappa = _kappa(solution, i)
+    parts = [solution.point(label) for label in mech.point_owners] + [solution.body(b.name) for b in mech.moving_bodies]
+    speed = max((float(np.hypot(*p["velocity"][i])) for p in parts), default=0.0)
+    accel = max((float(np.hypot(*p["acceleration"][i])) for p in parts), default=0.0)
+    bodies = [solution.body(b.name) for b in mech.moving_bodies]
+    speed = max([speed] + [abs(float(b["omega"][i])) * size for b in bodies])
+    accel = max([accel] + [abs(float(b["alpha"][i])) * size for b in bodies])
+    scale = {
+        "position": size,
+        "angle": 1.0,
+        "velocity": speed,
+        "omega": speed / size,
+        "acceleration": accel,
+        "alpha": accel / size,
+    }
+    return {c: conditioned_round_off(c, kappa) * s for c, s in scale.items()}
 
 
 def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
@@ -437,6 +479,21 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
         reactions.add_column(
             escape(header), justify="left" if header in ("joint", "type", "force of → on") else "right", no_wrap=True
         )
+    # round-off: what the state's conditioning allows an acceleration, on the largest force's scale
+    largest = max(
+        [float(np.hypot(*forces.joints[j.name]["reaction"][i])) for j in mech.joints]
+        + [
+            abs(float(forces.joints[j.name][k][i]))
+            for j in mech.joints
+            for k in ("normal",)
+            if k in forces.joints[j.name]
+        ]
+        + [0.0]
+    )
+    from .tolerances import conditioned_round_off
+
+    force_bound = conditioned_round_off("acceleration", _kappa(solution, i)) * largest
+    size = solution.kinematics.system.size
     for joint in mech.joints:
         values = forces.joints[joint.name]
         f = values["reaction"][i]
@@ -444,11 +501,11 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
             joint.name,
             joint.kind,
             f"{joint.body_a} → {joint.body_b}",
-            _fmt(f[0]),
-            _fmt(f[1]),
-            _fmt(float(np.hypot(*f))),
-            _fmt(values["normal"][i]) if "normal" in values else "",
-            _fmt(values["moment"][i]) if "moment" in values else "",
+            _at_round_off(f[0], force_bound),
+            _at_round_off(f[1], force_bound),
+            _at_round_off(float(np.hypot(*f)), force_bound),
+            _at_round_off(values["normal"][i], force_bound) if "normal" in values else "",
+            _at_round_off(values["moment"][i], force_bound * size) if "moment" in values else "",
         )
     print_table(console, reactions)
     efforts = Table(box=None, pad_edge=False, header_style="bold")

@@ -80,8 +80,15 @@ class Units:
 
     @property
     def angular_acceleration(self) -> str:
-        """Display name of angular accelerations (the rate unit per second)."""
-        return {"rad/s": "rad/s^2", "deg/s": "deg/s^2", "rpm": "rpm/s"}[self.angular_rate]
+        """Display name of angular accelerations: the rate unit per second, but
+        the angle unit per s^2 for a file whose rates are in rpm ("rpm/s" is no
+        unit anyone reads)."""
+        return {"rad/s": "rad/s^2", "deg/s": "deg/s^2", "rpm": f"{self.angle}/s^2"}[self.angular_rate]
+
+    @property
+    def angular_acceleration_factor(self) -> float:
+        """rad/s^2 per display angular-acceleration unit (:attr:`angular_acceleration`)."""
+        return self.angle_factor if self.angular_rate == "rpm" else self.angular_rate_factor
 
 
 _BINARY: dict[type[ast.operator], Callable[[float, float], float]] = {

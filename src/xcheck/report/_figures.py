@@ -296,7 +296,7 @@ def quantities_figure(run: RunResult):
         "acceleration": (units.acceleration_factor, f"|a| of {point} [{units.acceleration}]"),
         "angle": (units.angle_factor, f"angle of {body} [{units.angle}]"),
         "omega": (units.angular_rate_factor, f"ω of {body} [{units.angular_rate}]"),
-        "alpha": (units.angular_rate_factor, f"α of {body} [{units.angular_acceleration}]"),
+        "alpha": (units.angular_acceleration_factor, f"α of {body} [{units.angular_acceleration}]"),
     }
     blocks = _blocks(run)
     figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
