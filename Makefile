@@ -39,9 +39,7 @@ bench: $(STAMP)
 	mkdir -p $(BENCH_OUT) && rm -rf $(BENCH_OUT)/fuzz
 	$(BIN)/python benchmarks/bench_cli.py 5 $(BIN)/xcheck list
 	$(BIN)/python benchmarks/bench_cli.py 5 $(BIN)/xcheck solve fourbar
-	$(BIN)/python benchmarks/bench_cli.py 3 $(BIN)/xcheck run fourbar --json
-	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck run fourbar --out $(BENCH_OUT)
-	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck run all --out $(BENCH_OUT)
+	$(BIN)/python benchmarks/bench_main_job.py --out $(BENCH_OUT)/main-job
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck simulate iftomm-a02 --engines native --json --no-report
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_free_step.py
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck fuzz --count 20 --seed 1 --out $(BENCH_OUT)/fuzz

@@ -229,6 +229,28 @@ def test_driven_mode_runs_on_request_and_states_its_finding():
     assert "\n" not in line and "mjx-dynamic" in line and "--engines mjx" in line and "--engines all" in line
 
 
+def test_free_mode_runs_on_request_and_a_default_simulation_says_so():
+    """mjx-free runs only on request (two compilations: more than the other engines'
+    ladders together); `xcheck simulate` of every default mode names it, and why, in
+    one line of the terminal, in the JSON and in the report."""
+    import json
+
+    from conftest import invoke
+
+    import xcheck
+
+    mode = engines.mode("mjx-free")
+    assert mode.on_request and "compilation" in mode.on_request_reason
+    assert "mjx-free" not in xcheck.select_modes(None, kinds=("free",))
+    assert "mjx-free" in xcheck.select_modes("all", kinds=("free",))
+    done = invoke("simulate", "iftomm-a01", "--duration", "0.05", "--json", "--no-report")
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    assert document["left_out"] == {"mjx-free": mode.on_request_reason} and "mjx-free" not in document["engines"]
+    named = invoke("simulate", "iftomm-a01", "--duration", "0.05", "--engines", "mujoco-free", "--json", "--no-report")
+    assert json.loads(named.stdout)["left_out"] == {}
+
+
 def test_one_pass_rk4_is_mjx_rk4():
     """xcheck's RK4 step (one forward pass in the graph) against mjx.step's RK4 on the
     four-bar's driven model (tight setting, servos at fixed controls), 200 steps of 1 ms

@@ -823,6 +823,7 @@ def simulation_json(reference, result=None) -> dict:
         if result is None
         else {mode: _free_mode_json(outcome) for mode, outcome in result.outcomes.items()},
         "not_applicable": {} if result is None else dict(result.not_applicable),
+        "left_out": {} if result is None else dict(result.left_out),
     }
 
 
@@ -912,6 +913,10 @@ def print_simulation(console, reference, result=None, report: str | None = None)
         )
     for mode, reason in doc["not_applicable"].items():
         console.print(f"  {escape(mode)}: not run ({escape(reason)})", highlight=False)
+    if doc["left_out"]:
+        from .runner import left_out_text
+
+        console.print(f"  {escape(left_out_text(doc['left_out']))}", highlight=False)
     console.print(f"report: {escape(report)}" if report else "report: not written (--no-report)", highlight=False)
 
 

@@ -101,15 +101,15 @@ def default_modes(kinds: tuple[str, ...] = engines.DRIVEN_KINDS) -> tuple[str, .
     return ("native", *(m.name for m in engines.modes(kinds) if not m.on_request))
 
 
-def left_out(modes) -> dict[str, str]:
-    """The modes run only on request (:attr:`xcheck.engines.Mode.on_request`)
+def left_out(modes, kinds: tuple[str, ...] = engines.DRIVEN_KINDS) -> dict[str, str]:
+    """The modes of ``kinds`` run only on request (:attr:`xcheck.engines.Mode.on_request`)
     that a selection of every default mode leaves out, each with its reason;
     empty for a narrower selection (``--engines mujoco`` leaves nothing out)."""
-    if not set(default_modes()) <= set(modes):
+    if not set(default_modes(kinds)) - {"native"} <= set(modes):
         return {}
     return {
         m.name: m.on_request_reason or "run on request"
-        for m in engines.modes(engines.DRIVEN_KINDS)
+        for m in engines.modes(kinds)
         if m.on_request and m.name not in modes
     }
 

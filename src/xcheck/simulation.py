@@ -71,6 +71,9 @@ class SimulationResult:
         Modes that do not apply or whose engine is not installed, with the reason.
     seconds : dict of str to float
         Wall time of the reference ("native") and of each mode, s.
+    left_out : dict of str to str
+        The modes run only on request that a run of every default mode left
+        out, with why (:func:`xcheck.runner.left_out`).
     """
 
     kinematics: Kinematics
@@ -78,6 +81,7 @@ class SimulationResult:
     outcomes: dict[str, ModeResult] = field(default_factory=dict)
     not_applicable: dict[str, str] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
+    left_out: dict[str, str] = field(default_factory=dict)
 
 
 def free_modes() -> tuple[str, ...]:
@@ -318,7 +322,8 @@ def simulate_all(
     Parameters
     ----------
     modes : sequence of str, optional
-        Free modes to run (default: every registered one); none gives the reference alone.
+        Free modes to run (default: every one but those run only on request,
+        :attr:`xcheck.engines.Mode.on_request`); none gives the reference alone.
     duration : float, optional
         Simulated time, s (default: the file's).
     progress : callable, optional
@@ -337,7 +342,10 @@ def simulate_all(
         progress=None if progress is None else (lambda h: progress(f"native: RK4 at {h:.4g} s")),
     )
     result = SimulationResult(kinematics, reference, seconds={"native": time.perf_counter() - start})
-    chosen = list(free_modes() if modes is None else modes)
+    from .runner import default_modes, left_out
+
+    chosen = list(default_modes(("free",))[1:] if modes is None else modes)
+    result.left_out = left_out(chosen, ("free",))
     missing = {mode: engines.engine_of(mode).available() for mode in chosen}
     runnable = [mode for mode in chosen if not missing[mode]]
     from ._parallel import collect, known_to_workers, process_pool

@@ -196,8 +196,7 @@ def _comparison_section(run: RunResult, evidence: Evidence, marks: dict[str, str
             "\n\nNot applicable here: " + "; ".join(f"`{m}`{marks.get(m, '')}: {r}" for m, r in absent.items()) + "."
         )
     if run.left_out:
-        line = re.sub(r"(--engines \S+?)([,)]| or)", r"`\1`\2", left_out_text(run.left_out))
-        text += "\n\n" + line[0].upper() + line[1:] + "."
+        text += "\n\n" + left_out_markdown(run.left_out)
     text += "\n\nTolerances and their basis:\n\n" + _table(
         ["mode", "position", "angle", "velocity", "acceleration", "basis"],
         [[f"`{m}`{marks.get(m, '')}", *p["tolerance"]] for m, p in ran.items()],
@@ -492,6 +491,12 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
         f"Reproduce: `{command}`",
     ]
     return "\n\n".join(s for s in sections if s) + "\n"
+
+
+def left_out_markdown(left: dict[str, str]) -> str:
+    """The run's line on the modes it left out (:func:`xcheck.runner.left_out_text`) as a sentence."""
+    line = re.sub(r"(--engines \S+?)([,)]| or)", r"`\1`\2", left_out_text(left))
+    return line[0].upper() + line[1:] + "."
 
 
 def _cached_text(run: RunResult) -> str:

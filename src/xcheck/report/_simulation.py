@@ -24,7 +24,7 @@ from ..runner import versions  # noqa: E402
 from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
 from . import _figures  # noqa: E402
 from ._evidence import Evidence  # noqa: E402
-from ._markdown import _g, _image, _provenance, _table  # noqa: E402
+from ._markdown import _g, _image, _provenance, _table, left_out_markdown  # noqa: E402
 
 __all__ = ["figures", "figure_modes", "mode_parts", "markdown"]
 
@@ -230,6 +230,8 @@ def markdown(result: SimulationResult, evidence: Evidence, images: dict[str, str
     for mode, part in evidence.modes.items():
         if "not_run" in part:
             lines.append(f"`{mode}`{marks.get(mode, '')}: not run ({part['not_run']}).")
+    if result.left_out:
+        lines.append(left_out_markdown(result.left_out))
     if not evidence.modes:
         lines.append("No free-motion mode ran (none registered, or `--engines native`).")
     lines += [

@@ -59,7 +59,16 @@ class MJX(Engine):
             "JAX's cache: more than the other modes together",
             cost=12.8,
         ),
-        Mode("mjx-free", "free", FREE_MOTION, style=dict(color="tab:cyan", lw=1, ls="-.")),
+        Mode(
+            "mjx-free",
+            "free",
+            FREE_MOTION,
+            style=dict(color="tab:cyan", lw=1, ls="-."),
+            # two compilations (Euler, RK4): 10 CPU s on the pendulum A01, whose other engines take 3 s together
+            on_request=True,
+            on_request_reason="its two JAX compilations alone cost 10 to 40 CPU s per mechanism: more than the "
+            "other engines together",
+        ),
     )
     color = "tab:cyan"
     notes = (

@@ -1,0 +1,109 @@
+"""The main job's figures, each beside its goal: ``xcheck run`` cold (an empty
+cache folder) and warm (nothing changed), on the four-bar, a user's six-bar and
+every bundled mechanism; ``xcheck simulate`` with every engine; the quick test
+loop and ``.ci/run`` on a fresh clone.
+
+Usage: ``python benchmarks/bench_main_job.py [--out DIR] [--no-suite]``
+(``make bench`` runs it with ``--out $BENCH_OUT/main-job``). Each command runs
+once, in a subprocess, with ``$XCHECK_CACHE_DIR`` a folder of its own (cold:
+empty; warm: what the cold run left) and its reports under ``--out``; its wall
+time, its CPU time (user + system of it and its children) and the load average
+before and after are printed with it, then a table of every figure beside its
+goal. ``--no-suite`` leaves out the test suite's two rows (about 15 minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+XCHECK = str(BIN / "xcheck")
+SIX_BAR = "docs/examples/stephenson-six-bar.toml"
+
+
+def timed(command: list[str], cwd: Path, env: dict) -> tuple[float, float, int, float, float]:
+    """(wall s, CPU s, exit code, load before, load after) of one run of ``command``."""
+    load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(command, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    if done.returncode not in (0, 1):
+        print(f"  exit code {done.returncode}: {done.stderr.decode(errors='replace')[-800:]}", flush=True)
+    return wall, cpu, done.returncode, load, os.getloadavg()[0]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path(tempfile.gettempdir()) / "xcheck-bench" / "main-job")
+    parser.add_argument("--no-suite", action="store_true", help="leave out the test suite's rows")
+    options = parser.parse_args()
+    out = options.out
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    rows: list[tuple[str, str, float, float, str]] = []
+
+    def measure(label: str, command: list[str], goal: float, cache: Path | None, cwd: Path = ROOT) -> None:
+        env = {**os.environ}
+        if cache is not None:
+            env["XCHECK_CACHE_DIR"] = str(cache)
+        wall, cpu, code, before, after = timed(command, cwd, env)
+        met = "yes" if wall <= goal and code in (0, 1) else "no"
+        shown = " ".join(command).replace(str(BIN) + "/", "")
+        print(
+            f"{shown}\n  {label}: wall {wall:.1f} s, CPU {cpu:.1f} s, exit {code}; goal <= {goal:g} s: {met}; "
+            f"load {before:.1f} -> {after:.1f}",
+            flush=True,
+        )
+        rows.append((label, f"<= {goal:g} s", wall, cpu, met))
+
+    def cache(name: str) -> Path:
+        folder = out / "caches" / name
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder
+
+    reports = str(out / "reports")
+    fourbar = cache("fourbar")
+    command = [XCHECK, "run", "fourbar", "--out", reports]
+    measure("run fourbar (report), cold", command, 4.0, fourbar)
+    measure("run fourbar (report), warm", command, 1.0, fourbar)
+    command = [XCHECK, "run", "fourbar", "--no-report", "--json"]
+    measure("run fourbar --no-report --json, cold", command, 3.0, cache("fourbar-json"))
+    command = [XCHECK, "run", SIX_BAR, "--out", reports]
+    measure("run FILE, a user's six-bar (Stephenson III, 5 moving bodies), cold", command, 8.0, cache("six-bar"))
+    every = cache("all")
+    command = [XCHECK, "run", "all", "--out", reports]
+    measure("run all (reports), cold", command, 40.0, every)
+    measure("run all (reports), warm", command, 5.0, every)
+    command = [XCHECK, "simulate", "iftomm-a01", "--out", reports]
+    measure("simulate iftomm-a01 (every engine), cold", command, 10.0, cache("a01"))
+    if not options.no_suite:
+        quick = [str(BIN / "python"), "-m", "pytest", "-q", "-n", "auto", "-m", "not slow", "-p", "no:cacheprovider"]
+        measure("pytest -m 'not slow'", quick, 180.0, None)
+        clone = out / "clone"
+        subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+        env_free = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "XCHECK_CACHE_DIR")}
+        wall, cpu, code, before, after = timed([str(clone / ".ci" / "run")], clone, env_free)
+        met = "yes" if wall <= 600.0 and code == 0 else "no"
+        loads = f"load {before:.1f} -> {after:.1f}"
+        print(f".ci/run on a fresh clone\n  wall {wall:.0f} s, CPU {cpu:.0f} s, exit {code}; {loads}")
+        rows.append((".ci/run on a fresh clone (installs included)", "<= 600 s", wall, cpu, met))
+        shutil.rmtree(clone, ignore_errors=True)
+    print("\n| figure | goal | wall s | CPU s | met |\n|---|---|---|---|---|")
+    for label, goal, wall, cpu, met in rows:
+        print(f"| {label} | {goal} | {wall:.1f} | {cpu:.1f} | {met} |")
+
+
+if __name__ == "__main__":
+    main()
