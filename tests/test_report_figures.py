@@ -93,24 +93,26 @@ def test_two_inputs_the_sweep_against_the_input_and_the_dynamic_modes_against_ti
     }
 
 
-def test_differences_are_relative_with_each_modes_tolerance(two_input_run):
+def test_differences_are_fractions_of_each_modes_tolerance_with_one_tolerance_line(two_input_run):
+    """Each mode's difference, relative as the verdict takes it, divided by its
+    own tolerance: one line at 1 is every mode's tolerance (ten dotted lines in
+    engine colours could not be told apart)."""
     run = two_input_run
     figure = _figures.error_figure(run)
     position = figure.axes[0]
     outcome = run.outcomes["mujoco-kinematic"]
     (line,) = [line for line in position.get_lines() if line.get_label() == "mujoco-kinematic"]
     keep = _figures._on_the_sweep(run, outcome.trajectory.inputs)
-    expected = np.fmax(outcome.errors["position"][keep] / run.kinematics.system.size, 1e-18)
+    tolerance = float(outcome.categories.set_index("category").tolerance["position"])
+    expected = np.fmax(outcome.errors["position"][keep] / run.kinematics.system.size / tolerance, 1e-12)
     x = np.degrees(outcome.trajectory.inputs[keep, 0])
     assert np.array_equal(np.asarray(line.get_ydata()), expected[np.argsort(x, kind="stable")])
-    tolerance = float(outcome.categories.set_index("category").tolerance["position"])
-    flat = [
-        float(line.get_ydata()[0])
-        for line in position.get_lines()
-        if line.get_linestyle() == ":" and len(line.get_ydata()) and np.ptp(line.get_ydata()) == 0
-    ]
-    assert tolerance in flat
+    for ax in figure.axes:
+        (tolerance_line,) = [line for line in ax.get_lines() if line.get_label() == "tolerance"]
+        assert list(tolerance_line.get_ydata()) == [1.0, 1.0]
+        assert not [line for line in ax.get_lines() if line.get_linestyle() == ":"]  # no per-mode dotted bounds
     assert position.get_yscale() == "log"
+    assert position.get_legend() is None and len(figure.legends) == 1  # the legend outside the panels
 
 
 def _boxes_apart(figure) -> None:
@@ -159,3 +161,25 @@ def test_the_gif_is_matplotlibs_animation_drawn_once_a_frame(name, tmp_path):
         assert movie.size == (315, 252) and movie.info["loop"] == 0 and movie.info["duration"] == 80
     # the mechanism moves from frame to frame (a whole turn: the last pose is the first)
     assert len(frames) == 24 and len(set(frames[:-1])) == 23
+
+
+def test_convergence_panels_in_a_grid_with_legends_under_them_and_round_off_said():
+    """Two panels to a row; each legend under its panel with every series' order;
+    Exudyn's positions, at round-off (index-3 loops), get no order and say so."""
+    run = api.run("slider-crank", engines="mujoco-dynamic,pymunk-dynamic,exudyn-dynamic", samples=21, models=MODELS)
+    figure = _figures.convergence_figure(run)
+    assert figure is not None
+    grid = figure.axes[0].get_gridspec()
+    assert (grid.nrows, grid.ncols) == (2, 2) and not figure.axes[3].get_visible()
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in figure.axes[:3]:
+        legend = ax.get_legend()
+        assert legend.get_window_extent(renderer).y1 < ax.get_window_extent(renderer).y0  # under the data
+    labels = {ax.get_title(): [t.get_text() for t in ax.get_legend().get_texts()] for ax in figure.axes[:3]}
+    assert any("order 2" in label for label in labels["mujoco-dynamic"])
+    assert all("at round-off, no order" in label for label in labels["exudyn-dynamic"][:-1])
+    assert labels["exudyn-dynamic"][-1].startswith("round-off bound")
+    assert not any(t.get_text().startswith("$h") for t in figure.axes[2].texts)  # no slopes to fit
+    _boxes_apart(figure)

@@ -20,6 +20,7 @@ from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
 from ..kinematics import Solution  # noqa: E402
 from ..results import native_at  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
+from ..tolerances import convergence_round_off  # noqa: E402
 
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
 
@@ -299,7 +300,7 @@ def quantities_figure(run: RunResult):
         "alpha": (units.angular_acceleration_factor, f"α of {body} [{units.angular_acceleration}]"),
     }
     blocks = _blocks(run)
-    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
+    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 1.0 + 7 * len(blocks)), squeeze=False)
     for b, (title, axis, series) in enumerate(blocks):
         axes = grid[2 * b : 2 * b + 2]
         if axis == "input":
@@ -333,10 +334,15 @@ def quantities_figure(run: RunResult):
             ax.set_ylabel(ylabel)
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3)
-        axes[0, 0].legend(fontsize=7, loc="best")
         axes[0, 1].set_title(title, fontsize=9)
-    figure.suptitle(f"{mech.name}: quantities (native: line; engines: markers and dashes)", fontsize=10)
-    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=0.7, wspace=1.1, hspace=0.85)
+    _figure_legend(figure, grid.flat, top=0.62)
+    figure.suptitle(
+        f"{mech.name}: quantities (native: line; engines: markers and dashes)\n"
+        "each engine at the input it realised; the native line at the sweep's inputs with the rates and "
+        "accelerations of the drivers' laws",
+        fontsize=10,
+    )
+    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
     return figure
 
 
@@ -354,16 +360,41 @@ def _relative_scale(run: RunResult, outcome, category: str) -> float:
 
 
 def error_plots(run: RunResult) -> bytes:
-    """Each mode's largest difference over all bodies and points, relative as
-    the verdict takes it, against the input (or time), log scale, with each
-    mode's tolerance as a dotted line of its colour (PNG)."""
+    """Each mode's largest difference over all bodies and points, as a fraction
+    of its tolerance, against the input (or time), log scale, with one line at 1:
+    the tolerance of every mode (PNG)."""
     return _png(error_figure(run))
 
 
+def _figure_legend(figure, axes, top: float) -> None:
+    """One legend for the whole figure, above its panels (never over the data):
+    every series of ``axes`` once, by label."""
+    seen: dict[str, object] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(label, handle)
+    if seen:
+        height = figure.get_size_inches()[1]
+        figure.legend(
+            list(seen.values()),
+            list(seen),
+            loc="upper center",
+            bbox_to_anchor=(0.5, 1 - top / height),
+            ncol=min(5, len(seen)),
+            fontsize=7,
+            frameon=False,
+        )
+
+
 def error_figure(run: RunResult):
-    """The figure of :func:`error_plots` (open: the caller closes it)."""
+    """The figure of :func:`error_plots` (open: the caller closes it).
+
+    Each mode is compared with the native solution at the inputs that mode
+    realised (a driven engine's own input, as the verdict takes it), so a
+    difference here is not the gap between the curves of :func:`quantities`
+    where an engine's input lags the law."""
     blocks = _blocks(run)
-    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 7 * len(blocks)), squeeze=False)
+    figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 1.0 + 7 * len(blocks)), squeeze=False)
     for b, (title, axis, series) in enumerate(blocks):
         axes = grid[2 * b : 2 * b + 2]
         xlabel = _abscissa(run, axis, np.zeros(1))[1]
@@ -371,30 +402,30 @@ def error_figure(run: RunResult):
             for mode, raw_x, mask in series:
                 outcome = run.outcomes[mode]
                 errors = outcome.errors.get(category)
-                if errors is None or not mask.any():
+                row = outcome.categories[outcome.categories.category == category]
+                if errors is None or not mask.any() or row.empty:
                     continue
-                relative = errors[mask] / _relative_scale(run, outcome, category)
+                limit = float(row.tolerance.iloc[0])
+                if not (np.isfinite(limit) and limit > 0):
+                    continue
+                ratio = errors[mask] / _relative_scale(run, outcome, category) / limit
                 x, _ = _abscissa(run, axis, raw_x[mask])
                 order = np.argsort(x, kind="stable")
-                floor = np.fmax(relative[order], 1e-18)  # exact zeros (and below) drawn at the floor
-                style = _line_style(mode)
-                ax.semilogy(x[order], floor, label=mode, lw=1, **style)
-                row = outcome.categories[outcome.categories.category == category]
-                if not row.empty and np.isfinite(row.tolerance.iloc[0]) and row.tolerance.iloc[0] > 0:
-                    ax.axhline(float(row.tolerance.iloc[0]), color=style["color"], ls=":", lw=1.2)
-            ax.set_ylabel(f"relative {category} difference")
+                floor = np.fmax(ratio[order], 1e-12)  # exact zeros (and below) drawn at the floor
+                ax.semilogy(x[order], floor, label=mode, lw=1, **_line_style(mode))
+            ax.axhline(1.0, color="red", ls="-", lw=1.0, label="tolerance")
+            ax.set_ylabel(f"{category} difference / tolerance")
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3, which="both")
-        axes[0, 0].plot([], [], color="gray", ls=":", lw=1.2, label="tolerance (mode's colour)")
-        axes[0, 0].legend(fontsize=7, loc="best")
         axes[0, 1].set_title(title, fontsize=9)
+    _figure_legend(figure, grid.flat, top=0.62)
     figure.suptitle(
-        f"{run.mechanism.name}: difference from the native solution, relative as judged (position per size, "
-        "angle in rad, others per their largest magnitude)\ndotted: each mode's tolerance; 1e-18: an exact zero "
-        "or less",
+        f"{run.mechanism.name}: difference from the native solution as a fraction of each mode's tolerance "
+        "(red line: the tolerance)\neach mode against the native solution at the input value, rate and acceleration "
+        "it realised (solid: kinematic modes, dashed: dynamic; 1e-12: an exact zero or less)",
         fontsize=10,
     )
-    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=0.95, wspace=1.1, hspace=0.85)
+    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
     return figure
 
 
@@ -454,43 +485,73 @@ def convergence_plot(run: RunResult) -> bytes | None:
 
 
 def convergence_figure(run: RunResult):
-    """The figure of :func:`convergence_plot` (open: the caller closes it), or None."""
+    """The figure of :func:`convergence_plot` (open: the caller closes it), or None.
+
+    One panel per dynamic mode, two to a row; each series' observed order in
+    its legend entry, the legend under its panel (never over the data). A panel
+    whose errors all lie at the engine's round-off is said to be so, with the
+    round-off bound drawn and no order fitted: there the error is solver noise."""
     dynamic = [(m, o) for m, o in run.outcomes.items() if _is_dynamic(m) and o.result is not None]
     tables = [(m, convergence_table(o)) for m, o in dynamic]
     tables = [(m, t) for m, t in tables if not t.empty]
     if not tables:
         return None
-    figure, axes = plt.subplots(1, len(tables), figsize=(4.6 * len(tables), 4), squeeze=False)
-    for ax, (mode, table) in zip(axes[0], tables):
+    columns = min(2, len(tables))
+    rows = math.ceil(len(tables) / columns)
+    legend_rows = max(t.series.nunique() for _, t in tables)
+    # inches; under a panel: its axis label (down to 0.2 of its height, where the legend starts) and the legend
+    panel_w, panel_h = 4.6, 3.1
+    under = 0.2 * panel_h + 0.2 * (legend_rows + 1) + 0.1
+    figure, axes = plt.subplots(
+        rows,
+        columns,
+        figsize=(1.1 + columns * panel_w + (columns - 1) * 1.0, 0.75 + rows * (panel_h + under)),
+        squeeze=False,
+    )
+    round_off = convergence_round_off("position") * run.kinematics.system.size
+    for ax, (mode, table) in zip(axes.flat, tables):
+        noise = bool((table.position_error.dropna() <= round_off).all())
         for series, part in table.groupby("series", sort=False):
-            if len(part) < 1:
-                continue
             ok = part[part.position_error > 0]
-            (line,) = ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=series)
             orders = part.order.dropna()
-            if len(orders):
+            label = str(series)
+            if noise:
+                label += ": at round-off, no order"
+            elif len(orders):
                 order = float(orders.iloc[-1])
-                ax.annotate(
-                    f"order {order:.2f}" if order >= NOT_CONVERGING else f"not converging (order {order:.2f})",
-                    (ok.timestep.iloc[-1], ok.position_error.iloc[-1]),
-                    xytext=(4, -10),
-                    textcoords="offset points",
-                    fontsize=7,
-                    color=line.get_color(),
-                )
-        ax.margins(x=0.06, y=0.12)  # room for the order labels under the smallest step's point
+                label += f": order {order:.2f}" if order >= NOT_CONVERGING else f": not converging (order {order:.2f})"
+            ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=label)
+        ax.margins(x=0.06, y=0.12)
         ax.autoscale_view()
-        _reference_slopes(ax)
+        if noise:
+            ax.axhline(round_off, color="0.3", ls=":", lw=1.2, label=f"round-off bound {round_off:.1e} m")
+            ax.set_ylim(top=max(ax.get_ylim()[1], 2.0 * round_off))
+            ax.text(
+                0.5,
+                0.5,
+                "round-off: the error is solver noise\n(no order to observe)",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=8,
+                color="0.3",
+            )
+        else:
+            _reference_slopes(ax)
         _step_ticks(ax)
         ax.set_title(mode, fontsize=9)
         ax.set_xlabel("time step [s]")
         ax.set_ylabel("largest position error [m]")
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
+    for ax in axes.flat[len(tables) :]:
+        ax.set_visible(False)
     figure.suptitle(
-        f"{run.mechanism.name}: error against time step (observed order between the two smallest steps)", fontsize=10
+        f"{run.mechanism.name}: error against time step (observed order between the two smallest steps;\n"
+        "grey: slopes of order 1, 2, 4)",
+        fontsize=10,
     )
-    _margins(figure, left=1.1, right=0.2, bottom=0.55, top=0.65, wspace=1.25, hspace=0.0)
+    _margins(figure, left=1.1, right=0.25, bottom=under, top=0.75, wspace=1.0, hspace=under + 0.35)
     return figure
 
 
