@@ -240,3 +240,33 @@ def test_a_duration_is_checked_alike_from_python_and_the_command_line(value, fou
         result = invoke("simulate", "iftomm-a01", "--duration", str(value), "--no-report")
         assert result.returncode == 2
         assert result.stderr.startswith("xcheck: error: --duration: expected a time above 0 s and at most 1e6 s, found")
+
+
+@pytest.mark.parametrize(
+    "args, line",
+    [
+        (["simulate", "iftomm-a01", "--duration", "soon"], "--duration: expected a number, found 'soon'"),
+        (["run", FOURBAR, "--samples", "many"], "--samples: expected a whole number, found 'many'"),
+        (["run", FOURBAR, "--jobs", "1.5"], "--jobs: expected a whole number, found '1.5'"),
+        (["fuzz", "--seed", "x"], "--seed: expected a whole number, found 'x'"),
+        (["solve"], "name: expected a value, found none"),
+        (["solve", FOURBAR, "--at"], "--at: expected a value after it, found none"),
+        (["solve", FOURBAR, "extra"], "expected no more arguments, found 'extra'"),
+        (["frobnicate"], "expected a command among list, engines"),
+        (["run", FOURBAR, "--sample", "5"], "--sample: expected an option among --branch"),
+    ],
+)
+def test_a_command_line_that_cannot_be_parsed_is_one_line(args, line):
+    """Typer's box of usage and help (five lines) was the one bad input that was
+    not one line; now it says what was expected and found, exit code 2."""
+    result = invoke(*args)
+    assert result.returncode == 2 and result.stdout == ""
+    (error,) = result.stderr.splitlines()
+    assert error.startswith(f"xcheck: error: {line}"), error
+
+
+def test_help_and_no_arguments_are_as_they_were():
+    assert invoke("--help").returncode == 0 and "Usage" in invoke("--help").stdout
+    assert invoke("run", "--help").returncode == 0
+    bare = invoke()
+    assert bare.returncode == 2 and "Usage" in bare.stdout and "error" not in bare.stderr

@@ -659,6 +659,72 @@ def test_a_poisoned_cache_never_changes_an_answer(index, tmp_path, monkeypatch, 
     assert not problems, f"{first[0]} then {poisons} then {then[0]} {then[2:4]}: {problems}"
 
 
+# ----------------------------------------------------------------------------- surface 8: the command line's options
+
+#: text a user may type for any option
+HOSTILE_TEXT = [
+    "nan", "inf", "-inf", "-1", "0", "1e309", "1e-320", "", " ", "abc", "1/0", "2**1000", "9" * 400, "((1)",
+    "30,", ",", ":", "30:40", "0x10", "-", "é", "30\n40", "upper", "lower", "native,,", "NATIVE", "/", "/dev/null",
+    "/sys/xcheck.png", "x.txt", "a/b/c.png", "out.png",
+]  # fmt: skip
+
+#: a command with one option to fill ("{}"; "OUT" is a scratch folder), and whether a value would be costly
+OPTION_COMMANDS: list[tuple[tuple[str, ...], Callable[[str], bool]]] = [
+    (("solve", _FOURBAR, "--at", "{}"), lambda v: False),
+    (("solve", _FOURBAR, "--at", "30", "--rate", "{}"), lambda v: False),
+    (("solve", _FOURBAR, "--at", "30", "--rate", "1", "--accel", "{}"), lambda v: False),
+    (("solve", _FOURBAR, "--branch", "{}"), lambda v: False),
+    (("solve", _TWO_INPUTS, "--at", "{}"), lambda v: False),
+    (("draw", _FOURBAR, "--at", "{}", "-o", "OUT/x.png"), lambda v: False),
+    (("draw", _FOURBAR, "-o", "{}"), lambda v: False),
+    (("run", _FOURBAR, "--engines", "{}", "--samples", "11", "--no-report"), lambda v: _engines_beyond_native(v)),
+    (("run", _FOURBAR, "--branch", "{}", "--engines", "native", "--samples", "11", "--no-report"), lambda v: False),
+    (("run", _FOURBAR, "--samples", "{}", "--engines", "native", "--no-report"), lambda v: _many_samples(v)),
+    (("simulate", "iftomm-a01", "--duration", "{}", "--engines", "native", "--no-report"), lambda v: _a_time(v)),
+    (("list", "{}"), lambda v: v in ("/", "/dev/null")),  # the root folder: every file in it
+]  # fmt: skip
+
+
+def _engines_beyond_native(text: str) -> bool:
+    """Whether ``text`` would select modes besides the native solver (each costs seconds)."""
+    try:
+        return xcheck.select_modes(text) != ("native",)
+    except XcheckError:
+        return False
+
+
+def _many_samples(text: str) -> bool:
+    """Whether ``text`` would be a valid count of samples above a quick one."""
+    return text.strip().isdigit() and 200 < int(text) <= 100_000
+
+
+def _a_time(text: str) -> bool:
+    """Whether ``text`` would be a valid simulated time longer than a quick one."""
+    try:
+        value = float(text)
+    except ValueError:
+        return False
+    return 0.05 < value <= 1e6
+
+
+OPTION_DRAWS = 3 * len(OPTION_COMMANDS)
+
+
+@pytest.mark.parametrize("index", range(OPTION_DRAWS))
+def test_an_option_given_hostile_text_answers_or_says_why(index, tmp_path, monkeypatch):
+    rng = _rng(8, index)
+    template, costly = OPTION_COMMANDS[index % len(OPTION_COMMANDS)]
+    value = _pick(rng, HOSTILE_TEXT)
+    if costly(value):
+        pytest.skip(f"{template[0]} {value!r}: valid and costly")
+    monkeypatch.chdir(tmp_path)
+    args = [value if part == "{}" else part.replace("OUT", str(tmp_path)) for part in template]
+    with _bounded():
+        result = invoke(*args)
+    problems = _clean(result, (0, 1, 2))
+    assert not problems, f"{args}: {problems}"
+
+
 # ----------------------------------------------------------------------------- surface 3: folders of mechanism files
 
 #: entries of a models folder that are not mechanism files, each its own error line

@@ -7,8 +7,10 @@ import io
 import json
 import logging
 import math
+import re
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
@@ -17,6 +19,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
+from typer.core import TyperGroup
 
 from . import __version__, arguments, cache
 from . import engines as registry
@@ -59,7 +62,79 @@ if TYPE_CHECKING:
 
 __all__ = ["app", "main"]
 
+
+#: the base of the errors typer raises for a command line it cannot parse (click's
+#: ClickException, which typer vendors from 0.2x on)
+_USAGE_ERROR: type[Exception] = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+class _OneLineUsageErrors(TyperGroup):
+    """The command group, but a command line it cannot parse (an option's value
+    of the wrong type, an unknown option or command, a missing argument) is one
+    line on stderr, ``xcheck: error: OPTION: expected ..., found ...``, and exit
+    code 2, as every other bad input; not a box of usage and help."""
+
+    def main(
+        self,
+        args: Sequence[str] | None = None,
+        prog_name: str | None = None,
+        complete_var: str | None = None,
+        standalone_mode: bool = True,
+        windows_expand_args: bool = True,
+        **extra: Any,
+    ) -> Any:
+        forward = {"complete_var": complete_var, "windows_expand_args": windows_expand_args, **extra}
+        if not standalone_mode:
+            return super().main(args, prog_name, standalone_mode=False, **forward)
+        try:
+            code = super().main(args, prog_name, standalone_mode=False, **forward)
+        except _USAGE_ERROR as err:
+            if type(err).__name__ != "NoArgsIsHelpError":  # `xcheck` alone: the help, printed already
+                typer.echo(f"xcheck: error: {_usage_line(err)}", err=True)
+            sys.exit(getattr(err, "exit_code", 2))
+        except typer.Abort:
+            typer.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+def _usage_line(err: Exception) -> str:
+    """A command line typer could not parse, as what was expected and what was found."""
+    message = " ".join(str(err.format_message()).split())  # type: ignore[attr-defined]
+    what = message[:1].lower() + message[1:]
+    kind = type(err).__name__
+    param = getattr(err, "param", None)
+    hint = getattr(err, "param_hint", None) or (param.opts[0] if param is not None and param.opts else "")
+    hint = " / ".join(hint) if isinstance(hint, (list, tuple)) else str(hint).strip("'\"")
+    ctx = getattr(err, "ctx", None)
+    if kind == "NoSuchOption":
+        known = (
+            sorted(o for p in ctx.command.params for o in (*p.opts, *p.secondary_opts) if o[:1] == "-") if ctx else []
+        )
+        return f"{err.option_name}: expected an option among {', '.join(known)}, found none of that name"  # type: ignore[attr-defined]
+    if kind == "MissingParameter":
+        return f"{hint or 'an argument'}: expected a value, found none"
+    if param is not None:
+        names = {"float": "a number", "integer": "a whole number", "int": "a whole number", "boolean": "yes or no"}
+        expected = names.get(param.type.name)
+        found = re.search(r": '(.*)' is not a valid", message)
+        if expected and found:
+            return f"{hint}: expected {expected}, found {found[1]!r}"
+        return f"{hint}: expected a valid value, found that {what}"
+    found = re.search(r"No such command '(.*)'", message)
+    if found and ctx is not None and hasattr(ctx.command, "list_commands"):
+        return f"expected a command among {', '.join(ctx.command.list_commands(ctx))}, found {found[1]!r}"
+    found = re.search(r"Got unexpected extra argument(?:s|\(s\))? \((.*)\)", message)
+    if found:
+        return f"expected no more arguments, found {found[1]!r}"
+    found = re.search(r"Option '(.*)' requires an argument", message)
+    if found:
+        return f"{found[1]}: expected a value after it, found none"
+    return f"expected a command line that `xcheck --help` describes, found that {what}"
+
+
 app = typer.Typer(
+    cls=_OneLineUsageErrors,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -482,14 +557,15 @@ def draw_command(
     if at is not None:
         if "," in at:
             raise InputError(
-                f"{mech.path}: --at: expected one state (values of several drivers separated by colons), found {at!r}"
+                f"{mech.path}: --at: expected one state (values of several drivers separated by colons), "
+                f"found {arguments.shown(at)}"
             )
         u = mech.units
         inputs = _parse_values(
             at, mech, "--at", lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor
         )[0]
         if not all(math.isfinite(v) for v in inputs):
-            raise InputError(f"{mech.path}: --at: expected finite values, found {at!r}")
+            raise InputError(f"{mech.path}: --at: expected finite values, found {arguments.shown(at)}")
         _check_ranges(kin, [[(v, 0.0, 0.0) for v in inputs]], branch, None)
     figure = Assembled(kin, kin._branch_name(branch)).draw(None if at is None else inputs, si=True)
     buffer = io.BytesIO()
@@ -1017,7 +1093,7 @@ def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[lis
         if len(parts) != len(mech.drivers):
             raise InputError(
                 f"{mech.path}: {option}: expected {len(mech.drivers)} value(s) per state separated "
-                f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {item!r}"
+                f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {arguments.shown(item)}"
             )
         state = []
         for driver, part in zip(mech.drivers, parts):
@@ -1026,7 +1102,7 @@ def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[lis
             except ValueError as err:
                 raise InputError(
                     f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
-                    f"expression, found {part!r} ({err})"
+                    f"expression, found {arguments.shown(part)} ({err})"
                 ) from None
             state.append(value * scale_of(driver))
         states.append(state)
