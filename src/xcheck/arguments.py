@@ -112,9 +112,7 @@ def number(value: object, name: str, low: float = -math.inf, high: float = math.
     InputError
         ``"{name}: expected a finite number above {low} and at most {high}, found {value}"``.
     """
-    real = math.nan
-    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-        real = float(value)
+    real = _real(value)
     if not (math.isfinite(real) and low < real <= high):
         unit = f" {unit}" if unit else ""
         bounds = [
@@ -140,9 +138,7 @@ def duration(value: object, name: str = "duration") -> float:
     InputError
         ``"{name}: expected a time above 0 s and at most 1e6 s, found {value}"``.
     """
-    real = math.nan
-    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-        real = float(value)
+    real = _real(value)
     if not 0.0 < real <= MAX_DURATION:
         raise InputError(f"{name}: expected a time above 0 s and at most 1e6 s, found {shown(value)}")
     return real
@@ -227,6 +223,13 @@ def writable_directory(path: str | Path, name: str, purpose: str) -> Path:
     except OSError as err:
         raise InputError(f"{expected}, found one that cannot be written ({err.strerror or err})") from None
     return path
+
+
+def _real(value: object) -> float:
+    """``value`` as a float if it is a real number (not a bool), else NaN."""
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        return float(value)
+    return math.nan
 
 
 def shown(value: object, limit: int = 80) -> str:
