@@ -125,6 +125,73 @@ def _hull_order(points: np.ndarray) -> np.ndarray:
     return np.argsort(np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0]))
 
 
+def _convex_hull(points: np.ndarray, tolerance: float) -> np.ndarray:
+    """The corners of the points' convex hull, counter-clockwise (Andrew's
+    monotone chain); a point within ``tolerance`` (area units) of an edge is no corner."""
+    ordered = sorted(map(tuple, points))
+
+    def half(sequence):
+        chain: list = []
+        for q in sequence:
+            while len(chain) >= 2:
+                (ax_, ay), (bx, by) = chain[-2], chain[-1]
+                if (bx - ax_) * (q[1] - ay) - (by - ay) * (q[0] - ax_) > tolerance:
+                    break
+                chain.pop()
+            chain.append(q)
+        return chain[:-1]
+
+    return np.array(half(ordered) + half(ordered[::-1]))
+
+
+def _on_a_named_point(q: np.ndarray, named: list[np.ndarray], size: float) -> bool:
+    """Whether ``q`` is one of a body's named points (to 1e-9 of the size)."""
+    return any(float(np.hypot(*(q - p))) <= 1e-9 * size for p in named)
+
+
+def _plate(points: np.ndarray, size: float) -> np.ndarray | None:
+    """The corners of a body's plate: its points' convex hull where three or
+    more of them are not in one line (an area above 1e-4 of the size squared),
+    else None (a bar)."""
+    if len(points) < 3:
+        return None
+    ring = _convex_hull(points, 1e-9 * size * size)
+    if len(ring) < 3:
+        return None
+    x, y = ring[:, 0], ring[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    return ring if area > 1e-4 * size * size else None
+
+
+#: the directions a label may take from its point, in order of preference when as clear
+_LABEL_DIRECTIONS = [np.array([math.cos(a), math.sin(a)]) for a in np.radians([45, 135, 315, 225, 90, 0, 270, 180])]
+
+
+def _clear_label(ax, text: str, p: np.ndarray, segments, taken: list[np.ndarray], gap: float, style: dict) -> None:
+    """Write ``text`` beside point ``p`` (drawing units) on the side farthest
+    from the drawn links (``segments``) and the labels already placed
+    (``taken``, which this one joins), ``gap`` away from the point."""
+
+    def clearance(direction: np.ndarray) -> float:
+        spot = p + 1.6 * gap * direction
+        near = [float(np.hypot(*(spot - _nearest_on_segments(spot, [(a, b)])))) for a, b in segments]
+        near += [float(np.hypot(*(spot - q))) for q in taken]
+        return min(near, default=math.inf)
+
+    best = max(_LABEL_DIRECTIONS, key=clearance)  # the first of equals: max keeps the earliest
+    spot = p + gap * best
+    taken.append(p + 1.6 * gap * best)
+    ax.annotate(
+        text,
+        p,
+        xytext=spot,
+        textcoords="data",
+        ha="left" if best[0] > 0.3 else "right" if best[0] < -0.3 else "center",
+        va="bottom" if best[1] > 0.3 else "top" if best[1] < -0.3 else "center",
+        **style,
+    )
+
+
 def _hatched_strip(ax, start: np.ndarray, end: np.ndarray, side: np.ndarray, depth: float, z: float) -> None:
     """Ground hatching: a line from start to end with a hatched strip of
     ``depth`` on the side ``side`` (unit vector)."""
@@ -244,7 +311,21 @@ def draw_pose(
     for body in mech.moving_bodies:
         color = colors[body.name]
         nodes = [pose.point(body.name, lbl) for lbl in used[body.name]]
-        if len(nodes) == 2:
+        named = [pose.point(body.name, lbl) for lbl in body.points]
+        bars = [(nodes[0], nodes[1])] if len(nodes) == 2 else []
+        # a point off the bar whose foot on it is no named point (a Jansen foot's G off D-F) makes the body a
+        # rigid plate; one whose foot is a named point (the four-bar's F above K on B-C) is a member from there
+        loose = [
+            p
+            for lbl, p in zip(body.points, named)
+            if bars and lbl not in used[body.name] and not _on_a_named_point(_nearest_on_segments(p, bars), named, size)
+        ]
+        corners = _plate(np.array(nodes + loose), size) if loose else None
+        if corners is not None:
+            ring = corners
+            ax.add_patch(patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
+        elif len(nodes) == 2:
             segments[body.name].append((nodes[0], nodes[1]))
         elif len(nodes) >= 3:
             ring = np.array(nodes)[_hull_order(np.array(nodes))]
@@ -271,6 +352,7 @@ def draw_pose(
             owner = joint.body_b if joint.body_b != gname else joint.body_a
             _block(ax, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4, alpha)
     # ground pivots: a triangle over hatching
+    symbols: list[tuple[np.ndarray, np.ndarray]] = []  # their edges, which labels keep clear of too
     if ground:
         for joint in mech.joints:
             if isinstance(joint, Revolute) and gname in (joint.body_a, joint.body_b):
@@ -279,6 +361,9 @@ def draw_pose(
                 h = 3.2 * pin_r
                 tri = np.array([p, p + [-0.8 * h, -1.4 * h], p + [0.8 * h, -1.4 * h]])
                 ax.add_patch(patches.Polygon(tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1))
+                symbols += [(tri[k], tri[(k + 1) % 3]) for k in range(3)] + [
+                    (p + [-1.3 * h, -2.0 * h], p + [1.3 * h, -2.0 * h])
+                ]
                 _hatched_strip(ax, p + [-1.3 * h, -1.4 * h], p + [1.3 * h, -1.4 * h], np.array([0.0, -1.0]), 0.6 * h, 1)
     # pins: revolute and pin-in-slot joints
     for joint in mech.joints:
@@ -289,7 +374,10 @@ def draw_pose(
         else:
             continue
         ax.add_patch(patches.Circle(p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5))
-    # points and their labels
+    # points and their labels, each on the side of its point clearest of the links and the other labels
+    drawn = [(w(a), w(b)) for body in mech.moving_bodies for a, b in segments[body.name] + stubs[body.name]]
+    drawn += symbols
+    taken: list[np.ndarray] = []
     shown: set[str] = set()
     for body in (mech.ground, *mech.moving_bodies):
         for label in body.points:
@@ -300,7 +388,7 @@ def draw_pose(
             if label not in used[body.name]:
                 ax.plot(*p, "o", color="black", ms=3, alpha=alpha, zorder=6)
             if labels:
-                ax.annotate(label, p, xytext=(5, 5), textcoords="offset points", fontsize=9, zorder=7)
+                _clear_label(ax, label, p, drawn, taken, 3.0 * pin_r, dict(fontsize=9, zorder=7))
     # the inputs
     for driver in mech.drivers if arrows is not None else ():
         sign = 1.0 if (arrows or {}).get(driver.name, 1.0) >= 0.0 else -1.0
@@ -322,7 +410,7 @@ def draw_pose(
                 zorder=8,
             )
             ax.add_patch(arrow)
-            ax.annotate(driver.name, b, xytext=(4, -10), textcoords="offset points", color="crimson", fontsize=8)
+            _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
         else:
             assert isinstance(joint, LineJoint)
             p = pose.point(joint.body_b, joint.point)
@@ -333,7 +421,7 @@ def draw_pose(
             ax.add_patch(
                 patches.FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8)
             )
-            ax.annotate(driver.name, b, xytext=(4, 2), textcoords="offset points", color="crimson", fontsize=8)
+            _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
 
 
 def figure_of(solution: Solution, i: int = 0, title: str | None = None, extents=None) -> Figure:
