@@ -13,7 +13,7 @@ import pytest
 from test_bad_input import FOURBAR, MODELS, error_line, library_error, run_cli, write
 
 from xcheck import ModelError, load_mechanism
-from xcheck.cli import MAX_AT_STATES, MAX_SAMPLES
+from xcheck.arguments import MAX_SAMPLES, MAX_STATES
 from xcheck.model import MAX_BODIES, MAX_FILE_BYTES, Body, Revolute
 from xcheck.model._load import _Reader
 
@@ -209,26 +209,26 @@ def test_samples_out_of_bounds_are_refused(samples):
 
 
 def test_too_many_at_states_are_refused():
-    at = ",".join(["45"] * (MAX_AT_STATES + 1))
+    at = ",".join(["45"] * (MAX_STATES + 1))
     error_line(
         run_cli("solve", "fourbar", "--at", at, "--models", str(MODELS)),
-        f"fourbar.toml: --at: expected at most {MAX_AT_STATES} states, found {MAX_AT_STATES + 1}",
+        f"fourbar.toml: --at: expected from 1 to {MAX_STATES} states, found {MAX_STATES + 1}",
     )
 
 
 def test_too_many_instants_are_refused(tmp_path):
-    text = FOURBAR.split("[[instants]]")[0] + "[[instants]]\ncrank = 30\n\n" * (MAX_AT_STATES + 1)
+    text = FOURBAR.split("[[instants]]")[0] + "[[instants]]\ncrank = 30\n\n" * (MAX_STATES + 1)
     err = library_error(write(tmp_path, text))
     assert (err.field, err.expected, err.found) == (
         "instants",
-        f"at most {MAX_AT_STATES} [[instants]]",
-        str(MAX_AT_STATES + 1),
+        f"at most {MAX_STATES} [[instants]]",
+        str(MAX_STATES + 1),
     )
 
 
 def test_limits_are_documented():
     docs = (Path(__file__).resolve().parents[1] / "docs" / "mechanism-format.md").read_text(encoding="utf-8")
-    for limit in (MAX_BODIES, MAX_FILE_BYTES, MAX_SAMPLES, MAX_AT_STATES):
+    for limit in (MAX_BODIES, MAX_FILE_BYTES, MAX_SAMPLES, MAX_STATES):
         assert str(limit) in docs, limit
 
 

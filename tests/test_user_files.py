@@ -417,7 +417,7 @@ def test_an_unbounded_slide_is_not_a_full_turn():
     [
         (("--at", "30", "--rate", "abc"), "--rate crank", "'abc'"),
         (("--at", "30", "--rate", "1:2"), "--rate", "'1:2'"),
-        (("--at", "30,40", "--rate", "1,2"), "--rate", "found 2"),
+        (("--at", "30,40", "--rate", "1,2,3"), "--rate", "found 3"),
         (("--at", "30", "--rate", "1e400"), "--rate crank", "not finite"),
         (("--at", "30", "--rate", "1", "--accel", "1:2"), "--accel", "'1:2'"),
     ],

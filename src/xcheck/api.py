@@ -42,7 +42,8 @@ from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
 from .errors import InputError
 from .kinematics import Kinematics, Solution, Status
 from .model import Mechanism, load_mechanism
-from .motion import law_states
+from .motion import drive_warnings
+from .states import asked_states, drawn_state, instant_states, limit_warnings, solve_asked
 from .textbook import check_printed, load_comparisons
 
 if TYPE_CHECKING:
@@ -59,68 +60,7 @@ __all__ = [
     "printed_answers",
     "run",
     "simulate",
-    "limit_warnings",
-    "LIMIT_FRACTION",
-    "LIMIT_CONDITIONING",
 ]
-
-#: an input closer to a limit position than this fraction of its feasible range
-#: is warned about: the runner's sweeps keep 1e-2 clear (where rates are finite
-#: and every method agrees to round-off); at 1e-3 velocities are already about
-#: three and accelerations about thirty times those at 1e-2, growing without bound
-LIMIT_FRACTION = 1e-3
-#: below this inverse condition number of the scaled constraint Jacobian a state
-#: is warned about as near a singular position (any number of inputs). Measured:
-#: the runner's sweeps and the files' instants of every bundled mechanism stay
-#: above 6.4e-3 (task-2-1); fourbar reaches 1e-3 about 1e-5 of its range from a limit
-LIMIT_CONDITIONING = 1e-3
-
-
-def limit_warnings(solution: Solution, branch: str | None = None) -> list[str]:
-    """One line per solution that passes near a limit or singular position,
-    naming the input value nearest it; empty when none does.
-
-    A sample is near when it is within :data:`LIMIT_FRACTION` of a one-input
-    mechanism's feasible range from a limit, when the inverse condition number
-    of its constraint Jacobian is below :data:`LIMIT_CONDITIONING`, or when the
-    solver flagged it near-singular or singular.
-    """
-    kin, mech = solution.kinematics, solution.mechanism
-    n = len(solution.status)
-    closeness = np.full(n, np.inf)  # smaller: nearer
-    why = [""] * n
-    good = solution.status <= Status.SINGULAR
-    for i in np.flatnonzero(good & (solution.singularity < LIMIT_CONDITIONING)):
-        closeness[i] = solution.singularity[i] / LIMIT_CONDITIONING
-        why[i] = f"conditioning {solution.singularity[i]:.2g}"
-    if len(mech.drivers) == 1:
-        rng = kin.input_range(0, branch)
-        if rng.low is not None and rng.high is not None and rng.high > rng.low:
-            width = rng.high - rng.low
-            for i in np.flatnonzero(good):
-                value = solution.inputs[i, 0]
-                limit = min((rng.low, rng.high), key=lambda v: abs(v - value))
-                fraction = abs(value - limit) / width
-                if fraction < LIMIT_FRACTION and fraction / LIMIT_FRACTION < closeness[i]:
-                    closeness[i] = fraction / LIMIT_FRACTION
-                    distance = mech.units.show_input(mech.drivers[0].quantity, abs(value - limit), digits=3)
-                    shown = mech.units.show_input(mech.drivers[0].quantity, limit, digits=10)
-                    why[i] = (
-                        f"{distance} from the limit position at {shown}, conditioning {solution.singularity[i]:.2g}"
-                    )
-    near = np.flatnonzero(np.isfinite(closeness))
-    if not near.size:
-        return []
-    worst = int(near[np.argmin(closeness[near])])
-    where = ", ".join(
-        f"{d.name} = {mech.units.show_input(d.quantity, float(solution.inputs[worst, k]), digits=10)}"
-        for k, d in enumerate(mech.drivers)
-    )
-    more = f" ({near.size} samples near it)" if near.size > 1 else ""
-    return [
-        f"{mech.name}: {where} is near a limit or singular position ({why[worst]}){more}: velocities, "
-        "accelerations and forces grow without bound there"
-    ]
 
 
 @dataclass
@@ -134,8 +74,9 @@ class Result:
     labels : list of str
         A label per state.
     warnings : list of str
-        :func:`limit_warnings` and the states that did not solve (also issued
-        with :func:`warnings.warn` when the result is made).
+        What to beware of (:func:`xcheck.states.solve_asked`; of a sweep, also
+        the states that did not solve), each also issued with
+        :func:`warnings.warn` when the result is made.
     """
 
     solution: Solution
@@ -314,45 +255,6 @@ class Assembled:
         """The inputs' names, in the order ``at`` and ``rates`` take them."""
         return tuple(d.name for d in self.mechanism.drivers)
 
-    def _inputs(self, values, si: bool, name: str = "at") -> np.ndarray:
-        """The argument ``name`` (inputs, their rates or accelerations) as SI,
-        shape (N, k), checked: its shape, at most :data:`~xcheck.arguments.MAX_STATES`
-        states, every value finite.
-
-        Raises
-        ------
-        InputError
-            Naming the file and the argument.
-        """
-        where = f"{self.mechanism.path}: {name}"
-        si = arguments.flag(si, "si")
-        try:
-            kind = np.asarray(values).dtype.kind
-        except (ValueError, TypeError):  # ragged nesting
-            kind = "O"
-        if kind not in "iuf":  # not bools, strings, complex numbers or objects
-            raise InputError(f"{where}: expected numbers, found {arguments.shown(values)}")
-        try:
-            arr = self.kinematics.input_array(values)
-        except ValueError as err:
-            raise InputError(f"{where}: {err}") from None
-        if not 1 <= len(arr) <= arguments.MAX_STATES:
-            raise InputError(f"{where}: expected from 1 to {arguments.MAX_STATES} states, found {len(arr)}")
-        arguments.finite(arr, where, values)
-        return arr * 1.0 if si else self._si(arr, name != "at")
-
-    def _si(self, values, per_second: bool) -> np.ndarray:
-        """Display-unit inputs (or rates) as SI, shape (N, k)."""
-        units = self.mechanism.units
-        arr = self.kinematics.input_array(values)
-        factors = [
-            (units.angular_rate_factor if per_second else units.angle_factor)
-            if d.quantity == "angle"
-            else units.length_factor
-            for d in self.mechanism.drivers
-        ]
-        return arr * np.array(factors)
-
     def solve(self, at=None, rates=None, accelerations=None, si: bool = False) -> Result:
         """Positions, velocities and accelerations at given inputs.
 
@@ -365,8 +267,9 @@ class Assembled:
             otherwise, its length unit for slides) unless ``si``. Default:
             the file's ``[[instants]]``, with their own rates.
         rates : float or array_like, optional
-            The drivers' rates, same shape as ``at`` (``angular_rate`` of
-            ``[units]`` for angles, length unit per second for slides). Not
+            The drivers' rates, one state for every input state or one per
+            state (``angular_rate`` of ``[units]`` for angles, length unit per
+            second for slides). Not
             given: the drivers' motion laws of the file at those inputs (the
             rule of ``xcheck solve --at``; a law that stands still gives a
             static position); an input its law never reaches is an error.
@@ -382,9 +285,13 @@ class Assembled:
 
         Raises
         ------
-        InputError
-            If a value has the wrong shape, is not finite, or (rates not
-            given) is one the driver's motion never reaches.
+        InputError or ModelError
+            By the rules of ``xcheck solve`` (:mod:`xcheck.states`): a value of
+            the wrong shape or not finite, (rates not given) one the driver's
+            motion never reaches, an input outside the feasible range or at a
+            limit position, a state that does not assemble with determined
+            velocities. A state near a limit or singular position, or a
+            driver's law that asks more than its joint can do, is warned about.
 
         Examples
         --------
@@ -395,39 +302,18 @@ class Assembled:
         >>> float(given.solution.qd[0, 2] / declared.solution.qd[0, 2])
         2.0
         """
-        mech = self.mechanism
-        path = mech.path
         if at is None:
             if rates is not None or accelerations is not None:
-                raise InputError(f"{path}: rates: expected them with at (the instants carry their own), found no at")
-            if not mech.instants:
-                raise InputError(f"{path}: instants: expected [[instants]] to solve (or give at), found none")
-            states = np.array([inst.states(mech) for inst in mech.instants])  # (N, k, 3)
-            labels = [inst.label for inst in mech.instants]
-            return self._result(states[:, :, 0], states[:, :, 1], states[:, :, 2], labels)
-        if accelerations is not None and rates is None:
-            raise InputError(f"{path}: accelerations: expected them with rates, found accelerations alone")
-        inputs = self._inputs(at, si)
-        if rates is None:
-            qd, qdd, reached = law_states(mech, inputs)
-            for k, driver in enumerate(mech.drivers):
-                if not reached[:, k].all():
-                    value = float(inputs[np.argmin(reached[:, k]), k])
-                    raise InputError(
-                        f"{path}: at {driver.name}: expected a value that the driver's {driver.law.kind} "
-                        f"motion reaches with a finite rate (or give rates), found "
-                        f"{mech.units.show_input(driver.quantity, value, digits=12)}"
-                    )
+                raise InputError(
+                    f"{self.mechanism.path}: rates: expected them with at (the instants carry their own), found no at"
+                )
+            asked = instant_states(self.kinematics)
         else:
-            qd = np.broadcast_to(self._inputs(rates, si, "rates"), inputs.shape).copy()
-            qdd = np.zeros_like(inputs)
-            if accelerations is not None:
-                qdd = np.broadcast_to(self._inputs(accelerations, si, "accelerations"), inputs.shape).copy()
-        labels = [
-            ", ".join(f"{d.name} = {mech.units.show_input(d.quantity, v)}" for d, v in zip(mech.drivers, row))
-            for row in inputs
-        ]
-        return self._result(inputs, qd, qdd, labels)
+            asked = asked_states(self.kinematics, at, rates, accelerations, si)
+        solved = solve_asked(self.kinematics, asked, self.branch)
+        for line in solved.warnings:
+            warnings.warn(line, stacklevel=2)
+        return Result(solved.solution, solved.labels, solved.warnings)
 
     def sweep(self, samples: int = 181) -> Result:
         """The sweep of ``xcheck run``: the first input over its feasible range
@@ -449,7 +335,7 @@ class Assembled:
 
     def _result(self, inputs, rates, accelerations, labels) -> Result:
         sol = self.kinematics.solve(inputs, rates, accelerations, branch=self.branch)
-        lines = limit_warnings(sol, self.branch)
+        lines = [*drive_warnings(self.kinematics, self.branch), *limit_warnings(sol, self.branch)]
         for i, code in enumerate(sol.status):
             if code > Status.SINGULAR:
                 lines.append(f"{self.name}: {labels[i]}: {Status(int(code)).label} ({Status(int(code)).message})")
@@ -516,21 +402,7 @@ class Assembled:
         """
         from .drawing import figure_of
 
-        c = self.kinematics.reference_inputs()[None] if at is None else self._inputs(at, si)
-        if len(c) != 1:
-            raise InputError(f"{self.mechanism.path}: at: expected one state to draw, found {len(c)}")
-        rates, _, _ = law_states(self.mechanism, c)
-        sol = self.kinematics.solve(c, rates, branch=self.branch)
-        if sol.status[0] > Status.SINGULAR:
-            shown = ", ".join(
-                f"{d.name} = {self.mechanism.units.show_input(d.quantity, v)}"
-                for d, v in zip(self.mechanism.drivers, c[0])
-            )
-            raise InputError(
-                f"{self.mechanism.path}: at: expected an input where the mechanism assembles, found {shown} "
-                f"({Status(int(sol.status[0])).message})"
-            )
-        return figure_of(sol, 0)
+        return figure_of(drawn_state(self.kinematics, at, si, self.branch), 0)
 
 
 def load(name: str | Path, models: str | Path | None = None, branch: str | None = None) -> Assembled:

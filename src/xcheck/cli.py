@@ -6,7 +6,6 @@ import functools
 import io
 import json
 import logging
-import math
 import re
 import sys
 import time
@@ -14,7 +13,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -23,7 +21,7 @@ from typer.core import TyperGroup
 
 from . import __version__, arguments, cache
 from . import engines as registry
-from .api import limit_warnings, printed_answers, select_modes
+from .api import printed_answers, select_modes
 from .arguments import MAX_SAMPLES
 from .catalog import (
     BENCHMARKS,
@@ -36,10 +34,10 @@ from .catalog import (
     reports_dir,
 )
 from .dynamics import inverse_dynamics
-from .errors import InputError, ModelError, XcheckError
+from .errors import InputError, XcheckError
 from .fileio import write_atomic
-from .kinematics import Kinematics, Status
-from .model import MAX_INSTANTS, Mechanism, load_mechanism
+from .kinematics import Kinematics
+from .model import Mechanism, load_mechanism
 from .motion import drive_warnings
 from .output import (
     print_run,
@@ -55,6 +53,7 @@ from .output import (
     wide_console,
 )
 from .precision import canonical_numbers, drift
+from .states import asked_states, drawn_state, instant_states, solve_asked
 from .units import evaluate_expression
 
 if TYPE_CHECKING:
@@ -416,8 +415,8 @@ def solve_command(
         typer.Option(
             "--rate",
             metavar="V[:V…]",
-            help="With --at: the drivers' rates for every state (angular_rate of [units] for angles, length "
-            "unit/s for slides), instead of the motion laws'; 0 gives a static position.",
+            help="With --at: the drivers' rates, one state for every --at state or one per state (angular_rate "
+            "of [units] for angles, length unit/s for slides), instead of the motion laws'; 0 gives a static position.",
         ),
     ] = None,
     accel: Annotated[
@@ -453,32 +452,23 @@ def solve_command(
             f"{mech.path}: {'--rate' if rate is not None else '--accel'}: expected it with --at "
             "(the instants of the file carry their own rates), found no --at"
         )
-    if accel is not None and rate is None:
-        raise InputError(f"{mech.path}: --accel: expected it with --rate, found --accel alone")
     kin = cache.cached_kinematics(mech)
     kin.assemble(branch)
     if at is None:
-        if not mech.instants:
-            raise ModelError(mech.path, "instants", "[[instants]] to solve (or use --at)", "none")
-        labels = [inst.label for inst in mech.instants]
-        states = [inst.states(mech) for inst in mech.instants]
-        fields = [f"instants[{i}]" for i in range(len(states))]
+        asked = instant_states(kin)
     else:
-        states = _parse_at(at, mech, rate, accel)
-        labels = [
-            "at "
-            + ", ".join(
-                f"{d.name} = {mech.units.show_input(d.quantity, value[0])}" for d, value in zip(mech.drivers, s)
-            )
-            for s in states
-        ]
-        fields = None
-    _check_ranges(kin, states, branch, fields)
-    cache.store(kin)
-    values = np.array(states)  # (N, k, 3)
-    solution = kin.solve(values[:, :, 0], values[:, :, 1], values[:, :, 2], branch=branch)
-    _check_statuses(kin, solution, labels, fields)
-    warned = [*drive_warnings(kin, branch), *limit_warnings(solution, branch)]
+        values, rates, accels = (
+            None if text is None else _numbers(text, mech, option)
+            for text, option in ((at, "--at"), (rate, "--rate"), (accel, "--accel"))
+        )
+        asked = asked_states(kin, values, rates, accels, options=("--at", "--rate", "--accel"))
+        asked.labels = [f"at {label}" for label in asked.labels]
+    try:
+        solved = solve_asked(kin, asked, branch)
+    finally:
+        cache.store(kin)  # the feasible range, refused input or not
+    solution, labels = solved.solution, solved.labels
+    warned = solved.warnings
     for line in warned:  # before the numbers that explode there
         typer.echo(f"xcheck: warning: {line}", err=True)
     # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
@@ -544,7 +534,7 @@ def draw_command(
 
     Examples: xcheck draw fourbar;  xcheck draw task-2-1 --at 40 -o task.png
     """
-    from .api import Assembled
+    from .drawing import figure_of
 
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
@@ -554,20 +544,15 @@ def draw_command(
     target = output if output is not None else Path(f"{mech.name}.png")
     if target.suffix.lower() != ".png":
         raise InputError(f"-o {target}: expected a file name ending in .png, found {target.suffix or 'none'}")
+    values = None
     if at is not None:
-        if "," in at:
+        values = _numbers(at, mech, "--at")
+        if len(values) != 1:
             raise InputError(
                 f"{mech.path}: --at: expected one state (values of several drivers separated by colons), "
                 f"found {arguments.shown(at)}"
             )
-        u = mech.units
-        inputs = _parse_values(
-            at, mech, "--at", lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor
-        )[0]
-        if not all(math.isfinite(v) for v in inputs):
-            raise InputError(f"{mech.path}: --at: expected finite values, found {arguments.shown(at)}")
-        _check_ranges(kin, [[(v, 0.0, 0.0) for v in inputs]], branch, None)
-    figure = Assembled(kin, kin._branch_name(branch)).draw(None if at is None else inputs, si=True)
+    figure = figure_of(drawn_state(kin, values, branch=branch, option="--at"), 0)
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=100)
     try:
@@ -1078,15 +1063,11 @@ def export_command(
         raise typer.Exit(1)
 
 
-#: Most ``--at`` states of one ``xcheck solve``, as many as a file's
-#: [[instants]]: each is solved and printed; a sweep over more belongs to
-#: ``xcheck run --samples``.
-MAX_AT_STATES = MAX_INSTANTS
-
-
-def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[list[float]]:
-    """Comma-separated states of colon-separated per-driver values (display
-    units) to SI; ``scale_of(driver)`` is SI per display unit."""
+def _numbers(text: str, mech: Mechanism, option: str) -> list[list[float]]:
+    """An option's text as numbers: states separated by commas, each the drivers'
+    values separated by colons, each a number or an arithmetic expression; the
+    values as given (display units: :func:`xcheck.states.asked_states` converts
+    and checks them)."""
     states = []
     for item in text.split(","):
         parts = item.split(":")
@@ -1098,121 +1079,14 @@ def _parse_values(text: str, mech: Mechanism, option: str, scale_of) -> list[lis
         state = []
         for driver, part in zip(mech.drivers, parts):
             try:
-                value = evaluate_expression(part.strip())
+                state.append(evaluate_expression(part.strip()))
             except ValueError as err:
                 raise InputError(
                     f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
                     f"expression, found {arguments.shown(part)} ({err})"
                 ) from None
-            state.append(value * scale_of(driver))
         states.append(state)
     return states
-
-
-def _parse_at(
-    text: str, mech: Mechanism, rate: str | None = None, accel: str | None = None
-) -> list[list[tuple[float, float, float]]]:
-    """``--at`` values (display units) to per-state (q, qd, qdd) per driver, SI.
-
-    Rates and accelerations come from ``--rate``/``--accel`` (one state each,
-    applied to every ``--at`` state) or else from the motion laws.
-    """
-    count = text.count(",") + 1
-    if count > MAX_AT_STATES:
-        raise InputError(f"{mech.path}: --at: expected at most {MAX_AT_STATES} states, found {count}")
-    u = mech.units
-    values = _parse_values(text, mech, "--at", lambda d: u.angle_factor if d.quantity == "angle" else u.length_factor)
-    if rate is not None:
-
-        def per_second(driver):
-            return u.angular_rate_factor if driver.quantity == "angle" else u.length_factor
-
-        rates = _parse_values(rate, mech, "--rate", per_second)
-        accels = _parse_values(accel, mech, "--accel", per_second) if accel is not None else [[0.0] * len(mech.drivers)]
-        for option, given in (("--rate", rates), ("--accel", accels)):
-            if len(given) != 1:
-                raise InputError(
-                    f"{mech.path}: {option}: expected one state (applied to every --at state), found {len(given)}"
-                )
-            if not all(math.isfinite(v) for v in given[0]):
-                raise InputError(f"{mech.path}: {option}: expected finite values, found {given[0]}")
-        return [[(q, qd, qdd) for q, qd, qdd in zip(state, rates[0], accels[0])] for state in values]
-    states = []
-    for state_values in values:
-        state = []
-        for driver, value in zip(mech.drivers, state_values):
-            try:
-                result = driver.law.state_at(value)
-            except OverflowError:  # absurd rates or accelerations
-                result = (math.inf, math.inf, math.inf)
-            shown = mech.units.show_input(driver.quantity, value, digits=12)
-            if result is None:
-                raise InputError(
-                    f"{mech.path}: --at {driver.name}: expected a value that the driver's "
-                    f"{driver.law.kind} motion reaches (or give the rates with --rate), found "
-                    f"{shown}, which it never does"
-                )
-            if not all(math.isfinite(v) for v in result):
-                raise InputError(
-                    f"{mech.path}: --at {driver.name}: expected a value at which the driver's "
-                    f"{driver.law.kind} motion has a finite rate and acceleration, "
-                    f"found {shown} (the motion law overflows)"
-                )
-            state.append(result)
-        states.append(state)
-    return states
-
-
-#: inputs closer than this to a limit position (rad; slides per mechanism size)
-#: are refused: the mechanism is singular there and its rates grow without bound
-LIMIT_CLEARANCE = 1e-8
-
-
-def _check_ranges(kin: Kinematics, states, branch, fields) -> None:
-    """Refuse inputs outside the feasible range or at a limit position.
-
-    Only for one-input mechanisms: with several inputs the range of one
-    depends on the others, and the solve's own status decides.
-    """
-    mech = kin.mechanism
-    if len(mech.drivers) != 1:
-        return
-    driver = mech.drivers[0]
-    rng = kin.input_range(0, branch)
-    clearance = LIMIT_CLEARANCE * (1.0 if driver.quantity == "angle" else kin.system.size)
-    for i, state in enumerate(states):
-        q = state[0][0]
-        if not rng.contains(q):
-            expected = f"an input within the feasible range ({range_text(kin, rng)})"
-        elif any(limit is not None and abs(q - limit) <= clearance for limit in (rng.low, rng.high)):
-            expected = (
-                f"an input clear of the limit positions ({range_text(kin, rng)}): the mechanism is "
-                "singular there and its rates are not determined"
-            )
-        else:
-            continue
-        found = mech.units.show_input(driver.quantity, q, digits=12)
-        if fields:
-            raise ModelError(mech.path, f"{fields[i]}.{driver.name}", expected, found)
-        raise InputError(f"{mech.path}: --at {driver.name}: expected {expected}, found {found}")
-
-
-def _check_statuses(kin: Kinematics, solution, labels, fields) -> None:
-    mech = kin.mechanism
-    for i, code in enumerate(solution.status):
-        status = Status(int(code))
-        if status <= Status.NEAR_SINGULAR:
-            continue
-        inputs = ", ".join(
-            f"{d.name} = {mech.units.show_input(d.quantity, solution.inputs[i, k])}" for k, d in enumerate(mech.drivers)
-        )
-        field = fields[i] if fields else "--at"
-        raise ModelError(
-            mech.path,
-            field,
-            "a state where the mechanism assembles with determined velocities",
-            f"{status.label} at {inputs} ({status.message})",
-        )
 
 
 @app.command("fuzz")

@@ -17,6 +17,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from .. import arguments
+from ..arguments import MAX_STATES
 from ..errors import ModelError
 from ..fileio import reserved_name
 from ..joints import JOINT_TYPES
@@ -143,9 +144,8 @@ MAX_FILE_BYTES = 1_000_000
 #: 270 s), so this keeps every mechanism that loads solvable within seconds.
 MAX_BODIES = 200
 
-#: Most [[instants]] of a file: as many as ``xcheck solve --at`` takes states
-#: (each is solved and printed; 10000 take about 6 s).
-MAX_INSTANTS = 10_000
+#: Most [[instants]] of a file: as many states as one solve at given inputs takes
+MAX_INSTANTS = MAX_STATES
 
 #: What a mechanism's name may be: it becomes a file name (reports/NAME.md, models/mjcf/NAME.xml).
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_-](?:[A-Za-z0-9 ._-]{0,98}[A-Za-z0-9._-])?")

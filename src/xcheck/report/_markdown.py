@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from .. import engines
-from ..api import limit_warnings
 from ..kinematics import Status
 from ..output import range_text
 from ..precision import shown
@@ -24,6 +23,7 @@ from ..runner import (
     tolerance,
     versions,
 )
+from ..states import limit_warnings
 from ..tolerances import conditioned_round_off
 from ._evidence import Evidence
 
