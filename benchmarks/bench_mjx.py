@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from functools import partial
 
 import numpy as np
 
@@ -30,8 +29,8 @@ from xcheck import Kinematics, load_mechanism
 from xcheck.catalog import model_path, models_dir
 from xcheck.dynamics._free import simulate
 from xcheck.engines.mjx import free
-from xcheck.engines.mujoco.free import free_model, joint_velocities
 from xcheck.engines.mujoco.mjcf import joint_coordinates
+from xcheck.engines.mujoco.model import free_model, joint_velocities
 
 
 def main() -> None:
@@ -56,13 +55,13 @@ def main() -> None:
     qpos0, qvel0 = joint_coordinates(mech, lay, q0), joint_velocities(mech, lay, q0, qd0)
     xfrc = free.applied_forces(mech, model)
     setting = free.Setting(args.softness, args.integrator, args.solver)
-    parameters, _ = free._parameters(model, setting, args.timestep, args.every)
-    m = free.mjx_model(model, args.integrator, args.solver)
     samples = max(2, round(args.duration / (args.timestep * args.every)) + 1)
+    parameters, _ = free._parameters(model, setting, args.timestep, np.full(samples - 1, args.every))
+    m = free.mjx_model(model, args.integrator, args.solver)
     steps = (samples - 1) * args.every
-    print(f"{args.model}: {setting.name} {args.integrator}, dt = {args.timestep:g} s, {steps} steps per element")
+    print(f"{args.model}: {setting.series.key}, dt = {args.timestep:g} s, {steps} steps per element")
     print(f"jax {jax.__version__}, backend {jax.default_backend()}, devices {jax.devices()}")
-    batch_rollout = jax.vmap(partial(free.rollout, samples=samples), in_axes=(None, None, 0, 0, None))
+    batch_rollout = jax.vmap(free.rollout, in_axes=(None, None, 0, 0, None))
     first = None
     for size in (int(s) for s in args.sizes.split(",")):
         factors = np.concatenate([[1.0], np.linspace(0.5, 1.5, size - 1)])  # element 0 at the reference's speed

@@ -124,6 +124,14 @@ def invoke(*args: str, cwd: Path = ROOT, unset: tuple[str, ...] = ("XCHECK_MODEL
     return subprocess.CompletedProcess(["xcheck", *args], result.exit_code, result.stdout, stderr)
 
 
+def run_free(mode: str, kinematics, reference, **options):
+    """A free mode's ladder through its engine (:meth:`xcheck.engines.Engine.run_free`;
+    ``options``: ``series``, ``steps``)."""
+    from xcheck import engines
+
+    return engines.engine_of(mode).run_free(mode, kinematics, reference, **options)
+
+
 def assert_first_order(result, finest: float) -> None:
     """A free mode's ladder all ran (status ok) and, per setting, its error at the finest
     step is at most ``finest`` (m) and halves with each halved step (ratios 1.8 to 2.2)."""

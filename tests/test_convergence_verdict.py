@@ -10,7 +10,8 @@ import pytest
 from conftest import ROOT
 
 from xcheck import Kinematics, load_mechanism
-from xcheck.results import ModeResult, observed_order
+from xcheck.ladder import observed_order
+from xcheck.results import ModeResult
 from xcheck.runner import ORDER_MARGIN, _categorise, _convergence_verdict, convergence_limit, run_mechanism, tolerance
 
 DYNAMIC = ("mujoco-dynamic", "pinocchio-dynamic", "pymunk-dynamic")

@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 
 from xcheck import engines
 from xcheck.cli import app
-from xcheck.results import ModeResult, trajectory_from_solution
+from xcheck.ladder import Run, Series
+from xcheck.results import trajectory_from_solution
 from xcheck.tolerances import Tolerance
 
 #: the toy's known error: every position moved by this fraction of the mechanism's size along x
@@ -105,7 +106,7 @@ def test_toy_engines_are_listed_and_selectable(toys):
             "kind": "kinematic",
             "trusted_for": "exact to 1e-6 of the size",
             "on_request": False,
-            "findings": {},
+            "findings": [],
         }
     ]
     assert by_name["absent"]["available"] is False
@@ -132,8 +133,7 @@ def test_a_taken_name_is_refused(toys):
 
 class Known(Shifted):
     """The toy's shifted positions judged at a bound below the shift: a failure in
-    position that its engine states as a finding (``known-kinematic``), and one
-    that states a finding elsewhere (``unknown-kinematic``: a plain failure)."""
+    position that its engine states as a finding."""
 
     name = "known"
     modes = (
@@ -141,15 +141,27 @@ class Known(Shifted):
             "known-kinematic",
             "kinematic",
             Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
-            findings={"position": "the toy moves every position by 3e-7 of the size"},
         ),
+    )
+    findings = (
+        engines.Finding(
+            "the toy moves its positions", "the toy moves every position by 3e-7 of the size", ("position",)
+        ),
+    )
+
+
+class Unknown(Shifted):
+    """The same failure, its engine stating a finding elsewhere (in velocity): a plain failure."""
+
+    name = "unknown"
+    modes = (
         engines.Mode(
             "unknown-kinematic",
             "kinematic",
             Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
-            findings={"velocity": "a finding the toy does not show"},
         ),
     )
+    findings = (engines.Finding("a velocity defect", "a finding the toy does not show", ("velocity",)),)
 
 
 class Costly(Shifted):
@@ -163,7 +175,7 @@ class Costly(Shifted):
 
 @pytest.fixture
 def findings():
-    registered = [engines.register(engine) for engine in (Known, Costly)]
+    registered = [engines.register(engine) for engine in (Known, Unknown, Costly)]
     yield registered
     for engine in registered:
         engines.unregister(engine.name)
@@ -211,32 +223,41 @@ def test_a_mode_on_request_runs_only_when_named(findings):
     listed = CliRunner().invoke(app, ["engines", "--json"])
     modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
     assert modes["costly-kinematic"]["on_request"] and not modes["known-kinematic"]["on_request"]
-    assert modes["known-kinematic"]["findings"] == {"position": "the toy moves every position by 3e-7 of the size"}
+    assert modes["known-kinematic"]["findings"] == ["the toy moves its positions"]
+    known = next(e for e in json.loads(listed.stdout)["engines"] if e["name"] == "known")
+    assert known["findings"] == [
+        {
+            "title": "the toy moves its positions",
+            "text": "the toy moves every position by 3e-7 of the size",
+            "quantities": ["position"],
+            "kinds": ["kinematic", "dynamic", "free"],
+            "closed_loops": False,
+        }
+    ]
 
 
 class FreeToy(engines.Engine):
-    """A free mode that returns the native reference's own motion, every point moved by SHIFT x size."""
+    """A free mode whose one run returns the native reference's own motion at the
+    compared outputs, every point moved by SHIFT x size: the ladder is the core's."""
 
     name = "freetoy"
     modes = (engines.Mode("freetoy-free", "free", Tolerance(1, 1, 1, 1, "benchmark: no verdict")),)
 
-    def run_free(self, mode, kinematics, reference, branch=None):
-        import pandas as pd
+    def free_series(self, mode, kinematics):
+        return (Series("toy", "copy"),)
 
-        from xcheck.results import convergence_study
-        from xcheck.simulation import free_errors
-
-        trajectory = trajectory_from_solution(reference.motion.solution(), source=mode)
-        trajectory.times = reference.motion.times
-        shift = np.array([SHIFT * kinematics.system.size, 0.0])
+    def run_free_once(self, mode, prepared, problem, rung):
+        index = problem.index
+        trajectory = trajectory_from_solution(problem.reference.motion.solution(), source=mode)
+        trajectory.times = problem.times
+        shift = np.array([SHIFT * problem.kinematics.system.size, 0.0])
         for states in trajectory.points.values():
-            states["position"] = states["position"] + shift
-        errors = free_errors(reference, trajectory)
-        summary = pd.DataFrame(
-            [{"setting": "toy", "integrator": "copy", "timestep": 0.01, "steps": 1, "status": "ok", **errors}]
-        )
-        study = convergence_study(["toy"], [0.01], [errors["position_error"]], ["ok"])
-        return ModeResult(mode, kinematics.mechanism.name, True, "", [trajectory], summary, study)
+            states["position"] = states["position"][index] + shift
+        for states in trajectory.bodies.values():
+            for key in list(states):
+                states[key] = states[key][index]
+        trajectory.diagnostics = {"constraint_violation": np.zeros(len(index))}
+        return Run(trajectory)
 
 
 def test_a_free_mode_from_a_test_module_runs_in_simulate():

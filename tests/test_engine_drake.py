@@ -22,24 +22,22 @@ import math
 
 import numpy as np
 import pytest
-from conftest import DATA, MODELS, assert_first_order, invoke
+from conftest import DATA, MODELS, assert_first_order, invoke, run_free
 
 pytest.importorskip("pydrake")
 
 from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines import NotApplicable, with_unit_mass  # noqa: E402
-from xcheck.engines.drake import dynamic, free, sdf  # noqa: E402
+from xcheck.engines._frames import world_point  # noqa: E402
+from xcheck.engines.drake import dynamic, free, model, sdf  # noqa: E402
 from xcheck.kinematics import rotate  # noqa: E402
 from xcheck.model import Prismatic, Spring, parse_mechanism  # noqa: E402
 from xcheck.motion import simulation_window  # noqa: E402
-from xcheck.simulation import (
-    simulate_all,  # noqa: E402
-    world_point,  # noqa: E402
-)
+from xcheck.simulation import simulate_all  # noqa: E402
 from xcheck.topology import Topology, spanning_tree  # noqa: E402
 
-DEFAULT = free.FREE_SETTINGS[:1]
+DEFAULT = free.FREE_SERIES[:1]
 
 
 def _kinematics(path, mechanism=None) -> Kinematics:
@@ -77,19 +75,19 @@ def test_converter_starts_at_the_native_state(path, joints, balls):
     the ball constraints start closed."""
     kin = _kinematics(path)
     reference = simulate(kin, duration=0.02)
-    model = free.build(kin, 1e-3)
-    assert [j.type_name() for j in model.joints.values()] == joints
-    assert model.plant.num_constraints() == balls == len(model.cuts)
-    free.set_state(model, kin, reference.motion.q[0], reference.motion.qd[0])
-    frames = model.frames()
-    for name, pa, other, pb in model.cuts:
+    plant = model.build(kin, 1e-3)
+    assert [j.type_name() for j in plant.joints.values()] == joints
+    assert plant.plant.num_constraints() == balls == len(plant.cuts)
+    model.set_state(plant, kin, reference.motion.q[0], reference.motion.qd[0])
+    frames = plant.frames()
+    for name, pa, other, pb in plant.cuts:
         gap = world_point(frames, name, pa) - world_point(frames, other, pb)
         assert np.hypot(*gap) <= 1e-12 * kin.mechanism.size
 
 
 def test_pendulum_converges_at_first_order():
     kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
-    result = free.run_free(kin, simulate(kin, duration=2.0), settings=DEFAULT)
+    result = run_free("drake-free", kin, simulate(kin, duration=2.0), series=DEFAULT)
     assert_first_order(result, 6e-4)  # measured 5.54e-4 m at 0.25 ms
     assert (result.summary["loop_drift"] == 0.0).all()  # a tree: no loop to open
     drift = result.summary.sort_values("timestep")["energy_drift"].to_numpy()
@@ -113,7 +111,7 @@ def test_forces_and_prismatic_joints_converge_at_first_order(name, finest):
     spring-damper (spring-block), a rod through an inclined sleeve (sleeve), a
     rotational spring-damper (torsion-pendulum) and a harmonic force (shaken-block)."""
     kin = _kinematics(DATA / f"{name}.toml")
-    assert_first_order(free.run_free(kin, simulate(kin), settings=DEFAULT), finest)
+    assert_first_order(run_free("drake-free", kin, simulate(kin), series=DEFAULT), finest)
 
 
 def test_rotational_spring_on_a_reversed_tree_joint():
@@ -127,7 +125,7 @@ def test_rotational_spring_on_a_reversed_tree_joint():
     )
     kin = _kinematics(None, parse_mechanism(text, "reversed-torsion.toml"))
     assert spanning_tree(kin.mechanism).tree[0].reversed
-    assert_first_order(free.run_free(kin, simulate(kin), settings=DEFAULT), 5.5e-5)
+    assert_first_order(run_free("drake-free", kin, simulate(kin), series=DEFAULT), 5.5e-5)
 
 
 @pytest.mark.slow
@@ -135,9 +133,9 @@ def test_double_fourbar_keeps_its_loops_and_branch_through_singular_passes():
     """A02 over 2 s (passes at 0.714 and 1.228 s). Measured: loops open by 9.9e-8, 4.4e-8,
     9.4e-9 m; energy drift 9.09e-2, 4.54e-2, 2.27e-2 J (first order); errors 8.30e-6, 3.37e-6,
     2.80e-6 m: after the second pass a part of the error no longer falls with the step (see
-    :func:`xcheck.engines.drake.free.run_free`), so no order is asserted."""
+    :mod:`xcheck.engines.drake.free`), so no order is asserted."""
     kin = _kinematics(MODELS / "benchmarks" / "iftomm-a02.toml")
-    result = free.run_free(kin, simulate(kin, duration=2.0), settings=DEFAULT)
+    result = run_free("drake-free", kin, simulate(kin, duration=2.0), series=DEFAULT)
     assert result.ok and (result.summary["status"] == "ok").all(), result.summary["status"].tolist()
     ladder = result.summary.sort_values("timestep")
     assert ladder["loop_drift"].max() <= 1.5e-7
@@ -159,7 +157,7 @@ def test_sliding_cut_rotational_spring_across_a_cut_and_zero_rest_length_are_ref
     slide = next(tj for tj in topology.tree if tj.joint.name == "slide")
     cut = Topology(tuple(tj for tj in topology.tree if tj is not slide), (*topology.cuts, slide.joint))
     with pytest.raises(NotApplicable, match="cut at the prismatic joint 'slide'"):
-        free.refuse(mech, cut)
+        model.refuse(mech, cut)
     fourbar = load_mechanism(DATA / "fourbar-loaded.toml")
     twist = dataclasses.replace(
         load_mechanism(DATA / "torsion-pendulum.toml").rotational_springs[0],
@@ -168,11 +166,11 @@ def test_sliding_cut_rotational_spring_across_a_cut_and_zero_rest_length_are_ref
         body_b="rocker",
     )
     with pytest.raises(NotApplicable, match="across the cut joint 'C'"):
-        free.refuse(dataclasses.replace(fourbar, rotational_springs=(twist,)), spanning_tree(fourbar))
+        model.refuse(dataclasses.replace(fourbar, rotational_springs=(twist,)), spanning_tree(fourbar))
     spring = fourbar.springs[0]
     short = dataclasses.replace(fourbar, springs=(Spring(spring.name, spring.points, spring.stiffness, 0.0),))
     with pytest.raises(NotApplicable, match="rest length 0"):
-        free.refuse(short, spanning_tree(short))
+        model.refuse(short, spanning_tree(short))
 
 
 # -- the model file (xcheck export --format sdf) ------------------------------------------

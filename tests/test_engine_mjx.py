@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import DATA, MODELS
+from conftest import DATA, MODELS, run_free
 
 pytest.importorskip("mujoco.mjx")
 pytest.importorskip("jax")
@@ -26,7 +26,7 @@ from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
 from xcheck.engines.mjx import free  # noqa: E402
-from xcheck.engines.mujoco.free import free_model  # noqa: E402
+from xcheck.engines.mujoco.model import free_model  # noqa: E402
 from xcheck.simulation import simulate_all  # noqa: E402
 
 
@@ -90,7 +90,8 @@ def test_what_mjx_refuses_is_a_row_status(integrator, solver):
     model, _ = free_model(kin)
     with pytest.raises(NotImplementedError):
         free.mjx_model(model, integrator, solver)
-    result = free.run_free(kin, simulate(kin, duration=0.1), settings=(free.Setting("stiff", integrator, solver),))
+    series = (free.Setting("stiff", integrator, solver).series,)
+    result = run_free("mjx-free", kin, simulate(kin, duration=0.1), series=series)
     assert not result.ok and "MJX does not implement" in result.reason
     assert result.summary["status"].str.startswith("MJX does not implement").all()
 
@@ -124,9 +125,8 @@ def test_constant_torque_is_applied_at_the_centre_of_mass():
 def test_pendulum_converges_at_first_order_and_matches_mujoco():
     """A01 over 2 s, stiff Newton Euler at 1 and 0.5 ms: one compilation for both steps."""
     kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
-    result = free.run_free(
-        kin, simulate(kin, duration=2.0), timesteps=(1e-3, 5e-4), settings=(free.Setting("stiff", "Euler", "Newton"),)
-    )
+    series = (free.Setting("stiff", "Euler", "Newton").series,)
+    result = run_free("mjx-free", kin, simulate(kin, duration=2.0), series=series, steps=(1e-3, 5e-4))
     assert result.ok and (result.summary["status"] == "ok").all()
     errors = result.summary["position_error"].to_numpy()
     assert errors[-1] <= 1.2e-3  # measured 1.107e-3 m at 0.5 ms (2.215e-3 m at 1 ms)
@@ -134,22 +134,18 @@ def test_pendulum_converges_at_first_order_and_matches_mujoco():
     assert (result.summary["mujoco_difference"] <= 1e-12).all()  # measured 2.7e-15 m: no loop, same arithmetic
     assert result.summary["compile_seconds"].nunique() == 1  # one compilation served the ladder
     assert (result.summary["loop_drift"] == 0.0).all()
+    assert (result.summary["finding"] == "").all()  # an open chain: MJX's missing J-dot qd plays no part
 
 
-@pytest.mark.slow
-def test_batched_ladder_equals_the_sequential_one():
-    """The vmap batch of a ladder gives the sequential runs' trajectories (to round-off:
-    measured 7e-12 rad on A02's final qpos, 10 s; here A01 over 0.5 s)."""
-    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a01.toml")
-    reference = simulate(kin, duration=0.5)
-    settings = (free.Setting("default", "RK4", "Newton"),)
-    runs = [
-        free.run_free(kin, reference, timesteps=(1e-3, 5e-4), settings=settings, batched=b, compare=False)
-        for b in (False, True)
-    ]
-    for a, b in zip(runs[0].trajectories, runs[1].trajectories):
-        for label, states in a.points.items():
-            assert np.max(np.abs(states["position"] - b.points[label]["position"])) <= 1e-12
+def test_free_rows_on_closed_loops_carry_the_finding():
+    """A02 (two loops) over 0.1 s, stiff Newton Euler at 1 and 0.5 ms: every row carries
+    the title of MJX's free-motion finding (its connect rows lack J-dot qd)."""
+    kin = _kinematics(MODELS / "benchmarks" / "iftomm-a02.toml")
+    series = (free.Setting("stiff", "Euler", "Newton").series,)
+    result = run_free("mjx-free", kin, simulate(kin, duration=0.1), series=series, steps=(1e-3, 5e-4))
+    (finding,) = [f for f in engines.engine("mjx").findings if "free" in f.kinds]
+    assert finding.closed_loops and set(finding.quantities) == {"position", "angle"}
+    assert result.ok and (result.summary["finding"] == finding.title).all()
 
 
 @pytest.mark.slow
@@ -218,10 +214,11 @@ def test_driven_mode_runs_on_request_and_states_its_finding():
     assert "mjx-dynamic" not in xcheck.select_modes(None) and "mjx-dynamic" not in xcheck.select_modes("dynamic")
     assert xcheck.select_modes("mjx") == ("native", "mjx-dynamic")
     assert "mjx-dynamic" in xcheck.select_modes("all") and set(xcheck.select_modes("all")) >= set(default_modes())
-    assert set(mode.findings) == {"acceleration", "alpha"} and "J-dot qd" in mode.findings["acceleration"]
+    (driven,) = [f for f in engines.engine("mjx").findings if "dynamic" in f.kinds]
+    assert set(driven.quantities) == {"acceleration", "alpha"} and "J-dot qd" in driven.text and driven.closed_loops
     listed = CliRunner().invoke(app, ["engines", "--json"])
     modes = {m["name"]: m for e in json.loads(listed.stdout)["engines"] for m in e["modes"]}
-    assert modes["mjx-dynamic"]["on_request"]
+    assert modes["mjx-dynamic"]["on_request"] and modes["mjx-dynamic"]["findings"] == ["acceleration", "alpha"]
     # a run of every default mode says, in one line, what it left out and why; a narrower one does not
     assert left_out(default_modes()) == {"mjx-dynamic": mode.on_request_reason}
     assert left_out(("native", "mujoco-kinematic")) == {} and left_out(xcheck.select_modes("all")) == {}

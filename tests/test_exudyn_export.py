@@ -21,7 +21,9 @@ from xcheck import Kinematics, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import release_state  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
 from xcheck.engines.exudyn.export import script  # noqa: E402
-from xcheck.engines.exudyn.free import FREE_SETTINGS, FREE_STEPS, _settings, build_system  # noqa: E402
+from xcheck.engines.exudyn.free import FREE_SERIES  # noqa: E402
+from xcheck.engines.exudyn.model import build_system, solver_settings  # noqa: E402
+from xcheck.ladder import FREE_STEPS  # noqa: E402
 
 
 def _run_script(kin: Kinematics, tmp_path) -> dict[str, np.ndarray]:
@@ -49,7 +51,7 @@ def test_the_script_is_the_system_the_mode_integrates_with_its_load_laws(tmp_pat
 
     model.mbs.Assemble()
     dt = min(FREE_STEPS[0], spec.output_step / 10.0)
-    assert exudyn.SolveDynamic(model.mbs, _settings(FREE_SETTINGS[0], dt, spec.duration, spec.output_step))
+    assert exudyn.SolveDynamic(model.mbs, solver_settings(FREE_SERIES[0].options, dt, spec.duration, spec.output_step))
     assert set(printed) == set(model.nodes)
     for name, node in model.nodes.items():
         here = model.mbs.GetNodeOutput(node, OutputVariableType.Coordinates) + model.mbs.GetNodeOutput(

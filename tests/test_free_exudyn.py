@@ -22,14 +22,17 @@ import dataclasses
 import math
 
 import pytest
-from conftest import DATA, MODELS
+from conftest import DATA, MODELS, run_free
 
 pytest.importorskip("exudyn")
 
 from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
-from xcheck.engines.exudyn.free import FREE_SETTINGS, run_free  # noqa: E402
+from xcheck.engines.exudyn.free import FREE_SERIES  # noqa: E402
+from xcheck.engines.exudyn.model import refuse  # noqa: E402
+
+MODE = "exudyn-free"
 
 
 def _reference(path, duration: float | None = None):
@@ -57,7 +60,7 @@ def test_registered_as_a_free_mode():
 @pytest.fixture(scope="module")
 def pendulum():
     kin, reference = _reference(MODELS / "benchmarks" / "iftomm-a01.toml", 2.0)
-    return run_free(kin, reference)
+    return run_free(MODE, kin, reference)
 
 
 def test_pendulum_converges_at_second_order(pendulum):
@@ -70,15 +73,15 @@ def test_pendulum_converges_at_second_order(pendulum):
     assert default["loop_drift"] <= 1e-12  # measured 7.5e-14 m: exact index-3 joints
     index2 = _row(summary, "index-2", 2.5e-4)
     assert 5e-8 <= index2["loop_drift"] <= 2e-7  # measured 1.4e-7 m: velocity-level constraints drift
-    assert list(pendulum.study.columns) == ["series", "timestep", "position_error", "status", "order"]
-    assert len(summary) == len(FREE_SETTINGS) * 3
+    assert list(pendulum.study.columns) == ["series", "timestep", "position_error", "status", "order", "verdict"]
+    assert len(summary) == len(FREE_SERIES) * 3
 
 
 def test_double_fourbar_passes_the_singular_positions_on_its_branch():
     kin, reference = _reference(MODELS / "benchmarks" / "iftomm-a02.toml", 2.0)
     assert len([t for t in reference.motion.singular_passes if t < 2.0]) == 2  # 0.71 and 1.23 s
-    chosen = [s for s in FREE_SETTINGS if s.name in ("default", "newton-1e-12")]
-    result = run_free(kin, reference, settings=chosen)
+    chosen = [s for s in FREE_SERIES if s.key in ("default", "newton-1e-12")]
+    result = run_free(MODE, kin, reference, series=chosen)
     summary = result.summary
     default = summary[summary["setting"] == "default"]
     assert (default["status"] == "ok").all(), default
@@ -96,8 +99,8 @@ def test_double_fourbar_passes_the_singular_positions_on_its_branch():
 
 def test_every_joint_type_springs_dampers_and_loads_with_laws_converge_at_second_order():
     kin, reference = _reference(DATA / "free-mixed.toml")
-    chosen = [s for s in FREE_SETTINGS if s.name == "default"]
-    summary = run_free(kin, reference, settings=chosen).summary
+    chosen = [s for s in FREE_SERIES if s.key == "default"]
+    summary = run_free(MODE, kin, reference, series=chosen).summary
     assert (summary["status"] == "ok").all(), summary
     assert all(1.9 <= p <= 2.1 for p in _orders(summary)), list(summary["position_error"])
     assert _row(summary, "default", 2.5e-4)["position_error"] <= 1.5e-4  # measured 1.29e-4 m
@@ -111,7 +114,7 @@ def test_a_massless_body_is_not_applicable():
     bodies = tuple(dataclasses.replace(b, mass=0.0) if b.name == "coupler1" else b for b in mech.bodies)
     massless = Kinematics(dataclasses.replace(mech, bodies=bodies))
     with pytest.raises(NotApplicable, match="massless body coupler1"):
-        run_free(massless, None)
+        refuse(massless.mechanism)  # what the mode's prepare_free calls before any run
 
 
 def test_spring_and_damper_on_a_guide_converge_at_second_order():
@@ -119,8 +122,8 @@ def test_spring_and_damper_on_a_guide_converge_at_second_order():
     and damper, 2 s): measured 1.55e-6, 3.88e-7, 9.71e-8 m at 1, 0.5, 0.25 ms (order
     2.00; pymunk-free is first order there, 6.3e-5 m at 0.25 ms)."""
     kin, reference = _reference(DATA / "spring-block.toml")
-    chosen = [s for s in FREE_SETTINGS if s.name == "default"]
-    summary = run_free(kin, reference, settings=chosen).summary
+    chosen = [s for s in FREE_SERIES if s.key == "default"]
+    summary = run_free(MODE, kin, reference, series=chosen).summary
     assert (summary["status"] == "ok").all(), summary
     assert all(1.9 <= p <= 2.1 for p in _orders(summary)), list(summary["position_error"])
     assert _row(summary, "default", 2.5e-4)["position_error"] <= 1.1e-7  # measured 9.71e-8 m

@@ -10,18 +10,20 @@ import json
 
 import numpy as np
 import pytest
-from conftest import DATA, MODELS, invoke
+from conftest import DATA, MODELS, invoke, run_free
 
 mujoco = pytest.importorskip("mujoco")
 
 from xcheck import Kinematics, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines.mujoco.dynamic import Setting  # noqa: E402
-from xcheck.engines.mujoco.free import joint_velocities, run_free  # noqa: E402
+from xcheck.engines.mujoco.free import free_series  # noqa: E402
 from xcheck.engines.mujoco.mjcf import layout, mjcf_text  # noqa: E402
-from xcheck.simulation import free_errors  # noqa: E402
+from xcheck.engines.mujoco.model import free_model, joint_velocities  # noqa: E402
+from xcheck.ladder import free_errors  # noqa: E402
 
 STEPS = (1e-3, 5e-4, 2.5e-4)
+MODE = "mujoco-free"
 
 
 def _reference(name: str, duration: float):
@@ -51,7 +53,6 @@ def _orders(rows) -> np.ndarray:
 
 def test_initial_velocity_closes_the_loops(a02):
     """qvel from the native body rates satisfies MuJoCo's velocity constraints."""
-    from xcheck.engines.mujoco.free import free_model
     from xcheck.engines.mujoco.mjcf import joint_coordinates
     from xcheck.engines.mujoco.oracle import Oracle
 
@@ -67,7 +68,8 @@ def test_initial_velocity_closes_the_loops(a02):
 
 def test_pendulum_euler_is_first_order_and_rk4_meets_the_reference(a01):
     kin, ref = a01
-    result = run_free(kin, ref, settings=(Setting("default", "Euler", False), Setting("default", "RK4", False)))
+    series = (free_series(Setting("default", "Euler", False)), free_series(Setting("default", "RK4", False)))
+    result = run_free(MODE, kin, ref, series=series)
     assert result.ok, result.reason
     assert set(result.summary.status) == {"ok"}
     # measured: Euler 2.21e-3, 1.11e-3, 5.54e-4 m (order 1.00, 1.00)
@@ -85,8 +87,8 @@ def test_pendulum_euler_is_first_order_and_rk4_meets_the_reference(a01):
 
 def test_double_fourbar_stiff_converges_and_default_softness_does_not(a02):
     kin, ref = a02
-    settings = (Setting("default", "Euler", False), Setting("stiff", "RK4", True))
-    result = run_free(kin, ref, timesteps=STEPS, settings=settings)
+    series = (free_series(Setting("default", "Euler", False)), free_series(Setting("stiff", "RK4", True)))
+    result = run_free(MODE, kin, ref, series=series, steps=STEPS)
     assert result.ok, result.reason
     assert set(result.summary.status) == {"ok"}
     stiff = _rows(result, "stiff", "RK4")
@@ -124,19 +126,20 @@ class _Absurd(Setting):
 
 def test_a_run_that_blows_up_is_a_row(a02):
     kin, ref = a02
-    settings = (_Absurd("absurd", "Euler", False), Setting("stiff", "RK4", True))
-    result = run_free(kin, ref, timesteps=(1e-2, 3e-3), settings=settings)
+    series = (free_series(_Absurd("absurd", "Euler", False)), free_series(Setting("stiff", "RK4", True)))
+    result = run_free(MODE, kin, ref, series=series, steps=(1e-2, 3e-3))
     rows = result.summary
     blown = rows[(rows.setting == "absurd") & (rows.timestep == 1e-2)]
-    assert blown.status.str.startswith("diverged by t = ").all(), list(blown.status)
-    assert blown.position_error.isna().all()
+    # measured: the loops 1.77 m open at the first compared output (0.02 s), before MuJoCo warns
+    assert blown.status.str.startswith("came apart at t = 0.02 s").all(), list(blown.status)
+    assert blown.order.isna().all()
     # 3e-3 s does not divide the 0.01 s between compared outputs: a row saying so
     misfit = rows[rows.timestep == 3e-3]
     assert misfit.status.str.contains("does not divide").all()
     assert result.ok  # stiff RK4 at 1e-2 s went through
     assert len(result.trajectories) == 1
-    only = run_free(kin, ref, timesteps=(1e-2,), settings=settings[:1])
-    assert not only.ok and only.reason.startswith("no run went through (absurd Euler dt = 0.01 s: diverged")
+    only = run_free(MODE, kin, ref, series=series[:1], steps=(1e-2,))
+    assert not only.ok and only.reason.startswith("no run went through (absurd Euler dt = 0.01 s: came apart")
 
 
 def test_cli_simulate_lists_the_mode_with_its_ladder():
@@ -172,7 +175,7 @@ def test_loads_act_at_every_stage(tmp_path, a01):
     path.write_text(text.replace("\n[free_motion]", load))
     kin = Kinematics(load_mechanism(path))
     ref = simulate(kin, None, duration=1.0)
-    result = run_free(kin, ref, timesteps=(1e-3,), settings=(Setting("default", "RK4", False),))
+    result = run_free(MODE, kin, ref, series=(free_series(Setting("default", "RK4", False)),), steps=(1e-3,))
     assert result.ok, result.reason
     # measured over 2 s: 3.0e-11 m at 1e-3 s (the reference's stated error about 2e-11 m)
     assert result.summary.position_error.iloc[0] < 1e-9

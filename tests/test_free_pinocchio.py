@@ -7,16 +7,17 @@ the references cost about 3.4 s (A01) and 4.2 s (A02) of CPU.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import DATA, MODELS, invoke
+from conftest import DATA, MODELS, invoke, run_free
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.dynamics._free import simulate
-from xcheck.engines.pinocchio.free import run_free
+from xcheck.engines.pinocchio.free import FREE_SERIES
 from xcheck.engines.pinocchio.model import build_model, tree_spec
 from xcheck.engines.pinocchio.oracle import Oracle
 
@@ -34,6 +35,15 @@ COLUMNS = (
     "loop_drift",
     "energy_drift",
 )
+
+
+MODE = "pinocchio-free"
+
+
+def _series(name: str, **change):
+    """The ladder's series ``name``, its setting changed as given (baumgarte, mu)."""
+    series = next(s for s in FREE_SERIES if s.key == name)
+    return (dataclasses.replace(series, options=dataclasses.replace(series.options, **change)),)
 
 
 def _case(name: str, duration: float = 2.0):
@@ -75,14 +85,18 @@ def test_rk4_converges_at_fourth_order(case, request):
     """RK4 with Baumgarte, dt 1e-2 / 5e-3 / 2.5e-3 (finer steps reach the
     reference's own error, ~1e-9 m). Measured position errors: A01 3.2e-8,
     2.0e-9, 1.2e-10 m (orders 3.99, 4.05); A02 5.8e-8, 3.6e-9, 2.1e-10 m
-    (orders 4.00, 4.11); loop drift on A02 at most 1.6e-13 m."""
+    (order 4.00, then within the reference's stated error of 5.6e-10 m);
+    loop drift on A02 at most 1.6e-13 m."""
     kin, reference = request.getfixturevalue(case)
-    result = run_free(kin, reference, timesteps=(1e-2, 5e-3, 2.5e-3), settings=("rk4-baumgarte",))
+    result = run_free(MODE, kin, reference, series=_series("rk4-baumgarte"), steps=(1e-2, 5e-3, 2.5e-3))
     assert result.ok, result.reason
     summary, study = result.summary, result.study
     assert set(COLUMNS) <= set(summary.columns)
     assert list(summary.status) == ["ok"] * 3
-    assert study.order.iloc[1:].between(3.7, 4.4).all(), study
+    # an error within the reference's stated error (A02: 5.6e-10 m) has no order: it is not measured
+    measured = study[study.position_error > float(np.max(reference.estimate))]
+    assert len(measured) >= 2 and measured.order.iloc[1:].between(3.7, 4.4).all(), study
+    assert set(study.verdict) == {"converging"}
     assert summary.position_error.iloc[0] <= 1e-7
     assert summary.loop_drift.max() <= 1e-12
     # compared at reference outputs: 201 of them over 2 s, the start within round-off
@@ -95,7 +109,7 @@ def test_semi_implicit_euler_is_first_order_on_the_pendulum(a01):
     """Measured: 2.2e-3, 1.1e-3, 5.5e-4 m at dt 1e-3 / 5e-4 / 2.5e-4 (orders 1.00);
     the energy balance drifts as the error does (1.3e-2 J at 1e-3)."""
     kin, reference = a01
-    result = run_free(kin, reference, settings=("semi-implicit-euler-baumgarte",))
+    result = run_free(MODE, kin, reference, series=_series("semi-implicit-euler-baumgarte"))
     assert result.ok, result.reason
     assert result.study.order.iloc[1:].between(0.9, 1.1).all(), result.study
     assert 1e-3 <= result.summary.position_error.iloc[0] <= 5e-3
@@ -114,7 +128,7 @@ def test_default_ladder_on_the_double_four_bar(a02):
     Euler with Baumgarte 3.7e-6, 9.2e-7, 2.3e-7 m (order 2.00 on this
     1-dof motion)."""
     kin, reference = a02
-    result = run_free(kin, reference)
+    result = run_free(MODE, kin, reference)
     assert result.ok, result.reason
     summary = result.summary.set_index(["setting", "timestep"])
     assert (summary.status == "ok").all()
@@ -128,22 +142,24 @@ def test_default_ladder_on_the_double_four_bar(a02):
 def test_a_run_that_fails_is_a_row_with_its_status(a02):
     """Baumgarte gain 3 per step makes semi-implicit Euler diverge (measured:
     loops open by 1.5 m at 0.02 s, NaN at 0.007 s); proximal mu 1 softens the
-    loops until the motion leaves the branch (RK4 dt 1e-2: at t = 1.26 s)."""
+    loops until they come apart (RK4 dt 1e-2: 0.202 m open at t = 1.87 s; its
+    points are a tenth of the size from the reference's from 1.26 s on, which
+    alone is a phase error, not a failure)."""
     kin, reference = a02
-    result = run_free(kin, reference, settings=("semi-implicit-euler-baumgarte",), baumgarte=3.0)
+    result = run_free(MODE, kin, reference, series=_series("semi-implicit-euler-baumgarte", baumgarte=3.0))
     assert not result.ok and result.reason.startswith("no run went through")
     assert len(result.summary) == 3 and not (result.summary.status == "ok").any()
-    assert result.summary.status.str.contains("loops opened|NaN at t").all()
-    assert result.study.position_error.isna().all()
-    soft = run_free(kin, reference, settings=("rk4",), timesteps=(1e-2,), mu=1.0)
-    assert soft.summary.status.iloc[0].startswith("left the branch at t ≈ 1.26 s")
-    assert soft.summary.simulated.iloc[0] == pytest.approx(1.26)
+    assert result.summary.status.str.contains("came apart|went non-finite").all()
+    assert result.study.order.isna().all() and set(result.study.verdict) == {"cannot tell"}  # none counts
+    soft = run_free(MODE, kin, reference, series=_series("rk4", mu=1.0), steps=(1e-2,))
+    assert soft.summary.status.iloc[0].startswith("came apart at t = 1.87 s (loops 0.202 m open)")
+    assert soft.summary.simulated.iloc[0] == pytest.approx(1.87)
 
 
 def test_bad_time_step_fails_in_one_line(a01):
     kin, reference = a01
-    result = run_free(kin, reference, timesteps=(3e-3,))
-    assert not result.ok and "divide the output step 0.01 s" in result.reason
+    result = run_free(MODE, kin, reference, steps=(3e-3,))
+    assert not result.ok and "the step does not divide the output step (0.01 s)" in result.reason
 
 
 @pytest.mark.slow
@@ -153,8 +169,8 @@ def test_rk4_without_correction_dies_at_the_fourth_singular_pass():
     until then the error grows to 9.4e-6 m (the reference over 3.5 s: ~11 s CPU)."""
     kin, reference = _case("iftomm-a02", 3.5)
     assert reference.motion.singular_passes[3] == pytest.approx(3.17, abs=0.01)
-    result = run_free(kin, reference, settings=("rk4",), timesteps=(1e-3,))
-    assert result.summary.status.iloc[0] == "NaN at t = 3.174 s"
+    result = run_free(MODE, kin, reference, series=_series("rk4"), steps=(1e-3,))
+    assert result.summary.status.iloc[0] == "went non-finite at t = 3.174 s"
     assert 1e-6 <= result.summary.position_error.iloc[0] <= 1e-4
 
 
@@ -194,7 +210,7 @@ def test_constant_loads_and_springs_are_generalised_forces(tmp_path):
     )
     for path, duration in ((loaded, 1.0), (DATA / "spring-block.toml", 0.5)):
         kin = Kinematics(load_mechanism(path))
-        result = run_free(kin, simulate(kin, None, duration=duration), settings=("rk4",), timesteps=(1e-3,))
+        result = run_free(MODE, kin, simulate(kin, None, duration=duration), series=_series("rk4"), steps=(1e-3,))
         assert result.ok, result.reason
         row = result.summary.iloc[0]
         assert row.position_error <= 1e-9

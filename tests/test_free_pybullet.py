@@ -19,17 +19,19 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import DATA, MODELS, assert_first_order
+from conftest import DATA, MODELS, assert_first_order, run_free
 
 pytest.importorskip("pybullet")
 
 from xcheck import Kinematics, engines, load_mechanism  # noqa: E402
 from xcheck.dynamics._free import simulate  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
-from xcheck.engines.pybullet import free  # noqa: E402
-from xcheck.engines.pybullet.free import p, run_free  # noqa: E402
+from xcheck.engines.pybullet import model  # noqa: E402
+from xcheck.engines.pybullet.model import p  # noqa: E402
 from xcheck.simulation import simulate_all  # noqa: E402
 from xcheck.topology import Topology, spanning_tree  # noqa: E402
+
+MODE = "pybullet-free"
 
 
 def _reference(path, duration: float | None = None):
@@ -55,7 +57,7 @@ def test_registered_as_a_free_mode():
 
 def test_pendulum_converges_at_first_order():
     kin, reference = _reference(MODELS / "benchmarks" / "iftomm-a01.toml", 2.0)
-    result = run_free(kin, reference)
+    result = run_free(MODE, kin, reference)
     assert result.ok and (result.summary["status"] == "ok").all()
     for setting in ("default", "best"):
         errors = _errors(result.summary, setting)
@@ -69,7 +71,7 @@ def test_pendulum_converges_at_first_order():
 def test_double_fourbar_stays_on_the_branch_through_singular_passes():
     kin, reference = _reference(MODELS / "benchmarks" / "iftomm-a02.toml", 2.0)
     assert len(reference.motion.singular_passes) >= 2
-    result = run_free(kin, reference)
+    result = run_free(MODE, kin, reference)
     assert result.ok and (result.summary["status"] == "ok").all(), result.summary["status"].tolist()
     best = _errors(result.summary, "best")
     assert best[0] <= 1e-5 and best[-1] <= 6e-7, best  # measured 3.66e-6 and 2.29e-7 m
@@ -83,7 +85,7 @@ def test_double_fourbar_stays_on_the_branch_through_singular_passes():
 @pytest.mark.slow
 def test_loads_springs_and_dampers_converge_at_first_order():
     kin, reference = _reference(DATA / "fourbar-loaded.toml")
-    result = run_free(kin, reference)
+    result = run_free(MODE, kin, reference)
     assert result.ok and (result.summary["status"] == "ok").all()
     errors = _errors(result.summary, "best")
     assert all(0.8 <= order <= 1.2 for order in _orders(errors)), errors
@@ -102,7 +104,7 @@ def test_prismatic_joints_on_the_tree_converge_at_first_order(name, bound):
     damper c = 4 N s/m, 2 s) and tests/data/sleeve.toml (a rod through an inclined
     sleeve: the line on the moving body, locked angle -30 deg, 1 s)."""
     kin, reference = _reference(DATA / f"{name}.toml")
-    result = run_free(kin, reference)
+    result = run_free(MODE, kin, reference)
     assert result.ok and (result.summary["status"] == "ok").all()
     errors = _errors(result.summary, "best")
     assert all(0.9 <= order <= 1.1 for order in _orders(errors)), errors
@@ -119,11 +121,11 @@ def test_pin_in_slot_and_sliding_cuts_are_refused(monkeypatch):
     topology = spanning_tree(kin.mechanism)
     slide = next(tj for tj in topology.tree if tj.joint.name == "slide")
     tree = tuple(tj for tj in topology.tree if tj is not slide)
-    monkeypatch.setattr(free, "spanning_tree", lambda mechanism: Topology(tree, (*topology.cuts, slide.joint)))
+    monkeypatch.setattr(model, "spanning_tree", lambda mechanism: Topology(tree, (*topology.cuts, slide.joint)))
     client = p.connect(p.DIRECT)
     try:
         with pytest.raises(NotApplicable, match="cut at the prismatic joint 'slide'"):
-            free.build(kin, client)
+            model.build(kin, client)
     finally:
         p.disconnect(client)
 
@@ -136,4 +138,4 @@ def test_rotational_springs_and_time_laws_converge_at_first_order(name):
     6.05e-5 m at dt = 1, 0.5, 0.25 ms with either setting: MuJoCo's Euler to three digits."""
     kin = Kinematics(load_mechanism(DATA / f"{name}.toml"))
     kin.assemble()
-    assert_first_order(run_free(kin, simulate(kin)), 7e-5)  # 7e-5 m at 0.25 ms
+    assert_first_order(run_free(MODE, kin, simulate(kin)), 7e-5)  # 7e-5 m at 0.25 ms

@@ -15,11 +15,11 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import DATA, MODELS, assert_first_order
+from conftest import DATA, MODELS, assert_first_order, run_free
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.dynamics._free import simulate
-from xcheck.engines.pymunk.free import APART, run_free
+from xcheck.ladder import APART
 
 
 def _reference(name: str, duration: float):
@@ -31,7 +31,7 @@ def _reference(name: str, duration: float):
 @pytest.fixture(scope="module")
 def pendulum():
     kin, reference = _reference("iftomm-a01", 2.0)
-    return kin, reference, run_free(kin, reference)
+    return kin, reference, run_free("pymunk-free", kin, reference)
 
 
 def test_pendulum_converges_at_first_order(pendulum):
@@ -44,13 +44,14 @@ def test_pendulum_converges_at_first_order(pendulum):
     best = result.summary[(result.summary["setting"] == "best") & (result.summary["timestep"] == 2.5e-4)].iloc[0]
     assert best["position_error"] <= 1e-3  # measured 5.6e-4 m
     assert best["loop_drift"] <= 2e-6  # measured 6.1e-7 m
-    assert list(result.study.columns) == ["series", "timestep", "position_error", "status", "order"]
+    assert list(result.study.columns) == ["series", "timestep", "position_error", "status", "order", "verdict"]
+    assert set(result.study.verdict) == {"converging"}
 
 
 @pytest.mark.slow
 def test_double_fourbar_runs_that_leave_the_branch_say_so():
     kin, reference = _reference("iftomm-a02", 2.0)
-    result = run_free(kin, reference)
+    result = run_free("pymunk-free", kin, reference)
     assert len(result.summary) == 6
     for row in result.summary.itertuples():  # leaving the branch is far from the reference's whole path
         left = row.status.startswith("left the branch")
@@ -75,4 +76,4 @@ def test_springs_and_dampers_converge_at_first_order(name):
     solver setting; with the rest angle's sign not flipped the disc settled 0.11 m away."""
     kin = Kinematics(load_mechanism(DATA / f"{name}.toml"))
     kin.assemble()
-    assert_first_order(run_free(kin, simulate(kin)), 7e-5)  # 7e-5 m at 0.25 ms
+    assert_first_order(run_free("pymunk-free", kin, simulate(kin)), 7e-5)  # 7e-5 m at 0.25 ms

@@ -302,7 +302,7 @@ def test_a_mode_with_unobserved_orders_and_a_fixed_bound_failure_is_the_engines(
 
 
 def test_a_stated_finding_is_the_engines_result():
-    """A mode failing only in its engine's stated findings (xcheck.engines.Mode.findings)
+    """A mode failing only in its engine's stated findings (xcheck.engines.Engine.findings)
     is an engine-stated row with the finding as its reason, not a disagreement."""
     from xcheck import engines
     from xcheck.fuzz import Case, run_case
@@ -317,8 +317,10 @@ def test_a_stated_finding_is_the_engines_result():
                 "fuzz-toy-kinematic",
                 "kinematic",
                 Tolerance(1e-8, 1e-12, 1e-12, 1e-12, "positions within 1e-8 of the size"),
-                findings={"position": "the toy moves every position by 1e-6 of the size"},
             ),
+        )
+        findings = (
+            engines.Finding("the toy moves", "the toy moves every position by 1e-6 of the size", ("position",)),
         )
 
         def run(self, mode, kinematics, *, native, samples, branch=None):

@@ -15,7 +15,8 @@ from conftest import DATA, MODELS
 
 from xcheck import api, engines
 from xcheck.fuzz import _engine_limitation, _force_origin
-from xcheck.results import ModeResult, convergence_study, trajectory_from_solution
+from xcheck.ladder import convergence_study
+from xcheck.results import ModeResult, trajectory_from_solution
 from xcheck.runner import REFINEMENTS
 from xcheck.tolerances import Tolerance
 

@@ -342,10 +342,11 @@ def engines_command(
                     "kind": m.kind,
                     "trusted_for": mode_trust(m),
                     "on_request": m.on_request,
-                    "findings": dict(m.findings),
+                    "findings": list(dict.fromkeys(q for f in e.findings if m.kind in f.kinds for q in f.quantities)),
                 }
                 for m in e.modes
             ],
+            "findings": [f.as_dict() for f in e.findings],
             "forces": e.force_tolerance is not None,
             "export_format": e.export_format,
             "notes": e.notes,

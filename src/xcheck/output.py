@@ -59,6 +59,8 @@ def print_engines(console: Console, rows: list[dict]) -> None:
         version = row["version"] if row["available"] else f"[red]{escape(row['reason'])}[/red]"
         for k, mode in enumerate(row["modes"]):
             findings = ", ".join(_CATEGORY_WORDS.get(c, c) for c in mode["findings"]) or "—"
+            loops = [f["closed_loops"] for f in row.get("findings", ()) if mode["kind"] in f["kinds"]]
+            findings += " (closed loops)" if loops and all(loops) else ""
             kind = mode["kind"] + (" (on request)" if mode["on_request"] else "")
             table.add_row(
                 escape(row["name"]) if k == 0 else "",
@@ -828,20 +830,24 @@ def simulation_json(reference, result=None) -> dict:
 
 
 def _free_mode_json(outcome) -> dict:
-    """A free mode's result: ok, reason and its ladder (one row per run, SI)."""
+    """A free mode's result: ok, reason, its ladder (one row per run, SI) and each
+    series' verdict (:func:`xcheck.ladder.ladder_verdicts`)."""
+    from .ladder import ladder_verdicts
 
     def cell(value):
         if isinstance(value, (bool, np.bool_)):
             return bool(value)
         if isinstance(value, (int, float, np.integer, np.floating)):
             return _number(value)
-        return None if value is None else str(value)
+        return None if value is None or value == "" else str(value)
 
     rows = [] if outcome.summary is None else outcome.summary.to_dict("records")
+    study = outcome.study
     return {
         "ok": outcome.ok,
         "reason": outcome.reason or None,
         "ladder": [{str(k): cell(v) for k, v in row.items()} for row in rows],
+        "convergence": {} if study is None or study.empty else ladder_verdicts(study),
     }
 
 
@@ -876,6 +882,7 @@ def print_simulation(console, reference, result=None, report: str | None = None)
             "best run",
             "error [m]",
             "order",
+            "convergence",
             "loop drift [m]",
             "energy drift [J]",
             "CPU [s per s]",
@@ -891,7 +898,7 @@ def print_simulation(console, reference, result=None, report: str | None = None)
             broken = len(ladder) - len(ran)
             if not entry["ok"] or not ran:
                 why = entry["reason"] or "no run reached the end"
-                table.add_row(escape(mode), str(len(ladder)), f"[red]failed[/red]: {escape(why)}", *[""] * 6)
+                table.add_row(escape(mode), str(len(ladder)), f"[red]failed[/red]: {escape(why)}", *[""] * 7)
                 continue
             best = min(ran, key=lambda row: row["position_error"])
             table.add_row(
@@ -899,7 +906,8 @@ def print_simulation(console, reference, result=None, report: str | None = None)
                 str(len(ladder)),
                 escape(f"{best.get('setting', '')} {best.get('integrator', '')} {_e(best.get('timestep'))} s".strip()),
                 _e(best["position_error"]),
-                "—" if best.get("observed_order") is None else f"{best['observed_order']:.2g}",
+                "—" if best.get("order") is None else f"{best['order']:.2g}",
+                escape(entry["convergence"].get(best.get("series", ""), "").split(" (")[0]) or "—",
                 _e(best.get("loop_drift")),
                 _e(best.get("energy_drift")),
                 _e(best.get("cpu_per_simulated_second")),
@@ -908,7 +916,8 @@ def print_simulation(console, reference, result=None, report: str | None = None)
         print_table(console, table)
         console.print(
             "  best run: the setting and step of the smallest largest point error against the reference; order: "
-            "observed as the step halves; breakdowns: runs that blew up or left the branch",
+            "observed as the step halves; convergence: its series' (not converging: the error does not fall with "
+            "the step); breakdowns: runs that blew up, came apart or left the branch",
             highlight=False,
         )
     for mode, reason in doc["not_applicable"].items():

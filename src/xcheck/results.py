@@ -27,10 +27,6 @@ __all__ = [
     "ModeResult",
     "differences",
     "native_at",
-    "observed_order",
-    "convergence_study",
-    "empty_study",
-    "STUDY_COLUMNS",
     "relative_to_floored_scale",
     "sample_errors",
     "scale_floors",
@@ -46,36 +42,6 @@ POINT_QUANTITIES = {"position": 2, "velocity": 2, "acceleration": 2}
 SCALE_FLOOR = 1e-3
 #: m/s^2: sets the time scale sqrt(L / g) of a mechanism whose inputs do not move
 STANDARD_GRAVITY = 9.80665
-
-
-def observed_order(
-    coarse_error: float, fine_error: float, coarse_step: float, fine_step: float, floor: float = 0.0
-) -> float:
-    """The observed order of convergence between two runs,
-    log(e_coarse / e_fine) / log(h_coarse / h_fine).
-
-    Parameters
-    ----------
-    coarse_error, fine_error : float
-        The errors of the runs at the time steps ``coarse_step`` and
-        ``fine_step`` (any consistent units).
-    floor : float
-        Errors at or below this are round-off: no order.
-
-    Returns
-    -------
-    float
-        NaN where either error is not finite or not above ``floor``, or the
-        steps are equal or not positive.
-    """
-    values = (coarse_error, fine_error, coarse_step, fine_step)
-    if not all(math.isfinite(float(v)) for v in values):
-        return math.nan
-    if coarse_error <= floor or fine_error <= floor or coarse_error <= 0.0 or fine_error <= 0.0:
-        return math.nan
-    if coarse_step <= 0.0 or fine_step <= 0.0 or coarse_step == fine_step:
-        return math.nan
-    return math.log(coarse_error / fine_error) / math.log(coarse_step / fine_step)
 
 
 def scale_floors(mechanism, input_rates, input_accelerations) -> dict[str, float]:
@@ -209,7 +175,7 @@ class ModeResult:
     integrator, ...), the first being the one the comparison uses.
     ``summary`` is an optional table of the engine's own (e.g. every run's
     errors and diagnostics); a dynamic mode's ``study`` is its error against
-    time step (:func:`convergence_study`), the same for every engine.
+    time step (:func:`xcheck.ladder.convergence_study`), the same for every engine.
     """
 
     mode: str
@@ -219,62 +185,6 @@ class ModeResult:
     trajectories: list = field(default_factory=list)
     summary: pd.DataFrame | None = None
     study: pd.DataFrame | None = None
-
-
-#: the columns of a convergence study
-STUDY_COLUMNS = ("series", "timestep", "position_error", "status", "order")
-
-
-def empty_study() -> pd.DataFrame:
-    """A convergence study without runs."""
-    import pandas as pd
-
-    return pd.DataFrame(columns=list(STUDY_COLUMNS))
-
-
-def convergence_study(series, timestep, position_error, status, floor: float = 0.0) -> pd.DataFrame:
-    """A dynamic mode's error against time step, in one shape for every engine.
-
-    Parameters
-    ----------
-    series : sequence of str
-        What makes runs of one ladder (integrator and settings), per run.
-    timestep : sequence of float
-        Time step of each run, s.
-    position_error : sequence of float
-        Largest position error of each run, m (NaN where it failed).
-    status : sequence of str
-        "ok" or the run's failure, one line.
-    floor : float
-        Errors at or below this (m) are round-off: no order.
-
-    Returns
-    -------
-    DataFrame
-        The columns of :data:`STUDY_COLUMNS`, sorted by series then falling
-        time step; ``order`` is :func:`observed_order` between a run and the
-        previous (coarser) one of its series, NaN for the first.
-    """
-    import pandas as pd
-
-    table = pd.DataFrame(
-        {
-            "series": [str(v) for v in series],
-            "timestep": np.asarray(timestep, dtype=float),
-            "position_error": np.asarray(position_error, dtype=float),
-            "status": [str(v) for v in status],
-        }
-    )
-    table = table.sort_values(["series", "timestep"], ascending=[True, False]).reset_index(drop=True)
-    orders = [math.nan] * len(table)
-    for i in range(1, len(table)):
-        coarse, fine = table.iloc[i - 1], table.iloc[i]
-        if coarse.series == fine.series:
-            orders[i] = observed_order(
-                coarse.position_error, fine.position_error, coarse.timestep, fine.timestep, floor
-            )
-    table["order"] = orders
-    return table
 
 
 def trajectory_from_solution(solution: Solution, source: str = "native") -> Trajectory:

@@ -35,18 +35,9 @@ from .dynamics import (
 from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
+from .ladder import ORDER_MARGIN, applicable_findings, convergence_study, empty_study, observed_order
 from .motion import drive_warnings, law_states, simulation_window, sweep_span
-from .results import (
-    ModeResult,
-    Trajectory,
-    convergence_study,
-    differences,
-    empty_study,
-    native_at,
-    observed_order,
-    sample_errors,
-    scale_floors,
-)
+from .results import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
 from .tolerances import (
     CONDITIONING_FACTOR,
     ENGINE_CONDITIONING_FACTOR,
@@ -143,12 +134,6 @@ def tolerance(mode: str) -> Tolerance:
     return NATIVE_TOLERANCE if mode == "native" else engines.mode(mode).tolerance
 
 
-#: Accepted observed orders: at least the expected one less ORDER_MARGIN. An
-#: error C h^p (1 + e h) shows the order p - log2(1 + e h) + ... between h and
-#: h / 2; a margin of 0.5 is halfway to the next lower integer order, so a
-#: lower-order defect (p - 1) fails and the next term may still be a good part
-#: of the leading one. A higher order means the error falls at least as fast.
-ORDER_MARGIN = 0.5
 #: How many times a dynamic mode whose observed order falls short is run again
 #: with its finest step halved once more (:meth:`xcheck.engines.Engine.run`'s
 #: ``refine``): near a singular configuration a ladder's finest pair may not yet
@@ -203,6 +188,9 @@ class ModeOutcome:
         sample of the trajectory (SI), for plots.
     seconds : float
         Wall time of the mode.
+    findings : dict of str to tuple of Finding
+        Per category, the engine's stated findings that hold for it on this
+        mechanism (:func:`xcheck.ladder.applicable_findings`).
     """
 
     mode: str
@@ -215,19 +203,19 @@ class ModeOutcome:
     trajectory: Trajectory | None = None
     errors: dict = field(default_factory=dict)
     seconds: float = 0.0
+    findings: dict = field(default_factory=dict)
 
     @property
     def finding(self) -> str:
-        """The engine's stated defect (:attr:`xcheck.engines.Mode.findings`) where
-        every category the mode fails is one of them; "" where it passed, did
-        not run, or fails a category that is not a stated finding."""
+        """The engine's stated defects (:attr:`xcheck.engines.Engine.findings`) where
+        every category the mode fails has one that holds (:attr:`findings`); ""
+        where it passed, did not run, or fails a category no finding explains."""
         if not self.ok or self.passed or self.categories.empty or self.mode == "native":
             return ""
-        findings = engines.mode(self.mode).findings
         failing = self.categories.category[~self.categories.passed.astype(bool)]
-        if failing.empty or not all(category in findings for category in failing):
+        if failing.empty or not all(self.findings.get(category) for category in failing):
             return ""
-        return "; ".join(dict.fromkeys(findings[category] for category in failing))
+        return "; ".join(dict.fromkeys(f.text for category in failing for f in self.findings[category]))
 
     @property
     def verdict(self) -> str:
@@ -667,6 +655,10 @@ def _run_mode(
         categories = _with_basis(categories, _refinement_note(refine, orders), short)
         categories["refinements"] = refine
     passed = bool(not categories.empty and categories.passed.all())
+    engine, kind = engines.engine_of(mode), engines.mode(mode).kind
+    findings = {
+        c: tuple(applicable_findings(engine.findings, kind, c, kinematics.mechanism)) for c in categories.category
+    }
     return ModeOutcome(
         mode,
         True,
@@ -678,6 +670,7 @@ def _run_mode(
         trajectory,
         sample_errors(trajectory, reference),
         time.perf_counter() - start,
+        findings,
     )
 
 

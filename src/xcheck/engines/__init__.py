@@ -17,7 +17,7 @@ entry-point group ``xcheck.engines``.
 
 from __future__ import annotations
 
-from ._contract import DRIVEN_KINDS, KINDS, Engine, Mode, NotApplicable, with_unit_mass
+from ._contract import DRIVEN_KINDS, KINDS, Engine, Finding, Mode, NotApplicable, with_unit_mass
 from ._registry import (
     ALL,
     ENTRY_POINT_GROUP,
@@ -38,6 +38,7 @@ __all__ = [
     "KINDS",
     "DRIVEN_KINDS",
     "Engine",
+    "Finding",
     "Mode",
     "NotApplicable",
     "with_unit_mass",

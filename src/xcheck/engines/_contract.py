@@ -38,13 +38,15 @@ import dataclasses
 import importlib
 import importlib.machinery
 import importlib.util
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from functools import partial
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from xcheck.errors import NotApplicable
+from xcheck.ladder import FREE_STEPS, Finding, FreeProblem, Run, Rung, Series, free_study
 from xcheck.tolerances import Tolerance
 
 if TYPE_CHECKING:
@@ -59,6 +61,7 @@ __all__ = [
     "DRIVEN_KINDS",
     "Mode",
     "Engine",
+    "Finding",
     "NotApplicable",
     "POINT_MASS_INERTIA",
     "positive_inertia",
@@ -144,11 +147,6 @@ class Mode:
         Run in a fuzz campaign's default selection (:func:`xcheck.fuzz.campaign_modes`);
         False for a mode whose cost on each random mechanism would dominate
         the campaign (MJX's driven mode: a compilation for every mechanism).
-    findings : mapping of str to str
-        Categories in which the engine is known to be wrong, each with the
-        measured defect: the mode still fails them (``passed`` False, the
-        error and the bound shown), but a run whose only failures are stated
-        findings exits 0 (:attr:`xcheck.runner.ModeOutcome.finding`).
     cost : float
         Its CPU seconds on the bundled four-bar, as measured (``xcheck run
         fourbar --json``, its ``timings``; default 1, a typical mode): used only
@@ -165,7 +163,6 @@ class Mode:
     on_request: bool = False
     on_request_reason: str = ""
     campaigns: bool = True
-    findings: Mapping[str, str] = field(default_factory=dict)
     cost: float = 1.0
 
 
@@ -208,8 +205,18 @@ class Engine:
     implementation : str
         The module (imported when a mode runs) whose functions the default
         methods call: ``run_kinematic(kinematics, samples=, branch=)``,
-        ``run_dynamic(kinematics, branch=[, refine=])``, ``inverse_dynamics`` and
+        ``run_dynamic(kinematics, branch=[, refine=])``, the free ladder's
+        ``FREE_SERIES``, ``prepare_free(problem)`` and
+        ``run_free_once(prepared, problem, rung)``, ``inverse_dynamics`` and
         ``export_files``; an engine may override the methods instead.
+    findings : tuple of Finding
+        Where the engine is known to be wrong (:class:`xcheck.ladder.Finding`:
+        the quantities, the kinds of mode and the mechanisms where it holds,
+        with the measured defect): a mode failing only in findings that apply
+        still fails them (``passed`` False, the error and the bound shown), but a
+        run whose only failures are stated findings exits 0
+        (:attr:`xcheck.runner.ModeOutcome.finding`); every ladder row a finding
+        applies to carries its title.
     """
 
     name: ClassVar[str] = ""
@@ -227,6 +234,7 @@ class Engine:
     force_style: ClassVar[Mapping[str, object]] = {"lw": 1, "ls": "--"}
     notes: ClassVar[str] = ""
     implementation: ClassVar[str] = ""
+    findings: ClassVar[tuple[Finding, ...]] = ()
 
     def available(self) -> str:
         """Empty if the engine can run here, else the reason (one line)."""
@@ -282,26 +290,78 @@ class Engine:
         return function(kinematics, branch=branch)
 
     def run_free(
-        self, mode: str, kinematics: Kinematics, reference: FreeReference, branch: str | None = None
+        self,
+        mode: str,
+        kinematics: Kinematics,
+        reference: FreeReference,
+        branch: str | None = None,
+        *,
+        series: Sequence[Series] | None = None,
+        steps: Sequence[float] | None = None,
     ) -> ModeResult:
         """Run a ``free`` mode: the mechanism released as its ``[free_motion]``
         says, from the reference's initial state, compared with the reference.
 
+        The ladder is :func:`xcheck.ladder.free_study`'s, the same for every
+        engine: the engine's series (:meth:`free_series`, or ``series``) at the
+        ladder's time steps (:data:`xcheck.ladder.FREE_STEPS`, or ``steps``),
+        each run made by :meth:`run_free_once` from what :meth:`prepare_free`
+        built, and judged by one rule. An engine implements those three, not this.
+
         Returns
         -------
         ModeResult
-            ``trajectories``: one per run that went through, sampled at (a
-            subset of) ``reference.motion.times``, the most accurate first;
-            ``summary``: one row per run with at least setting, integrator,
-            timestep (s), steps, status ("ok" or why it failed: blew up, NaN,
-            left the branch), cpu_seconds, cpu_per_simulated_second,
-            position_error (m, the largest over the compared outputs and
-            points, :func:`xcheck.simulation.free_errors`), final_error (m),
-            loop_drift (m, the largest constraint violation), energy_drift (J,
-            the largest |E(t) - E(0) - W(t)| where the engine's energy is known);
-            ``study``: :func:`~xcheck.results.convergence_study` of the ladder.
+            See :func:`xcheck.ladder.free_study`.
+
+        Raises
+        ------
+        NotApplicable
+            What the engine cannot represent (from :meth:`prepare_free`).
         """
-        return self._function("run_free")(kinematics, reference, branch=branch)
+        return free_study(
+            mode,
+            kinematics,
+            reference,
+            self.free_series(mode, kinematics) if series is None else series,
+            partial(self.run_free_once, mode),
+            partial(self.prepare_free, mode),
+            self.findings,
+            FREE_STEPS if steps is None else steps,
+        )
+
+    def free_series(self, mode: str, kinematics: Kinematics) -> Sequence[Series]:
+        """The series of a free mode's ladder (:class:`xcheck.ladder.Series`): by
+        default :attr:`implementation`'s ``FREE_SERIES``."""
+        return tuple(self._function("FREE_SERIES"))
+
+    def prepare_free(self, mode: str, problem: FreeProblem) -> Any:
+        """What every run of a free ladder shares, built once (the engine's model
+        of the mechanism and its start); by default :attr:`implementation`'s
+        ``prepare_free(problem)``, or None where it has none.
+
+        Raises
+        ------
+        NotApplicable
+            What the engine cannot represent; any other exception fails the mode
+            as a whole, its message the reason.
+        """
+        module = importlib.import_module(self.implementation) if self.implementation else None
+        function = getattr(module, "prepare_free", None)
+        return None if function is None else function(problem)
+
+    def run_free_once(self, mode: str, prepared: Any, problem: FreeProblem, rung: Rung) -> Run:
+        """One free run: the series ``rung.series`` at ``rung.timestep`` (s), taking
+        ``rung.counts`` steps between the compared outputs ``problem.times`` from
+        the state ``problem.start``, stopped where it goes non-finite or comes
+        apart (:meth:`xcheck.ladder.FreeProblem.came_apart`); by default
+        :attr:`implementation`'s ``run_free_once(prepared, problem, rung)``.
+
+        Returns
+        -------
+        Run
+            The states it reached (:class:`xcheck.ladder.Run`), or its failure.
+        """
+        return self._function("run_free_once")(prepared, problem, rung)
 
     def inverse_dynamics(self, kinematics: Kinematics, branch: str | None = None, **options) -> Forces:
         """Reactions and driving efforts at the native states of the simulation
@@ -313,7 +373,7 @@ class Engine:
         return self._function("export_files")(kinematics)
 
     def _function(self, name: str):
-        """A function of :attr:`implementation` (imported now)."""
+        """A function (or constant) of :attr:`implementation` (imported now)."""
         if not self.implementation:
             raise NotImplementedError(f"{self.title or self.name} has no {name.replace('_', ' ')}")
         return getattr(importlib.import_module(self.implementation), name)

@@ -13,7 +13,8 @@ import pandas as pd
 
 from xcheck import engines
 from xcheck.kinematics import Kinematics, Solution, Status
-from xcheck.results import ModeResult, Trajectory, convergence_study, differences, native_at
+from xcheck.ladder import convergence_study
+from xcheck.results import ModeResult, Trajectory, differences, native_at
 
 __all__ = [
     "LEFT_BRANCH",

@@ -25,8 +25,6 @@ from ..tolerances import convergence_round_off  # noqa: E402
 __all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
 
 _NATIVE_STYLE = dict(color="black", lw=1.6, ls="-")
-#: an observed order below this is shown as "not converging" (the error does not fall with the step)
-NOT_CONVERGING = 0.5
 
 
 def _style(mode: str) -> dict:
@@ -515,11 +513,12 @@ def convergence_figure(run: RunResult):
             ok = part[part.position_error > 0]
             orders = part.order.dropna()
             label = str(series)
+            verdict = str(part.verdict.iloc[0]) if "verdict" in part else "converging"
             if noise:
                 label += ": at round-off, no order"
             elif len(orders):
                 order = float(orders.iloc[-1])
-                label += f": order {order:.2f}" if order >= NOT_CONVERGING else f": not converging (order {order:.2f})"
+                label += f": order {order:.2f}" if verdict == "converging" else f": {verdict} (order {order:.2f})"
             ax.loglog(ok.timestep, ok.position_error, "o-", ms=4, label=label)
         ax.margins(x=0.06, y=0.12)
         ax.autoscale_view()

@@ -20,8 +20,9 @@ import numpy as np  # noqa: E402
 
 from .. import engines  # noqa: E402
 from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
+from ..ladder import LADDER_COLUMNS, ladder_verdicts  # noqa: E402
 from ..runner import versions  # noqa: E402
-from ..simulation import LADDER_COLUMNS, SimulationResult  # noqa: E402
+from ..simulation import SimulationResult  # noqa: E402
 from . import _figures  # noqa: E402
 from ._evidence import Evidence  # noqa: E402
 from ._markdown import _g, _image, _provenance, _table, left_out_markdown  # noqa: E402
@@ -148,22 +149,19 @@ def mode_parts(result: SimulationResult, made: dict) -> dict[str, dict]:
     """What the report shows of each free mode of the run (JSON: its section,
     or why it did not run), with ``made``, where it comes from."""
     parts = {}
-    columns = [c for c in LADDER_COLUMNS if c != "order"]  # the orders follow the table
     for mode, outcome in result.outcomes.items():
         lines = [f"**`{mode}`**" + ("" if outcome.ok else f" — failed: {outcome.reason}")]
         summary = outcome.summary
         if summary is not None and not summary.empty:
-            shown = [c for c in columns if c in summary]
+            shown = [c for c in LADDER_COLUMNS if c in summary]
             rows = [[_cell(row[c]) for c in shown] for _, row in summary.iterrows()]
             lines.append(_table([c.replace("_", " ") for c in shown], rows))
         if outcome.study is not None and not outcome.study.empty:
-            orders = outcome.study.dropna(subset=["order"])
-            if not orders.empty:
-                lines.append(
-                    "Observed orders (position error between consecutive steps of a series): "
-                    + "; ".join(f"{r.series} {r.order:.2f} at {r.timestep:g} s" for r in orders.itertuples())
-                    + "."
-                )
+            lines.append(
+                "Convergence (the position error as the step halves): "
+                + "; ".join(f"{series} {verdict}" for series, verdict in ladder_verdicts(outcome.study).items())
+                + "."
+            )
         parts[mode] = {"section": "\n\n".join(lines), "ran": bool(outcome.ok), "produced": made}
     for mode, reason in result.not_applicable.items():
         parts[mode] = {"not_run": reason, "produced": made}

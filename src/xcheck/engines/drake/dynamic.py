@@ -1,5 +1,5 @@
 """Drake in driven dynamics (mode ``drake-dynamic``): the plant of
-:func:`.free.build` with a PD-controlled ``JointActuator`` on each driven joint
+:func:`.model.build` with a PD-controlled ``JointActuator`` on each driven joint
 (always a tree joint: the spanning tree takes the driven joints first), its
 desired state (the drivers' motion laws at the end of each step) on the
 plant's desired-state input port, stepped by the discrete SAP solver over
@@ -37,14 +37,14 @@ import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, empty_states, refined_steps
+from xcheck.engines._frames import loop_gap, world_point
 from xcheck.kinematics import Kinematics, Status
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
 from xcheck.results import ModeResult, Trajectory
-from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
-from .free import DrakeModel, _drake, apply_loads, build, refuse, set_state
+from .model import DrakeModel, apply_loads, build, drake, refuse, set_state
 
 __all__ = ["MODE", "STIFFNESS", "STEPS_PER_SAMPLE", "SAMPLES", "ERRORS", "gains", "simulate", "run_dynamic"]
 
@@ -213,7 +213,7 @@ def run_dynamic(
     Raises
     ------
     NotApplicable
-        What :func:`.free.build` cannot hold (:func:`.free.refuse`).
+        What :func:`.model.build` cannot hold (:func:`.model.refuse`).
 
     Notes
     -----
@@ -249,7 +249,7 @@ def run_dynamic(
         steps = refined_steps(steps[0], refine)
     massive = Kinematics(with_unit_mass(mech))
     refuse(mech, spanning_tree(mech))
-    _drake()  # pydrake imported before the first run's clock starts
+    drake()  # pydrake imported before the first run's clock starts
     try:
         window = simulation_window(kinematics, branch)
         q, qd, qdd = window.inputs(kinematics, np.zeros(1))

@@ -1,560 +1,120 @@
-"""Drake in free motion (mode ``drake-free``): the mechanism as a
-``MultibodyPlant(time_step=dt)`` whose loops are closed by ball constraints,
+"""Drake in free motion (mode ``drake-free``): the plant of :func:`.model.build`
 released at the native reference's initial state and stepped by Drake's
-discrete SAP solver, compared with the reference at its output times.
+discrete SAP solver; the ladder and its judgement are
+:func:`xcheck.ladder.free_study`'s.
 
-The tree is :func:`xcheck.topology.spanning_tree`'s: the ground is Drake's
-world body, each moving body a ``RigidBody`` whose frame is xcheck's body
-frame (origin and orientation), hung from its parent by a ``RevoluteJoint``
-about z between frames at the joint's point on either body (its coordinate
-is the child's angle minus the parent's) or a ``PrismaticJoint`` whose frames
-sit at the line point and the sliding point, the child's turned by the locked
-angle (its coordinate is xcheck's slide displacement). Each cut revolute is a
-ball constraint (``AddBallConstraint``) between its two points: a revolute
-cut says that two points coincide, which is what a ball constraint holds (its
-z row is idle, the tree keeps the plane). A distance constraint
-(``AddDistanceConstraint``) holds a rigid massless rod of positive length
-between two points, which is no joint of the canonical model (a binary link
-there has mass and is a body), so it is not used. Gravity is Drake's
-gravity field in the plane, the linear spring-dampers ``LinearSpringDamper``
-(the same law, k (l - l0) + c dl/dt), a rotational spring-damper across a
-tree revolute a ``RevoluteSpring`` on that joint plus the joint's viscous
-damping, the loads ``ExternallyAppliedSpatialForce`` s on the plant's applied
-spatial force input (a time law: its value at each step's start, as Drake's
-discrete update samples its inputs). Not converted
-(:class:`~xcheck.engines.NotApplicable`): a pin-in-slot joint (Drake has no
-such joint; a massless carrier link is not built here), a loop cut at a
-prismatic joint (a weld constraint on a carrier, not built here), a
-rotational spring across a cut joint (Drake's springs act on joint
-coordinates) and a spring of rest length 0 (``LinearSpringDamper`` needs a
-positive free length).
-
-The ladder (:data:`FREE_SETTINGS` x :data:`FREE_STEPS`, scaled by
-:func:`~xcheck.simulation.ladder_steps`): the plant as a user builds it
-(``default``: ``MultibodyPlant(time_step)``, Drake's defaults) and at its best
-(``best``: the same plant at a quarter of the steps). The time step is the one
-knob that reaches the loops: the ball constraint's near-rigid parameter is
-fixed inside Drake (beta 0.1, ``SapBallConstraint``), the plant's
+The series: the plant as a user builds it (``default``:
+``MultibodyPlant(time_step)``, Drake's defaults) and at its best (``best``: the
+same plant at a quarter of the steps). The time step is the one knob that
+reaches the loops: the ball constraint's near-rigid parameter is fixed inside
+Drake (beta 0.1, ``SapBallConstraint``), the plant's
 ``set_sap_near_rigid_threshold`` and ``set_discrete_contact_approximation``
 act on contact only (on A02 over 2 s, kSap with beta 0 gave the defaults'
 (lagged, beta 1) errors, drift and energy to every printed digit; over 1 s, so
-did beta 1e-3 and 10 and the kSimilar approximation), and
-SAP's solver tolerances are not in pydrake. The discrete scheme is first order
-(the new velocities implicit in the constraints, joint damping and the
-near-rigid compliance, the positions from the new velocities). A run that goes
-non-finite, comes apart (a loop gap above a tenth of the size) or leaves the
-reference's path is a row with its time, not an exception.
+did beta 1e-3 and 10 and the kSimilar approximation), and SAP's solver
+tolerances are not in pydrake. The discrete scheme is first order (the new
+velocities implicit in the constraints, joint damping and the near-rigid
+compliance, the positions from the new velocities).
 
-pydrake 1.51.1 crashes the process (a segmentation fault in its SAP driver) on
-a ball constraint between the world body and a body, either way round
-(reproduced with two links and one constraint); a loop cut at the ground is
-therefore closed on a body welded to the world at its frame (``ground-anchor``),
-which runs.
+Measured with pydrake 1.51.1 (``xcheck simulate NAME --engines drake-free``, 2
+shared cores), largest error over the outputs at dt = 1, 0.5, 0.25 ms (best:
+0.25, 0.125, 0.0625 ms; A03 10, 5, 2.5 us and a quarter of them), CPU seconds
+per simulated second:
 
-Measured on the IFToMM benchmarks: see :func:`run_free`.
+- A01 pendulum, 10 s: 2.215e-3, 1.107e-3, 5.54e-4 m, best down to 1.38e-4 m,
+  order 1.00 (PyBullet's semi-implicit Euler to four digits); energy drift
+  1.35e-2 .. 8.4e-4 J; 0.013 .. 0.18 s.
+- A02 double four-bar, 10 s, ten singular passes: on the parallelogram branch
+  throughout, loops closed to 9e-8 .. 2.2e-9 m, energy drift 9.1e-2 .. 6.0e-3 J
+  (first order), but the position error does not fall with the step: 6.9e-4,
+  2.1e-4, 5.2e-4 m, best 5.2e-4, 3.1e-4, 8.6e-4 m (orders 1.7, -1.3, 0.7, -1.5);
+  0.18 .. 2.7 s. Up to the first pass (0.714 s) the error falls as dt^2
+  (7.2e-7, 1.8e-7, 4.5e-8 m at 0.7 s, dt = 0.5, 0.25, 0.125 ms); by 1.2 s, just
+  before the second pass (1.228 s), it stops falling (6.9e-7, 3.5e-7, 2.9e-7
+  m), and from then on a part that no step removes dominates and grows through
+  the slow swing that follows (2.8 .. 3.4e-6 m at 2 s, 3.0 .. 3.6e-5 m at 3 s
+  for each step). Cutting the loops elsewhere changes nothing in kind: a chain
+  tree cut at the two ground pivots O2, O3 (through the anchor) converges to
+  1.0 s (9.7e-7, 3.1e-7, 6.6e-8 m) and is erratic by 1.2 s (6.6e-7, 3.2e-7,
+  1.27e-6 m: the finest step the worst). Where it comes from is not
+  established: the loops' constraint rows turn dependent at the singular
+  positions, where the fixed near-rigid regularisation and SAP's stopping
+  tolerance (neither reachable from pydrake) may set the answer rather than
+  the step.
+- A03 Andrews' squeezer, 0.03 s: 3.42e-4, 1.71e-4, 8.54e-5 m, best down to
+  2.13e-5 m, order 1.00 (PyBullet's figures); loops open by 1.1e-6 .. 4.4e-9 m
+  (order 2); 23 .. 281 s.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
 
-import numpy as np
-import pandas as pd
+from xcheck.engines._frames import FrameRecorder
+from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
+from xcheck.topology import spanning_tree
 
-from xcheck.dynamics._forces import require_mass_data
-from xcheck.dynamics._free import FreeReference
-from xcheck.engines._contract import NotApplicable
-from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from xcheck.results import ModeResult, Trajectory, convergence_study
-from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
-from xcheck.topology import Topology, spanning_tree
+from .model import apply_loads, build, drake, energy, refuse, set_state
 
-__all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "DrakeModel", "build", "set_state", "run_free"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
 
 MODE = "drake-free"
-#: samples compared with the reference (about; a whole number of outputs apart)
-COMPARED = 200
-#: a loop gap, or a distance from every configuration the reference passes, above
-#: this fraction of the size: the run came apart or left the branch
-APART = 0.1
+FREE_SERIES = (Series("default", "discrete SAP"), Series("best", "discrete SAP, steps / 4", scale=0.25))
 
 
-@dataclass(frozen=True)
-class FreeSetting:
-    """A run's plant: ``refine`` divides the ladder's time steps. Drake's discrete
-    approximation (``set_discrete_contact_approximation``) and SAP's near-rigid
-    threshold (``set_sap_near_rigid_threshold``) reach contact only: a ball constraint's
-    near-rigid parameter is fixed in Drake (0.1), so the time step is the one knob."""
-
-    name: str
-    refine: int = 1
-
-    @property
-    def integrator(self) -> str:
-        return "discrete SAP" + ("" if self.refine == 1 else f", steps / {self.refine}")
-
-
-FREE_SETTINGS = (FreeSetting("default"), FreeSetting("best", 4))
-FREE_STEPS = (1e-3, 5e-4, 2.5e-4)
-
-
-@dataclass
-class DrakeModel:
-    """The mechanism in a finalized MultibodyPlant and a context of it.
-
-    Attributes
-    ----------
-    plant : pydrake.multibody.plant.MultibodyPlant
-    context : pydrake.systems.framework.Context
-    bodies : dict of str to RigidBody
-        Moving body -> Drake's body (its frame: xcheck's body frame).
-    joints : dict of str to Joint
-        Moving body -> its tree joint (RevoluteJoint or PrismaticJoint).
-    parents : dict of str to str
-        Moving body -> its parent in the tree (GROUND for the world).
-    turns : dict of str to float
-        Moving body -> its angle minus its parent's at joint coordinate 0, rad
-        (0 for a revolute, +-the locked angle for a prismatic joint).
-    cuts : list of (str, ndarray, str, ndarray)
-        Per ball constraint: (body, point in its frame, body, point in its frame).
-    loads : list
-        (Drake body index, point (3,) in the body frame, force (2,) N, torque N m, law or None)
-        per load on a moving body.
-    """
-
-    plant: Any
-    context: Any
-    bodies: dict[str, Any]
-    joints: dict[str, Any]
-    parents: dict[str, str]
-    turns: dict[str, float]
-    cuts: list[tuple[str, np.ndarray, str, np.ndarray]]
-    loads: list[tuple[Any, np.ndarray, np.ndarray, float, Any]]
-
-    def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float]]:
-        """Per moving body: frame origin (2,) m, angle rad (continuous: parents' angles plus
-        joint coordinates), origin velocity (2,) m/s and rate rad/s."""
-        out: dict[str, tuple[np.ndarray, float, np.ndarray, float]] = {}
-        for name, body in self.bodies.items():  # parents first (tree order)
-            joint = self.joints[name]
-            base = out.get(self.parents[name])
-            phi0, omega0 = (0.0, 0.0) if base is None else (base[1], base[3])
-            pose = self.plant.EvalBodyPoseInWorld(self.context, body)
-            velocity = self.plant.EvalBodySpatialVelocityInWorld(self.context, body)
-            if joint.type_name() == "revolute":
-                phi = phi0 + joint.get_angle(self.context)
-            else:
-                phi = phi0 + self.turns[name]
-            omega = float(velocity.rotational()[2])
-            out[name] = (
-                np.asarray(pose.translation()[:2]),
-                float(phi),
-                np.asarray(velocity.translational()[:2]),
-                omega,
-            )
-        return out
-
-
-def _drake():
-    """pydrake's modules this engine uses (imported when a mode runs)."""
-    import pydrake.systems.analysis  # noqa: F401 - the simulator, imported with the rest
-    from pydrake.math import RigidTransform, RotationMatrix
-    from pydrake.multibody import plant, tree
-
-    return plant, tree, RigidTransform, RotationMatrix
-
-
-def refuse(mech: Mechanism, topology: Topology) -> None:
-    """:class:`NotApplicable` with the reason if the Drake model here cannot hold the mechanism."""
-    slots = [j for j in mech.joints if isinstance(j, PinInSlot)]
-    if slots:
-        raise NotApplicable(
-            f"joint {slots[0].name!r} is a pin-in-slot: Drake has no pin-in-slot joint and xcheck's Drake model "
-            "has revolute and prismatic joints only (a massless carrier link is not built)"
-        )
-    sliding = [j for j in topology.cuts if not isinstance(j, Revolute)]
-    if sliding:
-        raise NotApplicable(
-            f"a loop is cut at the prismatic joint {sliding[0].name!r}: xcheck's Drake model closes loops with "
-            "ball constraints only (a carrier welded by AddWeldConstraint is not built)"
-        )
-    cut = {j.name for j in topology.cuts}
-    across = [s for s in mech.rotational_springs if s.joint in cut]
-    if across:
-        raise NotApplicable(
-            f"rotational spring {across[0].name!r} acts across the cut joint {across[0].joint!r}: Drake's "
-            "RevoluteSpring acts on a tree joint's coordinate"
-        )
-    short = [s for s in mech.springs if not s.rest_length > 0.0]
-    if short:
-        raise NotApplicable(
-            f"spring {short[0].name!r} has rest length 0: Drake's LinearSpringDamper needs a positive free length"
-        )
-
-
-def build(kinematics: Kinematics, dt: float, pd: Mapping[str, tuple[float, float]] | None = None) -> DrakeModel:
-    """The mechanism as a finalized MultibodyPlant with time step ``dt`` (s) and a
-    default context (see the module's notes).
-
-    Parameters
-    ----------
-    pd : mapping of str to (float, float), optional
-        Tree joint name -> (Kp, Kd): a ``JointActuator`` of that name on the joint, no
-        effort limit, with SAP's implicit PD controller of these gains (N m/rad and
-        N m s/rad, or N/m and N s/m), its desired state on the plant's desired-state
-        input port (the driven mode's drivers).
+def prepare_free(problem: FreeProblem) -> None:
+    """Refuse what the Drake model cannot hold, and import pydrake before the first run's clock starts.
 
     Raises
     ------
     NotApplicable
-        What the Drake model cannot hold (:func:`refuse`).
-    ModelError
-        If a moving body has no mass data.
+        :func:`.model.refuse`'s.
     """
-    plant_module, tree_module, RigidTransform, RotationMatrix = _drake()
-    mech = kinematics.mechanism
-    require_mass_data(mech)
-    topology = spanning_tree(mech)
-    refuse(mech, topology)
-    plant = plant_module.MultibodyPlant(time_step=dt)
-    world = plant.world_body()
-
-    def xyz(xy) -> np.ndarray:
-        return np.array([float(xy[0]), float(xy[1]), 0.0])
-
-    bodies: dict[str, Any] = {}
-    for body in mech.moving_bodies:
-        assert body.mass is not None and body.inertia is not None
-        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-        inertia = float(body.inertia)  # about z; x and y play no part in the plane (equal: a valid tensor)
-        spatial = tree_module.SpatialInertia.MakeFromCentralInertia(
-            float(body.mass), xyz(com), tree_module.RotationalInertia(inertia, inertia, inertia)
-        )
-        bodies[body.name] = plant.AddRigidBody(body.name, spatial)
-
-    def of(name: str):
-        return world if name == GROUND else bodies[name]
-
-    def frame(joint: str, name: str, label: str, turn: float = 0.0):
-        """A joint's frame on a body at one of its points, turned by ``turn`` (rad)."""
-        pose = RigidTransform(RotationMatrix.MakeZRotation(turn), xyz(mech.body(name).points[label]))
-        return plant.AddFrame(tree_module.FixedOffsetFrame(f"{joint}@{name}", of(name).body_frame(), pose))
-
-    damping: dict[str, float] = {}
-    for twist in mech.rotational_springs:
-        damping[twist.joint] = damping.get(twist.joint, 0.0) + float(twist.damping)
-    joints: dict[str, Any] = {}
-    parents: dict[str, str] = {}
-    turns: dict[str, float] = {}
-    for tj in topology.tree:
-        j = tj.joint
-        if isinstance(j, Revolute):
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            joint = tree_module.RevoluteJoint(
-                j.name,
-                frame(j.name, tj.parent, l_parent),
-                frame(j.name, tj.child, l_child),
-                [0.0, 0.0, 1.0],
-                damping.get(j.name, 0.0),
-            )
-            turn = 0.0
-        else:
-            assert isinstance(j, Prismatic)
-            d = np.asarray(j.direction, dtype=float)
-            if not tj.reversed:  # the line is the parent's: the child's point slides along it
-                on_parent, on_child, axis, turn = (
-                    frame(j.name, j.body_a, j.line_point),
-                    frame(j.name, j.body_b, j.point, -j.angle),
-                    d,
-                    j.angle,
-                )
-            else:  # the line is the child's: frames in the line's orientation, the slide reversed
-                on_parent, on_child, axis, turn = (
-                    frame(j.name, j.body_b, j.point, -j.angle),
-                    frame(j.name, j.body_a, j.line_point),
-                    -d,
-                    -j.angle,
-                )
-            joint = tree_module.PrismaticJoint(j.name, on_parent, on_child, xyz(axis))
-        joints[tj.child] = plant.AddJoint(joint)
-        if pd and j.name in pd:
-            actuator = plant.AddJointActuator(j.name, joints[tj.child])
-            actuator.set_controller_gains(tree_module.PdControllerGains(p=pd[j.name][0], d=pd[j.name][1]))
-        parents[tj.child] = tj.parent
-        turns[tj.child] = float(turn)
-    bodies = {name: bodies[name] for name in joints}  # tree order: parents first
-    for twist in mech.rotational_springs:  # across a tree revolute (refuse() keeps the rest out)
-        tj = next(t for t in topology.tree if t.joint.name == twist.joint)
-        # the spring's angle phi_b - phi_a is the joint coordinate (child minus parent) or its opposite
-        sign = 1.0 if twist.body_b == tj.child else -1.0
-        plant.AddForceElement(
-            tree_module.RevoluteSpring(joints[tj.child], sign * float(twist.rest_angle), float(twist.stiffness))
-        )
-    owners = mech.point_owners
-    for spring in mech.springs:
-        (a, pa), (b, pb) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
-        plant.AddForceElement(
-            tree_module.LinearSpringDamper(
-                of(a),
-                xyz(pa),
-                of(b),
-                xyz(pb),
-                float(spring.rest_length),
-                float(spring.stiffness),
-                float(spring.damping),
-            )
-        )
-    cuts = []
-    anchor = world
-    if any(GROUND in (cut.body_a, cut.body_b) for cut in topology.cuts):
-        # pydrake 1.51.1 segfaults in the SAP driver on a ball constraint with the world body
-        # (an invalid tree index); a body welded to the world at its frame holds the ground's points
-        anchor = plant.AddRigidBody("ground-anchor", tree_module.SpatialInertia.SolidSphereWithMass(1.0, 1.0))
-        plant.AddJoint(
-            tree_module.WeldJoint("ground-anchor", world.body_frame(), anchor.body_frame(), RigidTransform())
-        )
-    for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        pa, pb = (
-            np.asarray(mech.body(n).points[label], dtype=float)
-            for n, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b))
-        )
-        plant.AddBallConstraint(
-            anchor if cut.body_a == GROUND else of(cut.body_a),
-            xyz(pa),
-            anchor if cut.body_b == GROUND else of(cut.body_b),
-            xyz(pb),
-        )
-        cuts.append((cut.body_a, pa, cut.body_b, pb))
-    plant.mutable_gravity_field().set_gravity_vector(xyz(mech.gravity))
-    plant.Finalize()
-    loads = [
-        (bodies[load.body].index(), xyz(load.point), np.asarray(load.force, dtype=float), float(load.torque), load.law)
-        for load in mech.loads
-        if load.body in bodies
-    ]
-    context = plant.CreateDefaultContext()
-    return DrakeModel(plant, context, bodies, joints, parents, turns, cuts, loads)
-
-
-def apply_loads(model: DrakeModel, t: float) -> None:
-    """Fix the plant's applied spatial forces at their values at time ``t`` (s)."""
-    plant_module, tree_module, _, _ = _drake()
-    from pydrake.multibody import math as drake_math
-
-    spatial_force: Any = drake_math.SpatialForce  # its stubs misspell ndarray's type parameters
-    forces = []
-    for index, point, force, torque, law in model.loads:
-        factor = 1.0 if law is None else float(law.factor(t))
-        applied = plant_module.ExternallyAppliedSpatialForce()
-        applied.body_index = index
-        applied.p_BoBq_B = point
-        applied.F_Bq_W = spatial_force(
-            np.array([0.0, 0.0, factor * torque]), np.array([factor * force[0], factor * force[1], 0.0])
-        )
-        forces.append(applied)
-    model.plant.get_applied_spatial_force_input_port().FixValue(model.context, forces)
-
-
-def set_state(model: DrakeModel, kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> None:
-    """Put the plant at native body coordinates ``q`` and rates ``qd`` (x, y, phi per moving body,
-    in ``mechanism.moving_bodies`` order; m, rad, m/s, rad/s) and check that it is there.
-
-    Raises
-    ------
-    RuntimeError
-        If Drake's state is not the native one (to 1e-9 of the size, or of the speed).
-    """
-    mech = kinematics.mechanism
-    index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
-
-    def state(name: str, point=None):
-        """(position (2,), velocity (2,), angle, rate) of a body point (its origin without one)."""
-        if name == GROUND:
-            return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
-        k = index[name]
-        phi, omega = float(q[k + 2]), float(qd[k + 2])
-        arm = np.zeros(2) if point is None else rotate(phi, point)
-        return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
-
-    context = model.context
-    for name, joint in model.joints.items():
-        if joint.type_name() == "revolute":
-            _, _, phi, omega = state(name)
-            _, _, phi0, omega0 = state(model.parents[name])
-            joint.set_angle(context, phi - phi0)
-            joint.set_angular_rate(context, omega - omega0)
-            continue
-        j = mech.joint(joint.name())
-        assert isinstance(j, Prismatic)
-        r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
-        r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
-        u = rotate(phi_a, j.direction)
-        gap = r_point - r_line
-        joint.set_translation(context, float(u @ gap))
-        joint.set_translation_rate(context, float(omega_a * np.array([-u[1], u[0]]) @ gap + u @ (v_point - v_line)))
-    size = mech.size
-    for name, (origin, phi, velocity, omega) in model.frames().items():
-        k = index[name]
-        miss = max(float(np.hypot(*(origin - q[k : k + 2]))), abs(phi - q[k + 2]) * size)
-        if miss > 1e-9 * size:
-            raise RuntimeError(f"Drake's {name} starts {miss:.3g} m from the native start")
-        speed = max(float(np.hypot(*qd[k : k + 2])), abs(qd[k + 2]) * size, 1.0)
-        off = max(float(np.hypot(*(velocity - qd[k : k + 2]))), abs(omega - qd[k + 2]) * size)
-        if off > 1e-9 * speed:
-            raise RuntimeError(f"Drake's {name} starts with a velocity {off:.3g} m/s from the native one")
-
-
-def energy(model: DrakeModel, frames) -> float:
-    """Drake's kinetic and potential energy (gravity, springs) minus the constant loads'
-    potential -(F . r + tau phi), J."""
-    total = float(model.plant.CalcKineticEnergy(model.context) + model.plant.CalcPotentialEnergy(model.context))
-    names = {body.index(): name for name, body in model.bodies.items()}
-    for index, point, force, torque, _ in model.loads:
-        name = names[index]
-        total -= float(force @ world_point(frames, name, point[:2])) + torque * frames[name][1]
-    return total
-
-
-def run_free(
-    kinematics: Kinematics,
-    reference: FreeReference,
-    branch: str | None = None,
-    *,
-    settings=FREE_SETTINGS,
-    steps=FREE_STEPS,
-) -> ModeResult:
-    """Drake's free motion against the reference (see the module's docstring and
-    :meth:`xcheck.engines.Engine.run_free`).
-
-    Raises
-    ------
-    NotApplicable
-        If the Drake model cannot hold the mechanism (:func:`refuse`).
-
-    Notes
-    -----
-    Measured with pydrake 1.51.1 (``xcheck simulate NAME --engines
-    drake-free``, 2 shared cores), largest error over the outputs at dt = 1,
-    0.5, 0.25 ms (best: 0.25, 0.125, 0.0625 ms; A03 10, 5, 2.5 us and a quarter
-    of them), CPU seconds per simulated second:
-
-    - A01 pendulum, 10 s: 2.215e-3, 1.107e-3, 5.54e-4 m, best down to 1.38e-4
-      m, order 1.00 (PyBullet's semi-implicit Euler to four digits); energy
-      drift 1.35e-2 .. 8.4e-4 J; 0.013 .. 0.18 s.
-    - A02 double four-bar, 10 s, ten singular passes: on the parallelogram
-      branch throughout, loops closed to 9e-8 .. 2.2e-9 m, energy drift 9.1e-2
-      .. 6.0e-3 J (first order), but the position error does not fall with the
-      step: 6.9e-4, 2.1e-4, 5.2e-4 m, best 5.2e-4, 3.1e-4, 8.6e-4 m (orders
-      1.7, -1.3, 0.7, -1.5); 0.18 .. 2.7 s. Up to the first pass (0.714 s) the
-      error falls as dt^2 (7.2e-7, 1.8e-7, 4.5e-8 m at 0.7 s, dt = 0.5, 0.25,
-      0.125 ms); by 1.2 s, just before the second pass (1.228 s), it stops
-      falling (6.9e-7, 3.5e-7, 2.9e-7 m), and from then on a part that no step
-      removes dominates and grows through the slow swing that follows (2.8 ..
-      3.4e-6 m at 2 s, 3.0 .. 3.6e-5 m at 3 s for each step). Cutting the
-      loops elsewhere changes nothing in kind: a chain tree cut at the two
-      ground pivots O2, O3 (through the anchor) converges to 1.0 s (9.7e-7,
-      3.1e-7, 6.6e-8 m) and is erratic by 1.2 s (6.6e-7, 3.2e-7, 1.27e-6 m:
-      the finest step the worst). Where it comes from is not established: the loops' constraint rows turn dependent at
-      the singular positions, where the fixed near-rigid regularisation and
-      SAP's stopping tolerance (neither reachable from pydrake) may set the
-      answer rather than the step.
-    - A03 Andrews' squeezer, 0.03 s: 3.42e-4, 1.71e-4, 8.54e-5 m, best down to
-      2.13e-5 m, order 1.00 (PyBullet's figures); loops open by 1.1e-6 ..
-      4.4e-9 m (order 2); 23 .. 281 s.
-    """
-    mech = kinematics.mechanism
+    mech = problem.kinematics.mechanism
     refuse(mech, spanning_tree(mech))
-    _drake()  # pydrake imported before the first run's clock starts
-    motion = reference.motion
-    every = max(1, (len(motion.times) - 1) // COMPARED)
-    while (len(motion.times) - 1) % every:  # end at the last output
-        every -= 1
-    index = np.arange(0, len(motion.times), every)
-    rows, trajectories = [], []
-    for setting in settings:
-        for step in ladder_steps(reference, steps):
-            row, trajectory = _run(kinematics, reference, index, setting, step / setting.refine)
-            rows.append(row)
-            if trajectory is not None:
-                trajectories.append((row["position_error"], trajectory))
-    summary = pd.DataFrame(rows)
-    errors = summary["position_error"].where(summary["status"] == "ok")  # a run that stopped has no order
-    study = convergence_study(summary["setting"], summary["timestep"], errors, summary["status"], 1e-13 * mech.size)
-    order = study.set_index(["series", "timestep"])["order"]
-    summary["order"] = [float(order.get((r.setting, r.timestep), math.nan)) for r in summary.itertuples()]
-    trajectories.sort(key=lambda pair: pair[0])
-    ok = bool(trajectories)
-    reason = "" if ok else f"no run went through: {rows[0]['status']}"
-    return ModeResult(MODE, mech.name, ok, reason, [t for _, t in trajectories], summary, study)
+    drake()
 
 
-def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple[dict, Trajectory | None]:
-    mech = kinematics.mechanism
-    motion = reference.motion
-    row = free_row(setting.name, setting.integrator, dt)
-    per_output, why = outputs_per_step(reference, dt)
-    if why:
-        row["status"] = why
-        return row, None
-    energy_drift, energy0 = 0.0, math.nan
-    # E less the loads' potential is conserved without dampers and time laws
-    damped = any(s.damping for s in (*mech.springs, *mech.rotational_springs)) or any(
-        load.law is not None for load in mech.loads
-    )
-    timed = any(load.law is not None for load in mech.loads)
-    total = int(index[-1]) * per_output
-    begin = time.process_time()
-    model = build(kinematics, dt)
-    set_state(model, kinematics, motion.q[0], motion.qd[0])
-    apply_loads(model, 0.0)
+def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
     from pydrake.systems.analysis import Simulator
 
+    kinematics = problem.kinematics
+    mech = kinematics.mechanism
+    dt = rung.timestep
+    known = conservative(mech)  # the energy is E less the constant loads' potential
+    timed = any(load.law is not None for load in mech.loads)
+    model = build(kinematics, dt)
+    set_state(model, kinematics, *problem.start)
+    apply_loads(model, 0.0)
     simulator = Simulator(model.plant, model.context)
     model.context = simulator.get_mutable_context()
-    recorder = FrameRecorder(mech, len(index), model.cuts, APART * mech.size)
-    done = 0  # steps taken
-    for j, i in enumerate(index):
-        n = int(i) * per_output
+    recorder = FrameRecorder(problem, model.cuts)
+
+    def record(j: int) -> str:
+        frames = model.frames()
+        return recorder.record(frames, j, energy(model, frames) if known else math.nan)
+
+    failure, done = record(0), 0  # steps taken
+    for j, count in enumerate(rung.counts, start=1):
+        if failure:
+            break
+        n = done + count
         # Drake's discrete update at t = m dt takes the state from step m to m + 1: advancing
         # to half a step before n dt takes exactly n steps, whatever the round-off in m dt
         if timed:  # the loads at each step's start
             for m in range(done, n):
                 apply_loads(model, m * dt)
                 simulator.AdvanceTo((m + 0.5) * dt)
-        elif n > done:
+        else:
             simulator.AdvanceTo((n - 0.5) * dt)
         done = n
-        frames = model.frames()
-        stop = recorder.record(frames, j, n * dt)
-        if stop:
-            row["status"] = stop
-            break
-        if not damped:
-            e = energy(model, frames)
-            energy0 = e if n == 0 else energy0
-            energy_drift = max(energy_drift, abs(e - energy0))
-    seconds = time.process_time() - begin
-    row.update(
-        steps=total,
-        cpu_seconds=seconds,
-        cpu_per_simulated_second=seconds / max(float(motion.times[-1]), 1e-300),
-        loop_drift=recorder.drift,
-        energy_drift=math.nan if damped else energy_drift,
-    )
-    if row["status"] != "ok":
-        return row, None
+        failure = record(j)
     settings = {
-        "setting": setting.name,
-        "integrator": row["integrator"],
+        "setting": rung.series.setting,
+        "integrator": rung.series.integrator,
         "timestep": dt,
-        "series": setting.name,
-        "refine": setting.refine,
+        "series": rung.series.key,
     }
-    notes = f"Drake free motion, {setting.integrator}, dt = {dt:g} s."
-    return finish_free_run(MODE, reference, index, recorder.path, settings, notes, row, APART * mech.size)
+    notes = f"Drake free motion, {rung.series.integrator}, dt = {dt:g} s."
+    return Run(recorder.trajectory(MODE, settings, notes), failure)

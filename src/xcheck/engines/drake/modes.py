@@ -1,9 +1,9 @@
-"""Drake's modes, as the engine contract calls them: :func:`.free.run_free`
-(``drake-free``) and :func:`.dynamic.run_dynamic` (``drake-dynamic``)."""
+"""Drake's modes, as the engine contract calls them: ``drake-free`` (the series
+and one run of :mod:`.free`) and :func:`.dynamic.run_dynamic` (``drake-dynamic``)."""
 
 from __future__ import annotations
 
 from .dynamic import run_dynamic
-from .free import run_free
+from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["run_free", "run_dynamic"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "run_dynamic"]

@@ -29,7 +29,7 @@ from xcheck.model import GROUND, Prismatic, Revolute
 from xcheck.precision import number, numbers
 from xcheck.topology import spanning_tree
 
-from .free import refuse
+from .model import refuse
 
 __all__ = ["export_files", "sdf_text"]
 
@@ -60,7 +60,7 @@ def sdf_text(kinematics: Kinematics) -> str:
     Raises
     ------
     NotApplicable
-        What the Drake model cannot hold (:func:`xcheck.engines.drake.free.refuse`).
+        What the Drake model cannot hold (:func:`xcheck.engines.drake.model.refuse`).
     """
     from xcheck.engines.pinocchio.model import mass_properties
 

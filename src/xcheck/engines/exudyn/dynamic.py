@@ -24,17 +24,21 @@ import numpy as np
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, ladder
 from xcheck.kinematics import Kinematics, Status, rotate
+from xcheck.ladder import Series
 from xcheck.model import GROUND, Mechanism, Revolute
 from xcheck.motion import simulation_window
 from xcheck.results import ModeResult, Trajectory
 
-from .free import FreeSetting, _settings, build_system
+from .model import Setting, build_system, solver_settings
 
 __all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
 
 MODE = "exudyn-dynamic"
 #: the compared series (Newton to 1e-10: positions exact to it) and Exudyn's defaults
-SETTINGS = (FreeSetting("best", 0.9, newton_tolerance=1e-10), FreeSetting("default", 0.9))
+SETTINGS = tuple(
+    Series(name, setting.integrator, setting)
+    for name, setting in (("best", Setting(0.9, newton_tolerance=1e-10)), ("default", Setting(0.9)))
+)
 #: time steps per sample of the ladder, finest first
 STEPS_PER_SAMPLE = (100, 50, 25)
 #: samples compared per run
@@ -47,14 +51,15 @@ def _perp(v: np.ndarray) -> np.ndarray:
     return np.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
-def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, setting: FreeSetting, per: int):
+def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, series: Series, per: int):
     """One run: (row, Trajectory or None)."""
     import exudyn as exu
     import exudyn.itemInterface as ei
 
     duration = window.duration
     dt = duration / (SAMPLES * per)
-    row = {"setting": setting.name, "integrator": setting.integrator, "timestep": dt, "status": "ok"}
+    setting: Setting = series.options
+    row = {"setting": series.setting, "integrator": series.integrator, "timestep": dt, "status": "ok"}
     begin = time.process_time()
     model = build_system(mech, q0, qd0)
     mbs = model.mbs
@@ -103,7 +108,7 @@ def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, setting:
     try:
         solve: Any = exu.SolveDynamic  # its stubs lack showHints
         if not solve(
-            mbs, _settings(setting, dt, duration, duration / SAMPLES), showHints=False, showCausingItems=False
+            mbs, solver_settings(setting, dt, duration, duration / SAMPLES), showHints=False, showCausingItems=False
         ):
             row["status"] = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
     except Exception:  # noqa: BLE001 - a solver that gives up is a row
@@ -169,7 +174,7 @@ def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, setting:
         {
             "integrator": setting.integrator,
             "timestep": dt,
-            "series": setting.name,
+            "series": series.key,
             "steps_per_sample": per,
             "newton_tolerance": setting.newton_tolerance,
         },

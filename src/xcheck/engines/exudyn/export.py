@@ -1,5 +1,5 @@
 """The Exudyn script of a mechanism (``xcheck export --format exudyn``): the very
-system the ``exudyn-free`` mode integrates (:func:`.free.build_system`), read back
+system the ``exudyn-free`` mode integrates (:func:`.model.build_system`), read back
 item by item from Exudyn and written as ``mbs.AddNode({...})``,
 ``mbs.AddObject({...})``, ``mbs.AddMarker({...})`` and ``mbs.AddLoad({...})``
 calls, so a user can open, run and change what xcheck tested.
@@ -20,10 +20,12 @@ import numpy as np
 
 from xcheck.engines._contract import NotApplicable
 from xcheck.kinematics import Kinematics
+from xcheck.ladder import FREE_STEPS
 from xcheck.model import LoadLaw
 from xcheck.precision import number
 
-from .free import FREE_SETTINGS, FREE_STEPS, build_system
+from .free import FREE_SERIES
+from .model import build_system
 
 __all__ = ["export_files", "script"]
 
@@ -128,7 +130,7 @@ def script(kinematics: Kinematics) -> str:
                 continue
             fields.append(f"{key!r}: {_value(value, scales.get(key, 0.0))}")
         lines.append(f"mbs.Add{kind}({{{', '.join(fields)}}})")
-    setting, dt = FREE_SETTINGS[0], min(FREE_STEPS[0], spec.output_step / 10.0)
+    setting, dt = FREE_SERIES[0].options, min(FREE_STEPS[0], spec.output_step / 10.0)
     steps = max(1, round(spec.duration / dt))
     header = (
         f'"""Exudyn model of {mech.name} ({Path(mech.path).name}), written by `xcheck export --format exudyn`\n'

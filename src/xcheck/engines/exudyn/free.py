@@ -1,502 +1,88 @@
-"""Exudyn in free motion (mode ``exudyn-free``): the mechanism as 2-D rigid
-bodies joined by Exudyn's index-3 joints, released at the native reference's
-initial state and integrated by Exudyn's implicit generalized-alpha solver,
-compared with the reference at its output times.
+"""Exudyn in free motion (mode ``exudyn-free``): the system of
+:func:`.model.build_system` released at the native reference's initial state
+and integrated by Exudyn's implicit generalized-alpha solver at fixed steps;
+the ladder and its judgement are :func:`xcheck.ladder.free_study`'s.
 
-The model (:func:`build_system`): one ``NodeRigidBody2D`` + ``ObjectRigidBody2D``
-per moving body, its node at the centre of mass (Exudyn's reference point is the
-centre of mass; xcheck's body coordinates are the frame origin, so every marker
-sits at ``point - com`` in the body frame); a revolute joint is an
-``ObjectJointRevolute2D`` between two ``MarkerBodyPosition`` s; a prismatic joint
-an ``ObjectJointPrismatic2D`` between ``MarkerBodyRigid`` s with its rotation
-locked at the file's angle, a pin-in-slot the same joint with
-``constrainRotation`` off (the line is fixed in ``body_a``: marker 1 and its
-normal are ``body_a`` 's, marker 0 is the pin). Gravity is a force m g at each
-centre of mass, the constant loads ``LoadForceVector`` (global direction) at
-their point and ``LoadTorqueVector``, the springs ``ObjectConnectorSpringDamper``
-(the same law: k (l - l0) + c dl/dt along the line of the two points), the
-rotational springs ``ObjectConnectorCoordinateSpringDamper`` s on the two
-bodies' angle coordinates, a load's time law Exudyn's load user function. A point
-mass (inertia 0) gets :data:`xcheck.engines.POINT_MASS_INERTIA` of m size^2.
-A massless moving body cannot be held (its mass matrix is singular):
-:class:`~xcheck.engines.NotApplicable`.
-
-The ladder (:data:`FREE_SETTINGS` x :data:`FREE_STEPS`, scaled by
-:func:`~xcheck.simulation.ladder_steps`), fixed steps (Exudyn's step reduction
-after a failed Newton step is off: it would write the samples off the
-reference's output times, and the row's step is then the step): Exudyn's
-defaults (``default``: generalized-alpha, spectral radius 0.9, index-3
-constraints, modified Newton to 1e-8 relative), no numerical damping
-(``undamped``: spectral radius 1, what a user picks to keep energy), index-2
-(velocity-level) constraints with Newmark's trapezoidal rule (``index-2``,
-Exudyn's TrapezoidalIndex2), at its best
-(``best``: the defaults with Newton to 1e-10, which closes the loops to
-round-off) and Newton to 1e-12 (``newton-1e-12``). A run whose Newton fails,
-that goes non-finite, comes apart or leaves the reference's branch is a row
-with its time, not an exception. Exudyn's explicit integrators (RK44, DOPRI5)
-refuse these joints ("explicit integrator detected object ... which contains
+The series: Exudyn's defaults (``default``: generalized-alpha, spectral radius
+0.9, index-3 constraints, modified Newton to 1e-8 relative), no numerical
+damping (``undamped``: spectral radius 1, what a user picks to keep energy),
+index-2 (velocity-level) constraints with Newmark's trapezoidal rule
+(``index-2``, Exudyn's TrapezoidalIndex2), at its best (``best``: the defaults
+with Newton to 1e-10, which closes the loops to round-off) and Newton to 1e-12
+(``newton-1e-12``). Exudyn's step reduction after a failed Newton step is off:
+it would write the samples off the reference's output times, and the row's
+step is then the step. Exudyn's explicit integrators (RK44, DOPRI5) refuse
+these joints ("explicit integrator detected object ... which contains
 constraints that cannot be solved").
 
-Measured on the IFToMM benchmarks: see :func:`run_free`.
+Measured with Exudyn 1.13.6 (``xcheck simulate NAME --engines
+native,exudyn-free``, 2 shared cores), largest error over the outputs at dt =
+1, 0.5, 0.25 ms (A03: 10, 5, 2.5 us):
+
+- A01 pendulum, 10 s: defaults 1.22e-4, 3.06e-5, 7.68e-6 m (order 2.00), loops
+  2e-13 m; index 2 7.2e-5 .. 4.5e-6 m, loops drifting 2.2e-6 .. 1.4e-7 m;
+  undamped (rho 1) grows unstable, Newton fails at 5.4 .. 5.6 s.
+- A02 double four-bar, 10 s, ten singular passes: defaults and best stay on the
+  branch, 1.94e-4, 4.8e-5, 1.2e-5 m (order 2.0), loops 1e-12 (best: 6e-15) m,
+  0.04 .. 0.18 s CPU per simulated second; index 2 fails at the 3rd or 4th pass
+  (2.66 / 3.17 s); Newton to 1e-12 at the first (0.714 s); undamped gains
+  energy (2.4 .. 150 J) and fails at 6.5 .. 7.0 s.
+- A03 Andrews' squeezer, 0.03 s: best 6.05e-7, 1.51e-7, 3.79e-8 m (order 2.00),
+  6 .. 25 s CPU per simulated second; the defaults' 1.08e-8 m at 2.5 us (orders
+  2.3, 3.5) is Newton's 1e-8 tolerance mixing with the truncation error, not a
+  higher order.
 """
 
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
-from xcheck.dynamics._free import FreeReference
-from xcheck.engines._contract import NotApplicable, positive_inertia
-from xcheck.joints import LineJoint
-from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
-from xcheck.results import ModeResult, Trajectory, convergence_study
-from xcheck.simulation import free_errors, ladder_steps, left_branch
+from xcheck.kinematics import rotate
+from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
+from xcheck.model import GROUND
+from xcheck.results import Trajectory
 
-__all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "ExudynModel", "build_system", "run_free"]
+from .model import Setting, build_system, energy, joint_gaps, matched, refuse, solver_settings
+
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
 
 MODE = "exudyn-free"
-#: about this many reference outputs are compared (every k-th)
-COMPARED = 200
-#: a joint gap, or a distance from every configuration the reference passes, above
-#: this fraction of the size: the run came apart or left the branch
-APART = 0.1
-
-
-@dataclass(frozen=True)
-class FreeSetting:
-    """Exudyn's generalized-alpha solver as a run uses it.
-
-    Attributes
-    ----------
-    name : str
-    spectral_radius : float
-        rho_infinity of the generalized-alpha method (1: no numerical damping).
-    index2 : bool
-        Constraints at velocity level (index 2) instead of position level (index 3),
-        with Newmark's trapezoidal rule (Exudyn's TrapezoidalIndex2; the spectral
-        radius plays no part).
-    newton_tolerance : float or None
-        Newton's relative and absolute tolerance (None: Exudyn's, 1e-8 relative,
-        1e-10 absolute).
-    """
-
-    name: str
-    spectral_radius: float
-    index2: bool = False
-    newton_tolerance: float | None = None
-
-    @property
-    def integrator(self) -> str:
-        if self.index2:  # Exudyn's TrapezoidalIndex2 solver
-            text = "trapezoidal (Newmark 1/4, 1/2), index 2"
-        else:
-            text = f"gen-alpha rho {self.spectral_radius:g}, index 3"
-        return text + (f", Newton tol {self.newton_tolerance:g}" if self.newton_tolerance else "")
-
-
-FREE_SETTINGS = (
-    FreeSetting("default", 0.9),
-    FreeSetting("undamped", 1.0),
-    FreeSetting("index-2", 0.9, index2=True),
-    FreeSetting("best", 0.9, newton_tolerance=1e-10),
-    FreeSetting("newton-1e-12", 0.9, newton_tolerance=1e-12),
+FREE_SERIES = tuple(
+    Series(name, setting.integrator, setting)
+    for name, setting in (
+        ("default", Setting(0.9)),
+        ("undamped", Setting(1.0)),
+        ("index-2", Setting(0.9, index2=True)),
+        ("best", Setting(0.9, newton_tolerance=1e-10)),
+        ("newton-1e-12", Setting(0.9, newton_tolerance=1e-12)),
+    )
 )
-FREE_STEPS = (1e-3, 5e-4, 2.5e-4)
 
 
-@dataclass
-class ExudynModel:
-    """An Exudyn system of a mechanism and what reads it back.
-
-    Attributes
-    ----------
-    container : exudyn.SystemContainer
-    mbs : exudyn.MainSystem
-    nodes : dict of str to int
-        Per moving body, its node.
-    com : dict of str to ndarray, shape (2,)
-        Per moving body, its centre of mass in the body frame, m.
-    reference : dict of str to ndarray, shape (3,)
-        Per moving body, the node's reference coordinates (x, y of the centre of mass, phi).
-    """
-
-    container: Any
-    mbs: Any
-    nodes: dict
-    com: dict
-    reference: dict
+def prepare_free(problem: FreeProblem) -> None:
+    """Refuse what Exudyn cannot hold (:func:`.model.refuse`) before any run."""
+    refuse(problem.kinematics.mechanism)
 
 
-def _refuse(mech: Mechanism) -> None:
-    """NotApplicable if Exudyn cannot hold the mechanism as built here."""
-    if mech.without_mass:
-        raise NotApplicable(f"no mass data for {', '.join(mech.without_mass)}")
-    massless = [b.name for b in mech.moving_bodies if not (b.mass or 0.0) > 0.0]
-    if massless:
-        raise NotApplicable(
-            f"massless body {massless[0]}: Exudyn's RigidBody2D needs a positive mass (its mass matrix is singular)"
-        )
-    for joint in mech.joints:
-        if not isinstance(joint, (Revolute, Prismatic, PinInSlot)):
-            raise NotApplicable(f"joint {joint.name}: no Exudyn 2-D joint for {type(joint).__name__}")
-
-
-def _mass(body, size: float) -> tuple[float, float]:
-    """A body's mass (kg) and its moment of inertia about the centre of mass as Exudyn
-    holds it (kg m^2; a point mass gets :data:`~xcheck.engines.POINT_MASS_INERTIA`)."""
-    mass = float(body.mass or 0.0)
-    return mass, positive_inertia(mass, float(body.inertia or 0.0), size)
-
-
-def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
-    """The Exudyn system of the mechanism, its nodes at the state (q, qd).
-
-    Parameters
-    ----------
-    q, qd : ndarray, shape (3 m,)
-        x, y (m) of each moving body's frame origin and phi (rad), and their rates.
-
-    Raises
-    ------
-    NotApplicable
-        What Exudyn cannot represent (see :func:`_refuse`).
-    """
+def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`): Exudyn
+    integrates to the end in one call, recording every reference output."""
     import exudyn as exu
     import exudyn.itemInterface as ei
 
-    _refuse(mech)
-    size = mech.size
-    container = exu.SystemContainer()
-    mbs = container.AddSystem()
-    ground = mbs.AddObject(ei.ObjectGround(visualization=ei.VObjectGround(show=False)))
-    bodies, nodes, com, reference = {GROUND: ground}, {}, {}, {}
-    for i, body in enumerate(mech.moving_bodies):
-        c = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-        x, y, phi = (float(v) for v in q[3 * i : 3 * i + 3])
-        vx, vy, omega = (float(v) for v in qd[3 * i : 3 * i + 3])
-        arm = rotate(phi, c)
-        centre = np.array([x, y]) + arm
-        velocity = np.array([vx, vy]) + omega * np.array([-arm[1], arm[0]])
-        reference[body.name] = np.array([centre[0], centre[1], phi])
-        node = mbs.AddNode(
-            ei.NodeRigidBody2D(
-                referenceCoordinates=[centre[0], centre[1], phi],
-                initialCoordinates=[0.0, 0.0, 0.0],
-                initialVelocities=[velocity[0], velocity[1], omega],
-                visualization=ei.VNodeRigidBody2D(show=False),
-            )
-        )
-        bodies[body.name] = mbs.AddObject(
-            ei.ObjectRigidBody2D(
-                nodeNumber=node,
-                mass=_mass(body, size)[0],
-                inertia=_mass(body, size)[1],  # about the centre of mass, the node
-                visualization=ei.VObjectRigidBody2D(show=False),
-            )
-        )
-        nodes[body.name], com[body.name] = node, c
-
-    def local(body: str, xy) -> list[float]:
-        offset = np.asarray(xy, dtype=float) - (com[body] if body in com else 0.0)
-        return [float(offset[0]), float(offset[1]), 0.0]
-
-    def position_marker(body: str, label: str):
-        point = mech.body(body).points[label]
-        return mbs.AddMarker(ei.MarkerBodyPosition(bodyNumber=bodies[body], localPosition=local(body, point)))
-
-    def rigid_marker(body: str, xy):
-        return mbs.AddMarker(ei.MarkerBodyRigid(bodyNumber=bodies[body], localPosition=local(body, xy)))
-
-    for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            markers = [position_marker(joint.body_a, joint.point_a), position_marker(joint.body_b, joint.point_b)]
-            mbs.AddObject(
-                ei.ObjectJointRevolute2D(markerNumbers=markers, visualization=ei.VObjectJointRevolute2D(show=False))
-            )
-            continue
-        assert isinstance(joint, LineJoint)
-        # (p_line - p_pin) . A_a n = 0 with marker 0 the pin (body_b) and marker 1 the line (body_a);
-        # a prismatic joint also keeps the pin's axis A_b t0 (= A_a d at the locked angle) normal to A_a n
-        d = np.asarray(joint.direction, dtype=float)
-        normal = np.array([-d[1], d[0]])
-        angle = joint.angle if isinstance(joint, Prismatic) else 0.0
-        axis = rotate(-angle, d)
-        pin = rigid_marker(joint.body_b, mech.body(joint.body_b).points[joint.point])
-        line = rigid_marker(joint.body_a, mech.body(joint.body_a).points[joint.line_point])
-        mbs.AddObject(
-            ei.ObjectJointPrismatic2D(
-                markerNumbers=[pin, line],
-                axisMarker0=[float(axis[0]), float(axis[1]), 0.0],
-                normalMarker1=[float(normal[0]), float(normal[1]), 0.0],
-                constrainRotation=isinstance(joint, Prismatic),
-                visualization=ei.VObjectJointPrismatic2D(show=False),
-            )
-        )
-    gravity = np.asarray(mech.gravity, dtype=float)
-    if np.any(gravity != 0.0):
-        for body in mech.moving_bodies:
-            centre = mbs.AddMarker(ei.MarkerBodyPosition(bodyNumber=bodies[body.name], localPosition=[0.0, 0.0, 0.0]))
-            weight = _mass(body, size)[0] * gravity
-            mbs.AddLoad(ei.LoadForceVector(markerNumber=centre, loadVector=[weight[0], weight[1], 0.0]))
-    for load in mech.loads:
-        if load.body not in nodes:
-            continue  # a load on the ground does no work
-        timed = {} if load.law is None else {"loadVectorUserFunction": _timed(load.law)}
-        if np.any(np.asarray(load.force) != 0.0):
-            at = mbs.AddMarker(
-                ei.MarkerBodyPosition(bodyNumber=bodies[load.body], localPosition=local(load.body, load.point))
-            )
-            force = [float(load.force[0]), float(load.force[1]), 0.0]
-            mbs.AddLoad(ei.LoadForceVector(markerNumber=at, loadVector=force, **timed))
-        if load.torque != 0.0:
-            at = rigid_marker(load.body, load.point)
-            mbs.AddLoad(ei.LoadTorqueVector(markerNumber=at, loadVector=[0.0, 0.0, float(load.torque)], **timed))
-    if mech.rotational_springs:  # on the two angle coordinates (displacements from the reference angles)
-        fixed = mbs.AddMarker(
-            ei.MarkerNodeCoordinate(
-                nodeNumber=mbs.AddNode(ei.NodePointGround(visualization=ei.VNodePointGround(show=False))), coordinate=0
-            )
-        )
-        turns = {
-            name: mbs.AddMarker(ei.MarkerNodeCoordinate(nodeNumber=node, coordinate=2)) for name, node in nodes.items()
-        }
-        for twist in mech.rotational_springs:
-            turned = (reference[twist.body_b][2] if twist.body_b in nodes else 0.0) - (
-                reference[twist.body_a][2] if twist.body_a in nodes else 0.0
-            )
-            mbs.AddObject(
-                ei.ObjectConnectorCoordinateSpringDamper(
-                    markerNumbers=[turns.get(twist.body_a, fixed), turns.get(twist.body_b, fixed)],
-                    stiffness=float(twist.stiffness),
-                    damping=float(twist.damping),
-                    offset=float(twist.rest_angle) - turned,
-                    visualization=ei.VObjectConnectorCoordinateSpringDamper(show=False),
-                )
-            )
-    owners = mech.point_owners
-    for spring in mech.springs:
-        ends = [position_marker(owners[label], label) for label in spring.points]
-        mbs.AddObject(
-            ei.ObjectConnectorSpringDamper(
-                markerNumbers=ends,
-                referenceLength=float(spring.rest_length),
-                stiffness=float(spring.stiffness),
-                damping=float(spring.damping),
-                visualization=ei.VObjectConnectorSpringDamper(show=False),
-            )
-        )
-    return ExudynModel(container, mbs, nodes, com, reference)
-
-
-def _timed(law):
-    """Exudyn's load user function of a load law: the load vector times ``law.factor(t)``."""
-
-    def load(mbs, t, vector):
-        return [float(law.factor(t)) * float(v) for v in vector]
-
-    load.law = law  # type: ignore[attr-defined]  # read by the exported script (.export)
-    return load
-
-
-def _settings(setting: FreeSetting, dt: float, duration: float, every: float):
-    """Exudyn's simulation settings of a run (no files, no output, sensors every ``every`` s)."""
-    import exudyn as exu
-
-    s: Any = exu.SimulationSettings()  # its stubs lack solutionSettings and others
-    s.timeIntegration.numberOfSteps = int(round(duration / dt))
-    s.timeIntegration.endTime = duration
-    s.timeIntegration.verboseMode = 0
-    s.timeIntegration.adaptiveStep = False  # every step is the row's (a reduced step writes off the outputs)
-    s.timeIntegration.generalizedAlpha.spectralRadius = setting.spectral_radius
-    s.timeIntegration.generalizedAlpha.useIndex2Constraints = setting.index2
-    s.timeIntegration.generalizedAlpha.useNewmark = setting.index2  # with index 2: Exudyn's TrapezoidalIndex2
-    if setting.newton_tolerance is not None:
-        s.timeIntegration.newton.relativeTolerance = setting.newton_tolerance
-        s.timeIntegration.newton.absoluteTolerance = setting.newton_tolerance
-    s.solution.file.write = False
-    s.solution.sensors.writePeriod = every
-    s.linearSolver.solverType = exu.LinearSolverType.EigenDense
-    return s
-
-
-def _joint_gaps(mech: Mechanism, points: dict, angles: dict) -> np.ndarray:
-    """The largest joint violation at each sample, m (N,): revolute points apart,
-    a pin off its line, a prismatic joint's angle error times the size."""
-    size = mech.size
-    gaps = None
-    ground = {label: np.asarray(xy, dtype=float) for label, xy in mech.ground.points.items()}
-
-    def where(body: str, label: str) -> np.ndarray:
-        if body == GROUND:
-            return ground[label][None, :]
-        c = points[(body, label)]
-        return c
-
-    for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            gap = where(joint.body_a, joint.point_a) - where(joint.body_b, joint.point_b)
-            value = np.hypot(gap[:, 0], gap[:, 1])
-        else:
-            assert isinstance(joint, LineJoint)
-            phi_a = angles[joint.body_a] if joint.body_a != GROUND else 0.0
-            d = rotate(phi_a, np.asarray(joint.direction, dtype=float)) if joint.body_a != GROUND else joint.direction
-            d = np.broadcast_to(np.asarray(d, dtype=float), (len(next(iter(angles.values()))), 2))
-            off = where(joint.body_b, joint.point) - where(joint.body_a, joint.line_point)
-            value = np.abs(off[:, 0] * d[:, 1] - off[:, 1] * d[:, 0])
-            if isinstance(joint, Prismatic):
-                phi_b = angles[joint.body_b] if joint.body_b != GROUND else 0.0
-                value = np.maximum(value, size * np.abs(np.asarray(phi_b - phi_a) - joint.angle))
-        gaps = value if gaps is None else np.maximum(gaps, value)
-    return np.zeros(len(next(iter(angles.values())))) if gaps is None else gaps
-
-
-def _energy(mech: Mechanism, model: ExudynModel, coords: dict, rates: dict, angles: dict, points: dict) -> np.ndarray:
-    """T + V of gravity, springs and rotational springs minus the constant loads' potential, J (N,)."""
-    gravity = np.asarray(mech.gravity, dtype=float)
-    total = 0.0
-    for body in mech.moving_bodies:
-        centre, velocity = coords[body.name], rates[body.name]
-        mass, inertia = _mass(body, mech.size)
-        total = total + 0.5 * mass * (velocity[:, 0] ** 2 + velocity[:, 1] ** 2)
-        total = total + 0.5 * inertia * velocity[:, 2] ** 2 - mass * (centre[:, :2] @ gravity)
-    owners = mech.point_owners
-    for spring in mech.springs:
-        ends = [points[(owners[label], label)] for label in spring.points]
-        ends = [np.broadcast_to(e, (len(angles[next(iter(angles))]), 2)) for e in ends]
-        gap = ends[1] - ends[0]
-        total = total + 0.5 * spring.stiffness * (np.hypot(gap[:, 0], gap[:, 1]) - spring.rest_length) ** 2
-    for twist in mech.rotational_springs:
-        turned = (angles[twist.body_b] if twist.body_b in angles else 0.0) - (
-            angles[twist.body_a] if twist.body_a in angles else 0.0
-        )
-        total = total + 0.5 * twist.stiffness * (turned - twist.rest_angle) ** 2
-    for load in mech.loads:
-        if load.body in model.nodes:
-            p = points[("load", load.name)]
-            total = total - p @ np.asarray(load.force, dtype=float) - load.torque * angles[load.body]
-    return np.asarray(total, dtype=float)
-
-
-def run_free(
-    kinematics: Kinematics,
-    reference: FreeReference,
-    branch: str | None = None,
-    *,
-    settings=FREE_SETTINGS,
-    steps=FREE_STEPS,
-) -> ModeResult:
-    """Exudyn's free motion against the reference (see the module's docstring and
-    :meth:`xcheck.engines.Engine.run_free`).
-
-    Raises
-    ------
-    NotApplicable
-        If Exudyn cannot represent the mechanism.
-
-    Notes
-    -----
-    Measured with Exudyn 1.13.6 (``xcheck simulate NAME --engines
-    native,exudyn-free``, 2 shared cores), largest error over the outputs at
-    dt = 1, 0.5, 0.25 ms (A03: 10, 5, 2.5 us):
-
-    - A01 pendulum, 10 s: defaults 1.22e-4, 3.06e-5, 7.68e-6 m (order 2.00),
-      loops 2e-13 m; index 2 7.2e-5 .. 4.5e-6 m, loops drifting 2.2e-6 ..
-      1.4e-7 m; undamped (rho 1) grows unstable, Newton fails at 5.4 .. 5.6 s.
-    - A02 double four-bar, 10 s, ten singular passes: defaults and best stay
-      on the branch, 1.94e-4, 4.8e-5, 1.2e-5 m (order 2.0), loops 1e-12 (best:
-      6e-15) m, 0.04 .. 0.18 s CPU per simulated second; index 2 fails at the
-      3rd or 4th pass (2.66 / 3.17 s); Newton to 1e-12 at the first (0.714 s);
-      undamped gains energy (2.4 .. 150 J) and fails at 6.5 .. 7.0 s.
-    - A03 Andrews' squeezer, 0.03 s: best 6.05e-7, 1.51e-7, 3.79e-8 m (order
-      2.00), 6 .. 25 s CPU per simulated second; the defaults' 1.08e-8 m at
-      2.5 us (orders 2.3, 3.5) is Newton's 1e-8 tolerance mixing with the
-      truncation error, not a higher order.
-    """
-    mech = kinematics.mechanism
-    _refuse(mech)
-    motion = reference.motion
-    every = max(1, (len(motion.times) - 1) // COMPARED)
-    while (len(motion.times) - 1) % every:  # end at the last output
-        every -= 1
-    index = np.arange(0, len(motion.times), every)
-    rows, trajectories = [], []
-    for setting in settings:
-        for dt in ladder_steps(reference, steps):
-            row, trajectory = _run(kinematics, reference, index, setting, dt)
-            rows.append(row)
-            if trajectory is not None:
-                trajectories.append((row["position_error"], trajectory))
-    summary = pd.DataFrame(rows)
-    errors = summary["position_error"].where(summary["status"] == "ok")  # a run that stopped has no order
-    study = convergence_study(summary["setting"], summary["timestep"], errors, summary["status"])
-    trajectories.sort(key=lambda pair: pair[0])
-    ok = bool(trajectories)
-    reason = "" if ok else f"no run went through: {rows[0]['status']}"
-    return ModeResult(MODE, mech.name, ok, reason, [t for _, t in trajectories], summary, study)
-
-
-def _matched(data: np.ndarray, wanted: np.ndarray, tolerance: float) -> np.ndarray:
-    """Rows of a sensor's stored data (time first) at the wanted times, in order, up to the
-    first wanted time it did not reach (an adaptive step after a failed Newton step may
-    write in between)."""
-    if data.ndim != 2 or not len(data):
-        return np.zeros(0, dtype=int)
-    rows = []
-    for t in wanted:
-        at = np.flatnonzero(np.abs(data[:, 0] - t) <= tolerance)
-        if not len(at):
-            break
-        rows.append(int(at[-1]))
-    return np.asarray(rows, dtype=int)
-
-
-def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple[dict, Trajectory | None]:
-    import exudyn as exu
-    import exudyn.itemInterface as ei
-
-    mech = kinematics.mechanism
-    motion = reference.motion
-    duration = float(motion.times[index[-1]])
-    row = {
-        "setting": setting.name,
-        "integrator": setting.integrator,
-        "timestep": dt,
-        "steps": int(round(duration / dt)),
-        "status": "ok",
-        "cpu_seconds": math.nan,
-        "cpu_per_simulated_second": math.nan,
-        "simulated": 0.0,
-        "position_error": math.nan,
-        "final_error": math.nan,
-        "angle_error": math.nan,
-        "loop_drift": math.nan,
-        "energy_drift": math.nan,
-    }
-    sample = float(motion.times[index[1]] - motion.times[index[0]]) if len(index) > 1 else duration
-    if abs(sample / dt - round(sample / dt)) > 1e-9 * sample / dt:
-        row["status"] = f"the step does not divide the compared output step ({sample:g} s)"
-        return row, None
-    begin = time.process_time()
-    model = build_system(mech, motion.q[0], motion.qd[0])
+    mech = problem.kinematics.mechanism
+    setting: Setting = rung.series.options
+    dt = rung.timestep
+    wanted = problem.times
+    duration = float(wanted[-1])
+    model = build_system(mech, *problem.start)
     mbs = model.mbs
     sensors = {
-        name: (
-            mbs.AddSensor(
-                ei.SensorNode(
-                    nodeNumber=node, storeInternal=True, outputVariableType=exu.OutputVariableType.Coordinates
-                )
-            ),
-            mbs.AddSensor(
-                ei.SensorNode(
-                    nodeNumber=node, storeInternal=True, outputVariableType=exu.OutputVariableType.Coordinates_t
-                )
-            ),
+        name: tuple(
+            mbs.AddSensor(ei.SensorNode(nodeNumber=node, storeInternal=True, outputVariableType=kind))
+            for kind in (exu.OutputVariableType.Coordinates, exu.OutputVariableType.Coordinates_t)
         )
         for name, node in model.nodes.items()
     }
@@ -506,7 +92,8 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
     printing, config.printToConsole = config.printToConsole, False  # its banner on failure: the row says it
     try:
         solve: Any = exu.SolveDynamic  # its stubs lack showHints
-        done = solve(mbs, _settings(setting, dt, duration, sample), showHints=False, showCausingItems=False)
+        every = problem.output_step
+        done = solve(mbs, solver_settings(setting, dt, duration, every), showHints=False, showCausingItems=False)
         if not done:
             failure = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
     except Exception as error:  # noqa: BLE001 - a solver that gives up is a row
@@ -515,31 +102,22 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
         failure += "" if said == "SolveDynamic terminated" else f" ({said})"
     finally:
         config.printToConsole = printing
-    seconds = time.process_time() - begin
     stored = {name: (mbs.GetSensorStoredData(a), mbs.GetSensorStoredData(b)) for name, (a, b) in sensors.items()}
-    wanted = motion.times[index]
-    keep = _matched(next(iter(stored.values()))[0], wanted, 1e-9 * max(duration, 1.0))
+    keep = matched(next(iter(stored.values()))[0], wanted, 1e-9 * max(duration, 1.0))
     reached = len(keep)
-    stored = {name: (a[keep], b[keep]) for name, (a, b) in stored.items()}
     # the state at each sample: centre of mass (x, y, phi) and its rates, then the frame origins and points
-    coords = {n: model.reference[n][None, :] + stored[n][0][:reached, 1:4] for n in model.nodes}
-    rates = {n: stored[n][1][:reached, 1:4] for n in model.nodes}
+    coords = {n: model.reference[n][None, :] + stored[n][0][keep, 1:4] for n in model.nodes}
+    rates = {n: stored[n][1][keep, 1:4] for n in model.nodes}
     finite = np.ones(reached, dtype=bool)
     for n in model.nodes:
         finite &= np.isfinite(coords[n]).all(axis=1) & np.isfinite(rates[n]).all(axis=1)
     if not finite.all():
         reached = int(np.argmin(finite))
         failure = failure or f"went non-finite at t = {wanted[reached]:.6g} s"
-        coords = {n: v[:reached] for n, v in coords.items()}
-        rates = {n: v[:reached] for n, v in rates.items()}
-    row.update(
-        cpu_seconds=seconds,
-        cpu_per_simulated_second=seconds / max(float(wanted[reached - 1]) if reached else 0.0, 1e-300),
-        simulated=float(wanted[reached - 1]) if reached else 0.0,
-        status=failure or "ok",
-    )
-    if reached < 2:
-        return row, None
+    if not reached:
+        return Run(None, failure)
+    coords = {n: v[:reached] for n, v in coords.items()}
+    rates = {n: v[:reached] for n, v in rates.items()}
     angles = {n: c[:, 2] for n, c in coords.items()}
     bodies, points = {}, {}
     for body in mech.moving_bodies:
@@ -556,41 +134,30 @@ def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple
                 points[("load", load.name)] = origin + np.stack([rotate(phi, load.point) for phi in c[:, 2]])
     for label, xy in mech.ground.points.items():
         points[(GROUND, label)] = np.broadcast_to(np.asarray(xy, dtype=float), (reached, 2))
-    named = {label: {"position": np.array(points[(owner, label)])} for label, owner in mech.point_owners.items()}
-    drift = _joint_gaps(mech, points, angles)
-    row["loop_drift"] = float(np.max(drift))
-    dampers = any(s.damping > 0.0 for s in (*mech.springs, *mech.rotational_springs))
-    if not dampers and all(load.law is None for load in mech.loads):  # else energy is not conserved
-        energy = _energy(mech, model, coords, rates, angles, points)
-        row["energy_drift"] = float(np.max(np.abs(energy - energy[0])))
-    times = wanted[:reached]
+    gaps = joint_gaps(mech, points, angles)
+    apart = [problem.came_apart(float(t), float(g)) for t, g in zip(wanted, gaps)]
+    stop = next((i for i, why in enumerate(apart) if why), None)
+    if stop is not None and not failure:
+        failure, reached = apart[stop], stop + 1
+    keep_to = slice(0, reached)
+    named = {
+        label: {"position": np.array(points[(owner, label)])[keep_to]} for label, owner in mech.point_owners.items()
+    }
+    bodies = {name: {k: v[keep_to] for k, v in states.items()} for name, states in bodies.items()}
+    diagnostics = {"constraint_violation": gaps[keep_to]}
+    if conservative(mech):  # E less the constant loads' potential
+        diagnostics["energy"] = energy(mech, model, coords, rates, angles, points)[keep_to]
     empty = np.zeros((reached, 0))
-    trajectory = Trajectory(
-        MODE,
-        empty,
-        empty,
-        empty,
-        bodies,
-        named,
-        times,
-        {
-            "setting": setting.name,
-            "series": setting.name,
-            "integrator": setting.integrator,
-            "timestep": dt,
-            "spectral_radius": setting.spectral_radius,
-            "index2": setting.index2,
-            "newton_tolerance": setting.newton_tolerance,
-        },
-        notes=f"Exudyn free motion, {setting.integrator}, dt = {dt:g} s, from the reference's initial state.",
+    settings = {
+        "setting": rung.series.setting,
+        "series": rung.series.key,
+        "integrator": rung.series.integrator,
+        "timestep": dt,
+        "spectral_radius": setting.spectral_radius,
+        "index2": setting.index2,
+        "newton_tolerance": setting.newton_tolerance,
+    }
+    notes = f"Exudyn free motion, {rung.series.integrator}, dt = {dt:g} s, from the reference's initial state."
+    return Run(
+        Trajectory(MODE, empty, empty, empty, bodies, named, wanted[:reached], settings, diagnostics, notes), failure
     )
-    errors = free_errors(reference, trajectory)
-    row.update(
-        position_error=errors["position_error"], final_error=errors["final_error"], angle_error=errors["angle_error"]
-    )
-    apart = np.argmax(drift > APART * mech.size) if np.any(drift > APART * mech.size) else None
-    if row["status"] == "ok" and apart is not None:
-        row["status"] = f"came apart at t = {times[apart]:.6g} s (joints {drift[apart]:.3g} m apart)"
-    elif row["status"] == "ok":
-        row["status"] = left_branch(reference, trajectory, APART * mech.size) or "ok"
-    return row, trajectory if row["status"] == "ok" else None

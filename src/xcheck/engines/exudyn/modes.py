@@ -1,11 +1,11 @@
-"""Exudyn's modes, as the engine contract calls them: :func:`.free.run_free`
-(``exudyn-free``) and :func:`.dynamic.run_dynamic` (``exudyn-dynamic``), and
+"""Exudyn's modes, as the engine contract calls them: ``exudyn-free`` (the series
+and one run of :mod:`.free`) and :func:`.dynamic.run_dynamic` (``exudyn-dynamic``), and
 :func:`.export.export_files` (the Exudyn script of ``xcheck export``)."""
 
 from __future__ import annotations
 
 from .dynamic import run_dynamic
 from .export import export_files
-from .free import run_free
+from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["run_free", "run_dynamic", "export_files"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "run_dynamic", "export_files"]

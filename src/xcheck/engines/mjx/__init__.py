@@ -4,7 +4,7 @@ dynamics (:mod:`.dynamic`)."""
 
 from __future__ import annotations
 
-from xcheck.engines._contract import Engine, Mode
+from xcheck.engines._contract import Engine, Finding, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, Tolerance
 
 __all__ = ["MJX"]
@@ -25,12 +25,30 @@ _DYNAMIC = Tolerance(
 )
 
 
-#: MJX's driven accelerations, wrong by a known, measured amount (tests/test_engine_mjx.py).
-_ACCELERATIONS = (
+#: the defect both findings come from (tests/test_engine_mjx.py shows it term by term)
+_CAUSE = "MJX's loop constraints (connect) lack the loops' J-dot qd, which MuJoCo's C implementation has"
+#: MJX's driven accelerations, wrong by a known, measured amount.
+_ACCELERATIONS = Finding(
+    _CAUSE,
     "MJX's loop constraint (connect) leaves out the loops' J-dot qd, which MuJoCo's C implementation "
     "has, so MJX's qacc does not converge as the step falls (fourbar 0.09 to 0.48 from 1 to 0.125 ms, "
     "slider-crank 0.45 to 0.42): measured 0.03 to 1.1 of "
-    "the largest acceleration on the bundled mechanisms (xcheck run all, 2026-11-26)"
+    "the largest acceleration on the bundled mechanisms (xcheck run all, 2026-11-26); none on an open chain "
+    "(two-body-arm: 1.3e-15)",
+    ("acceleration", "alpha"),
+    kinds=("dynamic",),
+    closed_loops=True,
+)
+#: MJX's free positions on closed loops, far from MuJoCo (C)'s at the same setting.
+_FREE_POSITIONS = Finding(
+    _CAUSE,
+    "MJX's stabilisation holds the loops open by about J-dot qd (2 dt)^2, so its free motion on closed "
+    "loops is not MuJoCo (C)'s at the same setting: Andrews' squeezer (A03) stiff RK4 6.9e-6, 1.9e-6, "
+    "4.9e-7 m from the reference against MuJoCo (C)'s 8.6e-9, 2.0e-9, 4.6e-10 m (800 to 1050 times); "
+    "the same as MuJoCo (C)'s on an open chain (the pendulum A01: within 3e-15 m)",
+    ("position", "angle"),
+    kinds=("free",),
+    closed_loops=True,
 )
 
 
@@ -50,7 +68,6 @@ class MJX(Engine):
             _DYNAMIC,
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:cyan", lw=1, ls="--"),
-            findings={"acceleration": _ACCELERATIONS, "alpha": _ACCELERATIONS},
             # a compilation for every random mechanism: 39 s a case, 4 times the rest (fuzz --seed 6)
             campaigns=False,
             # its compilation alone exceeds the 3 to 4 s a default run of a mechanism is allowed
@@ -71,6 +88,7 @@ class MJX(Engine):
         ),
     )
     color = "tab:cyan"
+    findings = (_ACCELERATIONS, _FREE_POSITIONS)
     notes = (
         "The MuJoCo engine's MJCF file (revolute, prismatic and pin-in-slot joints, loops closed by connect "
         "or weld equalities, springs as spatial tendons) put on MJX's JAX back end (mjx.put_model, float64), "

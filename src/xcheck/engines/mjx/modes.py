@@ -1,8 +1,9 @@
-"""The MJX engine's modes: free motion (:mod:`.free`) and driven dynamics (:mod:`.dynamic`)."""
+"""The MJX engine's modes: free motion (the series and one run of :mod:`.free`)
+and driven dynamics (:mod:`.dynamic`)."""
 
 from __future__ import annotations
 
 from .dynamic import run_dynamic
-from .free import run_free
+from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["run_dynamic", "run_free"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "run_dynamic"]

@@ -1,7 +1,8 @@
 """MuJoCo in free motion (mode ``mujoco-free``): the mechanism released from the
-native reference's initial state, compared with the reference.
+native reference's initial state; the ladder and its judgement are
+:func:`xcheck.ladder.free_study`'s.
 
-The MJCF file is the writer's (:func:`.mjcf.mjcf_text`); its servos are
+The MJCF file is the writer's (:func:`.model.free_model`); its servos are
 switched off (actuation disabled, gains and biases zeroed, controls 0), so the
 drivers play no part. Gravity is the file's; each linear spring of the
 mechanism becomes a spatial tendon between its two sites (MuJoCo's tendon
@@ -10,14 +11,14 @@ stiffness, spring length and damping: the same force law). The constant
 through MuJoCo's passive-force callback (``mjcb_passive``, ``mj_applyFT`` at the
 load's point, the force fixed in the global frame), set for the run only.
 
-A ladder of settings as a user would run them: the file's constraint softness
-(MuJoCo's defaults) and stiff loops (:data:`.dynamic.TIGHT`'s: solref = 2 dt,
-solimp 0.9999), with each integrator (Euler, implicitfast, RK4) and several
-time steps. A run that blows up is a row with its status, never an exception.
-Loop drift is MuJoCo's own measure (the largest ``efc_pos`` of the loop
-equalities at the sampled states); energy drift is the largest |E(t) - E(0)|
-of MuJoCo's energy (``mjENBL_ENERGY``: kinetic, gravity and tendon springs),
-empty where loads or dampers do work.
+The series, as a user would run them: the file's constraint softness (MuJoCo's
+defaults) and stiff loops (:data:`.dynamic.TIGHT`'s: solref = 2 dt, solimp
+0.9999), each with each integrator (Euler, implicitfast, RK4). A run that blows
+up (a MuJoCo warning, a non-finite state) stops there. Loop drift is MuJoCo's
+own measure (the largest ``efc_pos`` of the loop equalities at the sampled
+states); energy is MuJoCo's (``mjENBL_ENERGY``: kinetic, gravity and tendon
+springs), left out where loads or rotational springs act (it does not hold
+their potential).
 
 Measured on the IFToMM double four-bar (A02, 10 s, 2 cores): with the default
 softness every integrator and step stays on the parallelogram branch but runs
@@ -32,155 +33,95 @@ from __future__ import annotations
 import copy
 import math
 import time
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-import pandas as pd
 
-from xcheck.errors import XcheckError
-from xcheck.joints import LineJoint
-from xcheck.kinematics import Kinematics, rotate
+from xcheck.kinematics import Kinematics
+from xcheck.ladder import FreeProblem, Run, Rung, Series
 from xcheck.model import GROUND, Mechanism
-from xcheck.results import ModeResult, Trajectory, convergence_study
-from xcheck.simulation import free_errors, ladder_steps, left_branch
+from xcheck.results import Trajectory
 
 from .dynamic import Setting
-from .mjcf import Layout, joint_coordinates, layout, mjcf_text
+from .mjcf import Layout, joint_coordinates
+from .model import free_model, joint_velocities
 from .oracle import Oracle
 
-__all__ = ["FREE_MODE", "SETTINGS", "TIMESTEPS", "LEFT_BRANCH", "joint_velocities", "free_model", "run_free"]
+__all__ = ["FREE_MODE", "FREE_SERIES", "FreeModel", "free_series", "prepare_free", "run_free_once", "states"]
 
 FREE_MODE = "mujoco-free"
 
-#: The ladder's settings: the file's softness (MuJoCo's defaults) and stiff loops, each integrator.
-SETTINGS = (
-    Setting("default", "Euler", False),
-    Setting("default", "implicitfast", False),
-    Setting("default", "RK4", False),
-    Setting("stiff", "Euler", True),
-    Setting("stiff", "implicitfast", True),
-    Setting("stiff", "RK4", True),
+
+def free_series(setting: Setting) -> Series:
+    """The series of a setting: named by its name and integrator ("stiff RK4")."""
+    return Series(setting.name, setting.integrator, setting, name=f"{setting.name} {setting.integrator}")
+
+
+#: The ladder's series: the file's softness (MuJoCo's defaults) and stiff loops, each integrator.
+FREE_SERIES = tuple(
+    free_series(Setting(softness, integrator, stiff))
+    for softness, stiff in (("default", False), ("stiff", True))
+    for integrator in ("Euler", "implicitfast", "RK4")
 )
-#: The ladder's time steps, s.
-TIMESTEPS = (1e-3, 5e-4, 2.5e-4)
-#: A run farther than this fraction of the mechanism's size from every configuration the reference
-#: passes has left the reference's branch (a run out of phase on the branch has not).
-LEFT_BRANCH = 0.1
-#: About this many reference outputs are compared (every k-th).
-COMPARED = 200
 
 
-def joint_velocities(mechanism: Mechanism, lay: Layout, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-    """MuJoCo ``qvel`` of body coordinates and rates: the time derivative of
-    :func:`.mjcf.joint_coordinates`.
+@dataclass
+class FreeModel:
+    """What every free run shares: the compiled model, its layout and oracle, and
+    the start (qpos0, qvel0) mapped from the reference's initial state."""
 
-    Parameters
-    ----------
-    q, qd : ndarray, shape (3 m,)
-        x, y (m), phi (rad) of each moving body and their rates (m/s, rad/s).
-
-    Returns
-    -------
-    ndarray, shape (nv,)
-        Hinges: ``omega_b - omega_a`` (rad/s); slides: the rate of the slide displacement (m/s).
-    """
-    frames = {GROUND: (np.zeros(2), 0.0, np.zeros(2), 0.0)}
-    for i, body in enumerate(mechanism.moving_bodies):
-        frames[body.name] = (
-            np.asarray(q[3 * i : 3 * i + 2], dtype=float),
-            float(q[3 * i + 2]),
-            np.asarray(qd[3 * i : 3 * i + 2], dtype=float),
-            float(qd[3 * i + 2]),
-        )
-
-    def world(body: str, label: str) -> tuple[np.ndarray, np.ndarray]:
-        r, phi, v, w = frames[body]
-        arm = rotate(phi, mechanism.body(body).points[label])
-        return r + arm, v + w * np.array([-arm[1], arm[0]])
-
-    qvel = []
-    for mj in lay.joints:
-        joint = mj.joint
-        if mj.kind == "hinge":
-            qvel.append(frames[joint.body_b][3] - frames[joint.body_a][3])
-        else:
-            assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
-            phi_a, w_a = frames[joint.body_a][1], frames[joint.body_a][3]
-            direction = rotate(phi_a, joint.direction)
-            turning = w_a * np.array([-direction[1], direction[0]])
-            (p_b, v_b), (p_a, v_a) = world(joint.body_b, joint.point), world(joint.body_a, joint.line_point)
-            qvel.append(float(turning @ (p_b - p_a) + direction @ (v_b - v_a)))
-    return np.array(qvel)
+    model: mujoco.MjModel
+    layout: Layout
+    oracle: Oracle
+    qpos0: np.ndarray
+    qvel0: np.ndarray
 
 
-def free_model(kinematics: Kinematics) -> tuple[mujoco.MjModel, Layout]:
-    """The compiled MJCF of the mechanism for free motion: springs as tendons, actuation off.
+def prepare_free(problem: FreeProblem) -> FreeModel:
+    """The free model (:func:`.model.free_model`) and the start in MuJoCo's coordinates.
 
     Raises
     ------
-    XcheckError
-        If the writer cannot express the mechanism.
     ValueError
-        If MuJoCo rejects the file.
+        If the MJCF cannot be written or compiled, or the initial state does not
+        close MuJoCo's loops.
     """
+    kinematics = problem.kinematics
     mech = kinematics.mechanism
-    lay = layout(mech)
-    text = mjcf_text(kinematics)  # the springs are its spatial tendons
-    model = mujoco.MjModel.from_xml_string(text)
-    model.actuator_gainprm[:] = 0.0
-    model.actuator_biasprm[:] = 0.0
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION
-    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
-    return model, lay
+    model, lay = free_model(kinematics)
+    oracle = Oracle(model, mech, lay)
+    q0, qd0 = problem.start
+    qpos0, qvel0 = joint_coordinates(mech, lay, q0), joint_velocities(mech, lay, q0, qd0)
+    residual, jacobian = oracle.constraints(qpos0)
+    closure = float(np.max(np.abs(residual), initial=0.0))
+    rate = float(np.max(np.abs(jacobian @ qvel0), initial=0.0))
+    if closure > 1e-9 * mech.size or rate > 1e-9 * max(float(np.max(np.abs(qd0))), 1.0) * mech.size:
+        raise ValueError(
+            f"the initial state does not close MuJoCo's loops (position {closure:.3g} m, velocity {rate:.3g} m/s)"
+        )
+    return FreeModel(model, lay, oracle, qpos0, qvel0)
 
 
-def _sampling(reference, timestep: float) -> tuple[np.ndarray, int, str]:
-    """(indices of the compared reference outputs, steps between them, "" or why ``timestep`` does not fit)."""
-    times = reference.motion.times
-    every = max(1, math.ceil((len(times) - 1) / COMPARED))
-    index = np.arange(0, len(times), every)
-    interval = float(times[every] - times[0]) if len(times) > every else float(times[-1] - times[0])
-    steps = round(interval / timestep)
-    if steps < 1 or abs(steps * timestep - interval) > 1e-9 * max(interval, 1e-300):
-        return index, 0, f"the step {timestep:g} s does not divide the sampling interval {interval:g} s"
-    return index, steps, ""
-
-
-def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: float, qpos0, qvel0) -> tuple:
-    """One run of the ladder: (summary row, Trajectory or None)."""
+def run_free_once(prepared: FreeModel, problem: FreeProblem, rung: Rung, model: mujoco.MjModel | None = None) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`); ``model``
+    instead of the prepared one (MJX compares MuJoCo at its own solver)."""
+    kinematics = problem.kinematics
     mech = kinematics.mechanism
-    model = copy.deepcopy(model)
-    settings = setting.apply(model, timestep)
-    index, every, misfit = _sampling(reference, timestep)
-    times = reference.motion.times[index]
-    duration = float(times[-1] - times[0])
-    row = {
-        "setting": setting.name,
-        "integrator": setting.integrator,
-        "timestep": timestep,
-        "steps": every * (len(index) - 1),
-        "status": "ok",
-        "cpu_seconds": math.nan,
-        "cpu_per_simulated_second": math.nan,
-        "position_error": math.nan,
-        "final_error": math.nan,
-        "angle_error": math.nan,
-        "loop_drift": math.nan,
-        "energy_drift": math.nan,
-    }
-    if misfit:
-        row["status"] = misfit
-        return row, None
+    model = copy.deepcopy(prepared.model if model is None else model)
+    setting: Setting = rung.series.options
+    settings = setting.apply(model, rung.timestep)
+    times = problem.times
     data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = qpos0, qvel0
-    loads = _loads(mech, model, reference.motion.q[0])
+    data.qpos[:], data.qvel[:] = prepared.qpos0, prepared.qvel0
+    loads = _loads(mech, model, problem.start[0])
     passive = mujoco.get_mjcb_passive()
-    n = len(index)
+    n = len(times)
     qpos, qvel, qacc = (np.full((n, model.nv), np.nan) for _ in range(3))
-    energy = np.full(n, np.nan)
+    energy, gaps = np.full(n, np.nan), np.full(n, np.nan)
     warnings: list[str] = []
     previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(warnings.append)  # an unstable simulation is the run's status
+    mujoco.set_mju_user_warning(warnings.append)  # an unstable simulation is the run's failure
     if loads is not None:
         mujoco.set_mjcb_passive(loads)
     failure, s = "", 0
@@ -188,46 +129,40 @@ def _run(kinematics, model, lay, oracle, reference, setting: Setting, timestep: 
     try:
         for s in range(n):
             if s:
-                mujoco.mj_step(model, data, nstep=every)
+                mujoco.mj_step(model, data, nstep=rung.counts[s - 1])
             mujoco.mj_forward(model, data)
             if warnings:
                 failure = f"diverged by t = {times[s]:.4g} s: {warnings[0].strip()}"
                 break
             if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
-                failure = f"NaN by t = {times[s]:.4g} s"
+                failure = f"went non-finite by t = {times[s]:.4g} s"
                 break
             qpos[s], qvel[s], qacc[s] = data.qpos, data.qvel, data.qacc
-            energy[s] = data.energy[0] + data.energy[1]
+            energy[s], gaps[s] = data.energy[0] + data.energy[1], prepared.oracle.violation(data.qpos)
+            failure = problem.came_apart(float(times[s]), gaps[s])
+            if failure:
+                s += 1
+                break
         else:
             s = n
     finally:
         mujoco.set_mju_user_warning(previous)
         mujoco.set_mjcb_passive(passive)
     cpu = time.process_time() - begin
-    row["cpu_seconds"] = cpu
-    row["cpu_per_simulated_second"] = cpu / max(float(times[max(s - 1, 0)] - times[0]), duration * 1e-9, 1e-300)
-    if s < 2:
-        row["status"] = failure or "no step went through"
-        return row, None
+    if not s:
+        return Run(None, failure or "no output reached", cpu)
     good = slice(0, s)
-    trajectory = _trajectory(kinematics, oracle, reference, settings, qpos[good], qvel[good], qacc[good], times[good])
-    drift = np.array([oracle.violation(q) for q in qpos[good]])
-    trajectory.diagnostics = {"constraint_violation": drift, "energy": energy[good]}
-    row["loop_drift"] = float(drift.max())
-    if not (mech.loads or mech.rotational_springs or any(spring.damping for spring in mech.springs)):  # E conserved
-        row["energy_drift"] = float(np.max(np.abs(energy[good] - energy[0])))
-    if failure:
-        row["status"] = failure
-        return row, None
-    errors = free_errors(reference, trajectory)
-    row.update(
-        position_error=errors["position_error"], final_error=errors["final_error"], angle_error=errors["angle_error"]
+    series = rung.series.key
+    trajectory = states(kinematics, prepared.oracle, problem, qpos[good], qvel[good], qacc[good])
+    trajectory.settings = {**settings, "series": series, "samples": s}
+    trajectory.diagnostics = {"constraint_violation": gaps[good]}
+    if not (mech.loads or mech.rotational_springs):  # MuJoCo's energy holds neither's potential
+        trajectory.diagnostics["energy"] = energy[good]
+    trajectory.notes = (
+        f"Free motion, {series}, dt = {rung.timestep:g} s: servos off (actuation disabled), from the reference's "
+        "initial state; accelerations are qacc (with MuJoCo's constraint stabilisation)."
     )
-    left = left_branch(reference, trajectory, LEFT_BRANCH * mech.size)
-    if left:  # the errors stay in the row: what the run did until then
-        row["status"] = left
-        return row, None
-    return row, trajectory
+    return Run(trajectory, failure, cpu)
 
 
 def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
@@ -290,112 +225,16 @@ def _loads(mechanism: Mechanism, model: mujoco.MjModel, q0: np.ndarray):
     return apply
 
 
-def _trajectory(kinematics, oracle: Oracle, reference, settings: dict, qpos, qvel, qacc, times) -> Trajectory:
-    """The sampled states in the canonical frames, body angles continuous from the reference's first one."""
+def states(kinematics: Kinematics, oracle: Oracle, problem: FreeProblem, qpos, qvel, qacc) -> Trajectory:
+    """MuJoCo's states at the first ``len(qpos)`` compared outputs as a Trajectory in the
+    canonical frames, body angles continuous from the reference's first ones."""
     mech = kinematics.mechanism
     bodies, points = oracle.states(qpos, qvel, qacc)
-    start = reference.motion.q[0]
+    start = problem.start[0]
     for i, body in enumerate(mech.moving_bodies):
         angle = np.unwrap(bodies[body.name]["angle"])
         turns = round((float(start[3 * i + 2]) - angle[0]) / (2.0 * math.pi))
         bodies[body.name]["angle"] = angle + 2.0 * math.pi * turns
     dofs = oracle.input_dofs
-    series = f"{settings['setting']} {settings['integrator']}"
-    return Trajectory(
-        FREE_MODE,
-        qpos[:, dofs],
-        qvel[:, dofs],
-        qacc[:, dofs],
-        bodies,
-        points,
-        np.asarray(times, dtype=float),
-        {**settings, "series": series, "samples": len(times)},
-        {},
-        f"Free motion, {series}, dt = {settings['timestep']:g} s: servos off (actuation disabled), from the "
-        "reference's initial state; accelerations are qacc (with MuJoCo's constraint stabilisation).",
-    )
-
-
-def run_free(
-    kinematics: Kinematics,
-    reference,
-    branch: str | None = None,
-    timesteps=TIMESTEPS,
-    settings=SETTINGS,
-) -> ModeResult:
-    """MuJoCo's free motion of the mechanism against the native reference.
-
-    Parameters
-    ----------
-    kinematics : Kinematics
-    reference : FreeReference
-        The native reference (:func:`xcheck.dynamics.simulate`); its initial
-        state is MuJoCo's, its output times (every k-th, about 200) are compared.
-    branch : str, optional
-        Unused: the reference's initial state fixes the branch.
-    timesteps : sequence of float
-        The ladder's time steps, s.
-    settings : sequence of Setting
-        The ladder's settings (:data:`SETTINGS`).
-
-    Returns
-    -------
-    ModeResult
-        See :meth:`xcheck.engines.Engine.run_free`; ``summary`` also has
-        angle_error (rad) and observed_order (of position_error against the
-        previous step of the same setting and integrator).
-    """
-    mech = kinematics.mechanism
-    try:
-        model, lay = free_model(kinematics)
-    except XcheckError as error:
-        return ModeResult(FREE_MODE, mech.name, False, f"MJCF writer: {' '.join(str(error).split())}")
-    except ValueError as error:
-        return ModeResult(FREE_MODE, mech.name, False, f"MuJoCo rejects the MJCF: {error}".splitlines()[0])
-    oracle = Oracle(model, mech, lay)
-    q0, qd0 = reference.motion.q[0], reference.motion.qd[0]
-    qpos0, qvel0 = joint_coordinates(mech, lay, q0), joint_velocities(mech, lay, q0, qd0)
-    residual, jacobian = oracle.constraints(qpos0)
-    closure = float(np.max(np.abs(residual), initial=0.0))
-    rate = float(np.max(np.abs(jacobian @ qvel0), initial=0.0))
-    if closure > 1e-9 * mech.size or rate > 1e-9 * max(float(np.max(np.abs(qd0))), 1.0) * mech.size:
-        return ModeResult(
-            FREE_MODE,
-            mech.name,
-            False,
-            f"the initial state does not close MuJoCo's loops (position {closure:.3g} m, velocity {rate:.3g} m/s)",
-        )
-    rows, trajectories = [], []
-    for setting in settings:
-        for dt in ladder_steps(reference, timesteps):
-            row, trajectory = _run(kinematics, model, lay, oracle, reference, setting, float(dt), qpos0, qvel0)
-            rows.append(row)
-            if trajectory is not None:
-                trajectories.append((row["position_error"], trajectory))
-    summary = pd.DataFrame(rows)
-    # errors within the reference's stated error are not measured: no order
-    floor = float(np.max(reference.estimate))
-    study = convergence_study(
-        summary.setting + " " + summary.integrator,
-        summary.timestep,
-        summary.position_error,
-        summary.status,
-        floor=floor,
-    )
-    order = study.set_index(["series", "timestep"])["order"]
-    summary["observed_order"] = [
-        float(order.get((f"{r.setting} {r.integrator}", r.timestep), math.nan)) for r in summary.itertuples()
-    ]
-    trajectories.sort(key=lambda pair: pair[0])
-    if not trajectories:
-        first = summary.iloc[0]
-        return ModeResult(
-            FREE_MODE,
-            mech.name,
-            False,
-            f"no run went through ({first.setting} {first.integrator} dt = {first.timestep:g} s: {first.status})",
-            [],
-            summary,
-            study,
-        )
-    return ModeResult(FREE_MODE, mech.name, True, "", [t for _, t in trajectories], summary, study)
+    times = problem.times[: len(qpos)]
+    return Trajectory(FREE_MODE, qpos[:, dofs], qvel[:, dofs], qacc[:, dofs], bodies, points, times)

@@ -15,16 +15,17 @@ import numpy as np
 import pandas as pd
 
 from xcheck.engines._driven import left_branch, refined_timesteps
-from xcheck.errors import InputError, XcheckError
+from xcheck.errors import InputError
 from xcheck.kinematics import Kinematics, Status
-from xcheck.model import Mechanism
+from xcheck.ladder import convergence_study, observed_order
 from xcheck.motion import law_states, simulation_window, sweep_span
-from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.results import ModeResult, Trajectory, differences
 
 from .dynamic import DEFAULT, TIGHT, Run, simulate
-from .free import run_free  # noqa: F401
+from .free import FREE_SERIES, prepare_free, run_free_once  # noqa: F401 - the mode "mujoco-free"
 from .inverse import inverse_forces
 from .mjcf import DEFAULT_MASS, carrier_note, joint_coordinates, layout, mass_properties, mjcf_text
+from .model import compile_model
 from .oracle import Oracle
 
 __all__ = ["export_files", "run_kinematic", "run_dynamic", "relative_error", "inverse_dynamics"]
@@ -44,24 +45,13 @@ def export_files(kinematics: Kinematics) -> dict[str, str]:
     return {f"{kinematics.mechanism.name}.xml": mjcf_text(kinematics)}
 
 
-def _writer_failure(mechanism: Mechanism, error: XcheckError) -> str:
-    """One line saying why the writer cannot express the mechanism."""
-    return f"MJCF writer: {' '.join(str(error).split())}"
-
-
 def _compile(kinematics: Kinematics, xml: str | None):
     """(model, layout, "") of the mechanism's MJCF text (``xml`` overrides the
     writer's), or (None, None, one-line reason) if it cannot be written or compiled."""
-    mech = kinematics.mechanism
     try:
-        lay = layout(mech)
-        text = mjcf_text(kinematics) if xml is None else xml
-    except XcheckError as error:
-        return None, None, _writer_failure(mech, error)
-    try:
-        return mujoco.MjModel.from_xml_string(text), lay, ""
-    except ValueError as error:  # MuJoCo's compiler
-        return None, None, f"MuJoCo rejects the MJCF: {error}".splitlines()[0]
+        return (*compile_model(kinematics, xml), "")
+    except ValueError as error:
+        return None, None, str(error)
 
 
 def _sweeps(kinematics: Kinematics, samples: int, branch: str | None, margin: float):

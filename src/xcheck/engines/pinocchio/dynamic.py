@@ -27,11 +27,12 @@ import pinocchio as pin
 
 from xcheck.engines._driven import refined_steps
 from xcheck.kinematics import Kinematics
+from xcheck.ladder import convergence_study, observed_order
 from xcheck.motion import simulation_window
-from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.results import ModeResult, differences
 
 from .model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
-from .oracle import Oracle, frame_states, one_line
+from .oracle import Oracle, one_line, run_trajectory
 
 __all__ = ["run_dynamic", "INTEGRATORS"]
 
@@ -166,40 +167,6 @@ def _integrate(
     return rows, None
 
 
-def _trajectory(pm, oracle, rows, source, settings, notes) -> Trajectory:
-    mech = pm.mechanism
-    m = len(rows)
-    times = np.array([r[0] for r in rows])
-    q, v, a, force = (np.array([r[i] for r in rows]) for i in (1, 2, 3, 4))
-    s = oracle.selector
-    bodies: dict[str, dict[str, np.ndarray]] = {b.name: {} for b in mech.moving_bodies}
-    points: dict[str, dict[str, np.ndarray]] = {label: {} for label in mech.point_owners}
-    states = [frame_states(pm, oracle.data, q[i], v[i], a[i]) for i in range(m)]
-    for name in bodies:
-        for quantity in ("position", "angle", "velocity", "omega", "acceleration", "alpha"):
-            bodies[name][quantity] = np.array([st[0][name][quantity] for st in states])
-    for label, owner in mech.point_owners.items():
-        for quantity in ("position", "velocity", "acceleration"):
-            points[label][quantity] = np.array([st[1][f"{owner}.{label}"][quantity] for st in states])
-    loop = np.array([np.max(np.abs(oracle.loop_residual(qi)), initial=0.0) for qi in q])
-    velocity_loop = []
-    for qi, vi in zip(q, v):
-        oracle.loop_residual(qi)
-        velocity_loop.append(float(np.max(np.abs(oracle.loop_jacobian(qi) @ vi), initial=0.0)))
-    return Trajectory(
-        source=source,
-        inputs=q @ s.T,
-        input_rates=v @ s.T,
-        input_accelerations=a @ s.T,
-        bodies=bodies,
-        points=points,
-        times=times,
-        settings=settings,
-        diagnostics={"constraint_violation": loop, "velocity_violation": np.array(velocity_loop), "input_force": force},
-        notes=notes,
-    )
-
-
 def _worst(table: pd.DataFrame, quantities, column: str) -> float:
     """Largest ``column`` of a differences table over the given quantities."""
     return float(table[table.quantity.isin(list(quantities))][column].max())
@@ -277,7 +244,7 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
             else ""
         )
     )
-    trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
+    trajectory = run_trajectory(pm, oracle, rows, MODE, settings, notes)
     assert trajectory.times is not None and driven is not None  # a run that did not fail
     table = differences(kinematics, trajectory, branch)
     law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])

@@ -1,5 +1,6 @@
-"""Free motion in Pinocchio: the mechanism released, integrated with
-``constraintDynamics`` and compared with the native reference.
+"""Free motion in Pinocchio (mode ``pinocchio-free``): the mechanism released,
+integrated with ``constraintDynamics``; the ladder and its judgement are
+:func:`xcheck.ladder.free_study`'s.
 
 The tree and its loop closures are :mod:`.model`'s (CONTACT_3D/6D
 ``RigidConstraintModel`` s). No driver acts (tau = 0 on every joint): the
@@ -10,53 +11,60 @@ reference's initial native state, mapped to Pinocchio's q (Newton
 projection onto the loops at the native inputs) and v (the constraint
 Jacobian with the native input rates).
 
-The ladder (:data:`SETTINGS` x time steps): RK4 without and with Baumgarte
-correction and semi-implicit Euler with it, the integrator code of
-:mod:`.dynamic`'s driven mode. A run that stops is a row with its status:
-``NaN at t = ... s`` (state not finite), ``loops opened ...`` or ``left the
-branch at t ~ ... s`` (a point farther than :data:`BRANCH_LIMIT` x size from
-the reference's).
+The series: RK4 without and with Baumgarte correction and semi-implicit Euler
+with it, the integrator code of :mod:`.dynamic`'s driven mode.
+
+Measured on the IFToMM double four-bar (A02) over 10 s (singular passes at
+0.71, 1.23, 2.66, 3.17 s, ...), default ladder 9.9 s CPU: RK4 without
+Baumgarte stops with NaN at the 3rd or 4th singular pass (dt 1e-3: NaN at
+3.174 s, 9.4e-6 m until then; 2.5e-4: NaN at 2.658 s), its loops drifting
+(6.6e-7 m at 1e-3); with Baumgarte it runs through, 1.7e-9 m at every step
+(the reference's own error), loops closed to 2e-13 m; semi-implicit Euler
+with Baumgarte 2.9e-5, 7.3e-6, 1.8e-6 m (order 2.0). With mu 1e-8 RK4
+without Baumgarte also stops (NaN at 3.174 s at dt 1e-3, leaves the branch
+at 4.2 s at 5e-4).
 """
 
 from __future__ import annotations
 
 import math
-import time
+from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import pinocchio as pin
 
 from xcheck.kinematics import Kinematics
-from xcheck.results import ModeResult, convergence_study
-from xcheck.simulation import ladder_steps
+from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
 
-from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER, _trajectory
+from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
-from .oracle import LWA, Oracle, one_line
+from .oracle import LWA, Oracle, run_trajectory
 
-__all__ = ["run_free", "SETTINGS", "TIMESTEPS"]
+__all__ = ["FREE_SERIES", "FREE_MU", "FreeSetting", "prepare_free", "run_free_once"]
 
 MODE = "pinocchio-free"
-#: setting -> (scheme, Baumgarte correction on?)
-SETTINGS = {
-    "rk4": ("rk4", False),
-    "rk4-baumgarte": ("rk4", True),
-    "semi-implicit-euler-baumgarte": ("euler", True),
-}
-#: default time steps of the ladder, s
-TIMESTEPS = (1e-3, 5e-4, 2.5e-4)
 #: Proximal mu of constraintDynamics in free motion (a planar loop's z row is
 #: zero: the Delassus matrix is singular and needs mu > 0): 1e-12, the engine
-#: notes' setting; see run_free's notes for mu 1e-8 on the IFToMM double four-bar.
+#: notes' setting; see the module's notes for mu 1e-8 on the IFToMM double four-bar.
 FREE_MU = 1e-12
-#: a run whose point is farther than this fraction of the size from the
-#: reference's has left the branch (or lost the phase): it stops there
-BRANCH_LIMIT = 0.1
-#: a run whose loops open wider than this fraction of the size stops
-LOOP_OPENING_LIMIT = 0.1
-#: about this many compared samples per run (every k-th reference output)
-SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class FreeSetting:
+    """A free run's integrator: ``scheme`` ("rk4" or "euler", semi-implicit), with
+    Baumgarte correction (gains Kp = (baumgarte / dt)^2, Kd = 2 baumgarte / dt) or
+    without (``baumgarte`` None), and the proximal ``mu`` of constraintDynamics."""
+
+    scheme: str
+    baumgarte: float | None = None
+    mu: float = FREE_MU
+
+
+FREE_SERIES = (
+    Series("rk4", "rk4", FreeSetting("rk4")),
+    Series("rk4-baumgarte", "rk4", FreeSetting("rk4", BAUMGARTE)),
+    Series("semi-implicit-euler-baumgarte", "euler", FreeSetting("euler", BAUMGARTE)),
+)
 
 
 def _jacobian(model, data, fid: int) -> np.ndarray:
@@ -200,7 +208,7 @@ class _Free:
         return a
 
 
-def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, reference) -> tuple[np.ndarray, np.ndarray]:
+def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, problem: FreeProblem):
     """Pinocchio's (q0, v0) of the reference's initial native state.
 
     q0: :func:`.model.joint_coordinates` of the native body coordinates,
@@ -215,7 +223,7 @@ def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, refer
         If the native state does not close Pinocchio's loops.
     """
     size = kinematics.system.size
-    q_native, qd_native = reference.motion.q[0], reference.motion.qd[0]
+    q_native, qd_native = problem.start
     guess = joint_coordinates(pm, q_native)
     q0, residual, _, converged = oracle.project(guess, oracle.selector @ guess, size)
     if not converged:
@@ -232,31 +240,45 @@ def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, refer
     return q0, v0
 
 
-def _point_positions(pm: PinocchioMechanism, data, q: np.ndarray) -> dict[str, np.ndarray]:
-    pin.forwardKinematics(pm.model, data, q)
-    pin.updateFramePlacements(pm.model, data)
-    return {
-        label: np.array(data.oMf[pm.point_frames[point_frame(owner, label)]].translation[:2])
-        for label, owner in pm.mechanism.point_owners.items()
-    }
+@dataclass
+class PinocchioFree:
+    """What every free run shares: the model, its oracle and the start (q0, v0)."""
+
+    pm: PinocchioMechanism
+    oracle: Oracle
+    q0: np.ndarray
+    v0: np.ndarray
 
 
-def _integrate(free: _Free, scheme, q0, v0, dt, steps_per_sample, samples, native_points, size, oracle):
-    """March ``samples - 1`` samples of ``steps_per_sample`` steps of ``dt`` s.
+def prepare_free(problem: FreeProblem) -> PinocchioFree:
+    """The model (:func:`.model.build_model`) and the reference's initial state in it.
+
+    Raises
+    ------
+    ValueError
+        If the native state does not close Pinocchio's loops.
+    """
+    kinematics = problem.kinematics
+    pm = build_model(tree_spec(kinematics.mechanism))
+    oracle = Oracle(pm)
+    q0, v0 = _start(kinematics, pm, oracle, problem)
+    return PinocchioFree(pm, oracle, q0, v0)
+
+
+def _integrate(free: _Free, scheme: str, prepared: PinocchioFree, problem: FreeProblem, rung: Rung):
+    """March ``rung.counts`` steps of ``rung.timestep`` s between the compared outputs.
 
     Returns
     -------
     rows : list of (t, q, v, a, force (0,))
-        At the samples reached.
-    failure : str or None
-    drift : float
-        Largest loop residual at the samples reached, m.
+        At the outputs reached.
+    failure : str
     energy : list of float
-        Energy at the samples reached, J.
+        Energy at the outputs reached, J.
     """
-    q, v = q0.copy(), v0.copy()
-    rows, energy, drift = [], [], 0.0
-    check = free.pm.model.createData()
+    dt = rung.timestep
+    q, v = prepared.q0.copy(), prepared.v0.copy()
+    rows, energy = [], []
 
     def record(t):
         rows.append((t, q.copy(), v.copy(), free.acceleration(q, v, t), np.zeros(0)))
@@ -264,8 +286,8 @@ def _integrate(free: _Free, scheme, q0, v0, dt, steps_per_sample, samples, nativ
 
     record(0.0)
     step = 0
-    for sample in range(1, samples):
-        for _ in range(steps_per_sample):
+    for count in rung.counts:
+        for _ in range(count):
             now = step * dt
             if scheme == "rk4":
                 k1v = free.acceleration(q, v, now)
@@ -282,192 +304,52 @@ def _integrate(free: _Free, scheme, q0, v0, dt, steps_per_sample, samples, nativ
                 q = q + dt * v
             step += 1
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                return rows, f"NaN at t = {step * dt:.4g} s", drift, energy
+                return rows, f"went non-finite at t = {step * dt:.6g} s", energy
         t = step * dt
-        opening = float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0))
-        drift = max(drift, opening)
-        if opening > LOOP_OPENING_LIMIT * size:
-            return rows, f"loops opened by {opening:.3g} m at t = {t:.4g} s", drift, energy
-        positions = _point_positions(free.pm, check, q)
-        gap = max(float(np.hypot(*(positions[label] - xy[sample]))) for label, xy in native_points.items())
         record(t)
-        if gap > BRANCH_LIMIT * size:
-            why = f"left the branch at t ≈ {t:.3g} s: position error above {BRANCH_LIMIT:g} of the size"
-            return rows, why, drift, energy
-    return rows, None, drift, energy
+        failure = problem.came_apart(t, float(np.max(np.abs(prepared.oracle.loop_residual(q)), initial=0.0)))
+        if failure:
+            return rows, failure, energy
+    return rows, "", energy
 
 
-def _unwrap(trajectory, native, index) -> None:
-    """Make the trajectory's body angles continuous and equal to the native ones at t = 0 (mod 2 pi)."""
-    for name, states in trajectory.bodies.items():
-        angle = np.unwrap(np.asarray(states["angle"], dtype=float))
-        start = float(native.body(name)["angle"][index[0]])
-        states["angle"] = angle + 2.0 * math.pi * round((start - angle[0]) / (2.0 * math.pi))
-
-
-def _run(kinematics, pm, oracle, reference, native, setting, dt, stride, q0, v0, mu, baumgarte):
-    """One simulation: (summary row, Trajectory or None)."""
-    from xcheck.simulation import free_errors
-
-    scheme, corrected = SETTINGS[setting]
-    motion = reference.motion
-    size = kinematics.system.size
-    per_output = round(float(motion.times[1] - motion.times[0]) / dt)
-    index = np.arange(0, len(motion.times), stride)
-    native_points = {label: native.point(label)["position"][index] for label in pm.mechanism.point_owners}
-    gains = ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt) if corrected else None
-    row = {
-        "setting": setting,
-        "integrator": scheme,
-        "timestep": dt,
-        "steps": int(per_output * stride * (len(index) - 1)),
-        "status": "ok",
+def run_free_once(prepared: PinocchioFree, problem: FreeProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
+    setting: FreeSetting = rung.series.options
+    scheme, baumgarte, mu = setting.scheme, setting.baumgarte, setting.mu
+    dt = rung.timestep
+    mech = problem.kinematics.mechanism
+    gains = None if baumgarte is None else ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt)
+    free = _Free(prepared.pm, mu, gains, problem.start[0])
+    rows, failure, energy = _integrate(free, scheme, prepared, problem, rung)
+    columns = {
         "proximal_mu": mu,
         "baumgarte_kp": gains[0] if gains else 0.0,
         "baumgarte_kd": gains[1] if gains else 0.0,
+        "evaluations": free.evaluations,
+        "proximal_iterations_max": free.proximal_iterations,
     }
-    begin = time.process_time()
-    free = None
-    try:
-        free = _Free(pm, mu, gains, motion.q[0])
-        rows, failure, drift, energy = _integrate(
-            free, scheme, q0, v0, dt, per_output * stride, len(index), native_points, size, oracle
-        )
-    except Exception as error:  # noqa: BLE001 - one run failing leaves the others
-        rows, failure, drift, energy = [], one_line(error), math.nan, []
-    cpu = time.process_time() - begin
-    simulated = rows[-1][0] if rows else 0.0
-    row.update(
-        {
-            "status": failure or "ok",
-            "cpu_seconds": cpu,
-            "cpu_per_simulated_second": cpu / simulated if simulated > 0 else math.nan,
-            "simulated": simulated,
-            "loop_drift": drift,
-            "position_error": math.nan,
-            "final_error": math.nan,
-            "angle_error": math.nan,
-            "energy_drift": math.nan,
-            "evaluations": free.evaluations if free else 0,
-            "proximal_iterations_max": free.proximal_iterations if free else 0,
-        }
-    )
-    if len(rows) < 2:
-        return row, None
     settings = {
-        "setting": setting,
-        "series": setting,
+        "setting": rung.series.setting,
+        "series": rung.series.key,
         "integrator": scheme,
         "timestep": dt,
-        "dt": dt,
-        "steps": row["steps"],
-        "duration": float(motion.times[-1]),
         "proximal_mu": mu,
         "proximal_accuracy": PROXIMAL_ACCURACY,
-        "baumgarte_kp": row["baumgarte_kp"],
-        "baumgarte_kd": row["baumgarte_kd"],
-        "gravity": [float(g) for g in pm.model.gravity.linear],
+        "baumgarte_kp": columns["baumgarte_kp"],
+        "baumgarte_kd": columns["baumgarte_kd"],
+        "gravity": [float(g) for g in prepared.pm.model.gravity.linear],
     }
     notes = (
         f"Pinocchio constraintDynamics (loop closures CONTACT_3D/6D, proximal mu {mu:g}), free motion "
-        f"(tau = 0: no driver), {setting} at dt = {dt:.4g} s, from the reference's initial state."
+        f"(tau = 0: no driver), {rung.series.setting} at dt = {dt:.4g} s, from the reference's initial state."
         + (f" Baumgarte Kp = {gains[0]:.4g} 1/s^2, Kd = {gains[1]:.4g} 1/s." if gains else "")
     )
-    trajectory = _trajectory(pm, oracle, rows, MODE, settings, notes)
-    _unwrap(trajectory, native, index)
-    # the samples reached are reference outputs: compare them
-    errors = free_errors(reference, trajectory)
-    row.update({k: errors[k] for k in ("position_error", "final_error", "angle_error")})
-    mech = pm.mechanism
-    conservative = all(s.damping == 0.0 for s in (*mech.springs, *mech.rotational_springs))
-    if conservative and all(load.law is None for load in mech.loads):  # E less the loads' potential is conserved
-        row["energy_drift"] = float(np.max(np.abs(np.array(energy) - energy[0])))
-    return row, trajectory if failure is None else None
-
-
-def run_free(
-    kinematics: Kinematics,
-    reference,
-    branch: str | None = None,
-    timesteps=TIMESTEPS,
-    settings=tuple(SETTINGS),
-    mu: float = FREE_MU,
-    baumgarte: float = BAUMGARTE,
-    samples: int = SAMPLES,
-) -> ModeResult:
-    """Integrate the released mechanism over the reference's duration at every
-    setting and time step, and compare each run with the reference.
-
-    Parameters
-    ----------
-    kinematics : Kinematics
-    reference : FreeReference
-        The native reference (:func:`xcheck.dynamics.simulate`).
-    branch : str, optional
-        Unused: the start is the reference's state.
-    timesteps : sequence of float
-        Time steps, s; each divides the reference's output step.
-    settings : sequence of str
-        Keys of :data:`SETTINGS`.
-    mu : float
-        Proximal mu of constraintDynamics (:data:`FREE_MU`).
-    baumgarte : float
-        Baumgarte gains per step: Kp = (baumgarte / dt)^2, Kd = 2 baumgarte / dt.
-    samples : int
-        About this many compared outputs per run (every k-th reference output).
-
-    Returns
-    -------
-    ModeResult
-        See :meth:`xcheck.engines.Engine.run_free`; ``summary`` also has
-        angle_error (rad), simulated (s reached), proximal_mu, Baumgarte
-        gains, evaluations. A run that stopped (NaN, loops opened, left the
-        branch) keeps the errors of the samples it reached; the study gets
-        NaN there.
-
-    Notes
-    -----
-    Measured on the IFToMM double four-bar (A02) over 10 s (singular passes at
-    0.71, 1.23, 2.66, 3.17 s, ...), default ladder 9.9 s CPU: RK4 without
-    Baumgarte stops with NaN at the 3rd or 4th singular pass (dt 1e-3: NaN at
-    3.174 s, 9.4e-6 m until then; 2.5e-4: NaN at 2.658 s), its loops drifting
-    (6.6e-7 m at 1e-3); with Baumgarte it runs through, 1.7e-9 m at every step
-    (the reference's own error), loops closed to 2e-13 m; semi-implicit Euler
-    with Baumgarte 2.9e-5, 7.3e-6, 1.8e-6 m (order 2.0). With mu 1e-8 RK4
-    without Baumgarte also stops (NaN at 3.174 s at dt 1e-3, leaves the branch
-    at 4.2 s at 5e-4).
-    """
-    mech = kinematics.mechanism
-    try:
-        unknown = [s for s in settings if s not in SETTINGS]
-        if unknown:
-            raise ValueError(f"expected settings among {', '.join(SETTINGS)}, found {unknown[0]!r}")
-        pm = build_model(tree_spec(mech))
-        oracle = Oracle(pm)
-        q0, v0 = _start(kinematics, pm, oracle, reference)
-        native = reference.motion.solution()
-        out_step = float(reference.motion.times[1] - reference.motion.times[0])
-        timesteps = ladder_steps(reference, timesteps)
-        for dt in timesteps:
-            per_output = round(out_step / dt)
-            if per_output < 1 or abs(per_output * dt - out_step) > 1e-9 * out_step:
-                raise ValueError(f"expected time steps that divide the output step {out_step:g} s, found {dt:g} s")
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, one_line(error))
-    outputs = len(reference.motion.times)
-    stride = max(1, math.ceil((outputs - 1) / samples))
-    while (outputs - 1) % stride:  # end at the last output
-        stride -= 1
-    runs = [
-        _run(kinematics, pm, oracle, reference, native, s, float(dt), stride, q0, v0, mu, baumgarte)
-        for s in settings
-        for dt in sorted(timesteps, reverse=True)
-    ]
-    summary = pd.DataFrame([row for row, _ in runs])
-    errors = summary.position_error.where(summary.status == "ok")
-    study = convergence_study(summary.setting, summary.timestep, errors, summary.status, 1e-13 * kinematics.system.size)
-    ranked = sorted((r for r in runs if r[1] is not None), key=lambda r: r[0]["position_error"])
-    trajectories = [t for _, t in ranked if t is not None]
-    if not trajectories:
-        return ModeResult(MODE, mech.name, False, f"no run went through: {summary.status.iloc[0]}", [], summary, study)
-    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)
+    out = run_trajectory(prepared.pm, prepared.oracle, rows, MODE, settings, notes)
+    start = problem.start[0]
+    for i, body in enumerate(mech.moving_bodies):  # continuous, and the reference's at t = 0
+        angle = np.unwrap(np.asarray(out.bodies[body.name]["angle"], dtype=float))
+        out.bodies[body.name]["angle"] = angle + 2.0 * math.pi * round((start[3 * i + 2] - angle[0]) / (2.0 * math.pi))
+    if conservative(mech):  # E less the constant loads' potential
+        out.diagnostics["energy"] = np.array(energy)
+    return Run(out, failure, columns=columns)

@@ -11,10 +11,9 @@ Modes
     ``constraintDynamics`` with the inputs driven by a computed torque, integrated
     with RK4 and with semi-implicit Euler (with and without Baumgarte
     correction) at several time steps.
-``pinocchio-free`` (:func:`run_free`)
+``pinocchio-free`` (the series and one run of :mod:`.free`)
     Free motion (no driver) with ``constraintDynamics`` from the native
-    reference's initial state: a ladder of integrators and time steps
-    against the reference.
+    reference's initial state, at each integrator of the ladder.
 
 Model files
 -----------
@@ -34,13 +33,23 @@ from xcheck.motion import law_states, sweep_span
 from xcheck.results import ModeResult, Trajectory, differences
 
 from .dynamic import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
-from .free import run_free  # noqa: F401 - the mode "pinocchio-free" lives here
+from .free import FREE_SERIES, prepare_free, run_free_once  # noqa: F401 - the mode "pinocchio-free"
 from .inverse import inverse_forces
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
 from .oracle import NEWTON_TOLERANCE, Oracle, frame_states, one_line
 from .urdf import export_texts
 
-__all__ = ["run_kinematic", "run_dynamic", "run_free", "export_files", "build", "sweep_inputs", "inverse_dynamics"]
+__all__ = [
+    "run_kinematic",
+    "run_dynamic",
+    "FREE_SERIES",
+    "prepare_free",
+    "run_free_once",
+    "export_files",
+    "build",
+    "sweep_inputs",
+    "inverse_dynamics",
+]
 
 KINEMATIC = "pinocchio-kinematic"
 #: Fraction of a bounded input's feasible range kept clear of each limit

@@ -13,10 +13,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from xcheck.results import Trajectory
+
 from .._continuation import Walk, crank_period, follow
 from .model import PinocchioMechanism
 
-__all__ = ["Oracle", "NEWTON_TOLERANCE", "CONVERGED_TOLERANCE", "frame_states", "one_line"]
+__all__ = ["Oracle", "NEWTON_TOLERANCE", "CONVERGED_TOLERANCE", "frame_states", "one_line", "run_trajectory"]
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Newton stops when every loop and driver residual is below this times the
@@ -243,3 +245,40 @@ def frame_states(pm: PinocchioMechanism, data: pin.Data, q, v, a) -> tuple[dict,
 def one_line(error: BaseException) -> str:
     """An exception as the one-line reason of a failed mode."""
     return " ".join(str(error).split()) or type(error).__name__
+
+
+def run_trajectory(pm, oracle: Oracle, rows, source: str, settings: dict, notes: str) -> Trajectory:
+    """A run's recorded states as a Trajectory: ``rows`` are (t, q, v, a, force) per
+    sample; diagnostics constraint_violation (m) and velocity_violation (m/s) of the
+    loops, and input_force."""
+    mech = pm.mechanism
+    m = len(rows)
+    times = np.array([r[0] for r in rows])
+    q, v, a, force = (np.array([r[i] for r in rows]) for i in (1, 2, 3, 4))
+    s = oracle.selector
+    bodies: dict[str, dict[str, np.ndarray]] = {b.name: {} for b in mech.moving_bodies}
+    points: dict[str, dict[str, np.ndarray]] = {label: {} for label in mech.point_owners}
+    states = [frame_states(pm, oracle.data, q[i], v[i], a[i]) for i in range(m)]
+    for name in bodies:
+        for quantity in ("position", "angle", "velocity", "omega", "acceleration", "alpha"):
+            bodies[name][quantity] = np.array([st[0][name][quantity] for st in states])
+    for label, owner in mech.point_owners.items():
+        for quantity in ("position", "velocity", "acceleration"):
+            points[label][quantity] = np.array([st[1][f"{owner}.{label}"][quantity] for st in states])
+    loop = np.array([np.max(np.abs(oracle.loop_residual(qi)), initial=0.0) for qi in q])
+    velocity_loop = []
+    for qi, vi in zip(q, v):
+        oracle.loop_residual(qi)
+        velocity_loop.append(float(np.max(np.abs(oracle.loop_jacobian(qi) @ vi), initial=0.0)))
+    return Trajectory(
+        source=source,
+        inputs=q @ s.T,
+        input_rates=v @ s.T,
+        input_accelerations=a @ s.T,
+        bodies=bodies,
+        points=points,
+        times=times,
+        settings=settings,
+        diagnostics={"constraint_violation": loop, "velocity_violation": np.array(velocity_loop), "input_force": force},
+        notes=notes,
+    )

@@ -26,22 +26,26 @@ import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, empty_states, ladder
+from xcheck.engines._frames import loop_gap, world_point
 from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, Status, rotate
+from xcheck.ladder import Series
 from xcheck.model import GROUND, Revolute
 from xcheck.motion import simulation_window
 from xcheck.results import ModeResult, Trajectory
-from xcheck.simulation import loop_gap, world_point
 from xcheck.topology import spanning_tree
 
-from .free import FreeSetting, Multibody, _velocity, build, p, set_state
+from .model import Multibody, Setting, build, p, set_state, velocity
 
 __all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
 
 MODE = "pybullet-dynamic"
 #: the compared series: residual threshold 0 (the solver iterates its 50 sweeps; the
 #: free mode's "best") first, then PyBullet's defaults
-SETTINGS = (FreeSetting("best", 50, 0.0), FreeSetting("default", 50))
+SETTINGS = (
+    Series("best", Setting(50, 0.0).integrator, Setting(50, 0.0)),
+    Series("default", Setting(50).integrator, Setting(50)),
+)
 #: time steps per sample of the ladder, finest first
 STEPS_PER_SAMPLE = (100, 50, 25)
 #: samples compared per run
@@ -90,21 +94,21 @@ def _inputs(kinematics: Kinematics, frames) -> tuple[np.ndarray, np.ndarray]:
         rates.append(
             float(
                 omega_a * np.array([-u[1], u[0]]) @ gap
-                + u @ (_velocity(frames, joint.body_b, point) - _velocity(frames, joint.body_a, line))
+                + u @ (velocity(frames, joint.body_b, point) - velocity(frames, joint.body_a, line))
             )
         )
     return np.array(values), np.array(rates)
 
 
-def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, setting: FreeSetting, per: int):
+def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, series: Series, per: int):
     """One run: (row, Trajectory or None)."""
     mech = kinematics.mechanism
     duration = window.duration
     dt = duration / (SAMPLES * per)
+    setting: Setting = series.options
     row = {
-        "setting": setting.name,
-        "integrator": "semi-implicit Euler, 50 iterations"
-        + ("" if setting.residual is None else f", residual threshold {setting.residual:g}"),
+        "setting": series.setting,
+        "integrator": series.integrator,
         "timestep": dt,
         "status": "ok",
     }
@@ -114,10 +118,7 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, sett
     client = p.connect(p.DIRECT)
     try:
         mb = build(massive, client)
-        parameters = dict(fixedTimeStep=dt, numSolverIterations=setting.iterations, numSubSteps=0)
-        if setting.residual is not None:
-            parameters["solverResidualThreshold"] = setting.residual
-        p.setPhysicsEngineParameter(**parameters, physicsClientId=client)
+        setting.apply(client, dt)
         p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
         set_state(mb, massive, q0, qd0)
         motors = _sign(mb, kinematics)
@@ -154,7 +155,7 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, sett
                 owner = mech.point_owners[label]
                 local = np.asarray(mech.body(owner).points[label], dtype=float)
                 points[label]["position"][j] = world_point(frames, owner, local)
-                points[label]["velocity"][j] = _velocity(frames, owner, local)
+                points[label]["velocity"][j] = velocity(frames, owner, local)
             inputs[j], rates[j] = _inputs(kinematics, frames)
             gaps[j] = loop_gap(frames, mb.cuts)
     finally:
@@ -172,7 +173,7 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, sett
         bodies,
         points,
         times,
-        {"integrator": row["integrator"], "timestep": dt, "series": setting.name, "steps_per_sample": per},
+        {"integrator": row["integrator"], "timestep": dt, "series": series.key, "steps_per_sample": per},
         diagnostics={"input_error": inputs - window.inputs(kinematics, times)[0], "constraint_violation": gaps},
         notes=f"PyBullet driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as PyBullet realised them "
         "(input accelerations: the motion laws'; PyBullet gives no accelerations).",

@@ -1,44 +1,17 @@
-"""PyBullet in free motion (mode ``pybullet-free``): the mechanism as a
-Featherstone multibody (``createMultiBody``) whose loops are closed by
-point-to-point constraints (``createConstraint(JOINT_POINT2POINT)``), released
-at the native reference's initial state and stepped by PyBullet's
-semi-implicit Euler with its iterative constraint solver, compared with the
-reference at its output times.
+"""PyBullet in free motion (mode ``pybullet-free``): the multibody of
+:func:`.model.build` released at the native reference's initial state and
+stepped by PyBullet; the ladder and its judgement are
+:func:`xcheck.ladder.free_study`'s.
 
-The tree is :func:`xcheck.topology.spanning_tree`'s: the ground is the fixed
-base, each moving body a link hung from its parent by a revolute joint about z
-or a prismatic joint in the plane (turned by its locked angle); the link frame
-sits at the joint's point on the body with the body's orientation (a
-revolute's coordinate is the child's angle minus the parent's, a prismatic's
-the slide displacement). Each cut revolute is a point-to-point constraint
-between its two points (its z row is idle: the tree keeps the plane). A
-pin-in-slot joint, or a loop cut at a prismatic joint, is not converted
-(:class:`~xcheck.engines.NotApplicable`). PyBullet's defaults that are not
-the model are set off: the joint velocity motors (force 0), the multibody's
-linear and angular damping (0.04 by default) and the joint speed limit (100
-rad/s by default; Andrews' crank turns faster). Gravity is the mechanism's, in
-the plane; the loads (a time law at each step's start), the springs and the
-rotational springs are external forces and torques applied before every step
-(PyBullet clears them after each).
-
-Two PyBullet 3.2.7 pitfalls, measured: ``changeDynamics`` with
-``localInertiaDiagonal`` and ``linearDamping``, ``angularDamping`` or
-``maxJointVelocity`` in one call sets the inertia to zero (so the inertia gets
-a call of its own, checked with ``getDynamicsInfo``); ``getLinkState``'s link
-frame position ([4]) is rounded to float32 (a 1e-8 relative floor), so
-positions are taken from the centre of mass ([0]) and the joint angles.
-
-The ladder (:data:`FREE_SETTINGS` x time steps): PyBullet's solver defaults
-(50 iterations, ``solverResidualThreshold`` 1e-7) and at its best (residual
-threshold 0: the solver runs all its iterations). On the IFToMM double
-four-bar over 2 s, 200 or 500 iterations and ``erp`` 0 or 1 gave the same
-errors as 50 iterations to 1e-12 m. On Andrews' squeezer (0.03 s, 10 .. 2.5
-us) 200 iterations changed nothing either; ``erp`` (``changeConstraint`` and
+The series: PyBullet's solver defaults (50 iterations,
+``solverResidualThreshold`` 1e-7) and at its best (residual threshold 0: the
+solver runs all its iterations). On the IFToMM double four-bar over 2 s, 200
+or 500 iterations and ``erp`` 0 or 1 gave the same errors as 50 iterations to
+1e-12 m. On Andrews' squeezer (0.03 s, 10 .. 2.5 us) 200 iterations changed
+nothing either; ``erp`` (``changeConstraint`` and
 ``setPhysicsEngineParameter``) 0.8 closed the loops 4 times tighter (7.1e-7 ..
 4.4e-8 m) at the same error (3.42e-4 .. 8.5e-5 m), ``erp`` 0 left them open by
-1.8e-4 .. 4.6e-5 m with errors 1.5 times larger. A run that goes non-finite, comes apart (a
-loop gap above a tenth of the size) or leaves the reference's path is a row
-with its time, not an exception.
+1.8e-4 .. 4.6e-5 m with errors 1.5 times larger.
 
 Measured (``xcheck simulate NAME --engines native,pybullet-free``, 2 cores,
 dt = 1, 0.5, 0.25 ms; A03 10, 5, 2.5 us): A01 (10 s) 2.2e-3, 1.1e-3, 5.5e-4 m
@@ -51,552 +24,82 @@ order, loops open by 2.8e-6 .. 1.8e-7 m, either setting.
 
 from __future__ import annotations
 
-import importlib
 import math
-import os
-import sys
-import time
-from dataclasses import dataclass
 
-import numpy as np
-import pandas as pd
+from xcheck.engines._frames import FrameRecorder
+from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
 
-from xcheck.dynamics._forces import require_mass_data
-from xcheck.dynamics._free import FreeReference
-from xcheck.engines._contract import NotApplicable, positive_inertia
-from xcheck.joints import LineJoint
-from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
-from xcheck.results import ModeResult, Trajectory, convergence_study
-from xcheck.simulation import FrameRecorder, finish_free_run, free_row, ladder_steps, outputs_per_step, world_point
-from xcheck.topology import spanning_tree
+from .model import Forces, Setting, build, energy, p, set_state
 
-
-def _import_quietly():
-    """pybullet, imported with its build-time line (printed by its C code on
-    file descriptor 2) kept off xcheck's output; an import error still raises."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            return importlib.import_module("pybullet")
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-p = _import_quietly()
-
-__all__ = ["FreeSetting", "FREE_SETTINGS", "FREE_STEPS", "Multibody", "build", "run_free"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
 
 MODE = "pybullet-free"
-#: samples compared with the reference (about; a whole number of outputs apart)
-COMPARED = 200
-#: a loop gap above this fraction of the size: the mechanism came apart
-APART = 0.1
-#: joint speed limit set on every link (PyBullet's default, 100 rad/s, is not the model's)
-MAX_JOINT_VELOCITY = 1e6
+FREE_SERIES = tuple(
+    Series(name, setting.integrator, setting)
+    for name, setting in (("default", Setting(50)), ("best", Setting(50, 0.0)))
+)
 
 
-@dataclass(frozen=True)
-class FreeSetting:
-    """PyBullet's solver: ``iterations`` per step (``numSolverIterations``),
-    ``residual`` (``solverResidualThreshold``; None: PyBullet's default) and the
-    constraints' error reduction ``erp`` (None: PyBullet's default)."""
-
-    name: str
-    iterations: int
-    residual: float | None = None
-    erp: float | None = None
-
-
-FREE_SETTINGS = (FreeSetting("default", 50), FreeSetting("best", 50, 0.0))
-FREE_STEPS = (1e-3, 5e-4, 2.5e-4)
-
-
-@dataclass
-class Multibody:
-    """The mechanism in one PyBullet client.
-
-    Attributes
-    ----------
-    client : int
-        The physics client (DIRECT).
-    uid : int
-        The multibody.
-    links : dict of str to int
-        Moving body -> link index (= joint index).
-    parents : dict of str to str
-        Moving body -> its parent body in the tree (GROUND for the base).
-    pivots : dict of str to ndarray (2,)
-        Moving body -> the point of its tree joint in its body frame, m (the link frame's origin).
-    turns : dict of str to float
-        Moving body -> its angle minus its parent's at joint coordinate 0, rad (a prismatic's locked angle).
-    sliding : list of bool
-        Per link: whether its joint is prismatic (else revolute).
-    coms : dict of str to ndarray (2,)
-        Moving body -> its centre of mass in its body frame, m.
-    cuts : list of (str, ndarray, str, ndarray)
-        Per loop constraint: (body, point in its frame, body, point in its frame).
-    constraints : list of int
-        The constraint ids.
-    """
-
-    client: int
-    uid: int
-    links: dict[str, int]
-    parents: dict[str, str]
-    pivots: dict[str, np.ndarray]
-    turns: dict[str, float]
-    sliding: list[bool]
-    coms: dict[str, np.ndarray]
-    cuts: list[tuple[str, np.ndarray, str, np.ndarray]]
-    constraints: list[int]
-
-    def angles(self) -> dict[str, tuple[float, float]]:
-        """Each moving body's angle (rad, continuous: the sum of joint coordinates) and rate (rad/s)."""
-        states = p.getJointStates(self.uid, list(self.links.values()), physicsClientId=self.client)
-        joint = {name: (states[i][0], states[i][1]) for i, name in enumerate(self.links)}
-        out: dict[str, tuple[float, float]] = {}
-        for name, k in self.links.items():  # parents first (tree order)
-            base = out.get(self.parents[name], (0.0, 0.0))
-            turn = self.turns[name]
-            out[name] = (
-                (base[0] + turn, base[1])
-                if self.sliding[k]
-                else (base[0] + turn + joint[name][0], base[1] + joint[name][1])
-            )
-        return out
-
-    def frames(self) -> dict[str, tuple[np.ndarray, float, np.ndarray, float, np.ndarray]]:
-        """Per moving body: body-frame origin (2,) m, angle rad, centre-of-mass velocity (2,) m/s, rate
-        rad/s and centre-of-mass position (2,) m."""
-        index = list(self.links.values())
-        states = p.getLinkStates(
-            self.uid, index, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=self.client
-        )
-        angles = self.angles()
-        out = {}
-        for i, name in enumerate(self.links):
-            phi, omega = angles[name]
-            # from the centre of mass (getLinkState's link-frame position, [4], is rounded to float32)
-            origin = np.asarray(states[i][0][:2]) - rotate(phi, self.coms[name])
-            out[name] = (origin, phi, np.asarray(states[i][6][:2]), omega, np.asarray(states[i][0][:2]))
-        return out
-
-
-def build(kinematics: Kinematics, client: int) -> Multibody:
-    """The mechanism as a PyBullet multibody in ``client`` (see the module notes).
+def prepare_free(problem: FreeProblem) -> None:
+    """Build the multibody once, to refuse what it cannot hold before any run.
 
     Raises
     ------
     NotApplicable
-        If the mechanism has a pin-in-slot joint or a loop cut at a prismatic joint.
-    ModelError
-        If a moving body has no mass data.
+        A pin-in-slot joint, a loop cut at a prismatic joint (:func:`.model.build`).
     """
-    mech = kinematics.mechanism
-    slots = [j for j in mech.joints if isinstance(j, PinInSlot)]
-    if slots:
-        raise NotApplicable(
-            f"joint {slots[0].name!r} is a pin-in-slot: xcheck's PyBullet model has revolute and prismatic "
-            "links only (a pin-in-slot would need a massless intermediate link, not converted)"
-        )
-    require_mass_data(mech)
-    topology = spanning_tree(mech)
-    sliding_cuts = [j for j in topology.cuts if not isinstance(j, Revolute)]
-    if sliding_cuts:
-        raise NotApplicable(
-            f"a loop is cut at the prismatic joint {sliding_cuts[0].name!r}: xcheck's PyBullet model closes "
-            "loops with point-to-point constraints only (PyBullet's multibody slider constraint is not converted)"
-        )
-    size = kinematics.system.size
-    links: dict[str, int] = {}
-    parents: dict[str, str] = {}
-    pivots: dict[str, np.ndarray] = {}
-    turns: dict[str, float] = {}
-    coms: dict[str, np.ndarray] = {}
-    masses, positions, orientations, inertial, parent_index, inertias, types, axes = ([] for _ in range(8))
-    for tj in _depth_first(topology.tree):
-        j = tj.joint
-        body = mech.body(tj.child)
-        if isinstance(j, Revolute):  # link frame at the pin, the body's orientation
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            turn, kind, axis = 0.0, p.JOINT_REVOLUTE, [0.0, 0.0, 1.0]
-        else:  # prismatic: the child's joint point on the parent's, turned by the locked angle
-            assert isinstance(j, Prismatic)
-            if not tj.reversed:  # the line is the parent's: the child's point slides along it
-                l_parent, l_child, turn, direction = j.line_point, j.point, j.angle, rotate(-j.angle, j.direction)
-            else:  # the line is the child's: its line point slides back along it from the parent's point
-                l_parent, l_child, turn, direction = j.point, j.line_point, -j.angle, -np.asarray(j.direction)
-            kind, axis = p.JOINT_PRISMATIC, [float(direction[0]), float(direction[1]), 0.0]
-        s_parent = np.asarray(mech.body(tj.parent).points[l_parent], dtype=float)
-        s_child = np.asarray(body.points[l_child], dtype=float)
-        offset = pivots[tj.parent] if tj.parent != GROUND else np.zeros(2)
-        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-        assert body.mass is not None and body.inertia is not None
-        links[tj.child] = len(links)
-        parents[tj.child] = tj.parent
-        pivots[tj.child] = s_child
-        turns[tj.child] = float(turn)
-        coms[tj.child] = com
-        masses.append(float(body.mass))
-        positions.append([*(s_parent - offset), 0.0])
-        orientations.append([0.0, 0.0, math.sin(turn / 2.0), math.cos(turn / 2.0)])
-        inertial.append([*(com - s_child), 0.0])
-        parent_index.append(0 if tj.parent == GROUND else links[tj.parent] + 1)
-        inertias.append(positive_inertia(float(body.mass), float(body.inertia), size))
-        types.append(kind)
-        axes.append(axis)
-    n = len(links)
-    uid = p.createMultiBody(
-        baseMass=0.0,
-        baseCollisionShapeIndex=-1,
-        baseVisualShapeIndex=-1,
-        basePosition=[0.0, 0.0, 0.0],
-        baseOrientation=[0.0, 0.0, 0.0, 1.0],
-        linkMasses=masses,
-        linkCollisionShapeIndices=[-1] * n,
-        linkVisualShapeIndices=[-1] * n,
-        linkPositions=positions,
-        linkOrientations=orientations,
-        linkInertialFramePositions=inertial,
-        linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
-        linkParentIndices=parent_index,
-        linkJointTypes=types,
-        linkJointAxis=axes,
-        useMaximalCoordinates=0,
-        physicsClientId=client,
-    )
-    found = [p.getJointInfo(uid, k, physicsClientId=client)[16] for k in range(n)]
-    if found != [i - 1 for i in parent_index]:  # PyBullet orders links depth-first: so were they given
-        raise RuntimeError(f"PyBullet reordered the links: parents {found}, expected {[i - 1 for i in parent_index]}")
-    p.changeDynamics(uid, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client)
-    for k, inertia in enumerate(inertias):  # about z; the other axes only need to be positive
-        # the inertia in a call of its own: with linearDamping, angularDamping or
-        # maxJointVelocity in the same call, PyBullet 3.2.7 sets it to zero
-        p.changeDynamics(uid, k, localInertiaDiagonal=[inertia] * 3, physicsClientId=client)
-        p.changeDynamics(uid, k, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0, physicsClientId=client)
-        p.changeDynamics(uid, k, maxJointVelocity=MAX_JOINT_VELOCITY, physicsClientId=client)
-        held = p.getDynamicsInfo(uid, k, physicsClientId=client)[2][2]
-        if not math.isclose(held, inertia, rel_tol=1e-12):
-            raise RuntimeError(f"PyBullet holds the inertia {held:g} kg m^2 for {inertia:g} on link {k}")
-    p.setJointMotorControlArray(uid, list(range(n)), p.VELOCITY_CONTROL, forces=[0.0] * n, physicsClientId=client)
-    cuts, constraints = [], []
-    for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        ends = []
-        for name, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b)):
-            point = np.asarray(mech.body(name).points[label], dtype=float)
-            if name == GROUND:
-                ends.append((-1, point, name, point))
-            else:
-                body = mech.body(name)
-                com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-                ends.append((links[name], point - com, name, point))  # frame: the link's centre of mass
-        (la, fa, na, pa), (lb, fb, nb, pb) = ends
-        cid = p.createConstraint(
-            uid, la, uid, lb, p.JOINT_POINT2POINT, [0.0, 0.0, 0.0], [*fa, 0.0], [*fb, 0.0], physicsClientId=client
-        )
-        constraints.append(cid)
-        cuts.append((na, pa, nb, pb))
-    return Multibody(
-        client, uid, links, parents, pivots, turns, [t == p.JOINT_PRISMATIC for t in types], coms, cuts, constraints
-    )
-
-
-def _depth_first(tree) -> list:
-    """The tree joints in depth-first order from the ground, children in tree order
-    (PyBullet's order of the links of a multibody)."""
-    children: dict[str, list] = {}
-    for tj in tree:
-        children.setdefault(tj.parent, []).append(tj)
-    out: list = []
-
-    def visit(body: str) -> None:
-        for tj in children.get(body, []):
-            out.append(tj)
-            visit(tj.child)
-
-    visit(GROUND)
-    return out
-
-
-def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> None:
-    """Put the multibody at native body coordinates ``q`` and rates ``qd`` (x, y, phi per moving
-    body, in ``mechanism.moving_bodies`` order): revolute coordinates are the relative angles,
-    prismatic ones the slide displacement ``direction . (r_point - r_line_point)`` in ``body_a``'s frame.
-    """
-    mech = kinematics.mechanism
-    index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
-
-    def state(name: str, point=None):
-        """(position (2,), velocity (2,), angle, rate) of a body point (its origin without one)."""
-        if name == GROUND:
-            return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
-        k = index[name]
-        phi, omega = float(q[k + 2]), float(qd[k + 2])
-        arm = np.zeros(2) if point is None else rotate(phi, point)
-        return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
-
-    topology = spanning_tree(mech)
-    for tj in topology.tree:
-        name, j = tj.child, tj.joint
-        if isinstance(j, Revolute):
-            _, _, phi, omega = state(name)
-            _, _, phi0, omega0 = state(tj.parent)
-            value, rate = phi - phi0 - mb.turns[name], omega - omega0
-        else:
-            assert isinstance(j, LineJoint)
-            r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
-            r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
-            u = rotate(phi_a, j.direction)
-            gap = r_point - r_line
-            value = float(u @ gap)
-            rate = float(omega_a * np.array([-u[1], u[0]]) @ gap + u @ (v_point - v_line))
-        p.resetJointState(
-            mb.uid, mb.links[name], targetValue=float(value), targetVelocity=float(rate), physicsClientId=mb.client
-        )
-    frames = mb.frames()
-    size = kinematics.system.size
-    for name, k in index.items():  # the conversion checked: PyBullet's state is the native one
-        origin, phi, v_com, omega, _ = frames[name]
-        body = mech.body(name)
-        _, v_native, _, _ = state(name, np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float))
-        miss = max(float(np.hypot(*(origin - q[k : k + 2]))), abs(phi - q[k + 2]) * size)
-        if miss > 1e-9 * size:
-            raise RuntimeError(f"PyBullet's {name} starts {miss:.3g} m from the native start")
-        speed = max(float(np.hypot(*qd[k : k + 2])), abs(qd[k + 2]) * size, 1.0)
-        off = max(float(np.hypot(*(v_com - v_native))), abs(omega - qd[k + 2]) * size)
-        if off > 1e-9 * speed:
-            raise RuntimeError(f"PyBullet's {name} starts with a velocity {off:.3g} m/s from the native one")
-
-
-class _Forces:
-    """The loads (time laws at the step's start), the springs and the rotational springs,
-    applied before every step (PyBullet clears them after it)."""
-
-    def __init__(self, kinematics: Kinematics, mb: Multibody):
-        mech = kinematics.mechanism
-        self.mb = mb
-        self.loads = [
-            (load.body, np.asarray(load.point, float), np.asarray(load.force, float), float(load.torque), load.law)
-            for load in mech.loads
-            if load.body in mb.links
-        ]
-        self.twists = [(t.body_a, t.body_b, t.stiffness, t.rest_angle, t.damping) for t in mech.rotational_springs]
-        owners = mech.point_owners
-        self.springs = [
-            (
-                owners[s.points[0]],
-                np.asarray(mech.body(owners[s.points[0]]).points[s.points[0]], float),
-                owners[s.points[1]],
-                np.asarray(mech.body(owners[s.points[1]]).points[s.points[1]], float),
-                s.stiffness,
-                s.rest_length,
-                s.damping,
-            )
-            for s in mech.springs
-        ]
-        self.active = bool(self.loads or self.springs or self.twists)
-
-    def apply(self, frames, t: float) -> None:
-        """Apply everything at the state ``frames`` (:meth:`Multibody.frames`) and time t (s)."""
-        mb = self.mb
-        for name, point, force, torque, law in self.loads:
-            if law is not None:
-                factor = float(law.factor(t))
-                force, torque = factor * force, factor * torque
-            if np.any(force):
-                at = world_point(frames, name, point)
-                p.applyExternalForce(
-                    mb.uid, mb.links[name], [*force, 0.0], [*at, 0.0], p.WORLD_FRAME, physicsClientId=mb.client
-                )
-            if torque:
-                p.applyExternalTorque(
-                    mb.uid, mb.links[name], [0.0, 0.0, torque], p.WORLD_FRAME, physicsClientId=mb.client
-                )
-        for first, s1, second, s2, stiffness, rest, damping in self.springs:
-            r1, r2 = world_point(frames, first, s1), world_point(frames, second, s2)
-            d = r2 - r1
-            length = float(np.hypot(d[0], d[1]))
-            unit = d / length if length > 0.0 else np.zeros(2)
-            tension = stiffness * (length - rest)
-            if damping:
-                tension += damping * float(unit @ (_velocity(frames, second, s2) - _velocity(frames, first, s1)))
-            for name, at, force in ((first, r1, tension * unit), (second, r2, -tension * unit)):
-                if name != GROUND:
-                    p.applyExternalForce(
-                        mb.uid, mb.links[name], [*force, 0.0], [*at, 0.0], p.WORLD_FRAME, physicsClientId=mb.client
-                    )
-        for first, second, stiffness, rest, damping in self.twists:
-            # the bodies' angles are continuous (sums of joint angles along the tree)
-            (phi_a, w_a), (phi_b, w_b) = ((0.0, 0.0) if n == GROUND else frames[n][1:4:2] for n in (first, second))
-            torque = -stiffness * (phi_b - phi_a - rest) - damping * (w_b - w_a)  # on the second body
-            for name, sign in ((second, 1.0), (first, -1.0)):
-                if name != GROUND:
-                    p.applyExternalTorque(
-                        mb.uid, mb.links[name], [0.0, 0.0, sign * torque], p.WORLD_FRAME, physicsClientId=mb.client
-                    )
-
-
-def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
-    """Velocity of a body point, m/s: v_com + w x (r - r_com)."""
-    if name == GROUND:
-        return np.zeros(2)
-    _, _, v_com, omega, com = frames[name]
-    arm = world_point(frames, name, point) - com
-    return v_com + omega * np.array([-arm[1], arm[0]])
-
-
-def run_free(
-    kinematics: Kinematics,
-    reference: FreeReference,
-    branch: str | None = None,
-    *,
-    settings=FREE_SETTINGS,
-    steps=FREE_STEPS,
-) -> ModeResult:
-    """PyBullet's free motion against the reference (see the module's docstring and
-    :meth:`xcheck.engines.Engine.run_free`).
-
-    Raises
-    ------
-    NotApplicable
-        If the mechanism has a joint the PyBullet model does not hold (pin-in-slot, a sliding cut).
-    """
-    mech = kinematics.mechanism
     client = p.connect(p.DIRECT)
     try:
-        build(kinematics, client)  # refuses what it cannot hold before any run
+        build(problem.kinematics, client)
     finally:
         p.disconnect(client)
-    motion = reference.motion
-    every = max(1, (len(motion.times) - 1) // COMPARED)
-    index = np.arange(0, len(motion.times), every)
-    rows, trajectories = [], []
-    for setting in settings:
-        for dt in ladder_steps(reference, steps):
-            row, trajectory = _run(kinematics, reference, index, setting, dt)
-            rows.append(row)
-            if trajectory is not None:
-                trajectories.append((row["position_error"], trajectory))
-    summary = pd.DataFrame(rows)
-    study = convergence_study(
-        summary["setting"], summary["timestep"], summary["position_error"], summary["status"], 1e-13 * mech.size
-    )
-    order = study.set_index(["series", "timestep"])["order"]
-    summary["order"] = [float(order.get((r.setting, r.timestep), math.nan)) for r in summary.itertuples()]
-    trajectories.sort(key=lambda pair: pair[0])
-    ok = bool(trajectories)
-    reason = "" if ok else f"no run went through: {rows[0]['status']}"
-    return ModeResult(MODE, mech.name, ok, reason, [t for _, t in trajectories], summary, study)
 
 
-def _energy(kinematics: Kinematics, mb: Multibody, frames, turned: dict[str, float]) -> float:
-    """Kinetic + gravitational + spring energy (linear and rotational) minus the constant loads' potential, J."""
+def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
+    kinematics = problem.kinematics
     mech = kinematics.mechanism
-    g = np.asarray(mech.gravity, dtype=float)
-    total = 0.0
-    for name in mb.links:
-        body = mech.body(name)
-        origin, phi, v_com, omega, _ = frames[name]
-        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-        mass, inertia = float(body.mass or 0.0), float(body.inertia or 0.0)
-        total += 0.5 * mass * float(v_com @ v_com) + 0.5 * inertia * omega * omega
-        total -= mass * float(g @ (origin + rotate(phi, com)))
-    for load in mech.loads:
-        if load.body in mb.links:
-            at = world_point(frames, load.body, np.asarray(load.point, float))
-            total -= float(np.asarray(load.force, float) @ at) + float(load.torque) * turned[load.body]
-    owners = mech.point_owners
-    for s in mech.springs:
-        a, b = (world_point(frames, owners[x], np.asarray(mech.body(owners[x]).points[x], float)) for x in s.points)
-        total += 0.5 * s.stiffness * (float(np.hypot(*(b - a))) - s.rest_length) ** 2
-    for t in mech.rotational_springs:
-        angle = (turned[t.body_b] if t.body_b != GROUND else 0.0) - (turned[t.body_a] if t.body_a != GROUND else 0.0)
-        total += 0.5 * t.stiffness * (angle - t.rest_angle) ** 2
-    return total
-
-
-def _run(kinematics, reference, index, setting: FreeSetting, dt: float) -> tuple[dict, Trajectory | None]:
-    mech = kinematics.mechanism
-    motion = reference.motion
-    row = free_row(
-        setting.name,
-        f"semi-implicit Euler, {setting.iterations} iterations"
-        + ("" if setting.residual is None else f", residual threshold {setting.residual:g}")
-        + ("" if setting.erp is None else f", erp {setting.erp:g}"),
-        dt,
-    )
-    per_output, why = outputs_per_step(reference, dt)
-    if why:
-        row["status"] = why
-        return row, None
+    setting: Setting = rung.series.options
+    dt = rung.timestep
+    q0, qd0 = problem.start
     moving = [b.name for b in mech.moving_bodies]
-    energy_drift, energy0 = 0.0, math.nan
-    # E less the loads' potential is conserved without dampers and time laws
-    damped = any(s.damping for s in (*mech.springs, *mech.rotational_springs)) or any(
-        load.law is not None for load in mech.loads
-    )
-    wanted = {int(i): j for j, i in enumerate(index)}
-    total = int(index[-1]) * per_output
-    begin = time.process_time()
+    known = conservative(mech)  # the energy is E less the constant loads' potential
     client = p.connect(p.DIRECT)
     try:
         mb = build(kinematics, client)
-        parameters = dict(fixedTimeStep=dt, numSolverIterations=setting.iterations, numSubSteps=0)
-        if setting.residual is not None:
-            parameters["solverResidualThreshold"] = setting.residual
-        if setting.erp is not None:
-            parameters["erp"] = setting.erp
-        p.setPhysicsEngineParameter(**parameters, physicsClientId=client)
-        for cid in mb.constraints:
-            if setting.erp is not None:
-                p.changeConstraint(cid, erp=setting.erp, physicsClientId=client)
+        setting.apply(client, dt, mb.constraints)
         p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
-        set_state(mb, kinematics, motion.q[0], motion.qd[0])
-        forces = _Forces(kinematics, mb)
-        recorder = FrameRecorder(mech, len(index), mb.cuts, APART * mech.size)
-        for n in range(total + 1):
-            sample = n % per_output == 0 and n // per_output in wanted
-            frames = mb.frames() if (sample or forces.active) else None
-            if sample:
-                assert frames is not None
-                stop = recorder.record(frames, wanted[n // per_output], n * dt)
-                if stop:
-                    row["status"] = stop
-                    break
-                if not damped:
-                    turned = {name: frames[name][1] for name in moving}
-                    energy = _energy(kinematics, mb, frames, turned)
-                    energy0 = energy if n == 0 else energy0
-                    energy_drift = max(energy_drift, abs(energy - energy0))
-            if n < total:
+        set_state(mb, kinematics, q0, qd0)
+        forces = Forces(kinematics, mb)
+        recorder = FrameRecorder(problem, mb.cuts)
+
+        def record(frames, j: int) -> str:
+            turned = {name: frames[name][1] for name in moving}
+            return recorder.record(frames, j, energy(kinematics, mb, frames, turned) if known else math.nan)
+
+        frames = mb.frames()
+        failure, n = record(frames, 0), 0
+        for j, count in enumerate(rung.counts, start=1):
+            if failure:
+                break
+            for _ in range(count):
                 if forces.active:
                     forces.apply(frames, n * dt)
                 p.stepSimulation(physicsClientId=client)
+                n += 1
+                frames = mb.frames() if forces.active else frames
+            frames = frames if forces.active else mb.frames()
+            failure = record(frames, j)
     finally:
         p.disconnect(client)
-    seconds = time.process_time() - begin
-    row.update(
-        steps=total,
-        cpu_seconds=seconds,
-        cpu_per_simulated_second=seconds / max(float(motion.times[-1]), 1e-300),
-        loop_drift=recorder.drift,
-        energy_drift=math.nan if damped else energy_drift,
-    )
-    if row["status"] != "ok":
-        return row, None
     settings = {
-        "setting": setting.name,
-        "integrator": row["integrator"],
+        "setting": rung.series.setting,
+        "integrator": rung.series.integrator,
         "timestep": dt,
-        "series": setting.name,
+        "series": rung.series.key,
         "iterations": setting.iterations,
         "residual": setting.residual,
         "erp": setting.erp,
     }
-    notes = f"PyBullet free motion, {setting.name} solver, dt = {dt:g} s."
-    return finish_free_run(MODE, reference, index, recorder.path, settings, notes, row, APART * mech.size)
+    notes = f"PyBullet free motion, {rung.series.setting} solver, dt = {dt:g} s."
+    return Run(recorder.trajectory(MODE, settings, notes), failure)

@@ -1,9 +1,10 @@
-"""PyBullet's modes, as the engine contract calls them: :func:`.free.run_free`
-(``pybullet-free``) and :func:`.dynamic.run_dynamic` (``pybullet-dynamic``)."""
+"""PyBullet's modes, as the engine contract calls them: ``pybullet-free`` (the
+series and one run of :mod:`.free`) and :func:`.dynamic.run_dynamic`
+(``pybullet-dynamic``)."""
 
 from __future__ import annotations
 
 from .dynamic import run_dynamic
-from .free import run_free
+from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["run_free", "run_dynamic"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "run_dynamic"]

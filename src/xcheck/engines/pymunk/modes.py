@@ -27,11 +27,12 @@ import pymunk as pm  # the library: absolute imports, so not this module (xcheck
 from xcheck.engines._driven import refined_steps
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
+from xcheck.ladder import convergence_study, observed_order
 from xcheck.motion import SimulationWindow
-from xcheck.results import ModeResult, Trajectory, convergence_study, differences, observed_order
+from xcheck.results import ModeResult, Trajectory, differences
 
 from .figure import render_png, snapshot
-from .free import run_free  # noqa: F401 - the mode "pymunk-free" lives there
+from .free import FREE_SERIES, prepare_free, run_free_once  # noqa: F401 - the mode "pymunk-free"
 from .inverse import ITERATIONS, SAMPLES, STEPS_PER_SAMPLE, inverse_forces
 from .scene import DEFAULT_MASS, Scene, build_scene, native_window
 

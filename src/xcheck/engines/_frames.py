@@ -1,0 +1,100 @@
+"""Reading a mechanism back from the body frames an engine reports: world points,
+the loops' gap, and a free run's outputs recorded one by one (PyBullet, Drake,
+pymunk)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from xcheck.kinematics import rotate
+from xcheck.ladder import FreeProblem
+from xcheck.model import GROUND
+from xcheck.results import Trajectory
+
+__all__ = ["FrameRecorder", "loop_gap", "world_point"]
+
+
+def world_point(frames, body: str, point: np.ndarray) -> np.ndarray:
+    """A point fixed in ``body`` (its local coordinates (2,), m) in the world, m.
+
+    ``frames`` maps each moving body's name to its origin (2,) and angle (rad),
+    as an engine reports them; the ground's points are their own.
+    """
+    if body == GROUND:
+        return point
+    origin, phi = frames[body][:2]
+    return origin + rotate(phi, point)
+
+
+def loop_gap(frames, cuts) -> float:
+    """The widest gap (m) of the joints an engine holds as loop constraints: ``cuts`` is
+    (body, point (2,), body, point (2,)) per joint, ``frames`` as :func:`world_point`'s."""
+    return max(
+        (float(np.hypot(*(world_point(frames, a, pa) - world_point(frames, b, pb)))) for a, pa, b, pb in cuts),
+        default=0.0,
+    )
+
+
+class FrameRecorder:
+    """A free run's outputs, from the body frames an engine reports at each
+    compared output of a :class:`~xcheck.ladder.FreeProblem`.
+
+    Parameters
+    ----------
+    problem : FreeProblem
+    cuts : sequence of (body, point (2,), body, point (2,))
+        The joints the engine holds as loop constraints: their gap is the loop drift.
+    gap : callable, optional
+        The loops' opening (m) from the frames, instead of the cuts' (pymunk's joints).
+    """
+
+    def __init__(self, problem: FreeProblem, cuts=(), gap=None) -> None:
+        mechanism = problem.kinematics.mechanism
+        self.problem = problem
+        count = len(problem.index)
+        self.bodies = {
+            b.name: {"position": np.full((count, 2), np.nan), "angle": np.full(count, np.nan)}
+            for b in mechanism.moving_bodies
+        }
+        self.points = {label: {"position": np.full((count, 2), np.nan)} for label in mechanism.point_owners}
+        self.owners = mechanism.point_owners
+        self.local = {label: np.asarray(mechanism.body(o).points[label], float) for label, o in self.owners.items()}
+        self.gap = gap if gap is not None else (lambda frames: loop_gap(frames, cuts))
+        self.gaps = np.full(count, np.nan)
+        self.energy = np.full(count, np.nan)
+        #: outputs recorded
+        self.reached = 0
+
+    def record(self, frames, j: int, energy: float = math.nan) -> str:
+        """Store output ``j`` from ``frames`` (body name to origin (2,), angle, ...) and
+        the engine's ``energy`` there (J, NaN where unknown); "" or why the run stops
+        here (it went non-finite, came apart: :meth:`FreeProblem.came_apart`)."""
+        t = float(self.problem.times[j])
+        if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
+            return f"went non-finite at t = {t:.6g} s"
+        for name, states in self.bodies.items():
+            states["position"][j] = frames[name][0]
+            states["angle"][j] = frames[name][1]
+        for label, owner in self.owners.items():
+            self.points[label]["position"][j] = world_point(frames, owner, self.local[label])
+        gap = self.gap(frames)
+        self.gaps[j], self.energy[j] = gap, energy
+        self.reached = j + 1
+        return self.problem.came_apart(t, gap)
+
+    def trajectory(self, source: str, settings: dict, notes: str) -> Trajectory | None:
+        """The outputs recorded, as a Trajectory (diagnostics: constraint_violation,
+        and energy where every recorded output has one); None if none was."""
+        n = self.reached
+        if not n:
+            return None
+        empty = np.zeros((n, 0))
+        bodies = {name: {k: v[:n] for k, v in states.items()} for name, states in self.bodies.items()}
+        points = {label: {k: v[:n] for k, v in states.items()} for label, states in self.points.items()}
+        diagnostics = {"constraint_violation": self.gaps[:n]}
+        if np.all(np.isfinite(self.energy[:n])):
+            diagnostics["energy"] = self.energy[:n]
+        times = self.problem.times[:n]
+        return Trajectory(source, empty, empty, empty, bodies, points, times, settings, diagnostics, notes)
