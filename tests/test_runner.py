@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from xcheck import engines
 from xcheck.cli import app
-from xcheck.engines.mujoco import modes as mujoco_engine
+from xcheck.engines.mujoco import model as mujoco_model
 from xcheck.runner import CATEGORIES, all_modes, tolerance
 
 ALL_MODES = all_modes()
@@ -130,7 +130,7 @@ def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
     """MuJoCo given a crank 1 mm longer than the model's: the run exits 1, the
     table marks mujoco-kinematic as failing, names the place, and the other
     modes still pass."""
-    text = mujoco_engine.mjcf_text
+    text = mujoco_model.mjcf_text
 
     def longer_crank(kinematics):
         root = ET.fromstring(text(kinematics))
@@ -141,7 +141,7 @@ def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
             element.set("pos", f"{x + 1e-3!r} {y!r} {z!r}")
         return ET.tostring(root, encoding="unicode")
 
-    monkeypatch.setattr(mujoco_engine, "mjcf_text", longer_crank)
+    monkeypatch.setattr(mujoco_model, "mjcf_text", longer_crank)  # the text the builder compiles
     result = _cli(
         "run", "fourbar", "--engines", "mujoco-kinematic,pinocchio-kinematic", "--no-report", "--samples", "31"
     )
