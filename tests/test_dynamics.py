@@ -21,17 +21,15 @@ from xcheck import Kinematics, ModelError, load_mechanism
 from xcheck.cli import app
 from xcheck.dynamics import (
     Forces,
-    compare_forces,
     energy_balance,
     energy_summary,
-    engine_forces,
     force_differences,
-    force_summary,
     inverse_dynamics,
     newton_euler,
     window_states,
 )
 from xcheck.model import parse_mechanism
+from xcheck.reactions import compare_forces, engine_forces, force_summary
 
 INVERTED = (DATA / "inverted.toml").read_text()
 SLIDER_DRIVEN = (DATA / "slider-driven.toml").read_text()

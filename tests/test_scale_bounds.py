@@ -127,7 +127,7 @@ def test_engine_reactions_at_round_off_on_a_km_yoke(engine):
     """tests/data/km-yoke.toml: the engines' reactions and efforts at round-off of
     their scale (measured 9e-16; 1.9e-12 before the solves were equilibrated), and
     the engine's yoke at x = 500 cos(theta) m."""
-    from xcheck.dynamics import compare_forces
+    from xcheck.reactions import compare_forces
 
     kinematics = Kinematics(load_mechanism(DATA / "km-yoke.toml"))
     (result,) = compare_forces(kinematics, [engine])

@@ -22,11 +22,8 @@ import pandas as pd
 
 from . import __version__, engines
 from .dynamics import (
-    ForceResult,
     Forces,
-    compare_forces,
     energy_summary,
-    force_summary,
     inverse_dynamics,
     require_constant_loads,
     require_mass_data,
@@ -37,6 +34,7 @@ from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
 from .ladder import ORDER_MARGIN, applicable_findings, convergence_study, empty_study, observed_order
 from .motion import drive_warnings, law_states, simulation_window, sweep_span
+from .reactions import ForceResult, compare_forces, engine_forces, force_summary
 from .results import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
 from .tolerances import (
     CONDITIONING_FACTOR,
@@ -952,11 +950,9 @@ def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | 
     where its error falls at least at order p - :data:`ORDER_MARGIN`, and at most
     at p + 1, between the last two steps (pymunk's impulses on a Scotch yoke: 0.25, 0.12, 0.08 relative
     at 100, 200, 400 steps a sample, fuzz case s1-00168). ``table`` (a
-    :func:`~xcheck.dynamics.force_summary` with tolerance, passed, basis) and
+    :func:`~xcheck.reactions.force_summary` with tolerance, passed, basis) and
     ``run.forces`` take the finest run; ``basis`` says what was seen, and, where
     a finer run failed, why."""
-    from .dynamics import engine_forces
-
     source = str(table.at[row, "engine"])
     order = None if source == "newton-euler" else engines.engine(source).force_order
     if order is None:

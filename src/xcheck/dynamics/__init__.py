@@ -3,22 +3,18 @@
 :func:`inverse_dynamics` (multipliers of M q'' - Phi_q^T lambda = Q) and
 :func:`newton_euler` (per-body M a = D R + Q, seed 003) give the native
 answers; :func:`energy_balance` checks them against the power balance;
-:func:`engine_forces` / :func:`compare_forces` run the engines' own inverse
-dynamics and tabulate :func:`force_differences`. The sign conventions are in
+:func:`force_differences` tabulates another set of reactions against them
+(the engines' own are run by :mod:`xcheck.reactions`: the exact answer does not
+import the engines it judges). The sign conventions are in
 :mod:`xcheck.dynamics._forces`.
 """
 
 from ._compare import (
     WINDOW_SAMPLES,
-    ForceResult,
-    compare_forces,
     determined_states,
     energy_summary,
-    engine_forces,
     force_differences,
-    force_engines,
     force_floors,
-    force_summary,
     window_states,
 )
 from ._energy import energy_balance, mechanical_energy
@@ -36,20 +32,15 @@ __all__ = [
     "AppliedLoad",
     "applied_loads",
     "DRIVER_QUANTITIES",
-    "force_engines",
     "JOINT_QUANTITIES",
     "WINDOW_SAMPLES",
-    "ForceResult",
     "Forces",
     "body_dynamics",
-    "compare_forces",
     "determined_states",
     "energy_balance",
     "energy_summary",
-    "engine_forces",
     "force_differences",
     "force_floors",
-    "force_summary",
     "inverse_dynamics",
     "mechanical_energy",
     "newton_euler",

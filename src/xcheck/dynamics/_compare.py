@@ -1,50 +1,34 @@
-"""Reactions and efforts from the engines, and their differences from the native ones.
-
-Each engine of the registry with a ``force_tolerance`` provides
-:meth:`~xcheck.engines.Engine.inverse_dynamics` (kinematics, branch=None,
-**options) -> Forces; :func:`engine_forces`
-runs one and tabulates :func:`force_differences`, never raising: a failure is a
-:class:`ForceResult` with ``ok`` False and a one-line ``reason``.
+"""Where reactions and efforts are compared, and how: the native states of the
+simulation window, the differences of a set of reactions and efforts from the
+native ones, and the native power balance. The engines' own reactions are run
+and judged in :mod:`xcheck.reactions`; this package, the exact answer, does not
+import what it judges.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import XcheckError
 from ..kinematics import Kinematics, Solution, Status
 from ..motion import law_states, simulation_window
 from ..results import relative_to_floored_scale, scale_floors
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
-from ._inverse import inverse_dynamics, newton_euler
+from ._inverse import inverse_dynamics
 
 if TYPE_CHECKING:
     import pandas as pd  # imported where used: 0.3 s that `xcheck solve` and `list` need not pay
 
 __all__ = [
-    "force_engines",
     "WINDOW_SAMPLES",
-    "ForceResult",
     "window_states",
+    "determined_states",
     "force_differences",
     "force_floors",
-    "engine_forces",
-    "compare_forces",
-    "force_summary",
     "energy_summary",
 ]
-
-
-def force_engines() -> tuple[str, ...]:
-    """The registered engines that give reactions and efforts."""
-    from xcheck import engines  # the registry imports the engines' descriptions, which import this package
-
-    return tuple(e.name for e in engines.engines() if e.force_tolerance is not None)
 
 
 #: States sampled over the simulation window by default (every 5 degrees of a turning crank).
@@ -187,125 +171,6 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
     law_rates, law_accelerations, _ = law_states(mech, forces.inputs)
     floors = force_floors(mech, scale_floors(mech, law_rates, law_accelerations))
     return relative_to_floored_scale(pd.DataFrame(rows), "unit", floors)
-
-
-@dataclass
-class ForceResult:
-    """One source's reactions and efforts on one mechanism.
-
-    Attributes
-    ----------
-    engine : str
-        One of :func:`force_engines`, or ``"newton-euler"`` (the native per-body form).
-    mechanism : str
-    ok : bool
-    reason : str
-        Why it failed, one line (empty when ok).
-    forces : Forces or None
-    table : DataFrame or None
-        :func:`force_differences` of ``forces``.
-    seconds : float
-        Run time.
-    """
-
-    engine: str
-    mechanism: str
-    ok: bool
-    reason: str = ""
-    forces: Forces | None = None
-    table: pd.DataFrame | None = None
-    seconds: float = 0.0
-
-
-def _one_line(error: BaseException) -> str:
-    text = " ".join(str(error).split())
-    if isinstance(error, (XcheckError, ValueError)) and text:
-        return text
-    return f"{type(error).__name__}: {text}" if text else type(error).__name__
-
-
-def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None, **options) -> ForceResult:
-    """Run one engine's inverse dynamics and compare it with the native one.
-
-    Parameters
-    ----------
-    kinematics : Kinematics
-    engine : str
-        One of :func:`force_engines`, or ``"newton-euler"``.
-    branch : str, optional
-    **options
-        Passed to the engine's function.
-
-    Returns
-    -------
-    ForceResult
-        Never raises: a mechanism without mass data, an engine that cannot
-        load it, or any failure gives ``ok`` False and the reason in one line.
-    """
-    mech = kinematics.mechanism
-    start = time.perf_counter()
-    try:
-        require_mass_data(mech)
-        if engine == "newton-euler":
-            forces = newton_euler(window_states(kinematics, branch, **options))
-        elif engine in force_engines():
-            from xcheck import engines
-
-            forces = engines.engine(engine).inverse_dynamics(kinematics, branch=branch, **options)
-        else:
-            raise ValueError(f"expected an engine ({', '.join(['newton-euler', *force_engines()])}), found {engine!r}")
-        table = force_differences(kinematics, forces, branch)
-    except Exception as error:  # noqa: BLE001 - a failed engine is data: reported, the others still run
-        return ForceResult(engine, mech.name, False, _one_line(error), seconds=time.perf_counter() - start)
-    return ForceResult(engine, mech.name, True, "", forces, table, time.perf_counter() - start)
-
-
-def compare_forces(
-    kinematics: Kinematics, engines=None, branch: str | None = None, options: dict | None = None
-) -> list[ForceResult]:
-    """:func:`engine_forces` for each engine (default: newton-euler and every
-    :func:`force_engines`; ``options``: engine -> keyword arguments)."""
-    engines = ("newton-euler", *force_engines()) if engines is None else engines
-    options = options or {}
-    return [engine_forces(kinematics, engine, branch, **options.get(engine, {})) for engine in engines]
-
-
-def force_summary(results: list[ForceResult]) -> pd.DataFrame:
-    """One row per result of :func:`compare_forces`: ``engine``, ``ok``,
-    ``reason``, the worst ``max_rel`` with its ``name`` and ``quantity`` (NaN
-    and empty for a failed engine), ``max_abs`` there (SI, ``unit``), the
-    physical ``floor`` of that unit's scale (:func:`force_floors`),
-    ``states`` and ``seconds``."""
-    import pandas as pd
-
-    rows = []
-    for r in results:
-        row = {
-            "engine": r.engine,
-            "ok": r.ok,
-            "reason": r.reason,
-            "max_rel": np.nan,
-            "name": "",
-            "quantity": "",
-            "max_abs": np.nan,
-            "unit": "",
-            "floor": np.nan,
-            "states": 0,
-            "seconds": r.seconds,
-        }
-        if r.ok and r.table is not None and not r.table.empty:
-            worst = r.table.iloc[int(np.nanargmax(r.table["max_rel"].to_numpy()))]
-            row.update(
-                max_rel=float(worst["max_rel"]),
-                name=worst["name"],
-                quantity=worst["quantity"],
-                max_abs=float(worst["max_abs"]),
-                unit=worst["unit"],
-                floor=float(worst["floor"]),
-                states=int(worst["samples"]),
-            )
-        rows.append(row)
-    return pd.DataFrame(rows)
 
 
 def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: int = 721) -> dict:
