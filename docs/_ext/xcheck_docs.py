@@ -29,6 +29,15 @@ class _Markdown(Directive):
         return container.children
 
 
+def _findings(engine, mode) -> str:
+    """A mode's stated findings in a cell: the quantities they spoil (and where), "" without."""
+    found = [f for f in engine.findings if mode.kind in f.kinds]
+    if not found:
+        return ""
+    quantities = ", ".join(dict.fromkeys(q for f in found for q in f.quantities))
+    return f"`{mode.name}`: {quantities}" + (" (closed loops)" if all(f.closed_loops for f in found) else "")
+
+
 class EnginesTable(_Markdown):
     """The table of every registered engine."""
 
@@ -39,7 +48,7 @@ class EnginesTable(_Markdown):
         for engine in engines.engines():
             modes = "<br>".join(f"`{m.name}` ({m.kind})" for m in engine.modes)
             trust = "<br>".join(_cell(mode_trust(m)) for m in engine.modes)
-            findings = "<br>".join(f"`{m.name}`: {', '.join(m.findings)}" for m in engine.modes if m.findings)
+            findings = "<br>".join(_findings(engine, m) for m in engine.modes if _findings(engine, m))
             page = f"[{engine.title}]({engine.name}.md)"
             lines.append(
                 f"| {page} | {modes} | {trust} | {findings or '—'} | `{_cell(engine.install) or 'with xcheck'}` |"
@@ -76,9 +85,11 @@ class EngineFacts(_Markdown):
                 "",
                 f"Joint reactions and driving efforts: within {engine.force_tolerance:g} ({engine.force_basis}).",
             ]
-        for mode in engine.modes:
-            for category, text in mode.findings.items():
-                lines += ["", f"**Stated finding** (`{mode.name}`, {category}): {_cell(text)}"]
+        for finding in engine.findings:
+            where = f"{', '.join(finding.kinds)} modes; {', '.join(finding.quantities)}" + (
+                "; closed loops only" if finding.closed_loops else ""
+            )
+            lines += ["", f"**Stated finding** ({where}): {_cell(finding.title)}. {_cell(finding.text)}"]
         return self._parse(lines)
 
 

@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 
 from xcheck.errors import XcheckError
-from xcheck.kinematics import Kinematics, rotate
 from xcheck.joints import LineJoint
+from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism
 
 from .mjcf import Layout, layout, mjcf_text
