@@ -13,6 +13,9 @@ its equations of motion reduced to its degrees of freedom by Lagrange's equation
 - ``free-double-pendulum``: two compound pendulums, released at rest from the
   horizontal, 2 s. Two coordinates, the links' angles from the downward vertical;
   the textbook equations.
+- ``free-fourbar-released``: a four-bar of uniform rods released from rest under
+  gravity, 1 s (the engines' free-motion figures are measured on it). One
+  coordinate, the crank angle, as the crank-rocker's.
 
 For one degree of freedom theta, with every body's frame (x, y, phi) a closed-form
 function of theta, T = (1/2) M(theta) theta'^2 with M = sum of m |r_G'|^2 + I phi'^2
@@ -230,6 +233,21 @@ class CrankRocker(OneCoordinate):
         }
 
 
+class FourBarReleased(CrankRocker):
+    """tests/data/free-fourbar-released.toml: ground pivots O (0, 0) and Q (0.2, 0),
+    crank OA 0.1 m, coupler AB 0.3 m, rocker QB 0.22 m (B above the line AQ), uniform
+    1 kg rods; released at rest with the crank at 45 deg."""
+
+    name = "free-fourbar-released"
+    bodies = {
+        "crank": Body(1.0, 0.1**2 / 12.0),
+        "coupler": Body(1.0, 0.3**2 / 12.0),
+        "rocker": Body(1.0, 0.22**2 / 12.0),
+    }
+    start = (math.radians(45.0), 0.0)
+    a, b, c, d = 0.1, 0.3, 0.22, (0.2, 0.0)  # the crank-rocker's triangle B-C-D is the four-bar's A-B-Q
+
+
 class SliderCrankSpring(OneCoordinate):
     """tests/data/free-slider-crank-spring.toml: crank OA 0.1 m about O (0, 0), rod AB
     0.35 m, the slider's pin B on the line y = 0.02 m (B right of A); a spring of 1000
@@ -299,7 +317,9 @@ class DoublePendulum:
         }
 
 
-PROBLEMS: dict[str, Any] = {p.name: p for p in (CrankRocker(), SliderCrankSpring(), DoublePendulum())}
+PROBLEMS: dict[str, Any] = {
+    p.name: p for p in (CrankRocker(), SliderCrankSpring(), DoublePendulum(), FourBarReleased())
+}
 
 
 def path(name: str) -> Path:

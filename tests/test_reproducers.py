@@ -1,0 +1,51 @@
+"""Every stated finding's reproducer (reproducers/*.py) still shows its defect where
+its engine is installed: a script that imports only that engine and numpy, prints
+the measured numbers beside the expected ones and exits 0 while the defect shows,
+1 once it does not (a fixed upstream release: the finding is to be retired)."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SCRIPTS = sorted((ROOT / "reproducers").glob("*.py"))
+
+
+def _needs(script: Path) -> list[str]:
+    """The engine's modules the script imports (its ``import`` lines at the top level or in functions)."""
+    names = []
+    for line in script.read_text(encoding="utf-8").splitlines():
+        words = line.split()
+        if len(words) >= 2 and words[0] in ("import", "from"):
+            top = words[1].split(".")[0]
+            if top not in sys.stdlib_module_names and top not in ("numpy", "__future__") and top not in names:
+                names.append(top)
+    return names
+
+
+def test_each_reproducer_imports_only_its_engine_and_numpy():
+    for script in SCRIPTS:
+        assert "xcheck" not in _needs(script), f"{script.name} imports xcheck"
+        assert _needs(script), f"{script.name} imports no engine"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("script", SCRIPTS, ids=[s.stem for s in SCRIPTS])
+def test_reproducer_still_shows_its_defect(script: Path):
+    missing = [name for name in _needs(script) if importlib.util.find_spec(name) is None]
+    if missing:
+        pytest.skip(f"not installed: {', '.join(missing)}")
+    child = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=900, cwd=script.parent
+    )
+    lines = child.stdout.strip().splitlines()
+    assert child.returncode == 0 and lines and lines[-1] == "defect shown", (
+        f"{script.name} (exit status {child.returncode}) no longer shows its defect: retire its finding, "
+        f"or fix the script\n{child.stdout}\n{child.stderr[-2000:]}"
+    )
+    assert any("expected" in line for line in lines) and any("measured" in line for line in lines)
