@@ -37,7 +37,7 @@ from xcheck.engines.pinocchio.model import joint_coordinates
 from xcheck.engines.pinocchio.modes import build, export_files, inverse_dynamics, run_dynamic, run_kinematic
 from xcheck.engines.pinocchio.oracle import Oracle
 from xcheck.model import parse_mechanism
-from xcheck.precision import canonical_numbers, drift
+from xcheck.precision import canonical_numbers, drift, resolution
 from xcheck.results import differences
 
 URDF_DIR = MODELS / "urdf"
@@ -439,7 +439,8 @@ def test_urdf_of_a_carrier_loads_and_matches_the_programmatic_model(cut, tmp_pat
         np.testing.assert_allclose(udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=1e-15)
     for j in range(1, pm.model.njoints):
         u = urdf.getJointId(names[pm.model.names[j]])
-        np.testing.assert_allclose(urdf.inertias[u].matrix(), pm.model.inertias[j].matrix(), rtol=0, atol=1e-15)
+        expected = pm.model.inertias[j].matrix()
+        np.testing.assert_allclose(urdf.inertias[u].matrix(), expected, rtol=0, atol=resolution(np.abs(expected).max()))
     (loop,) = loops["loops"]
     assert loop["contact_type"] == ("CONTACT_3D" if cut == "slot" else "CONTACT_6D")
     f1, f2 = (urdf.frames[urdf.getFrameId(loop[k], pin.FrameType.BODY)] for k in ("frame1", "frame2"))
@@ -517,6 +518,11 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
     assert urdf.nv == pm.model.nv
     q_ref = joint_coordinates(pm, kin.assemble())
     data, udata = pm.model.createData(), urdf.createData()
+    # the URDF holds its numbers to DIGITS significant digits (xcheck.precision): each
+    # placement along a chain moves a frame by at most its angle's step (over the size, or
+    # a unit rotation) and its position's step
+    size = kin.system.size
+    atol = pm.model.njoints * (resolution(math.pi) * max(size, 1.0) + resolution(size))
     for q in (q_ref, q_ref + 0.3):
         pin.framesForwardKinematics(pm.model, data, q)
         pin.framesForwardKinematics(urdf, udata, _urdf_configuration(urdf, pm, q, names))
@@ -525,12 +531,11 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
             kind = pin.FrameType.JOINT if frame.type == pin.FrameType.JOINT else pin.FrameType.BODY
             other = urdf.getFrameId(names[frame.name], kind)
             assert other < urdf.nframes, frame.name
-            np.testing.assert_allclose(
-                udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=1e-15 * kin.system.size + 1e-15
-            )
+            np.testing.assert_allclose(udata.oMf[other].homogeneous, data.oMf[f].homogeneous, rtol=0, atol=atol)
     for j in range(1, pm.model.njoints):
         u = urdf.getJointId(names[pm.model.names[j]])
-        np.testing.assert_allclose(urdf.inertias[u].matrix(), pm.model.inertias[j].matrix(), rtol=0, atol=1e-15)
+        expected = pm.model.inertias[j].matrix()
+        np.testing.assert_allclose(urdf.inertias[u].matrix(), expected, rtol=0, atol=resolution(np.abs(expected).max()))
     # close the loops the way the URDF's header says
     cms = []
     for loop in loops["loops"]:
@@ -551,7 +556,7 @@ def test_urdf_loads_and_matches_the_programmatic_model(name):
     for cm in cms:
         cd = cm.createData()
         cm.calc(urdf, udata, cd)
-        assert np.max(np.abs(cd.oMc1.translation - cd.oMc2.translation)) < 1e-14 * kin.system.size
+        assert np.max(np.abs(cd.oMc1.translation - cd.oMc2.translation)) < atol
     for entry, dc in zip(loops["inputs"], pm.drivers):
         assert (entry["joint"], entry["sign"]) == (names[dc.joint], dc.sign)
 

@@ -14,7 +14,7 @@ from xcheck import Kinematics, load_mechanism
 from xcheck.dynamics import energy_summary, inverse_dynamics, window_states
 from xcheck.dynamics._energy import energy_balance
 from xcheck.results import scale_floors
-from xcheck.runner import NATIVE_TOLERANCE, _condition, _native_self_check, energy_tolerance, run_mechanism
+from xcheck.runner import NATIVE_TOLERANCE, _native_self_check, condition_number, energy_tolerance, run_mechanism
 from xcheck.tolerances import length_ratio
 
 
@@ -79,7 +79,7 @@ def test_power_balance_bound_follows_the_length_ratio_and_fails_a_wrong_effort(r
     (1000 here): within its bound, which a drive effort 1e-8 off still fails."""
     assert length_ratio(ratio_1000.mechanism) == pytest.approx(1000.0, rel=1e-12)
     states = window_states(ratio_1000)
-    bound = energy_tolerance(_condition(states), length_ratio(ratio_1000.mechanism))
+    bound = energy_tolerance(condition_number(states), length_ratio(ratio_1000.mechanism))
     assert bound <= 1e-9
     energy = energy_summary(ratio_1000)
     assert energy["relative"] <= bound
