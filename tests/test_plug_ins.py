@@ -240,3 +240,26 @@ def test_naming_a_plug_in_that_could_not_load_says_why(tmp_path):
     (error,) = [line for line in result.stderr.splitlines() if line.startswith("xcheck: error: ")]
     assert error.startswith("xcheck: error: --engines: expected modes or groups among native, ")
     assert error.endswith(", found 'exit3' (a plug-in of that name could not be loaded: its import called sys.exit(3))")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("declared_too", [False, True])
+def test_an_entry_points_file_that_is_a_fifo_or_a_giant_does_not_hang(tmp_path, declared_too):
+    """A FIFO named entry_points.txt would block the read for ever, a sparse giant
+    be read whole: each is named, and the good plug-in still loads (with another
+    distribution declaring the group, or with none)."""
+    site = _site(tmp_path) if declared_too else tmp_path / "site"
+    site.mkdir(exist_ok=True)
+    for name in ("fifo", "giant"):
+        info = site / f"odd_{name}-1.0.dist-info"
+        info.mkdir()
+        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: odd-{name}\nVersion: 1.0\n", encoding="utf-8")
+        if name == "fifo":
+            os.mkfifo(info / "entry_points.txt")
+        else:
+            with open(info / "entry_points.txt", "wb") as giant:
+                giant.truncate(2**30)
+    result = _xcheck(site, "engines", "--json", timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert set(_warned(result.stderr)) == {str(site / "odd_fifo-1.0.dist-info"), str(site / "odd_giant-1.0.dist-info")}
+    assert ("plugged" in {e["name"] for e in json.loads(result.stdout)["engines"]}) == declared_too

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+from pathlib import Path
 
 from ._contract import KINDS, Engine, Mode
 
@@ -108,6 +109,14 @@ def _declared_entry_points() -> list:
             if key in seen:
                 continue
             seen.add(key)
+        folder = getattr(distribution, "_path", None)  # a folder on the path (not a zip file)
+        if isinstance(folder, Path):
+            try:
+                if _entry_points_file(folder) is None:
+                    continue  # declares no entry points
+            except OSError as error:
+                _problems[str(folder)] = f"its entry_points.txt cannot be read ({error.strerror or error})"
+                continue
         try:
             found.extend(distribution.entry_points.select(group=ENTRY_POINT_GROUP))
         except Exception as error:  # noqa: BLE001 - another package's broken metadata must not stop xcheck
@@ -225,12 +234,33 @@ def _may_declare_plug_ins() -> bool:
             for item in listing:
                 if item.name.endswith((".dist-info", ".egg-info")) and item.is_dir():
                     try:
-                        with open(os.path.join(item.path, "entry_points.txt"), "rb") as declared:
-                            if group in declared.read():
-                                return True
+                        declared = _entry_points_file(Path(item.path))
                     except OSError:
-                        continue  # declares no entry points
+                        return True  # a FIFO, a device, a giant: the full scan names it
+                    if declared is not None and group in declared:
+                        return True
     return False
+
+
+#: the largest entry_points.txt read, bytes (a package's own holds a few hundred)
+_MAX_ENTRY_POINTS_BYTES = 1 << 20
+
+
+def _entry_points_file(folder: Path) -> bytes | None:
+    """The ``entry_points.txt`` of a distribution's folder; None where there is none.
+
+    Raises
+    ------
+    OSError
+        Where it is no regular file (a FIFO would block for ever, a device never
+        end) or larger than :data:`_MAX_ENTRY_POINTS_BYTES`.
+    """
+    from ..store import read_bounded
+
+    try:
+        return read_bounded(folder / "entry_points.txt", _MAX_ENTRY_POINTS_BYTES)[0]
+    except FileNotFoundError:
+        return None
 
 
 def _add(engine: Engine, replace: bool = False) -> None:
