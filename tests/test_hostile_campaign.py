@@ -807,6 +807,7 @@ BROKEN_PLUG_INS = {
     ),
     "badvalue": ("", "badvalue = xcheck_plug_badvalue:X:Y:Z"),
     "malformed": ("", "this line has no equals sign"),
+    "fifo": ("", None),  # its entry_points.txt a FIFO (made below)
 }
 
 COMMANDS = [
@@ -815,7 +816,7 @@ COMMANDS = [
     ("run", _FOURBAR, "--engines", "native,formulations", "--no-report", "--samples", "21"),
 ]
 
-PLUG_IN_DRAWS = 3
+PLUG_IN_DRAWS = 4
 
 
 @pytest.mark.parametrize("index", range(PLUG_IN_DRAWS))
@@ -830,8 +831,11 @@ def test_a_site_of_broken_plug_ins_never_stops_a_command(index, tmp_path):
         source, line = BROKEN_PLUG_INS[name]
         module = f"xcheck_plug_{name}"
         install_plug_in(site, module, source, f"[xcheck.engines]\n{line or f'{name} = {module}:X'}\n")
-        expected.add(str(site / f"{module}-1.0.dist-info") if name == "malformed" else name)
-    command = _pick(rng, COMMANDS)
+        if name == "fifo":
+            (site / f"{module}-1.0.dist-info" / "entry_points.txt").unlink()
+            os.mkfifo(site / f"{module}-1.0.dist-info" / "entry_points.txt")
+        expected.add(str(site / f"{module}-1.0.dist-info") if name in ("malformed", "fifo") else name)
+    command = COMMANDS[index % len(COMMANDS)]
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")]),
