@@ -286,3 +286,13 @@ def test_no_scheduler_at_a_closed_port_is_one_line(tmp_path, monkeypatch):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     _refused(_fuzz(tmp_path / "campaign", "--scheduler", f"tcp://127.0.0.1:{port}"), "found OSError")
+
+
+@pytest.mark.parametrize("blocker", ["cases", "results"])
+def test_a_file_where_a_campaign_folder_goes_is_refused_before_anything_is_written(tmp_path, blocker):
+    out = tmp_path / "campaign"
+    out.mkdir()
+    (out / blocker).write_text("mine\n", encoding="utf-8")
+    before = _snapshot(out)
+    _refused(_fuzz(out), str(out))
+    assert _snapshot(out) == before  # no campaign.json left behind either

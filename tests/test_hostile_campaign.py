@@ -293,6 +293,8 @@ USER_THINGS = {
     "results/ a stray part": True,
     "results/ a part of other columns": True,
     "results/ without campaign.json": True,
+    "cases (a file)": True,
+    "results (a file)": True,
 }
 
 #: option values and whether they must be refused
@@ -328,6 +330,9 @@ def _make(out: Path, thing: str, keep: Keepsakes) -> None:
         (out / "failures.md").symlink_to(outside)
         keep.keep(outside)
         keep.keep(out / "failures.md")
+    elif thing in ("cases (a file)", "results (a file)"):
+        (out / thing.split(" ")[0]).write_text("the user's file\n", encoding="utf-8")
+        keep.keep(out / thing.split(" ")[0])
     elif thing == "cases/ a case file":
         (out / "cases").mkdir(exist_ok=True)
         for seed in (0, 7):

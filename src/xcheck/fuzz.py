@@ -823,9 +823,8 @@ def fuzz(
     kinds = chosen_kinds(kinds)
     chosen = campaign_modes() if modes is None else select_modes(modes)
     out = arguments.writable_directory(arguments.path(out, "out"), "out", "the campaign")
-    _claim(out, {"kinds": list(kinds), "modes": sorted(chosen), "samples": samples})
-    done = set(read_rows(out).case)
     cases = [generate(seed, i, kinds) for i in range(count)]
+    done = _claim(out, {"kinds": list(kinds), "modes": sorted(chosen), "samples": samples}, cases)
     todo = [c for c in cases if c.name not in done]
     paths = [str(case_file(c, out)) for c in cases]
     by_name = dict(zip((c.name for c in cases), paths))
@@ -861,45 +860,51 @@ def fuzz(
     return read_rows(out)
 
 
-def _claim(out: Path, settings: dict) -> None:
-    """Make ``out`` this campaign's folder, or check that it is one of the same settings.
+def _claim(out: Path, settings: dict, cases: list[Case]) -> set[str]:
+    """Make ``out`` this campaign's folder, or check that it is one of the same
+    settings; the names of the cases done there.
 
-    A new folder gets :data:`SETTINGS_FILE`; one that has it must hold the same
-    kinds, modes and samples, and one with results but no settings is not
-    resumed (whose rows they are cannot be told). A ``failures.md`` there must
-    be one xcheck fuzz wrote, since the campaign ends by rewriting it.
+    Everything is checked before anything is written. A new folder gets
+    :data:`SETTINGS_FILE`; one that has it must hold the same kinds, modes and
+    samples, and one with results but no settings is not resumed (whose rows
+    they are cannot be told). A ``failures.md`` and the case files there must be
+    ones xcheck fuzz wrote, since the campaign rewrites them, and every results
+    part one it can read (:func:`read_rows`).
 
     Raises
     ------
     InputError
-        Naming the file and what differs.
+        Naming the file and what is wrong with it.
     """
     path = out / SETTINGS_FILE
-    document = {"written by": "xcheck fuzz", **settings}
     _own_file(out / "failures.md", _REPORT_MARK, "the failure report of xcheck fuzz")
-    head = _own_file(path, '{\n  "written by": "xcheck fuzz"', "the settings of an xcheck fuzz campaign")
-    if head is None:
-        if (out / "results").exists():
-            raise InputError(
-                f"{out}: expected a folder with no campaign or one with its settings ({SETTINGS_FILE}), found "
-                "results/ without them (from an older xcheck, or not xcheck's): give the campaign another folder"
-            )
-        write_atomic(path, json.dumps(document, indent=2) + "\n")
-        return
-    try:
-        earlier = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, OSError) as err:
-        raise InputError(f"{path}: expected the settings of an xcheck fuzz campaign, found {err}") from None
-    differ = [
-        f"{key} {_setting(earlier.get(key))} (asked: {_setting(value)})"
-        for key, value in settings.items()
-        if earlier.get(key) != value
-    ]
-    if differ:
+    new = _own_file(path, '{\n  "written by": "xcheck fuzz"', "the settings of an xcheck fuzz campaign") is None
+    if new and (out / "results").exists():
         raise InputError(
-            f"{out}: expected the settings of the campaign there to resume it, found {'; '.join(differ)}: "
-            "its rows would mix with these; ask for its settings, or give this campaign another folder"
+            f"{out}: expected a folder with no campaign or one with its settings ({SETTINGS_FILE}), found "
+            "results/ without them (from an older xcheck, or not xcheck's): give the campaign another folder"
         )
+    if not new:
+        try:
+            earlier = json.loads(path.read_text(encoding="utf-8"))
+        except (ValueError, OSError) as err:
+            raise InputError(f"{path}: expected the settings of an xcheck fuzz campaign, found {err}") from None
+        differ = [
+            f"{key} {_setting(earlier.get(key))} (asked: {_setting(value)})"
+            for key, value in settings.items()
+            if earlier.get(key) != value
+        ]
+        if differ:
+            raise InputError(
+                f"{out}: expected the settings of the campaign there to resume it, found {'; '.join(differ)}: "
+                "its rows would mix with these; ask for its settings, or give this campaign another folder"
+            )
+    done = set(read_rows(out).case)
+    for case in cases:
+        _own_file(out / "cases" / f"{case.name}.toml", _CASE_MARK, "a case file of xcheck fuzz")
+    if new:
+        write_atomic(path, json.dumps({"written by": "xcheck fuzz", **settings}, indent=2) + "\n")
+    return done
 
 
 def _setting(value) -> str:
