@@ -333,15 +333,13 @@ def quantities_figure(run: RunResult):
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3)
         axes[0, 1].set_title(title, fontsize=9)
-    _figure_legend(figure, grid.flat, top=0.62)
-    figure.suptitle(
+    return _with_legend_and_title(
+        figure,
+        grid,
         f"{mech.name}: quantities (native: line; engines: markers and dashes)\n"
         "each engine at the input it realised; the native line at the sweep's inputs with the rates and "
         "accelerations of the drivers' laws",
-        fontsize=10,
     )
-    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
-    return figure
 
 
 def _relative_scale(run: RunResult, outcome, category: str) -> float:
@@ -384,6 +382,15 @@ def _figure_legend(figure, axes, top: float) -> None:
         )
 
 
+def _with_legend_and_title(figure, grid, title: str):
+    """A grid of panels (three to a row) finished: one legend above them, the
+    two-line title, the fixed margins; returns the figure."""
+    _figure_legend(figure, grid.flat, top=0.62)
+    figure.suptitle(title, fontsize=10)
+    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
+    return figure
+
+
 def error_figure(run: RunResult):
     """The figure of :func:`error_plots` (open: the caller closes it).
 
@@ -416,15 +423,13 @@ def error_figure(run: RunResult):
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3, which="both")
         axes[0, 1].set_title(title, fontsize=9)
-    _figure_legend(figure, grid.flat, top=0.62)
-    figure.suptitle(
+    return _with_legend_and_title(
+        figure,
+        grid,
         f"{run.mechanism.name}: difference from the native solution as a fraction of each mode's tolerance "
         "(red line: the tolerance)\neach mode against the native solution at the input value, rate and acceleration "
         "it realised (solid: kinematic modes, dashed: dynamic; 1e-12: an exact zero or less)",
-        fontsize=10,
     )
-    _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
-    return figure
 
 
 #: the orders whose slopes the convergence plots draw for reference
