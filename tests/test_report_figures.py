@@ -182,4 +182,4 @@ def test_convergence_panels_in_a_grid_with_legends_under_them_and_round_off_said
     assert all("at round-off, no order" in label for label in labels["exudyn-dynamic"][:-1])
     assert labels["exudyn-dynamic"][-1].startswith("round-off bound")
     assert not any(t.get_text().startswith("$h") for t in figure.axes[2].texts)  # no slopes to fit
-    _boxes_apart(figure)
+    _boxes_apart(figure)  # the title too, above the panels of a grid two rows high

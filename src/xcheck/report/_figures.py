@@ -505,10 +505,11 @@ def convergence_figure(run: RunResult):
     # inches; under a panel: its axis label (down to 0.2 of its height, where the legend starts) and the legend
     panel_w, panel_h = 4.6, 3.1
     under = 0.2 * panel_h + 0.2 * (legend_rows + 1) + 0.1
+    # (the figure's height: its title, then per row the panel and what stands under it)
     figure, axes = plt.subplots(
         rows,
         columns,
-        figsize=(1.1 + columns * panel_w + (columns - 1) * 1.0, 0.75 + rows * (panel_h + under)),
+        figsize=(1.1 + columns * panel_w + (columns - 1) * 1.0, 0.85 + rows * (panel_h + under)),
         squeeze=False,
     )
     round_off = convergence_round_off("position") * run.kinematics.system.size
@@ -550,12 +551,15 @@ def convergence_figure(run: RunResult):
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     for ax in axes.flat[len(tables) :]:
         ax.set_visible(False)
-    figure.suptitle(
+    height = figure.get_size_inches()[1]
+    figure.suptitle(  # placed in inches from the top, so that a tall grid's title clears its first panels
         f"{run.mechanism.name}: error against time step (observed order between the two smallest steps;\n"
         "grey: slopes of order 1, 2, 4)",
         fontsize=10,
+        y=1 - 0.12 / height,
+        va="top",
     )
-    _margins(figure, left=1.1, right=0.25, bottom=under, top=0.75, wspace=1.0, hspace=under + 0.35)
+    _margins(figure, left=1.1, right=0.25, bottom=under, top=0.85, wspace=1.0, hspace=under + 0.35)
     return figure
 
 
