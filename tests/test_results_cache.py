@@ -37,13 +37,17 @@ def _without_timings_and_cache(document: dict) -> dict:
 
 @pytest.mark.slow
 def test_the_same_results_and_report_with_and_without_the_cache(cache_on, tmp_path):
-    """Twice with the cache (the second run takes every mode and the reactions from it)
-    and once with --no-cache: the JSON is the same but for timings and the cache's
-    fields, and so are the reports' figures, byte for byte; the report and the
-    terminal say what came from the cache, and when it was computed."""
+    """Twice with the cache (the second run takes every mode, the reactions and the
+    report's figures from it: none is drawn again) and once with --no-cache: the JSON
+    is the same but for timings and the cache's fields, and so are the reports'
+    figures, byte for byte; the report and the terminal say what came from the
+    cache, and when it was computed."""
     out = {name: tmp_path / name for name in ("first", "second", "none")}
     first, _ = _run("--report", "--out", str(out["first"]), "--no-gif")
+    figures = {p: p.stat().st_mtime_ns for p in (cache_on / result_cache.FIGURES).glob("*.entry")}
+    assert len(figures) == 5  # drawing, quantities, differences, convergence, forces: kept for the next run
     second, _ = _run("--report", "--out", str(out["second"]), "--no-gif")
+    assert {p: p.stat().st_mtime_ns for p in (cache_on / result_cache.FIGURES).glob("*.entry")} == figures
     fresh, _ = _run("--report", "--out", str(out["none"]), "--no-gif", "--no-cache")
     modes = set(first["engines"]) - {"native"} | set(first["not_applicable"])
     assert first["cache"]["from_cache"] == {} and fresh["cache"] == {"from_cache": {}, "recomputed": {}}
@@ -210,3 +214,40 @@ def test_an_unusable_cache_directory_is_no_error(tmp_path, monkeypatch):
     with results_cache_on():
         first, _ = _run("--engines", "formulations")
     assert first["cache"] == {"from_cache": {}, "recomputed": {}}
+
+
+def test_run_all_takes_what_the_cache_holds_here_and_computes_the_rest(cache_on, tmp_path):
+    """`run all --jobs 2`: a mechanism whose results are all in the cache runs in this
+    process, the others in workers; the JSON is that of the first run, in its order,
+    and a changed file is the only one computed again."""
+    import shutil
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for name in ("fourbar", "slider-crank", "two-body-arm"):
+        shutil.copy(MODELS / f"{name}.toml", folder)
+    args = ("run", "all", "--models", str(folder), "--engines", "formulations,mujoco-kinematic", "--samples", "11")
+
+    def run() -> list:
+        done = invoke(*args, "--json", "--jobs", "2")
+        assert done.returncode == 0, done.stderr
+        return json.loads(done.stdout)
+
+    first = run()
+    second = run()
+    assert [_without_timings_and_cache(d) for d in second] == [_without_timings_and_cache(d) for d in first]
+    assert all(set(d["cache"]["from_cache"]) >= {"formulation-II", "mujoco-kinematic"} for d in second)
+    for name, old, new in (
+        ("fourbar", "rate = 1.0 ", "rate = 1.5 "),
+        ("slider-crank", "rate = 100 ", "rate = 120 "),
+        ("two-body-arm", "\n[mechanism]", "# a comment changes nothing\n[mechanism]"),
+    ):
+        text = (folder / f"{name}.toml").read_text(encoding="utf-8")
+        assert old in text
+        (folder / f"{name}.toml").write_text(text.replace(old, new, 1), encoding="utf-8")
+    third = run()  # two mechanisms to compute in workers, one from the cache here
+    assert [d["mechanism"] for d in third] == [d["mechanism"] for d in first]
+    cached = {d["mechanism"] for d in third if "mujoco-kinematic" in d["cache"]["from_cache"]}
+    assert cached == {"two-body-arm"}
+    assert _without_timings_and_cache(third[2]) == _without_timings_and_cache(first[2])
+    assert third[0]["scale_floors"]["omega"] == 1.5 * first[0]["scale_floors"]["omega"]  # computed at the new rate

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import io
 import json
@@ -811,10 +812,41 @@ def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
     def failed(index: int, reason: str) -> tuple:
         return None, None, [f"{names[index]}: expected its run back from a worker process, found that {reason}"]
 
-    with process_pool(jobs) as pool:
-        futures = {pool.submit(_run_model, model, *settings): i for i, model in enumerate(names)}
-        outcomes = collect(futures, failed, lambda _: done())
+    # a mechanism whose every result is in the results cache runs here, while the workers
+    # compute the others: its run takes a tenth of a second, a worker's start a second
+    here = [i for i, model in enumerate(names) if _all_cached(model, settings)]
+    away = [i for i in range(len(names)) if i not in here]
+    outcomes = {}
+    if len(away) < 2:
+        here, away = list(range(len(names))), []
+    with contextlib.ExitStack() as stack:
+        if away:
+            pool = stack.enter_context(process_pool(min(jobs, len(away))))
+            futures = {pool.submit(_run_model, names[i], *settings): i for i in away}
+        directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache = settings
+        for i in here:  # where it is the one mechanism not in the cache: its modes in worker processes
+            outcomes[i] = _run_model(
+                names[i], directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache,
+                jobs=1 if away else jobs,
+            )  # fmt: skip
+            done()
+        if away:
+            outcomes.update(collect(futures, failed, lambda _: done()))
     return [outcomes[i] for i in range(len(names))]
+
+
+def _all_cached(model, settings) -> bool:
+    """Whether the results cache holds every mode's results of ``model``
+    (:func:`xcheck.result_cache.holds`); False for a file that does not load."""
+    from .result_cache import holds
+
+    directory, modes, samples, branch, *_, use_cache = settings
+    if not use_cache:
+        return False
+    try:
+        return holds(load_mechanism(model_path(model, directory)), modes, samples, branch)
+    except (XcheckError, OSError):
+        return False
 
 
 def _progress_bar(off: bool, label: str = "{task.description}", stdout_terminal: bool = True) -> Progress:

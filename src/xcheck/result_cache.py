@@ -33,7 +33,21 @@ from pathlib import Path
 
 from . import store
 
-__all__ = ["RESULTS_ENV", "KIND", "Provenance", "enabled", "lookup", "keep", "summary", "provenance_json"]
+__all__ = [
+    "RESULTS_ENV",
+    "KIND",
+    "FIGURES",
+    "Provenance",
+    "enabled",
+    "lookup",
+    "keep",
+    "summary",
+    "provenance_json",
+    "run_identity",
+    "holds",
+    "cached_figure",
+    "keep_figure",
+]
 
 #: the environment variable that turns the results cache off (``off``) while other caches stay on
 RESULTS_ENV = "XCHECK_RESULTS_CACHE"
@@ -41,6 +55,10 @@ RESULTS_ENV = "XCHECK_RESULTS_CACHE"
 KIND = "results"
 #: the largest entry read or written, bytes (a dynamic mode's ladder on the bundled mechanisms: under 4 MB)
 MAX_BYTES = 256 * 2**20
+#: the folder of the reports' figures in the cache directory
+FIGURES = "figures"
+#: the largest figure read or written, bytes (the bundled mechanisms' largest: about 0.5 MB)
+MAX_FIGURE_BYTES = 64 * 2**20
 log = logging.getLogger("xcheck.cache")
 
 
@@ -140,6 +158,30 @@ def lookup(kinematics, label: str, parts: tuple, engines_used=()):
     return None, Provenance(recomputed=problem)
 
 
+def holds(mechanism, modes, samples: int, branch: str | None) -> bool:
+    """Whether the cache has an entry for every mode of ``modes`` (but "native",
+    and those whose engine is not installed) on ``mechanism``: a quick look at
+    the folder (nothing read), for where a run should go (a worker process
+    pays its start for nothing when every result is already there)."""
+    from . import engines
+
+    if not enabled():
+        return False
+    branches = list(mechanism.assembly.branches)
+    chosen = branch if branch is not None else (branches[0] if branches else None)
+    try:
+        for mode in modes:
+            if mode == "native" or engines.engine_of(mode).available():
+                continue
+            name = store.digest("outcome", mechanism, mode, int(samples), chosen)
+            path = store.entry_path(KIND, name)
+            if path is None or not path.is_file():
+                return False
+    except TypeError:
+        return False
+    return True
+
+
 def keep(kinematics, parts: tuple, engines_used, value, recomputed: str = "") -> Provenance:
     """Write ``value`` for ``parts`` (as :func:`lookup`) to the cache; returns
     its provenance (with the entry's identity where it was written)."""
@@ -179,3 +221,59 @@ def provenance_json(provenance: dict[str, Provenance]) -> dict:
         "from_cache": {name: p.computed_at for name, p in provenance.items() if p.from_cache},
         "recomputed": {name: p.recomputed for name, p in provenance.items() if p.recomputed},
     }
+
+
+def run_identity(run) -> str | None:
+    """A digest of everything a run's report figures are drawn from, where
+    every result of the run has an identity in the results cache (read from
+    it, or kept in it by this run); None otherwise (nothing then is cached of
+    its figures). Equal identities, equal figures."""
+    parts = []
+    for mode in run.outcomes:
+        if mode != "native":
+            where = run.provenance.get(mode)
+            if where is None or not where.identity:
+                return None
+            parts.append((mode, where.identity))
+    if run.native_forces is not None:
+        where = run.provenance.get("forces")
+        if where is None or not where.identity:
+            return None
+        parts.append(("forces", where.identity))
+    try:
+        return store.digest(
+            "run",
+            run.kinematics.mechanism,
+            int(run.native.inputs.shape[0]),
+            run.branch,
+            parts,
+            dict(run.not_applicable),
+            run.no_forces,
+            run.no_energy,
+            run.textbook,
+        )
+    except TypeError:
+        return None
+
+
+def _figure_maker() -> dict[str, str]:
+    return {**store.made_by("matplotlib", "pillow")}
+
+
+def cached_figure(identity: str, function: str) -> tuple[bool, bytes | None]:
+    """``(found, bytes)`` of a report figure (the name of its function in
+    :mod:`xcheck.report._figures`) of the run ``identity``; bytes None where
+    the run has nothing to show there. An entry that cannot be used is said so."""
+    name = store.digest("figure", identity, function)
+    found = store.read(FIGURES, name, _figure_maker(), MAX_FIGURE_BYTES)
+    if found.payload is not None:
+        return True, found.payload[1:] if found.payload[:1] == b"+" else None
+    if found.problem and not found.stale:
+        log.warning("xcheck: cache: the figure %s: %s; drawn again", function, found.problem)
+    return False, None
+
+
+def keep_figure(identity: str, function: str, data: bytes | None) -> None:
+    """Keep a report figure of the run ``identity`` (see :func:`cached_figure`)."""
+    payload = b"-" if data is None else b"+" + data
+    store.write(FIGURES, store.digest("figure", identity, function), payload, _figure_maker(), "", MAX_FIGURE_BYTES)

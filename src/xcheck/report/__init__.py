@@ -43,7 +43,6 @@ from ..fileio import (
     write_atomic,
 )
 from ..runner import RunResult
-from . import _figures
 from ._evidence import Evidence, merge, produced, read_evidence
 from ._markdown import index_markdown, mode_parts, passed, report_markdown, source_parts, textbook_text, worst_text
 
@@ -123,9 +122,17 @@ _IMAGES = (
 _WORKER_SHARE = ("motion_gif", "quantities", "drawing")
 
 
-def _figure(function: str, run: RunResult) -> bytes | None:
-    """One figure's bytes (how a worker process draws it)."""
-    return getattr(_figures, function)(run)
+def _figure(function: str, run: RunResult, identity: str | None = None) -> bytes | None:
+    """One figure's bytes, drawn (how a worker process draws it), and kept in the
+    figure cache where the run has an ``identity`` (:func:`xcheck.result_cache.run_identity`)."""
+    from . import _figures
+
+    data = getattr(_figures, function)(run)
+    if identity is not None:
+        from ..result_cache import keep_figure
+
+        keep_figure(identity, function, data)
+    return data
 
 
 def _known_here_only(run: RunResult) -> bool:
@@ -165,16 +172,18 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
     drawing = [(file, function, key) for file, function, key in wanted if file not in evidence.kept]
 
     def render(staging: Path) -> str:
-        drawn: dict[str, bytes | None] = {}
-        if jobs > 1 and not _known_here_only(run):
+        drawn = _cached_figures(run, [f for _, f, _ in drawing])  # a run whose results all came from the cache
+        identity = drawn.pop("", None)
+        missing = [(file, f, key) for file, f, key in drawing if f not in drawn]
+        if jobs > 1 and not _known_here_only(run) and any(f in _WORKER_SHARE for _, f, _ in missing):
             from .._parallel import process_pool
 
             with process_pool(1) as pool:
-                away = {f: pool.submit(_figure, f, run) for _, f, _ in drawing if f in _WORKER_SHARE}
-                drawn.update({f: _figure(f, run) for _, f, _ in drawing if f not in away})
+                away = {f: pool.submit(_figure, f, run, identity) for _, f, _ in missing if f in _WORKER_SHARE}
+                drawn.update({f: _figure(f, run, identity) for _, f, _ in missing if f not in away})
                 drawn.update({f: future.result() for f, future in away.items()})
         else:
-            drawn.update({f: _figure(f, run) for _, f, _ in drawing})
+            drawn.update({f: _figure(f, run, identity) for _, f, _ in missing})
         images = _keep_figures(directory / name, staging, evidence, {key: file for file, _, key in wanted})
         for file, function, key in drawing:
             data = drawn[function]
@@ -196,6 +205,23 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         "command": command,
     }
     return path, entry
+
+
+def _cached_figures(run: RunResult, functions: list[str]) -> dict:
+    """The figures (by function) of a run that the figure cache holds, where every
+    result of the run has an identity in the results cache; the identity under
+    the key "" (absent where it has none: nothing is then kept)."""
+    from ..result_cache import cached_figure, run_identity
+
+    identity = run_identity(run) if run.provenance else None
+    if identity is None:
+        return {}
+    found: dict = {"": identity}
+    for function in functions:
+        hit, data = cached_figure(identity, function)
+        if hit:
+            found[function] = data
+    return found
 
 
 def _keep_figures(old: Path, staging: Path, evidence: Evidence, keys: dict[str, str]) -> dict[str, str]:
