@@ -165,3 +165,14 @@ def install_plug_in(site: Path, module: str, source: str, entry_points: str) -> 
     name = module.replace("_", "-")
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n", encoding="utf-8")
     (info / "entry_points.txt").write_text(entry_points, encoding="utf-8")
+
+
+@pytest.fixture(scope="session")
+def released_fourbar():
+    """tests/data/free-fourbar-released.toml assembled, with its native free reference
+    (computed once per session): the engines' free four-bar."""
+    from xcheck.dynamics._free import simulate
+
+    kin = Kinematics(load_mechanism(DATA / "free-fourbar-released.toml"))
+    kin.assemble()
+    return kin, simulate(kin)

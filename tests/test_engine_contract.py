@@ -232,6 +232,8 @@ def test_a_mode_on_request_runs_only_when_named(findings):
             "quantities": ["position"],
             "kinds": ["kinematic", "dynamic", "free"],
             "closed_loops": False,
+            "reproducer": "",
+            "series": [],
         }
     ]
 

@@ -49,3 +49,17 @@ def test_reproducer_still_shows_its_defect(script: Path):
         f"or fix the script\n{child.stdout}\n{child.stderr[-2000:]}"
     )
     assert any("expected" in line for line in lines) and any("measured" in line for line in lines)
+
+
+def test_every_finding_names_its_reproducer_and_every_reproducer_a_finding():
+    from xcheck import engines
+
+    named = {}
+    for engine in engines.engines():
+        for finding in engine.findings:
+            assert finding.reproducer, f"{engine.name}: {finding.title!r} has no reproducer"
+            assert (ROOT / finding.reproducer).is_file(), finding.reproducer
+            named[Path(finding.reproducer).name] = engine.name
+    assert {script.name for script in SCRIPTS} == set(named)
+    for script in SCRIPTS:  # each script imports its engine's own package
+        assert script.name.startswith(named[script.name] + "_"), script.name

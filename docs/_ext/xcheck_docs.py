@@ -86,10 +86,25 @@ class EngineFacts(_Markdown):
                 f"Joint reactions and driving efforts: within {engine.force_tolerance:g} ({engine.force_basis}).",
             ]
         for finding in engine.findings:
-            where = f"{', '.join(finding.kinds)} modes; {', '.join(finding.quantities)}" + (
-                "; closed loops only" if finding.closed_loops else ""
-            )
-            lines += ["", f"**Stated finding** ({where}): {_cell(finding.title)}. {_cell(finding.text)}"]
+            if finding.kinds:
+                where = f"{', '.join(finding.kinds)} modes; {', '.join(finding.quantities)}" + (
+                    "; closed loops only" if finding.closed_loops else ""
+                )
+                where += f"; series {', '.join(finding.series)}" if finding.series else ""
+            else:
+                where = "worked around in xcheck's model"
+            lines += ["", f"**Stated finding** ({where}): {_cell(finding.title)}. {_cell(finding.text)}."]
+            if finding.reproducer:
+                # the script as its engine's maintainers would run it (docs/engines/NAME.md -> the repository's root)
+                lines += [
+                    "",
+                    f"Reproducer: `python {finding.reproducer}` (it imports only the engine and numpy; "
+                    "exits 0 while the defect shows):",
+                    "",
+                    f"```{{literalinclude}} ../../{finding.reproducer}",
+                    ":language: python",
+                    "```",
+                ]
         return self._parse(lines)
 
 

@@ -134,6 +134,17 @@ class Finding:
         Whether it holds only on a mechanism with closed loops (a joint that the
         spanning tree cuts): an engine's loop constraint plays no part in an
         open chain.
+    reproducer : str
+        The script that shows the defect to the engine's maintainers, relative to
+        the repository (``reproducers/NAME.py``: it imports only that engine and
+        numpy, prints the measured numbers beside the expected ones, and exits 0
+        while the defect shows); the tests run it where the engine is installed.
+        A defect xcheck's model works around (``kinds`` empty: no mode shows it)
+        is stated for its reproducer.
+    series : tuple of str
+        The ladder series (:attr:`Series.key`) it holds for, where it is one of
+        an engine's solvers (Newton's Featherstone); empty: every series, and
+        a driven mode.
     """
 
     title: str
@@ -141,27 +152,36 @@ class Finding:
     quantities: tuple[str, ...]
     kinds: tuple[str, ...] = ("kinematic", "dynamic", "free")
     closed_loops: bool = False
+    reproducer: str = ""
+    series: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
-        """The finding as JSON: title, text, quantities, kinds, closed_loops."""
+        """The finding as JSON: title, text, quantities, kinds, closed_loops, reproducer, series."""
         return {
             "title": self.title,
             "text": self.text,
             "quantities": list(self.quantities),
             "kinds": list(self.kinds),
             "closed_loops": self.closed_loops,
+            "reproducer": self.reproducer,
+            "series": list(self.series),
         }
 
 
-def applicable_findings(findings: Sequence[Finding], kind: str, quantity: str, mechanism: Mechanism) -> list[Finding]:
-    """The findings that hold for ``quantity`` of a ``kind`` mode on ``mechanism``:
-    the one rule by which a finding flags a row and excuses a failing category."""
+def applicable_findings(
+    findings: Sequence[Finding], kind: str, quantity: str, mechanism: Mechanism, series: str | None = None
+) -> list[Finding]:
+    """The findings that hold for ``quantity`` of a ``kind`` mode on ``mechanism`` (for a
+    ladder's row, of its ``series``): the one rule by which a finding flags a row and
+    excuses a failing category. A finding of some series only holds for a row of one of them."""
     if not findings:
         return []
     loops = None
     out = []
     for finding in findings:
         if kind not in finding.kinds or quantity not in finding.quantities:
+            continue
+        if finding.series and series not in finding.series:
             continue
         if finding.closed_loops:
             if loops is None:
@@ -711,8 +731,11 @@ def free_study(
         return ModeResult(mode, mech.name, False, one_line(error))
     rungs = [problem.rung(s, step * s.scale) for s in series for step in problem.steps(steps)]
     runs = run_rungs(lambda rung: run_once(prepared, problem, rung), rungs)
-    titles = "; ".join(f.title for f in applicable_findings(findings, "free", "position", mech))
-    judged = [_free_row(problem, rung, run, titles) for rung, run in zip(rungs, runs)]
+    titles = {
+        key: "; ".join(f.title for f in applicable_findings(findings, "free", "position", mech, key))
+        for key in dict.fromkeys(rung.series.key for rung in rungs)
+    }
+    judged = [_free_row(problem, rung, run, titles[rung.series.key]) for rung, run in zip(rungs, runs)]
     return ladder_result(mode, mech.name, judged, free_floor(problem))
 
 

@@ -46,6 +46,9 @@ _BUILT_IN = (
     "xcheck.engines.pybullet:PyBullet",
     "xcheck.engines.drake:Drake",
     "xcheck.engines.mjx:MJX",
+    "xcheck.engines.opensim:OpenSim",
+    "xcheck.engines.dart:Dart",
+    "xcheck.engines.newton:Newton",
 )
 
 _registered: dict[str, Engine] = {}

@@ -38,6 +38,7 @@ _ACCELERATIONS = Finding(
     ("acceleration", "alpha"),
     kinds=("dynamic",),
     closed_loops=True,
+    reproducer="reproducers/mjx_connect_jdot.py",
 )
 #: MJX's free positions on closed loops, far from MuJoCo (C)'s at the same setting.
 _FREE_POSITIONS = Finding(
@@ -49,6 +50,7 @@ _FREE_POSITIONS = Finding(
     ("position", "angle"),
     kinds=("free",),
     closed_loops=True,
+    reproducer="reproducers/mjx_connect_jdot.py",
 )
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from xcheck.engines._contract import Engine, Mode
+from xcheck.engines._contract import Engine, Finding, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, ROUND_OFF, Tolerance
 
 __all__ = ["Pinocchio"]
@@ -26,6 +26,22 @@ FREE_TOLERANCE = Tolerance(
     math.nan,
     math.nan,
     "benchmark: no verdict; the ladder against the native reference is the result",
+)
+
+
+#: Stated for its reproducer: xcheck's Baumgarte series work around it, its rk4 rows show it as they are.
+_SINGULAR_PASS = Finding(
+    "Pinocchio's constraintDynamics without Baumgarte breaks down at a singular pass",
+    "Integrated by RK4 at dt = 1 ms on constraintDynamics (proximal accuracy 1e-14, mu 1e-12) with no "
+    "Baumgarte correction, the double four-bar (IFToMM A02) keeps its energy to 3e-10 J through two "
+    "singular passes, to 2e-5 J through the third, and at the fourth (3.17 s) its energy jumps and it "
+    "leaves the parallelogram branch (xcheck's model, cut elsewhere, turns NaN there); with Baumgarte "
+    "gains (Kp 100, Kd 20) it keeps its energy to 2e-10 J for 10 s (pin 4.1.0). xcheck's rk4 rows show "
+    "it on A02; its Baumgarte series work around it",
+    ("position", "angle"),
+    kinds=(),
+    closed_loops=True,
+    reproducer="reproducers/pinocchio_singular_pass.py",
 )
 
 
@@ -54,6 +70,7 @@ class Pinocchio(Engine):
     force_tolerance = 1e-12
     force_basis = "the multipliers of the loop closures at the native states: round-off (measured at most 1.7e-13)"
     export_format, export_directory = "urdf", "urdf"
+    findings = (_SINGULAR_PASS,)
     color = "tab:orange"
     notes = (
         "A spanning tree of revolute and prismatic joints (URDF) with the loops closed by CONTACT_3D/6D "

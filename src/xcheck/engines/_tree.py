@@ -1,0 +1,204 @@
+"""A mechanism as a tree of joint frames zeroed at a given state, for engines that
+build bodies hung from their parents by joints (OpenSim, DART, Newton).
+
+Each engine body is xcheck's body frame (origin and orientation). A tree joint
+(:func:`xcheck.topology.spanning_tree`) is a frame on its parent and a frame on
+its child that coincide up to the joint's motion: a turn about z by the
+coordinate (revolute) or a slide along the frames' x by it (prismatic). The
+frames are placed so that every coordinate is 0 at the state they are built
+from: an engine that assumes its model assembled at q = 0 (Newton's MuJoCo
+backend places loop anchors there) is then right, and the others start from
+q = 0 with the rates :meth:`TreeFrames.rates` gives. The loop cuts are the
+revolutes the tree leaves out, each a pair of body points.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from xcheck.errors import NotApplicable
+from xcheck.kinematics import rotate
+from xcheck.model import GROUND, Mechanism, Prismatic, Revolute
+from xcheck.topology import spanning_tree
+
+__all__ = ["JointFrames", "TreeFrames", "gravity_only", "tree_frames"]
+
+
+@dataclass(frozen=True)
+class JointFrames:
+    """One tree joint as an engine builds it.
+
+    Attributes
+    ----------
+    name : str
+        The joint's name.
+    kind : str
+        "revolute" or "prismatic".
+    parent, child : str
+        Body names (the parent is nearer the ground, possibly GROUND).
+    parent_point, child_point : ndarray, shape (2,)
+        The joint frame's origin in the parent's and the child's body frame, m.
+    parent_angle, child_angle : float
+        The joint frame's angle in the parent's and the child's body frame, rad.
+    """
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    parent_point: np.ndarray
+    child_point: np.ndarray
+    parent_angle: float
+    child_angle: float
+
+
+@dataclass(frozen=True)
+class TreeFrames:
+    """The tree's joints (parents first) and the loop cuts, zeroed at a state.
+
+    Attributes
+    ----------
+    joints : tuple of JointFrames
+    cuts : tuple of (str, ndarray, str, ndarray)
+        Per cut revolute: (body, point (2,) in its frame, body, point (2,)).
+    """
+
+    joints: tuple[JointFrames, ...]
+    cuts: tuple[tuple[str, np.ndarray, str, np.ndarray], ...]
+
+    def rates(self, mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> dict[str, float]:
+        """Each tree joint's coordinate rate (rad/s or m/s) at native body coordinates ``q``
+        and rates ``qd`` (x, y, phi per moving body in ``moving_bodies`` order)."""
+        index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
+
+        def state(name: str, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
+            """(position (2,), velocity (2,), angle, rate) of a body point."""
+            if name == GROUND:
+                return point, np.zeros(2), 0.0, 0.0
+            k = index[name]
+            phi, omega = float(q[k + 2]), float(qd[k + 2])
+            arm = rotate(phi, point)
+            return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
+
+        out = {}
+        for joint in self.joints:
+            r_p, v_p, phi_p, w_p = state(joint.parent, joint.parent_point)
+            r_c, v_c, _, w_c = state(joint.child, joint.child_point)
+            if joint.kind == "revolute":
+                out[joint.name] = w_c - w_p
+                continue
+            u = rotate(phi_p + joint.parent_angle, np.array([1.0, 0.0]))
+            out[joint.name] = float(w_p * np.array([-u[1], u[0]]) @ (r_c - r_p) + u @ (v_c - v_p))
+        return out
+
+    def frames(self, coordinates: dict[str, float], origins: dict[str, np.ndarray]) -> dict[str, tuple]:
+        """Per moving body: (origin (2,), angle) with the angle continuous from the
+        state the frames were built at: the parent's plus the joint's turn.
+
+        Parameters
+        ----------
+        coordinates : mapping of str to float
+            Each tree joint's coordinate (rad or m), as the engine holds it.
+        origins : mapping of str to ndarray
+            Each moving body's frame origin (2,) in the world, as the engine reports it, m.
+        """
+        angles = {GROUND: 0.0}
+        out: dict[str, tuple] = {}
+        for joint in self.joints:
+            turn = coordinates[joint.name] if joint.kind == "revolute" else 0.0
+            angles[joint.child] = angles[joint.parent] + joint.parent_angle - joint.child_angle + turn
+            out[joint.child] = (np.asarray(origins[joint.child], dtype=float)[:2], angles[joint.child])
+        return out
+
+
+def tree_frames(mech: Mechanism, q: np.ndarray, engine: str) -> TreeFrames:
+    """The mechanism's tree with every joint coordinate 0 at native body coordinates
+    ``q`` (x, y, phi per moving body in ``moving_bodies`` order; m, rad).
+
+    Raises
+    ------
+    NotApplicable
+        Where the mechanism has a joint other than revolute and prismatic, or a loop
+        cut at a prismatic joint (``engine`` names the engine in the reason).
+    """
+    index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
+    topology = spanning_tree(mech)
+    other = [j for j in mech.joints if not isinstance(j, (Revolute, Prismatic))]
+    if other:
+        raise NotApplicable(
+            f"joint {other[0].name!r} is a {other[0].kind}: xcheck's {engine} model has revolute and prismatic "
+            "joints only"
+        )
+    sliding = [j for j in topology.cuts if not isinstance(j, Revolute)]
+    if sliding:
+        raise NotApplicable(
+            f"a loop is cut at the prismatic joint {sliding[0].name!r}: xcheck's {engine} model closes loops "
+            "at revolutes only"
+        )
+
+    def angle(name: str) -> float:
+        return 0.0 if name == GROUND else float(q[index[name] + 2])
+
+    def position(name: str, label: str) -> np.ndarray:
+        point = np.asarray(mech.body(name).points[label], dtype=float)
+        return point if name == GROUND else q[index[name] : index[name] + 2] + rotate(angle(name), point)
+
+    joints = []
+    for tj in topology.tree:
+        j = tj.joint
+        if isinstance(j, Revolute):
+            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
+            joints.append(
+                JointFrames(
+                    j.name,
+                    "revolute",
+                    tj.parent,
+                    tj.child,
+                    np.asarray(mech.body(tj.parent).points[l_parent], dtype=float),
+                    np.asarray(mech.body(tj.child).points[l_child], dtype=float),
+                    angle(tj.child) - angle(tj.parent),
+                    0.0,
+                )
+            )
+            continue
+        assert isinstance(j, Prismatic)
+        heading = math.atan2(j.direction[1], j.direction[0])
+        line = np.asarray(mech.body(j.body_a).points[j.line_point], dtype=float)
+        point = np.asarray(mech.body(j.body_b).points[j.point], dtype=float)
+        gap = position(j.body_b, j.point) - position(j.body_a, j.line_point)
+        slide = float(rotate(angle(j.body_a), j.direction) @ gap)
+        if not tj.reversed:  # the line is the parent's: its frame moved along the line to the start
+            parent_point, child_point = line + slide * np.asarray(j.direction), point
+            parent_angle, child_angle = heading, heading - j.angle
+        else:  # the line is the child's: the frames in the line's orientation, the child's moved back
+            parent_point, child_point = point, line + slide * np.asarray(j.direction)
+            parent_angle, child_angle = heading - j.angle, heading
+        joints.append(
+            JointFrames(j.name, "prismatic", tj.parent, tj.child, parent_point, child_point, parent_angle, child_angle)
+        )
+    cuts = []
+    for cut in topology.cuts:
+        assert isinstance(cut, Revolute)
+        cuts.append(
+            (
+                cut.body_a,
+                np.asarray(mech.body(cut.body_a).points[cut.point_a], dtype=float),
+                cut.body_b,
+                np.asarray(mech.body(cut.body_b).points[cut.point_b], dtype=float),
+            )
+        )
+    return TreeFrames(tuple(joints), tuple(cuts))
+
+
+def gravity_only(mech: Mechanism, engine: str) -> None:
+    """:class:`NotApplicable` with the reason if the mechanism has forces other than gravity,
+    for an engine model that holds gravity alone (``engine`` names it in the reason)."""
+    forces = [("spring", s.name) for s in mech.springs]
+    forces += [("rotational spring", s.name) for s in mech.rotational_springs]
+    forces += [("load", load.name) for load in mech.loads]
+    if forces:
+        kind, name = forces[0]
+        raise NotApplicable(f"{kind} {name!r}: xcheck's {engine} model applies gravity only")

@@ -1,0 +1,98 @@
+"""Newton in free motion (mode ``newton-free``): the model of :func:`.model.build`
+released at the native reference's initial state and stepped by each of Newton's
+solvers that takes a loop joint; the ladder and its judgement are
+:func:`xcheck.ladder.free_study`'s.
+
+The series, one per solver, each at its defaults on the CPU (warp, float32):
+``mujoco`` (``SolverMuJoCo`` on MuJoCo's C library, contacts off), ``xpbd``
+(``SolverXPBD``), ``featherstone`` (``SolverFeatherstone``: it ignores loop
+joints, a finding; its rows show the loops coming apart) and ``semi-implicit``
+(``SolverSemiImplicit``). ``SolverSteel`` refuses a loop joint whose parent is
+in another articulation than its child, and takes a single articulation
+otherwise. Each solver's warp kernels compile on its first use on a machine (a
+minute or more, cached after in warp's kernel cache).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+from xcheck.engines._frames import FrameRecorder
+from xcheck.engines._tree import gravity_only, tree_frames
+from xcheck.ladder import FreeProblem, Run, Rung, Series
+
+from .model import build, newton
+
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
+
+MODE = "newton-free"
+FREE_SERIES = (
+    Series("mujoco", "SolverMuJoCo (MuJoCo C), float32", "mujoco"),
+    Series("xpbd", "SolverXPBD, float32", "xpbd"),
+    Series("featherstone", "SolverFeatherstone, float32", "featherstone"),
+    Series("semi-implicit", "SolverSemiImplicit, float32", "semi-implicit"),
+)
+
+
+def prepare_free(problem: FreeProblem) -> None:
+    """Refuse what the Newton model cannot hold, and import Newton before the first run's clock starts.
+
+    Raises
+    ------
+    NotApplicable
+        :func:`~xcheck.engines._tree.gravity_only`'s and :func:`~xcheck.engines._tree.tree_frames`'s.
+    """
+    mech = problem.kinematics.mechanism
+    gravity_only(mech, "Newton")
+    tree_frames(mech, problem.start[0], "Newton")
+    newton()
+
+
+def solver(name: str, model):
+    """Newton's solver of a series on ``model``."""
+    module, _ = newton()
+    solvers = module.solvers
+    if name == "mujoco":
+        with warnings.catch_warnings():  # mujoco-warp runs on xcheck's MuJoCo, newer than Newton's pin
+            warnings.filterwarnings("ignore", message="MuJoCo dependency version mismatch")
+            return solvers.SolverMuJoCo(model, use_mujoco_cpu=True, disable_contacts=True)
+    if name == "xpbd":
+        return solvers.SolverXPBD(model)
+    if name == "featherstone":
+        return solvers.SolverFeatherstone(model)
+    if name == "semi-implicit":
+        return solvers.SolverSemiImplicit(model)
+    raise ValueError(f"expected a Newton solver of {MODE}, found {name!r}")
+
+
+def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
+    module, _ = newton()
+    dt = rung.timestep
+    built = build(problem.kinematics.mechanism, *problem.start)
+    model = built.model
+    state, next_state, control = model.state(), model.state(), model.control()
+    state.joint_q.zero_()
+    state.joint_qd.assign(built.rates)
+    module.eval_fk(model, state.joint_q, state.joint_qd, state)
+    stepper = solver(rung.series.options, model)
+    recorder = FrameRecorder(problem, built.tree.cuts)
+    frames = built.frames(state)
+    failure = recorder.record(frames, 0)
+    for j, count in enumerate(rung.counts, start=1):
+        if failure:
+            break
+        for _ in range(count):
+            state.clear_forces()
+            stepper.step(state, next_state, control, None, dt)
+            state, next_state = next_state, state
+        frames = built.frames(state, frames)
+        failure = recorder.record(frames, j)
+    settings = {
+        "setting": rung.series.setting,
+        "integrator": rung.series.integrator,
+        "timestep": dt,
+        "series": rung.series.key,
+    }
+    notes = f"Newton free motion, {rung.series.integrator}, dt = {dt:g} s."
+    return Run(recorder.trajectory(MODE, settings, notes), failure)

@@ -1,0 +1,157 @@
+"""OpenSim's model of a mechanism, shared by its modes: an ``osim.Model`` whose
+bodies are xcheck's body frames, hung from their parents by ``PinJoint`` s
+(about z) and ``SliderJoint`` s (along the joint frame's x) placed by
+:func:`xcheck.engines._tree.tree_frames`, so that every coordinate's default
+value, 0, is the state the model is built at (OpenSim's assembly at
+``initSystem()`` starts from the defaults: elsewhere it fails by centimetres).
+Each loop cut at a revolute is a ``PointConstraint`` between its two points
+(Simbody's ball constraint: its z row is redundant and accepted). Gravity is
+the model's; a linear spring without damping is a ``PointToPointSpring``.
+
+Not converted (:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and
+loops cut at a prismatic joint (:func:`~xcheck.engines._tree.tree_frames`),
+dampers, rotational springs and loads (not built here).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from xcheck.dynamics._forces import require_mass_data
+from xcheck.engines._contract import NotApplicable, positive_inertia
+from xcheck.engines._tree import TreeFrames, tree_frames
+from xcheck.model import GROUND, Mechanism
+
+__all__ = ["OpenSimModel", "build", "opensim", "refuse"]
+
+
+def opensim():
+    """The ``opensim`` module, its log turned down to warnings (imported when a mode runs)."""
+    import opensim as osim
+
+    osim.Logger.setLevel(osim.Logger.Level_Warn)
+    return osim
+
+
+def refuse(mech: Mechanism) -> None:
+    """:class:`NotApplicable` with the reason if xcheck's OpenSim model cannot hold the mechanism's forces."""
+    if mech.loads:
+        raise NotApplicable(f"load {mech.loads[0].name!r}: xcheck's OpenSim model applies gravity and springs only")
+    if mech.rotational_springs:
+        raise NotApplicable(
+            f"rotational spring {mech.rotational_springs[0].name!r}: xcheck's OpenSim model has linear springs only"
+        )
+    damped = [s for s in mech.springs if s.damping]
+    if damped:
+        raise NotApplicable(
+            f"spring {damped[0].name!r} has damping: OpenSim's PointToPointSpring has none (not built here)"
+        )
+
+
+@dataclass
+class OpenSimModel:
+    """The mechanism in an initialised OpenSim model.
+
+    Attributes
+    ----------
+    model : opensim.Model
+    state : opensim.State
+        The state ``initSystem()`` returned: the build state, assembled.
+    tree : TreeFrames
+        The joints' frames (zeroed at the build state) and the loop cuts.
+    bodies : dict of str to opensim.Body
+        Moving body -> OpenSim's body (its frame: xcheck's body frame).
+    coordinates : dict of str to opensim.Coordinate
+        Tree joint name -> its coordinate.
+    """
+
+    model: Any
+    state: Any
+    tree: TreeFrames
+    bodies: dict[str, Any]
+    coordinates: dict[str, Any]
+
+    def frames(self, state) -> dict[str, tuple]:
+        """Per moving body: origin (2,) m and angle rad (continuous from the build state), at ``state``
+        realised to position."""
+        origins = {}
+        for name, body in self.bodies.items():
+            p = body.getPositionInGround(state)
+            origins[name] = np.array([p.get(0), p.get(1)])
+        values = {name: c.getValue(state) for name, c in self.coordinates.items()}
+        return self.tree.frames(values, origins)
+
+
+def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None) -> OpenSimModel:
+    """The mechanism as an OpenSim model assembled at native body coordinates ``q``
+    (x, y, phi per moving body; m, rad), its coordinates' default speeds the rates of
+    ``qd`` (zero without).
+
+    Raises
+    ------
+    NotApplicable
+        What the model cannot hold (:func:`refuse`, :func:`~xcheck.engines._tree.tree_frames`).
+    ModelError
+        If a moving body has no mass data.
+    """
+    osim = opensim()
+    require_mass_data(mech)
+    refuse(mech)
+    tree = tree_frames(mech, q, "OpenSim")
+    model = osim.Model()
+    model.setName(mech.name)
+    gravity = np.asarray(mech.gravity, dtype=float)
+    model.setGravity(osim.Vec3(float(gravity[0]), float(gravity[1]), 0.0))
+    size = mech.size
+
+    def vec3(xy, z: float = 0.0):
+        return osim.Vec3(float(xy[0]), float(xy[1]), float(z))
+
+    bodies: dict[str, Any] = {}
+    for body in mech.moving_bodies:
+        assert body.mass is not None and body.inertia is not None
+        com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+        inertia = positive_inertia(float(body.mass), float(body.inertia), size)
+        bodies[body.name] = osim.Body(
+            body.name, float(body.mass), vec3(com), osim.Inertia(inertia, inertia, inertia, 0.0, 0.0, 0.0)
+        )
+        model.addBody(bodies[body.name])
+
+    def frame(name: str):
+        return model.getGround() if name == GROUND else bodies[name]
+
+    coordinates: dict[str, Any] = {}
+    rates = tree.rates(mech, q, np.zeros_like(q) if qd is None else qd)
+    for joint in tree.joints:
+        kind = osim.PinJoint if joint.kind == "revolute" else osim.SliderJoint
+        built = kind(
+            joint.name,
+            frame(joint.parent),
+            vec3(joint.parent_point),
+            osim.Vec3(0.0, 0.0, joint.parent_angle),
+            frame(joint.child),
+            vec3(joint.child_point),
+            osim.Vec3(0.0, 0.0, joint.child_angle),
+        )
+        model.addJoint(built)
+        coordinate = built.upd_coordinates(0)
+        coordinate.setDefaultValue(0.0)
+        coordinate.setDefaultSpeedValue(float(rates[joint.name]))
+        coordinate.setRangeMin(-1e6)  # no joint limits: a coordinate turns freely
+        coordinate.setRangeMax(1e6)
+        coordinates[joint.name] = coordinate
+    for body_a, point_a, body_b, point_b in tree.cuts:
+        model.addConstraint(osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b)))
+    owners = mech.point_owners
+    for spring in mech.springs:
+        (a, pa), (b, pb) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
+        model.addForce(
+            osim.PointToPointSpring(
+                frame(a), vec3(pa), frame(b), vec3(pb), float(spring.stiffness), float(spring.rest_length)
+            )
+        )
+    state = model.initSystem()
+    return OpenSimModel(model, state, tree, bodies, coordinates)
