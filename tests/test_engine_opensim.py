@@ -102,3 +102,12 @@ def test_what_the_model_cannot_hold_is_not_applicable(released_fourbar):
     slot = Kinematics(load_mechanism(DATA / "free-mixed.toml"))
     with pytest.raises(NotApplicable, match="load|pin-in-slot"):
         run_free("opensim-free", slot, reference)
+
+
+def test_run_names_an_engine_with_free_motion_only_and_where_it_runs():
+    from conftest import invoke
+
+    done = invoke("run", "fourbar", "--engines", "opensim,dart", "--no-report")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    line = " ".join(done.stderr.split())
+    assert "found 'opensim', whose modes are opensim-free (free): run them with xcheck simulate" in line

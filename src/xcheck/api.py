@@ -472,6 +472,13 @@ def select_modes(
             picked.append(item)
         elif item in groups:
             picked.extend(groups[item])
+        elif item in {e.name for e in engines.engines()}:  # an engine with no mode of these kinds
+            others = ", ".join(f"{m.name} ({m.kind})" for m in engines.engine(item).modes)
+            command = "xcheck simulate" if all(m.kind == "free" for m in engines.engine(item).modes) else "xcheck run"
+            raise InputError(
+                f"--engines: expected an engine with a {' or '.join(kinds)} mode, found {item!r}, whose modes are "
+                f"{others}: run them with {command}"
+            )
         else:
             broken = engines.load_problems().get(item)
             raise InputError(

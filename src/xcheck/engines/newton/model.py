@@ -83,6 +83,23 @@ class NewtonModel:
         return out
 
 
+def _depth_first(tree: TreeFrames) -> list:
+    """The tree's joints in depth-first order (each subtree whole before the next): the
+    order Newton's MuJoCo backend needs to convert the articulation faithfully."""
+    children: dict[str, list] = {}
+    for frames in tree.joints:
+        children.setdefault(frames.parent, []).append(frames)
+    out: list = []
+
+    def visit(body: str) -> None:
+        for frames in children.get(body, []):
+            out.append(frames)
+            visit(frames.child)
+
+    visit(GROUND)
+    return out
+
+
 def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
     """The mechanism as a Newton model at native body coordinates ``q`` and rates ``qd``
     (x, y, phi per moving body; m, rad, m/s, rad/s), all joint coordinates 0 there.
@@ -122,7 +139,7 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
         return wp.transform(wp.vec3(float(point[0]), float(point[1]), 0.0), turn)
 
     joints = []
-    for frames in tree.joints:
+    for frames in _depth_first(tree):
         add = builder.add_joint_revolute if frames.kind == "revolute" else builder.add_joint_prismatic
         joints.append(
             add(
@@ -157,7 +174,7 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
     tree_rates = tree.rates(mech, q, qd)
     rates = np.zeros(model.joint_dof_count, dtype=np.float32)
     dof_starts = model.joint_qd_start.numpy()
-    for frames, j in zip(tree.joints, joints):
+    for frames, j in zip(_depth_first(tree), joints):
         rates[dof_starts[j]] = tree_rates[frames.name]
     for k, value in enumerate(loop_rates):
         rates[dof_starts[len(joints) + k]] = value

@@ -29,10 +29,11 @@ __all__ = ["OpenSimModel", "build", "opensim", "refuse"]
 
 
 def opensim():
-    """The ``opensim`` module, its log turned down to warnings (imported when a mode runs)."""
+    """The ``opensim`` module (imported when a mode runs), its log off: it writes on stdout,
+    where the JSON of ``--json`` goes, and what fails raises as well."""
     import opensim as osim
 
-    osim.Logger.setLevel(osim.Logger.Level_Warn)
+    osim.Logger.setLevel(osim.Logger.Level_Off)
     return osim
 
 
@@ -143,15 +144,17 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None) -> OpenS
         coordinate.setRangeMin(-1e6)  # no joint limits: a coordinate turns freely
         coordinate.setRangeMax(1e6)
         coordinates[joint.name] = coordinate
-    for body_a, point_a, body_b, point_b in tree.cuts:
-        model.addConstraint(osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b)))
+    for k, (body_a, point_a, body_b, point_b) in enumerate(tree.cuts):
+        constraint = osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b))
+        constraint.setName(f"loop{k}")
+        model.addConstraint(constraint)
     owners = mech.point_owners
     for spring in mech.springs:
         (a, pa), (b, pb) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
-        model.addForce(
-            osim.PointToPointSpring(
-                frame(a), vec3(pa), frame(b), vec3(pb), float(spring.stiffness), float(spring.rest_length)
-            )
+        force = osim.PointToPointSpring(
+            frame(a), vec3(pa), frame(b), vec3(pb), float(spring.stiffness), float(spring.rest_length)
         )
+        force.setName(spring.name)
+        model.addForce(force)
     state = model.initSystem()
     return OpenSimModel(model, state, tree, bodies, coordinates)
