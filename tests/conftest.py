@@ -7,8 +7,17 @@ import os
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 from xcheck import Kinematics, load_mechanism
+
+#: One BLAS thread in every test process and the processes they start: xdist runs a
+#: worker per core, and OpenBLAS's own threads on top of them spin against each other
+#: (iftomm-a02-n40's MJCF, measured under load: 78 CPU s with two threads a process,
+#: 4.1 s with one)
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+_BLAS_LIMITS = threadpool_limits(limits=1, user_api="blas")
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
