@@ -160,3 +160,20 @@ def test_drawing_refuses_what_solving_refuses(tmp_path):
         xcheck.load(fourbar).draw(at=140)
     assert done.stderr.strip() == "xcheck: error: " + str(err.value).replace(": at crank", ": --at crank")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_the_command_line_only_parses_and_prints():
+    """cli.py stays a thin layer: at most 700 lines, and no constant of its own
+    (limits, tolerances, defaults live below it, where the API reads them too)."""
+    import ast
+
+    source = (Path(xcheck.__file__).parent / "cli.py").read_text(encoding="utf-8")
+    assert len(source.splitlines()) <= 700
+    constants = [
+        target.id
+        for node in ast.parse(source).body
+        if isinstance(node, (ast.Assign, ast.AnnAssign))
+        for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
+        if isinstance(target, ast.Name) and target.id.isupper()
+    ]
+    assert constants == []

@@ -315,7 +315,7 @@ class Assembled:
             warnings.warn(line, stacklevel=2)
         return Result(solved.solution, solved.labels, solved.warnings)
 
-    def sweep(self, samples: int = 181) -> Result:
+    def sweep(self, samples: int = arguments.DEFAULT_SAMPLES) -> Result:
         """The sweep of ``xcheck run``: the first input over its feasible range
         (one turn of a crank, else the range less 1 % at each limit position),
         other inputs at the file's ``assembly.at``, rates and accelerations
@@ -516,7 +516,7 @@ def printed_answers(kinematics: Kinematics, comparisons: str | Path | None = Non
 def run(
     name: str | Path | Kinematics | Assembled,
     engines: str | Sequence[str] | None = None,
-    samples: int = 181,
+    samples: int = arguments.DEFAULT_SAMPLES,
     branch: str | None = None,
     models: str | Path | None = None,
     comparisons: str | Path | None = None,

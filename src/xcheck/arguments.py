@@ -31,6 +31,7 @@ from .errors import InputError
 __all__ = [
     "MAX_SAMPLES",
     "MIN_SAMPLES",
+    "DEFAULT_SAMPLES",
     "MAX_PROCESSES",
     "MAX_STATES",
     "MAX_SEED",
@@ -52,6 +53,8 @@ __all__ = [
 #: Most samples of a sweep: a sweep's cost grows with them (every engine mode
 #: steps through each), and 100000 already resolves a full turn to 0.004 deg.
 MAX_SAMPLES = 100_000
+#: Samples of a comparison's sweeps where none are asked for: every 2 degrees of a crank's turn
+DEFAULT_SAMPLES = 181
 #: Fewest samples of a comparison's sweeps (a sweep alone may have 2: its ends)
 MIN_SAMPLES = 3
 #: Most worker processes a command may start

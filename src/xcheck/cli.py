@@ -1,140 +1,62 @@
-"""The command line: ``xcheck list``, ``solve``, ``run``, ``draw`` and ``export``."""
+"""The command line: it parses each command's options, calls the functions below
+it (:mod:`xcheck.states`, :mod:`xcheck.batch`, :mod:`xcheck.api`) and prints."""
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import io
 import json
-import logging
-import re
-import sys
 import time
-from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Optional
+from typing import Annotated, Optional
 
 import typer
 from rich.console import Console
-from rich.markup import escape
-from rich.table import Table
-from typer.core import TyperGroup
 
-from . import __version__, arguments, cache
+from . import arguments, cache
 from . import engines as registry
-from .api import printed_answers, select_modes
-from .arguments import MAX_SAMPLES
-from .catalog import (
-    BENCHMARKS,
-    benchmark_names,
-    indexed_names,
-    installed,
-    model_names,
-    model_path,
-    models_dir,
-    reports_dir,
+from ._command_line import (
+    OneLineUsageErrors,
+    escape_help_markup,
+    print_version,
+    progress_bar,
+    reports_errors,
+    route_loggers,
 )
-from .dynamics import inverse_dynamics
+from .api import printed_answers, select_modes
+from .arguments import DEFAULT_SAMPLES, MAX_SAMPLES
+from .batch import (
+    RunSettings,
+    export_models,
+    list_models,
+    replay_options,
+    run_models,
+    shown_model,
+    shown_path,
+    simulate_model,
+)
+from .catalog import benchmark_names, model_names, model_path, models_dir, reports_dir
 from .errors import InputError, XcheckError
-from .fileio import write_atomic
-from .kinematics import Kinematics
-from .model import Mechanism, load_mechanism
-from .motion import drive_warnings
+from .model import load_mechanism
 from .output import (
+    print_fuzz,
+    print_list,
     print_run,
     print_run_totals,
     print_simulation,
     print_solution,
     print_textbook,
-    range_text,
     run_json,
     simulation_json,
     solution_json,
     textbook_json,
     wide_console,
 )
-from .precision import canonical_numbers, drift
-from .states import asked_states, drawn_state, instant_states, solve_asked
-from .units import evaluate_expression
-
-if TYPE_CHECKING:
-    from rich.progress import Progress
+from .states import asked_states, drawn_state, instant_states, reactions_of, solve_asked, values_of_text
 
 __all__ = ["app", "main"]
 
 
-#: the base of the errors typer raises for a command line it cannot parse (click's
-#: ClickException, which typer vendors from 0.2x on)
-_USAGE_ERROR: type[Exception] = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
-
-
-class _OneLineUsageErrors(TyperGroup):
-    """The command group, but a command line it cannot parse (an option's value
-    of the wrong type, an unknown option or command, a missing argument) is one
-    line on stderr, ``xcheck: error: OPTION: expected ..., found ...``, and exit
-    code 2, as every other bad input; not a box of usage and help."""
-
-    def main(
-        self,
-        args: Sequence[str] | None = None,
-        prog_name: str | None = None,
-        complete_var: str | None = None,
-        standalone_mode: bool = True,
-        windows_expand_args: bool = True,
-        **extra: Any,
-    ) -> Any:
-        forward = {"complete_var": complete_var, "windows_expand_args": windows_expand_args, **extra}
-        if not standalone_mode:
-            return super().main(args, prog_name, standalone_mode=False, **forward)
-        try:
-            code = super().main(args, prog_name, standalone_mode=False, **forward)
-        except _USAGE_ERROR as err:
-            if type(err).__name__ != "NoArgsIsHelpError":  # `xcheck` alone: the help, printed already
-                typer.echo(f"xcheck: error: {_usage_line(err)}", err=True)
-            sys.exit(getattr(err, "exit_code", 2))
-        except typer.Abort:
-            typer.echo("Aborted!", err=True)
-            sys.exit(1)
-        sys.exit(code if isinstance(code, int) else 0)
-
-
-def _usage_line(err: Exception) -> str:
-    """A command line typer could not parse, as what was expected and what was found."""
-    message = " ".join(str(err.format_message()).split())  # type: ignore[attr-defined]
-    what = message[:1].lower() + message[1:]
-    kind = type(err).__name__
-    param = getattr(err, "param", None)
-    hint = getattr(err, "param_hint", None) or (param.opts[0] if param is not None and param.opts else "")
-    hint = " / ".join(hint) if isinstance(hint, (list, tuple)) else str(hint).strip("'\"")
-    ctx = getattr(err, "ctx", None)
-    if kind == "NoSuchOption":
-        known = (
-            sorted(o for p in ctx.command.params for o in (*p.opts, *p.secondary_opts) if o[:1] == "-") if ctx else []
-        )
-        return f"{err.option_name}: expected an option among {', '.join(known)}, found none of that name"  # type: ignore[attr-defined]
-    if kind == "MissingParameter":
-        return f"{hint or 'an argument'}: expected a value, found none"
-    if param is not None:
-        names = {"float": "a number", "integer": "a whole number", "int": "a whole number", "boolean": "yes or no"}
-        expected = names.get(param.type.name)
-        found = re.search(r": '(.*)' is not a valid", message)
-        if expected and found:
-            return f"{hint}: expected {expected}, found {found[1]!r}"
-        return f"{hint}: expected a valid value, found that {what}"
-    found = re.search(r"No such command '(.*)'", message)
-    if found and ctx is not None and hasattr(ctx.command, "list_commands"):
-        return f"expected a command among {', '.join(ctx.command.list_commands(ctx))}, found {found[1]!r}"
-    found = re.search(r"Got unexpected extra argument(?:s|\(s\))? \((.*)\)", message)
-    if found:
-        return f"expected no more arguments, found {found[1]!r}"
-    found = re.search(r"Option '(.*)' requires an argument", message)
-    if found:
-        return f"{found[1]}: expected a value after it, found none"
-    return f"expected a command line that `xcheck --help` describes, found that {what}"
-
-
 app = typer.Typer(
-    cls=_OneLineUsageErrors,
+    cls=OneLineUsageErrors,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -145,6 +67,7 @@ ModelsOption = Annotated[
     Optional[Path],
     typer.Option("--models", help="Directory of mechanism files (default: ./models, or $XCHECK_MODELS)."),
 ]
+BranchOption = Annotated[Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")]
 ComparisonsOption = Annotated[
     Optional[Path],
     typer.Option(
@@ -155,62 +78,23 @@ ComparisonsOption = Annotated[
 ]
 
 
-def _reports_errors(command):
-    """Turn an XcheckError into one line on stderr and exit code 2; say which
-    plug-ins could not be loaded, if the command looked for engines."""
-
-    @functools.wraps(command)
-    def wrapper(*args, **kwargs):
-        try:
-            return command(*args, **kwargs)
-        except XcheckError as err:
-            typer.echo(f"xcheck: error: {err}", err=True)
-            raise typer.Exit(2) from None
-        finally:
-            _warn_of_plug_ins()
-
-    return wrapper
-
-
-def _warn_of_plug_ins() -> None:
-    """One line on stderr per plug-in that could not be loaded, where the
-    registry was loaded (the command ran without it)."""
-    for name, reason in registry.load_problems(load=False).items():
-        typer.echo(
-            f"xcheck: warning: plug-in {name!r} (entry-point group {registry.ENTRY_POINT_GROUP!r}) could not be "
-            f"loaded, and runs nowhere: {reason}",
-            err=True,
-        )
-
-
-def _version(value: bool):
-    if value:
-        typer.echo(f"xcheck {__version__}")
-        raise typer.Exit()
-
-
-class _ToStderr(logging.Handler):
-    """What xcheck's loggers say (a cache entry not used, and why), one line each
-    on stderr: the stderr of the moment, which a test runner may have replaced."""
-
-    def emit(self, record: logging.LogRecord) -> None:
-        typer.echo(self.format(record), err=True)
+def _echo_json(document) -> None:
+    """A command's JSON on stdout: indented, UTF-8, no NaN (an unanswered value is null)."""
+    typer.echo(json.dumps(document, indent=2, allow_nan=False, ensure_ascii=False))
 
 
 @app.callback()
 def _main(
     version: Annotated[
-        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+        bool, typer.Option("--version", callback=print_version, is_eager=True, help="Print the version and exit.")
     ] = False,
 ):
     """Exact kinematics of planar mechanisms, cross-checked against physics engines."""
-    said = logging.getLogger("xcheck")
-    if not any(isinstance(h, _ToStderr) for h in said.handlers):
-        said.addHandler(_ToStderr(logging.WARNING))
+    route_loggers()
 
 
 @app.command("list")
-@_reports_errors
+@reports_errors
 def list_command(
     where: Annotated[
         Optional[Path],
@@ -236,84 +120,19 @@ def list_command(
         directory = models_dir(chosen)
         paths = [directory / f"{name}.toml" for name in model_names(directory)]
     benchmarks = [] if chosen is not None and chosen.suffix == ".toml" else benchmark_names(directory)
-    rows: list[dict[str, Any]] = []
-    failures: list[str] = []
-    for path in paths:  # one bad file is reported at the end; the others are listed
-        try:
-            mech = load_mechanism(path)
-            kin = cache.cached_kinematics(mech)  # the branch map of an unchanged file is not computed again
-            dof = kin.mobility()
-            ranges = [kin.input_range(k) for k in range(len(mech.drivers))]
-            warned = drive_warnings(kin)
-            cache.store(kin)
-        except XcheckError as err:
-            failures.append(str(err))
-            continue
-        rows.append(
-            {
-                "name": mech.name,
-                "title": mech.title,
-                "source": mech.source,
-                "file": str(path),
-                "dof": dof["rank"],
-                "ranges": [_range_json(kin, rng) for rng in ranges],
-                "warnings": warned,
-            }
-        )
+    rows, failures = list_models(paths)
     if as_json:
-        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False, allow_nan=False))
+        _echo_json(rows)
     else:
-        table = Table(header_style="bold")
-        for header in ("name", "title", "source", "DOF", "input range"):
-            table.add_column(header, overflow="fold")
-        for row in rows:
-            table.add_row(
-                row["name"], row["title"], row["source"], str(row["dof"]), "\n".join(r["text"] for r in row["ranges"])
-            )
-        console = wide_console()
-        console.print(table)
-        console.print(
-            "Engines: "
-            + ", ".join(
-                escape(
-                    f"{e.name} ({', '.join(m.name for m in e.modes)})" + (f": {e.available()}" if e.available() else "")
-                )
-                for e in registry.engines()
-            )
-            + ". `xcheck engines` says more.",
-            highlight=False,
-        )
-        if benchmarks:
-            console.print(
-                f"Free-motion benchmarks (xcheck simulate NAME): {escape(', '.join(benchmarks))}.", highlight=False
-            )
-        for row in rows:  # a law that asks more than the mechanism can do: said under the table, not as an error
-            for line in row["warnings"]:
-                console.print(f"[yellow]warning[/yellow]: {escape(line)}", highlight=False)
+        print_list(wide_console(), rows, benchmarks)
     for failure in failures:
         typer.echo(f"xcheck: error: {failure}", err=True)
     if failures:
         raise typer.Exit(2)
 
 
-def _range_json(kin: Kinematics, rng) -> dict:
-    """A driver's feasible range for JSON: SI bounds (rad or m; null where a
-    crank turns round or a slide met no limit within its search span) and the
-    display text."""
-    driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
-    return {
-        "driver": rng.driver,
-        "quantity": driver.quantity,
-        "unit": "rad" if driver.quantity == "angle" else "m",
-        "low": rng.low,
-        "high": rng.high,
-        "full_turn": rng.full_turn and driver.quantity == "angle",
-        "text": range_text(kin, rng),
-    }
-
-
 @app.command("engines")
-@_reports_errors
+@reports_errors
 def engines_command(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
 ):
@@ -328,35 +147,12 @@ def engines_command(
 
     Examples: xcheck engines;  xcheck engines --json
     """
-    from .output import engine_version, mode_trust, print_engines
+    from .output import engine_rows, print_engines
 
-    rows: list[dict[str, Any]] = [
-        {
-            "name": e.name,
-            "title": e.title,
-            "version": engine_version(e),
-            "available": not e.available(),
-            "reason": e.available() or None,
-            "modes": [
-                {
-                    "name": m.name,
-                    "kind": m.kind,
-                    "trusted_for": mode_trust(m),
-                    "on_request": m.on_request,
-                    "findings": list(dict.fromkeys(q for f in e.findings if m.kind in f.kinds for q in f.quantities)),
-                }
-                for m in e.modes
-            ],
-            "findings": [f.as_dict() for f in e.findings],
-            "forces": e.force_tolerance is not None,
-            "export_format": e.export_format,
-            "notes": e.notes,
-        }
-        for e in registry.engines()
-    ]
+    rows = engine_rows()
     problems = registry.load_problems()
     if as_json:
-        typer.echo(json.dumps({"engines": rows, "plugin_errors": problems}, indent=2, ensure_ascii=False))
+        _echo_json({"engines": rows, "plugin_errors": problems})
         return
     print_engines(wide_console(), rows)
     for name, reason in problems.items():
@@ -364,7 +160,7 @@ def engines_command(
 
 
 @app.command("cache")
-@_reports_errors
+@reports_errors
 def cache_command(
     clear: Annotated[
         bool, typer.Option("--clear", help="Remove every entry (branch maps, results, figures, JAX compilations).")
@@ -385,7 +181,7 @@ def cache_command(
     removed = store.clear() if clear else None
     found = store.describe()
     if as_json:
-        typer.echo(json.dumps({**found, **({} if removed is None else {"removed": removed})}, indent=2))
+        _echo_json({**found, **({} if removed is None else {"removed": removed})})
         return
     if found["directory"] is None:
         typer.echo(f"the cache is off (${store.CACHE_ENV}=off)")
@@ -398,7 +194,7 @@ def cache_command(
 
 
 @app.command("solve")
-@_reports_errors
+@reports_errors
 def solve_command(
     name: Annotated[str, typer.Argument(help="Mechanism name (see `xcheck list`) or path to a .toml file.")],
     at: Annotated[
@@ -427,9 +223,7 @@ def solve_command(
             "--accel", metavar="V[:V…]", help="With --rate: the drivers' accelerations (rate unit per s), default 0."
         ),
     ] = None,
-    branch: Annotated[
-        Optional[str], typer.Option("--branch", help="Assembly branch (default: the model file's first).")
-    ] = None,
+    branch: BranchOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON in SI units.")] = False,
     textbook_too: Annotated[
         bool,
@@ -460,7 +254,7 @@ def solve_command(
         asked = instant_states(kin)
     else:
         values, rates, accels = (
-            None if text is None else _numbers(text, mech, option)
+            None if text is None else values_of_text(text, mech, option)
             for text, option in ((at, "--at"), (rate, "--rate"), (accel, "--accel"))
         )
         asked = asked_states(kin, values, rates, accels, options=("--at", "--rate", "--accel"))
@@ -473,16 +267,9 @@ def solve_command(
     warned = solved.warnings
     for line in warned:  # before the numbers that explode there
         typer.echo(f"xcheck: warning: {line}", err=True)
-    # the printed answers of comparisons/NAME.toml, if any; a bad file is reported
-    # after the solution, which still prints
-    # reactions and efforts when the file gives mass data; missing data on some
-    # bodies is reported after the solution, which still prints
-    forces, forces_error = None, None
-    if any(b.mass is not None for b in mech.moving_bodies):
-        try:
-            forces = inverse_dynamics(solution)
-        except XcheckError as err:
-            forces_error = err
+    # reactions where the file gives mass data, and printed answers: a fault in
+    # either is reported after the solution, which still prints
+    forces, forces_error = reactions_of(solution)
     textbook, textbook_error, document = None, None, ""
     try:  # printed answers are at the book's instants: with --at only on request
         if at is None or textbook_too:
@@ -495,7 +282,7 @@ def solve_command(
         output["warnings"] = warned
         if textbook is not None:
             output["textbook"] = textbook_json(textbook)
-        typer.echo(json.dumps(output, indent=2, allow_nan=False, ensure_ascii=False))
+        _echo_json(output)
     else:
         console = wide_console()
         print_solution(console, solution, labels, forces)
@@ -508,7 +295,7 @@ def solve_command(
 
 
 @app.command("draw")
-@_reports_errors
+@reports_errors
 def draw_command(
     name: Annotated[str, typer.Argument(help="Mechanism name (see `xcheck list`) or path to a .toml file.")],
     at: Annotated[
@@ -523,9 +310,7 @@ def draw_command(
     output: Annotated[
         Optional[Path], typer.Option("-o", "--output", help="The PNG to write (default: NAME.png here).")
     ] = None,
-    branch: Annotated[
-        Optional[str], typer.Option("--branch", help="Assembly branch (default: the model file's first).")
-    ] = None,
+    branch: BranchOption = None,
     models: ModelsOption = None,
 ):
     """Draw the mechanism at an input as a PNG, without running any engine.
@@ -536,7 +321,7 @@ def draw_command(
 
     Examples: xcheck draw fourbar;  xcheck draw task-2-1 --at 40 -o task.png
     """
-    from .drawing import figure_of
+    from .drawing import check_png_name, figure_of, save_png
 
     path = model_path(name, models_dir(models))
     mech = load_mechanism(path)
@@ -544,28 +329,14 @@ def draw_command(
     kin.assemble(branch)
     cache.store(kin)
     target = output if output is not None else Path(f"{mech.name}.png")
-    if target.suffix.lower() != ".png":
-        raise InputError(f"-o {target}: expected a file name ending in .png, found {target.suffix or 'none'}")
-    values = None
-    if at is not None:
-        values = _numbers(at, mech, "--at")
-        if len(values) != 1:
-            raise InputError(
-                f"{mech.path}: --at: expected one state (values of several drivers separated by colons), "
-                f"found {arguments.shown(at)}"
-            )
-    figure = figure_of(drawn_state(kin, values, branch=branch, option="--at"), 0)
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=100)
-    try:
-        write_atomic(target, buffer.getvalue())
-    except OSError as err:
-        raise InputError(f"-o {target}: expected a file that can be written, found {err.strerror or err}") from None
+    check_png_name(target, "-o")
+    values = None if at is None else values_of_text(at, mech, "--at")
+    save_png(figure_of(drawn_state(kin, values, branch=branch, option="--at"), 0), target, "-o")
     typer.echo(str(target))
 
 
 @app.command("run")
-@_reports_errors
+@reports_errors
 def run_command(
     name: Annotated[str, typer.Argument(help="Mechanism name, path to a .toml file, or 'all'.")],
     engines: Annotated[
@@ -582,10 +353,8 @@ def run_command(
     samples: Annotated[
         int,
         typer.Option("--samples", help=f"Samples of the sweeps over the feasible input range (3 to {MAX_SAMPLES})."),
-    ] = 181,
-    branch: Annotated[
-        Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")
-    ] = None,
+    ] = DEFAULT_SAMPLES,
+    branch: BranchOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary (SI units) instead of tables.")] = False,
     out: Annotated[
         Optional[Path],
@@ -655,57 +424,31 @@ def run_command(
     jobs = arguments.processes(jobs, "--jobs")
     if report is None:  # --json is for scripts: the results, not the figures, unless --report asks for them
         report = not as_json
-    if report:  # matplotlib and the figures' code: only when a report is written
-        from .report import update_index
     modes = select_modes(engines)
     directory = models_dir(models)
     names = model_names(directory) if name == "all" else [name]
     if out is not None and out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: expected a directory for the reports, found a file")
-    options = (
-        (f" --engines {engines}" if engines else "")
-        + (f" --samples {samples}" if samples != 181 else "")
-        + (f" --branch {branch}" if branch else "")
-        + _shown_option("--models", models)
-        + _shown_option("--comparisons", comparisons)
-        + _shown_option("--out", out)
-        + ("" if gif else " --no-gif")
-    )
-    results, entries, failures = [], [], []
-    settings = (directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache)
-    mode_jobs = jobs if len(names) == 1 else 1  # one mechanism: its modes at once; several: the mechanisms
-    jobs = min(jobs, len(names))
-    progress = _progress_bar(quiet or as_json)
+    options = replay_options(
+        ("--engines", engines), ("--samples", None if samples == DEFAULT_SAMPLES else samples), ("--branch", branch),
+        ("--models", models), ("--comparisons", comparisons), ("--out", out), ("--no-gif", not gif),
+    )  # fmt: skip
+    settings = RunSettings(directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache)
+    progress = progress_bar(quiet or as_json)
     with progress:
         task = progress.add_task("", total=len(names) * len(modes))
-        if jobs <= 1:
-            outcomes = []
-            for model in names:
-
-                def step(label: str, mode: str) -> None:
-                    progress.update(task, description=f"{label}: {mode}", advance=1)
-
-                outcomes.append(_run_model(model, *settings, step=step, jobs=mode_jobs))
-        else:  # one mechanism per worker process; the outcomes kept in the order of the names
-            outcomes = _run_models_in_parallel(names, settings, jobs, lambda: progress.update(task, advance=len(modes)))
-        for run, entry, problems in outcomes:
-            failures += problems
-            if entry is not None:
-                entries.append(entry)
-            if run is not None:
-                results.append(run)
-    for target in {t for t, _, _ in entries}:
-        model_file = next(f for t, f, _ in entries if t == target)
-        try:
-            update_index(target, [e for t, _, e in entries if t == target], indexed_names(model_file))
-        except XcheckError as err:
-            failures.append(str(err))
+        batch = run_models(
+            names,
+            settings,
+            jobs,
+            step=lambda label, mode: progress.update(task, description=f"{label}: {mode}", advance=1),
+            done=lambda: progress.update(task, advance=len(modes)),
+        )
+    results, failures = batch.results, batch.failures
     if as_json:
         documents = [run_json(r) for r in results]
         if name == "all" or documents:
-            typer.echo(
-                json.dumps(documents if name == "all" else documents[0], indent=2, allow_nan=False, ensure_ascii=False)
-            )
+            _echo_json(documents if name == "all" else documents[0])
     elif not quiet:
         console = wide_console()
         for run in results:
@@ -726,178 +469,15 @@ def run_command(
         raise typer.Exit(code)
 
 
-def _run_model(
-    model,
-    directory,
-    modes,
-    samples,
-    branch,
-    comparisons,
-    report,
-    out,
-    options,
-    gif=True,
-    use_cache=True,
-    step=None,
-    jobs=1,
-):
-    """One mechanism of ``xcheck run``: its comparison, its modes in ``jobs``
-    processes, and, if ``report``, its report; the caches (branch map,
-    results) read and written where ``use_cache``. Returns (the run or None,
-    (reports directory, file, index entry) or None, failure lines).
-    ``step(label, stage)`` is told of each stage; it is left out in a worker
-    process (:func:`_run_models_in_parallel`)."""
-    from .runner import run_mechanism
-
-    def tell(label: str, stage: str) -> None:
-        if step is not None:
-            step(label, stage)
-
-    try:  # one bad file is reported at the end; the others run
-        path = model_path(model, directory)
-        mechanism = load_mechanism(path)
-        kin = cache.cached_kinematics(mechanism) if use_cache else Kinematics(mechanism)
-        kin.assemble(branch)
-        label = kin.mechanism.name
-        if report:  # what is in the report's way is said before the work, not after
-            from .report import claim_index, claim_report
-
-            claim_report(reports_dir(path, out), label)
-            claim_index(reports_dir(path, out))
-        textbook, _ = printed_answers(kin, comparisons)
-        run = run_mechanism(
-            kin, modes, samples, branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs, cache=use_cache
-        )
-        if use_cache:
-            cache.store(kin)
-    except XcheckError as err:
-        if step is not None:
-            step(model, "failed")  # the progress bar's share of the file's modes
-            for _ in modes[1:]:
-                step(model, "failed")
-        return None, None, [str(err)]
-    tell(label, "report" if report else "done")  # native
-    if not report:
-        return run, None, []
-    from .report import write_report
-
-    target = reports_dir(path, out)
-    try:  # a report that cannot be written is reported; the run's results still count
-        _, entry = write_report(run, target, f"xcheck run {_shown_model(model)}{options}", gif=gif, jobs=jobs)
-        return run, (target, path, entry), []
-    except XcheckError as err:
-        problem = str(err)
-    except OSError as err:
-        problem = (
-            f"{target}: expected a directory where the report of {label} can be written, found {err.strerror or err}"
-        )
-    except Exception as err:  # noqa: BLE001 - a bug in a report must not hide the other files
-        problem = (
-            f"{path}: report: expected a written report, found an internal error "
-            f"({type(err).__name__}: {err}); please report it"
-        )
-    return run, None, [problem]
-
-
-def _run_models_in_parallel(names, settings, jobs: int, done) -> list:
-    """:func:`_run_model` for each name in a pool of ``jobs`` worker processes
-    (started afresh: "spawn"), the outcomes in the order of ``names`` whatever
-    the order they finish in, so that the output and the reports are those of
-    a serial run; ``done()`` after each mechanism. A mechanism whose worker
-    died is one failure line and the others still count. Engines registered at
-    run time (:func:`xcheck.engines.register`) exist only in this process: run
-    them with ``--jobs 1``."""
-    from ._parallel import collect, process_pool
-
-    def failed(index: int, reason: str) -> tuple:
-        return None, None, [f"{names[index]}: expected its run back from a worker process, found that {reason}"]
-
-    # a mechanism whose every result is in the results cache runs here, while the workers
-    # compute the others: its run takes a tenth of a second, a worker's start a second
-    here = [i for i, model in enumerate(names) if _all_cached(model, settings)]
-    away = [i for i in range(len(names)) if i not in here]
-    outcomes = {}
-    if len(away) < 2:
-        here, away = list(range(len(names))), []
-    with contextlib.ExitStack() as stack:
-        if away:
-            pool = stack.enter_context(process_pool(min(jobs, len(away))))
-            futures = {pool.submit(_run_model, names[i], *settings): i for i in away}
-        directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache = settings
-        for i in here:  # where it is the one mechanism not in the cache: its modes in worker processes
-            outcomes[i] = _run_model(
-                names[i], directory, modes, samples, branch, comparisons, report, out, options, gif, use_cache,
-                jobs=1 if away else jobs,
-            )  # fmt: skip
-            done()
-        if away:
-            outcomes.update(collect(futures, failed, lambda _: done()))
-    return [outcomes[i] for i in range(len(names))]
-
-
-def _all_cached(model, settings) -> bool:
-    """Whether the results cache holds every mode's results of ``model``
-    (:func:`xcheck.result_cache.holds`); False for a file that does not load."""
-    from .result_cache import holds
-
-    directory, modes, samples, branch, *_, use_cache = settings
-    if not use_cache:
-        return False
-    try:
-        return holds(load_mechanism(model_path(model, directory)), modes, samples, branch)
-    except (XcheckError, OSError):
-        return False
-
-
-def _progress_bar(off: bool, label: str = "{task.description}", stdout_terminal: bool = True) -> Progress:
-    """A transient progress bar on stderr (``label``, done/total, time): only
-    when stderr is a terminal, and stdout too unless ``stdout_terminal`` is
-    False; never with --json or --quiet (``off``), so that piped or captured
-    output stays clean."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    stderr = Console(stderr=True)
-    return Progress(
-        SpinnerColumn(),
-        TextColumn(label),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-        disable=off or not stderr.is_terminal or (stdout_terminal and not sys.stdout.isatty()),
-    )
-
-
-def _shown_path(path: Path) -> str:
-    """A path as a command line would give it: relative to the working
-    directory when it lies below it, else as it is."""
-    try:
-        return str(path.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
-        return str(path)
-
-
-def _shown_model(name: str) -> str:
-    """A mechanism argument (a name, 'all' or a path) as a reproducible command line gives it."""
-    return _shown_path(Path(name)) if Path(name).suffix == ".toml" or "/" in name else name
-
-
-def _shown_option(option: str, value: Path | None) -> str:
-    return "" if value is None else f" {option} {_shown_path(Path(value))}"
-
-
 @app.command("simulate")
-@_reports_errors
+@reports_errors
 def simulate_command(
     name: Annotated[str, typer.Argument(help="Mechanism name or path to a .toml file with a [free_motion] section.")],
     duration: Annotated[
         Optional[float],
         typer.Option("--duration", help="Simulated time, s (default: the file's [free_motion] duration)."),
     ] = None,
-    branch: Annotated[
-        Optional[str], typer.Option("--branch", help="Assembly branch (default: the file's first).")
-    ] = None,
+    branch: BranchOption = None,
     engines: Annotated[
         Optional[str],
         typer.Option(
@@ -936,55 +516,33 @@ def simulate_command(
 
     Examples: xcheck simulate iftomm-a02;  xcheck simulate iftomm-a01 --duration 2 --json
     """
-    from .report import update_index, write_simulation_report
-    from .simulation import simulate_all
-
     modes = select_modes(engines, kinds=("free",))[1:]  # native always runs
     jobs = arguments.processes(jobs, "--jobs")
     if duration is not None:
         arguments.duration(duration, "--duration")
     path = model_path(name, models_dir(models))
-    kin = Kinematics(load_mechanism(path))
-    kin.assemble(branch)
-    if report:  # what is in the report's way is said before the work, not after
-        from .report import claim_index, claim_report
-
-        claim_report(reports_dir(path, out), kin.mechanism.name)
-        claim_index(reports_dir(path, out))
-    bar = _progress_bar(quiet or as_json)
+    command = f"xcheck simulate {shown_model(name)}" + replay_options(
+        ("--duration", f"{duration:g}" if duration else None), ("--engines", engines), ("--branch", branch),
+        ("--models", models), ("--out", out),
+    )  # fmt: skip
+    bar = progress_bar(quiet or as_json)
     with bar:
         # one step for the native reference (its step ladder in the description), one per mode
-        task = bar.add_task(f"{kin.mechanism.name}: native", total=1 + len(modes))
+        task = bar.add_task(f"{path.stem}: native", total=1 + len(modes))
 
         def progress(what: str) -> None:
             if not what.startswith("native:"):  # a mode starts: the stage before it is done
                 bar.advance(task)
-            bar.update(task, description=f"{kin.mechanism.name}: {what}")
+            bar.update(task, description=f"{path.stem}: {what}")
 
-        result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs)
-    reference = result.reference
-    failure, written = None, None
-    if report:
-        target = reports_dir(path, out)
-        command = (
-            f"xcheck simulate {_shown_model(name)}"
-            + (f" --duration {duration:g}" if duration else "")
-            + (f" --engines {engines}" if engines else "")
-            + (f" --branch {branch}" if branch else "")
-            + _shown_option("--models", models)
-            + _shown_option("--out", out)
+        result, written, failure = simulate_model(
+            path, modes, duration, branch, report, out, command, progress=progress, jobs=jobs
         )
-        try:  # a report that cannot be written is one line; the results still print
-            written, entry = write_simulation_report(result, target, command)
-            update_index(target, [entry], indexed_names(path))
-        except XcheckError as err:
-            failure = str(err)
-        except OSError as err:
-            failure = f"{target}: expected a directory where the report can be written, found {err.strerror or err}"
+    reference = result.reference
     if as_json:
-        typer.echo(json.dumps(simulation_json(reference, result), indent=2, allow_nan=False, ensure_ascii=False))
+        _echo_json(simulation_json(reference, result))
     else:
-        print_simulation(wide_console(), reference, result, None if written is None else _shown_path(Path(written)))
+        print_simulation(wide_console(), reference, result, None if written is None else shown_path(Path(written)))
     if failure is not None:
         raise InputError(failure)
     if not reference.converged:
@@ -997,7 +555,7 @@ def simulate_command(
 
 
 @app.command("export")
-@_reports_errors
+@reports_errors
 def export_command(
     names: Annotated[
         Optional[list[str]], typer.Argument(help="Mechanisms to export (default: all in the models directory).")
@@ -1043,87 +601,22 @@ def export_command(
     for f in formats:
         if f not in writers:
             raise InputError(f"--format: expected one of {', '.join(writers)} or all, found {f!r}")
-    outdated, failed = [], 0
-    every = [*model_names(directory), *(str(directory / BENCHMARKS / f"{b}.toml") for b in benchmark_names(directory))]
-    for name in names or every:
-        try:
-            path = model_path(name, directory)
-            kin = Kinematics(load_mechanism(path))
-        except XcheckError as err:
-            typer.echo(f"xcheck: error: {' '.join(str(err).split())}", err=True)
-            failed += 1
-            continue
-        for f in formats:
-            writer = writers[f]
-            subdirectory = writer.export_directory or f
-            try:
-                if writer.available():
-                    raise registry.NotApplicable(writer.available())
-                with canonical_numbers() as units:  # the same text on every machine
-                    texts = writer.export_files(kin)
-            except registry.NotApplicable as err:  # the engine cannot hold it, or is not installed: no file
-                typer.echo(f"skipped {f} of {kin.mechanism.name}: {err.reason}")
-                continue
-            except XcheckError as err:
-                typer.echo(f"xcheck: error: {f}: {' '.join(str(err).split())}", err=True)
-                failed += 1
-                continue
-            for file_name, text in texts.items():
-                # a bundled file of an installed package exports into ./models, not into the package
-                target = (Path("models") if installed(path) else path.parent) / subdirectory / file_name
-                current = target.read_text(encoding="utf-8") if target.is_file() else None
-                moved = None if current is None else drift(current, text, units)
-                if current is not None and moved is None:  # the same, within the precision of its numbers
-                    continue
-                if check:
-                    outdated.append(("missing", target, "") if moved is None else ("stale", target, f": {moved}"))
-                    continue
-                try:
-                    write_atomic(target, text)
-                except OSError as err:
-                    typer.echo(
-                        f"xcheck: error: {target}: expected a file that can be written, found {err.strerror or err}",
-                        err=True,
-                    )
-                    failed += 1
-                    continue
-                typer.echo(f"wrote {target}")
-    for state, target, why in outdated:
-        typer.echo(f"{state}: {target}{why}")
+    failed = outdated = False
+    for kind, text in export_models(names, formats, directory, check):
+        if kind == "error":
+            typer.echo(f"xcheck: error: {text}", err=True)
+        else:
+            typer.echo(f"{kind}{':' if kind in ('missing', 'stale') else ''} {text}")
+        failed = failed or kind == "error"
+        outdated = outdated or kind in ("missing", "stale")
     if failed:
         raise typer.Exit(2)
     if outdated:
         raise typer.Exit(1)
 
 
-def _numbers(text: str, mech: Mechanism, option: str) -> list[list[float]]:
-    """An option's text as numbers: states separated by commas, each the drivers'
-    values separated by colons, each a number or an arithmetic expression; the
-    values as given (display units: :func:`xcheck.states.asked_states` converts
-    and checks them)."""
-    states = []
-    for item in text.split(","):
-        parts = item.split(":")
-        if len(parts) != len(mech.drivers):
-            raise InputError(
-                f"{mech.path}: {option}: expected {len(mech.drivers)} value(s) per state separated "
-                f"by ':' ({':'.join(d.name for d in mech.drivers)}), found {arguments.shown(item)}"
-            )
-        state = []
-        for driver, part in zip(mech.drivers, parts):
-            try:
-                state.append(evaluate_expression(part.strip()))
-            except ValueError as err:
-                raise InputError(
-                    f"{mech.path}: {option} {driver.name}: expected a number or an arithmetic "
-                    f"expression, found {arguments.shown(part)} ({err})"
-                ) from None
-        states.append(state)
-    return states
-
-
 @app.command("fuzz")
-@_reports_errors
+@reports_errors
 def fuzz_command(
     count: Annotated[int, typer.Option("--count", help="Random mechanisms to generate (1 to 100000).")] = 100,
     seed: Annotated[
@@ -1141,7 +634,9 @@ def fuzz_command(
             "whose compilation for every random mechanism would cost four times the rest).",
         ),
     ] = None,
-    samples: Annotated[int, typer.Option("--samples", help=f"Samples of the sweeps (3 to {MAX_SAMPLES}).")] = 181,
+    samples: Annotated[
+        int, typer.Option("--samples", help=f"Samples of the sweeps (3 to {MAX_SAMPLES}).")
+    ] = DEFAULT_SAMPLES,
     scheduler: Annotated[
         Optional[str], typer.Option("--scheduler", help="Address of a Dask scheduler (default: a local process pool).")
     ] = None,
@@ -1171,7 +666,7 @@ def fuzz_command(
     chosen = campaign.chosen_kinds(kinds, "--kinds")
     modes = campaign.campaign_modes() if engines is None else select_modes(engines)
     arguments.writable_directory(out, "--out", "the campaign")
-    progress = _progress_bar(False, label="fuzz", stdout_terminal=False)  # a long campaign: shown even when piped
+    progress = progress_bar(False, label="fuzz", stdout_terminal=False)  # a long campaign: shown even when piped
     with progress:
         task = progress.add_task("", total=None)
 
@@ -1185,50 +680,13 @@ def fuzz_command(
         f" --engines {engines}" if engines else ""
     )
     campaign.write_failure_report(out, rows, command)
-    table = Table(title=f"xcheck fuzz: {rows.case.nunique()} cases (seed {seed})")
-    for column in ("mode", "cases", "passed", "failed", "error", "not applicable"):
-        table.add_column(column, justify="left" if column == "mode" else "right")
     counts = campaign.summary(rows)
-    for _, r in counts.iterrows():
-        table.add_row(
-            escape(str(r["mode"])), *(str(r[c]) for c in ("cases", "passed", "failed", "error", "not applicable"))
-        )
-    console = Console()
-    console.print(table)
-    console.print(f"Rows: {escape(str(out / 'results'))}; failure classes: {escape(str(out / 'failures.md'))}")
+    print_fuzz(Console(), counts, f"xcheck fuzz: {rows.case.nunique()} cases (seed {seed})", out)
     if int(counts.failed.sum() + counts.error.sum()):
         raise typer.Exit(1)
 
 
-def _escape_help_markup(application: typer.Typer) -> None:
-    """Escape the help texts of every command and parameter for the terminal's
-    renderer, which reads square brackets as markup ("of [units]" showed as "of ").
-
-    Typer renders help with rich markup; xcheck's help is plain text, so each
-    text is escaped once here rather than at each of its many definitions."""
-    import inspect
-    from typing import get_type_hints
-
-    from typer.models import ParameterInfo
-
-    done: set[int] = set()  # Annotated options shared by several commands are escaped once
-    for info in [application.registered_callback, *application.registered_commands]:
-        if info is None or info.callback is None:
-            continue
-        if info.help is None and info.callback.__doc__:
-            info.help = escape(inspect.cleandoc(info.callback.__doc__))
-        # typer evaluates the (string) annotations anew each time it builds the
-        # command: they are evaluated once here, so that the escaped texts stay
-        function = inspect.unwrap(info.callback)
-        function.__annotations__ = hints = get_type_hints(function, include_extras=True)
-        for hint in hints.values():
-            for meta in getattr(hint, "__metadata__", ()):
-                if isinstance(meta, ParameterInfo) and meta.help and id(meta) not in done:
-                    done.add(id(meta))
-                    meta.help = escape(meta.help)
-
-
-_escape_help_markup(app)
+escape_help_markup(app)
 
 
 def main() -> None:

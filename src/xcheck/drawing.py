@@ -9,18 +9,22 @@ reports alike.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from matplotlib import patches
 from matplotlib.figure import Figure
 
+from .errors import InputError
+from .fileio import write_atomic
 from .joints import LineJoint
 from .kinematics import Solution, rotate
 from .model import Mechanism, PinInSlot, Prismatic, Revolute
 
-__all__ = ["Pose", "draw_pose", "figure_of", "guide_extents"]
+__all__ = ["Pose", "draw_pose", "figure_of", "guide_extents", "check_png_name", "save_png"]
 
 #: body colours (matplotlib's tab10, ground black)
 COLORS = (
@@ -94,11 +98,8 @@ def _joint_labels(mech: Mechanism) -> dict[str, list[str]]:
     """Per body, the labels of its points that joints use (in joint order)."""
     used: dict[str, list[str]] = {b.name: [] for b in (mech.ground, *mech.moving_bodies)}
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            pairs = [(joint.body_a, joint.point_a), (joint.body_b, joint.point_b)]
-        else:
-            assert isinstance(joint, LineJoint)
-            pairs = [(joint.body_a, joint.line_point), (joint.body_b, joint.point)]
+        pairs = list(joint.anchors())  # a line's point places it: the body's link runs to it too
+        pairs += [(joint.body_a, joint.line_point)] if isinstance(joint, LineJoint) else []
         for body, label in pairs:
             if label not in used[body]:
                 used[body].append(label)
@@ -448,3 +449,28 @@ def figure_of(solution: Solution, i: int = 0, title: str | None = None, extents=
     ax.grid(alpha=0.25)
     figure.tight_layout()
     return figure
+
+
+def check_png_name(target: Path, option: str = "output") -> None:
+    """Refuse a drawing's file name that does not end in .png, in one line naming ``option``."""
+    if Path(target).suffix.lower() != ".png":
+        found = Path(target).suffix or "none"
+        raise InputError(f"{option} {target}: expected a file name ending in .png, found {found}")
+
+
+def save_png(figure: Figure, target: Path, option: str = "output") -> None:
+    """Write a figure as a PNG (100 dpi), whole or not at all.
+
+    Raises
+    ------
+    InputError
+        If the name does not end in .png or the file cannot be written (naming ``option``).
+    """
+    check_png_name(target, option)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100)
+    try:
+        write_atomic(Path(target), buffer.getvalue())
+    except OSError as err:
+        why = err.strerror or err
+        raise InputError(f"{option} {target}: expected a file that can be written, found {why}") from None

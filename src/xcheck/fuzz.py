@@ -773,7 +773,7 @@ def fuzz(
     seed: int = 0,
     kinds: str | Sequence[str] = KINDS,
     modes: Sequence[str] | None = None,
-    samples: int = 181,
+    samples: int = arguments.DEFAULT_SAMPLES,
     workers: int | None = None,
     scheduler: str | None = None,
     client=None,

@@ -18,6 +18,10 @@ from .precision import shown
 __all__ = [
     "mode_trust",
     "engine_version",
+    "engine_rows",
+    "print_list",
+    "print_fuzz",
+    "range_json",
     "print_engines",
     "print_run_totals",
     "solution_json",
@@ -188,6 +192,22 @@ def _inward(value: float, up: bool, digits: int = 6) -> float:
         return value
     step = 10.0 ** (math.floor(math.log10(abs(value))) - digits + 1)
     return (math.ceil(value / step) if up else math.floor(value / step)) * step
+
+
+def range_json(kin: Kinematics, rng: InputRange) -> dict:
+    """A driver's feasible range for JSON: SI bounds (rad or m; null where a
+    crank turns round or a slide met no limit within its search span) and the
+    display text."""
+    driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
+    return {
+        "driver": rng.driver,
+        "quantity": driver.quantity,
+        "unit": "rad" if driver.quantity == "angle" else "m",
+        "low": rng.low,
+        "high": rng.high,
+        "full_turn": rng.full_turn and driver.quantity == "angle",
+        "text": range_text(kin, rng),
+    }
 
 
 def range_text(kin: Kinematics, rng: InputRange) -> str:
@@ -960,3 +980,83 @@ def _cell(value) -> str:
 
 def _g(value) -> str:
     return "—" if value is None else f"{value:.10g}"
+
+
+def print_list(console: Console, rows: list[dict], benchmarks: list[str]) -> None:
+    """``xcheck list``'s table (:func:`xcheck.batch.list_models`'s rows), the
+    engines and their modes, the free-motion benchmarks, then the warnings
+    about the drivers' laws (said under the table, not as errors)."""
+    from . import engines as registry
+
+    table = Table(header_style="bold")
+    for header in ("name", "title", "source", "DOF", "input range"):
+        table.add_column(header, overflow="fold")
+    for row in rows:
+        table.add_row(
+            row["name"], row["title"], row["source"], str(row["dof"]), "\n".join(r["text"] for r in row["ranges"])
+        )
+    console.print(table)
+    console.print(
+        "Engines: "
+        + ", ".join(
+            escape(f"{e.name} ({', '.join(m.name for m in e.modes)})" + (f": {e.available()}" if e.available() else ""))
+            for e in registry.engines()
+        )
+        + ". `xcheck engines` says more.",
+        highlight=False,
+    )
+    if benchmarks:
+        console.print(
+            f"Free-motion benchmarks (xcheck simulate NAME): {escape(', '.join(benchmarks))}.", highlight=False
+        )
+    for row in rows:
+        for line in row["warnings"]:
+            console.print(f"[yellow]warning[/yellow]: {escape(line)}", highlight=False)
+
+
+def engine_rows() -> list[dict]:
+    """One row per registered engine for ``xcheck engines`` (its JSON and
+    :func:`print_engines`): name, title, version, whether it is available and
+    why not, its modes (kind, what each is trusted for, on request, the
+    quantities of its stated findings), the findings, whether it gives forces,
+    its export format, its notes."""
+    from . import engines as registry
+
+    return [
+        {
+            "name": e.name,
+            "title": e.title,
+            "version": engine_version(e),
+            "available": not e.available(),
+            "reason": e.available() or None,
+            "modes": [
+                {
+                    "name": m.name,
+                    "kind": m.kind,
+                    "trusted_for": mode_trust(m),
+                    "on_request": m.on_request,
+                    "findings": list(dict.fromkeys(q for f in e.findings if m.kind in f.kinds for q in f.quantities)),
+                }
+                for m in e.modes
+            ],
+            "findings": [f.as_dict() for f in e.findings],
+            "forces": e.force_tolerance is not None,
+            "export_format": e.export_format,
+            "notes": e.notes,
+        }
+        for e in registry.engines()
+    ]
+
+
+def print_fuzz(console: Console, counts, title: str, out) -> None:
+    """A fuzz campaign's summary (:func:`xcheck.fuzz.summary`: per mode its cases,
+    passed, failed, errors, not applicable) and where its rows and failure classes are."""
+    table = Table(title=title)
+    columns = ("cases", "passed", "failed", "error", "not applicable")
+    table.add_column("mode", justify="left")
+    for column in columns:
+        table.add_column(column, justify="right")
+    for _, r in counts.iterrows():
+        table.add_row(escape(str(r["mode"])), *(str(r[c]) for c in columns))
+    console.print(table)
+    console.print(f"Rows: {escape(str(out / 'results'))}; failure classes: {escape(str(out / 'failures.md'))}")

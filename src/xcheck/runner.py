@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__, engines
+from .arguments import DEFAULT_SAMPLES
 from .dynamics import (
     Forces,
     energy_summary,
@@ -746,7 +747,7 @@ def _refined_result(result: ModeResult, finer: ModeResult) -> ModeResult:
 def run_mechanism(
     kinematics: Kinematics,
     modes=None,
-    samples: int = 181,
+    samples: int = DEFAULT_SAMPLES,
     branch: str | None = None,
     textbook: list[dict] | None = None,
     progress=None,

@@ -42,12 +42,14 @@ __all__ = [
     "LIMIT_FRACTION",
     "LIMIT_CONDITIONING",
     "Asked",
+    "values_of_text",
     "given_inputs",
     "asked_states",
     "instant_states",
     "check_ranges",
     "solve_asked",
     "drawn_state",
+    "reactions_of",
     "limit_warnings",
 ]
 
@@ -92,6 +94,41 @@ class Asked:
     def where(self, i: int, driver: str) -> str:
         """The field a message about state ``i``'s input ``driver`` names."""
         return f"{self.fields[i]}.{driver}" if self.fields else f"{self.option} {driver}"
+
+
+def values_of_text(text: str, mechanism, option: str = "--at") -> list[list[float]]:
+    """An option's text as numbers (``xcheck solve --at 30:45,60:50``): states
+    separated by commas, each the drivers' values separated by colons, each a
+    number or an arithmetic expression (:func:`xcheck.units.evaluate_expression`);
+    the values as given, for :func:`asked_states` to convert and check.
+
+    Raises
+    ------
+    InputError
+        Naming the file, the option and the driver.
+    """
+    from .units import evaluate_expression
+
+    names = [d.name for d in mechanism.drivers]
+    states = []
+    for item in text.split(","):
+        parts = item.split(":")
+        if len(parts) != len(names):
+            raise InputError(
+                f"{mechanism.path}: {option}: expected {len(names)} value(s) per state separated "
+                f"by ':' ({':'.join(names)}), found {arguments.shown(item)}"
+            )
+        state = []
+        for name, part in zip(names, parts):
+            try:
+                state.append(evaluate_expression(part.strip()))
+            except ValueError as err:
+                raise InputError(
+                    f"{mechanism.path}: {option} {name}: expected a number or an arithmetic "
+                    f"expression, found {arguments.shown(part)} ({err})"
+                ) from None
+        states.append(state)
+    return states
 
 
 def given_inputs(kinematics: Kinematics, values, si: bool = False, option: str = "at") -> np.ndarray:
@@ -305,6 +342,23 @@ def solve_asked(kinematics: Kinematics, asked: Asked, branch: str | None = None)
     _check_statuses(solution, asked)
     lines = [*drive_warnings(kinematics, branch), *limit_warnings(solution, branch)]
     return Solved(solution, asked.labels, lines)
+
+
+def reactions_of(solution: Solution):
+    """The reactions and efforts of solved states where the file gives mass data
+    (:func:`xcheck.dynamics.inverse_dynamics`): (forces, None); (None, the
+    error) where some bodies lack it or a load has a time law, for the caller to
+    report after the kinematics, which still stand; (None, None) where no body
+    has mass data."""
+    from .dynamics import inverse_dynamics
+    from .errors import XcheckError
+
+    if all(b.mass is None for b in solution.mechanism.moving_bodies):
+        return None, None
+    try:
+        return inverse_dynamics(solution), None
+    except XcheckError as err:
+        return None, err
 
 
 def drawn_state(
