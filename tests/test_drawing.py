@@ -10,13 +10,14 @@ from matplotlib import patches
 
 import xcheck
 from xcheck.drawing import COLORS, Pose
+from xcheck.states import given_inputs
 
 
 def _drawn(name: str, at=None):
     mech = xcheck.load(name, models=MODELS)
     figure = mech.draw(at=at)
     ax = figure.axes[0]
-    c = mech.kinematics.reference_inputs()[None] if at is None else mech._si(at, False)
+    c = mech.kinematics.reference_inputs()[None] if at is None else given_inputs(mech.kinematics, at)
     solved = Pose.of(mech.kinematics.solve(c, branch=mech.branch), 0)
     scale = mech.mechanism.units.length_factor  # drawings are in the file's length unit
 
