@@ -42,6 +42,8 @@ CASES = {
     "fourbar-chain-7": (ROOT / "tests/data/fourbar-chain-7.toml", 1.0, 0.01, 2.5e-3),
     # seven bodies, a stiff spring, 2000 rad/s^2 and more
     "iftomm-a03": (ROOT / "models/benchmarks/iftomm-a03.toml", 0.01, 1e-3, 1e-4),
+    # two gear pairs on a moving arm: rows of three bodies' angles
+    "planetary-train": (ROOT / "tests/data/planetary-train.toml", 0.5, 0.05, 1e-3),
 }
 BOUNDS = {"q": 3e-12, "qd": 3e-12, "qdd": 1e-10, "energy": 1e-12, "work": 1e-12}
 #: per case, where an output lands on a singular pass (see the module's docstring)

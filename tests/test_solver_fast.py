@@ -44,6 +44,8 @@ DATA = [
         "slotted-rod",
         "wedge",
         "arm-block",
+        "geared-fivebar",
+        "planetary-train",
     )
 ]
 

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 
 from .errors import InputError
 from .fileio import write_atomic
-from .joints import LineJoint
+from .joints import GearPair, LineJoint
 from .kinematics import Solution, rotate
 from .model import Mechanism, PinInSlot, Prismatic, Revolute
 
@@ -345,6 +345,20 @@ def draw_pose(
         for a, b in segments[body.name]:
             a, b = w(a), w(b)
             ax.plot([a[0], b[0]], [a[1], b[1]], color=color, lw=3.0, alpha=alpha, zorder=3, solid_capstyle="round")
+    # gears: each gear's pitch circle about its centre, with a radius along its
+    # frame's x axis that shows it turning
+    for joint in mech.joints:
+        if isinstance(joint, GearPair):
+            for gear, at, radius in (
+                (joint.body_a, joint.centre_a, joint.radius_a),
+                (joint.body_b, joint.centre_b, joint.radius_b),
+            ):
+                c, tick = pose.point(gear, at), pose.direction(gear, np.array([1.0, 0.0]))
+                style = dict(color=colors[gear], alpha=alpha, zorder=2.5)
+                ax.add_patch(patches.Circle(w(c), radius / scale, fill=False, ls="-.", lw=1.3, **style))
+                end = w(c + radius * tick)
+                ax.plot([w(c)[0], end[0]], [w(c)[1], end[1]], lw=1.0, **style)
+                segments.setdefault(gear, []).append((c, c + radius * tick))
     # blocks: on every prismatic joint, the block of body_b along the line
     for joint in mech.joints:
         if isinstance(joint, Prismatic):

@@ -497,7 +497,9 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
     """Reactions (first body on second) and efforts at state i, SI units."""
     mech = solution.mechanism
     reactions = Table(box=None, pad_edge=False, header_style="bold")
-    for header in ("joint", "type", "force of → on", "Fx [N]", "Fy [N]", "|F| [N]", "normal [N]", "moment [N·m]"):
+    geared = any("tooth_force" in forces.joints[j.name] for j in mech.joints)
+    headers = ("joint", "type", "force of → on", "Fx [N]", "Fy [N]", "|F| [N]", "normal [N]", "moment [N·m]")
+    for header in headers + (("tooth [N]",) if geared else ()):
         reactions.add_column(
             escape(header), justify="left" if header in ("joint", "type", "force of → on") else "right", no_wrap=True
         )
@@ -528,6 +530,11 @@ def _print_forces(console: Console, solution: Solution, forces, i: int) -> None:
             _at_round_off(float(np.hypot(*f)), force_bound),
             _at_round_off(values["normal"][i], force_bound) if "normal" in values else "",
             _at_round_off(values["moment"][i], force_bound * size) if "moment" in values else "",
+            *(
+                (_at_round_off(values["tooth_force"][i], force_bound) if "tooth_force" in values else "",)
+                if geared
+                else ()
+            ),
         )
     print_table(console, reactions)
     efforts = Table(box=None, pad_edge=False, header_style="bold")

@@ -2,9 +2,11 @@
 
 MuJoCo and Pinocchio describe a mechanism as a tree of joints; each closed loop
 is cut at one joint and closed again by an equality constraint. This module
-picks the tree: driven joints first (an engine drives tree joints), then
-prismatic and pin-in-slot joints, then revolutes, each group in file order;
-every joint left over is a cut. So a loop is cut at a revolute (closed by a
+picks the tree: driven joints first (an engine drives tree joints), then the
+joints a coupling needs in the tree (a gear pair's gears' revolutes), then by
+the joint types' ``tree_rank`` (prismatic and pin-in-slot joints before
+revolutes), each group in file order; every joint left over is a cut, and a
+coupling that joins nothing (a gear pair) is always one. So a loop is cut at a revolute (closed by a
 point constraint) whenever it has a non-driven one; a loop closed only through
 driven, prismatic and pin-in-slot joints is cut at its last prismatic or
 pin-in-slot joint, which the engines close through a "carrier" (a slide along
@@ -74,10 +76,12 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
         If a body is not connected to the ground, or a loop has only driven joints.
     """
     driven = {d.joint: d.name for d in mechanism.drivers}
+    needed = {name for joint in mechanism.joints for name in joint.needs_in_tree()}
     order = sorted(
-        range(len(mechanism.joints)),
-        key=lambda i: (mechanism.joints[i].name not in driven, mechanism.joints[i].tree_rank, i),
-    )
+        (i for i, joint in enumerate(mechanism.joints) if joint.connects),
+        key=lambda i: (mechanism.joints[i].name not in driven, mechanism.joints[i].name not in needed,
+                       mechanism.joints[i].tree_rank, i),
+    )  # fmt: skip
     root = {b.name: b.name for b in mechanism.bodies}
 
     def find(body: str) -> str:
@@ -102,6 +106,7 @@ def spanning_tree(mechanism: Mechanism) -> Topology:
             )
         else:
             cuts.append(joint)
+    cuts += [joint for joint in mechanism.joints if not joint.connects]  # couplings: always constraints
 
     tree, placed, pending = [], {GROUND}, list(tree_edges)
     while pending:

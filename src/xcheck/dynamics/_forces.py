@@ -15,6 +15,11 @@ Sign conventions (every source follows them)
 * The **moment** of a prismatic joint is the couple (N m, counter-clockwise)
   that ``body_a`` exerts on ``body_b`` besides the normal force at the sliding
   point: the moment about the sliding point of everything the joint transmits.
+* The **tooth force** of a gear pair (N) is the tangential force at the pitch
+  point that ``body_a`` exerts on ``body_b``, positive where it turns
+  ``body_b`` counter-clockwise relative to the carrier; its ``reaction`` is
+  that force as a vector. The coupling acts as torques on the gears and the
+  carrier (``joints.GearPair``): the gears' revolutes carry no share of it.
 * A driver's **effort** is the torque (N m, revolute) or force (N, along the
   line, slide) that ``body_a`` of the driven joint exerts on ``body_b`` in the
   sense that increases the driven quantity; ``body_a`` gets the opposite.
@@ -41,7 +46,7 @@ __all__ = [
 
 #: per joint: quantity -> shape suffix (2: a vector in the global frame); a joint
 #: type's ``quantities`` say which it carries
-JOINT_QUANTITIES = {"reaction": 2, "normal": 0, "moment": 0}
+JOINT_QUANTITIES = {"reaction": 2, "normal": 0, "moment": 0, "tooth_force": 0}
 #: per driver
 DRIVER_QUANTITIES = {"effort": 0}
 

@@ -283,10 +283,14 @@ def plan_loops(mechanism: Mechanism) -> LoopPlan:
     ------
     NotApplicable
         If no order of loops with two new unknowns each determines every
-        body angle and slide (a non-dyadic mechanism), or a body is not
-        connected to the ground.
+        body angle and slide (a non-dyadic mechanism), a body is not
+        connected to the ground, or a joint couples motions (a gear pair).
     """
     mech = mechanism
+    coupled = [j for j in mech.joints if not isinstance(j, (Revolute, Prismatic, PinInSlot))]
+    if coupled:
+        _fail(mech, f"a {coupled[0].kind} joint ({coupled[0].name}): vector loops hold revolute, prismatic and "
+              "pin-in-slot joints only")  # fmt: skip
     root, offset = _angle_ties(mech)
     driven = {d.joint: i for i, d in enumerate(mech.drivers)}
     slides = {j.name: driven.get(j.name) for j in mech.joints if isinstance(j, (Prismatic, PinInSlot))}

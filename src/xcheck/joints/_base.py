@@ -17,8 +17,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Joint", "Action", "Locate"]
 
-#: (body name, point label) -> (the body's index, -1 for the ground; the point in its frame (2,), m)
-Locate = Callable[[str, str], tuple[int, np.ndarray]]
+#: (body name, point label or None) -> (the body's index, -1 for the ground; the point in its
+#: frame (2,), m, or its origin where no label is given)
+Locate = Callable[[str, "str | None"], tuple[int, np.ndarray]]
 
 
 @dataclass(frozen=True)
@@ -65,10 +66,14 @@ class Joint:
     pivots : bool
         Its bodies turn relative to each other about a point of both: a
         rotational spring or a joint torque may act across it.
-    tree_rank : int or None
-        An engine that builds a kinematic tree takes the joints of lower rank
-        first (after the driven ones) and closes the loops at the rest; None:
-        never a tree joint (a coupling, always closed by a constraint).
+    connects : bool
+        It joins its bodies: a path from one to the other for an engine's
+        kinematic tree, a side of a closed loop. False for a coupling of their
+        motions that joins nothing (a gear pair): never a tree joint, always a
+        constraint, no loop of its own.
+    tree_rank : int
+        An engine that builds a kinematic tree takes the connecting joints of
+        lower rank first (after the driven ones) and closes the loops at the rest.
     """
 
     name: str
@@ -80,7 +85,8 @@ class Joint:
     driven_quantity: ClassVar[str | None] = None
     quantities: ClassVar[tuple[str, ...]] = ()
     pivots: ClassVar[bool] = False
-    tree_rank: ClassVar[int | None] = 0
+    connects: ClassVar[bool] = True
+    tree_rank: ClassVar[int] = 0
 
     @property
     def bodies(self) -> tuple[str, ...]:
@@ -96,6 +102,11 @@ class Joint:
         """``phi_b - phi_a`` (rad) where it keeps its bodies' relative angle (an
         engine closing a loop cut at it welds rather than pins), else None."""
         return None
+
+    def needs_in_tree(self) -> tuple[str, ...]:
+        """The joints (by name) an engine's kinematic tree must hold for it: a
+        coupling of joint coordinates needs those joints as tree joints."""
+        return ()
 
     def shared_label(self) -> str | None:
         """The label it joins on both bodies, where it pins the same label of each."""

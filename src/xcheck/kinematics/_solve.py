@@ -299,7 +299,7 @@ class Kinematics:
         c_ref = self.reference_inputs()
         drawn = mech.assembly.branches[name]
         field_name = f"assembly.branches.{name}" if drawn else "assembly.branches"
-        loops = len(mech.joints) - len(mech.moving_bodies)
+        loops = sum(j.connects for j in mech.joints) - len(mech.moving_bodies)
         if loops > 0 and not drawn:
             raise ModelError(
                 mech.path,

@@ -67,8 +67,9 @@ class ConstraintSystem:
         self._offsets = np.cumsum([0] + [t.rows for t in self.terms])
 
     # -- building ---------------------------------------------------------
-    def _local(self, body: str, label: str) -> tuple[int, np.ndarray]:
-        return self.body_index[body], self.mechanism.body(body).points[label]
+    def _local(self, body: str, label: str | None) -> tuple[int, np.ndarray]:
+        """(body's index, -1 the ground; the labelled point in its frame, or its origin), m."""
+        return self.body_index[body], np.zeros(2) if label is None else self.mechanism.body(body).points[label]
 
     # -- evaluation -------------------------------------------------------
     def residual(self, q: np.ndarray, c: np.ndarray, kinematic_only: bool = False) -> np.ndarray:

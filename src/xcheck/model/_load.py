@@ -20,7 +20,7 @@ from .. import arguments
 from ..arguments import MAX_STATES
 from ..errors import ModelError
 from ..fileio import reserved_name
-from ..joints import JOINT_TYPES
+from ..joints import JOINT_TYPES, GearPair
 from ..units import (
     ACCELERATION_UNITS,
     ANGLE_UNITS,
@@ -65,6 +65,11 @@ _TOP_KEYS = (
     "free_motion",
 )
 _JOINT_TYPES = tuple(JOINT_TYPES)
+#: the keys of a gear pair in [[joints]], and those of the other joint types
+_GEAR_KEYS = ("carrier", "radii", "teeth", "mesh", "phase")
+_JOINT_KEYS = ("point", "points", "line", "direction", "angle", *_GEAR_KEYS)
+#: pitch radii and the centres' distance agree to this share of the distance
+_MESH_TOLERANCE = 1e-6
 #: tomllib's message: "<what> (at line L, column C)" or "<what> (at end of document)"
 _TOML_LOCATION = re.compile(r"(?P<what>.*) \(at (?P<where>line \d+, column \d+|end of document)\)", re.S)
 
@@ -405,10 +410,11 @@ class _Reader:
     def joints(self, value: Any, bodies: dict[str, Body], units: Units) -> list:
         if not isinstance(value, list) or not value:
             self.fail("joints", "a list of [[joints]]", _describe(value))
-        joints, names = [], set()
+        joints: list = []
+        gears = []  # read once the revolutes they turn on are known
         for i, spec in enumerate(value):
             field = f"joints[{i}]"
-            spec = self.table(spec, field, ("name", "type", "bodies", "point", "points", "line", "direction", "angle"))
+            spec = self.table(spec, field, ("name", "type", "bodies", *_JOINT_KEYS))
             kind = self.choice(spec.get("type"), f"{field}.type", _JOINT_TYPES)
             pair = spec.get("bodies")
             if not (isinstance(pair, list) and len(pair) == 2):
@@ -419,15 +425,24 @@ class _Reader:
             if pair[0] == pair[1]:
                 self.fail(f"{field}.bodies", "two different bodies", f"{pair[0]!r} twice")
             a, b = bodies[pair[0]], bodies[pair[1]]
-            joint = (
-                self.revolute(spec, field, a, b)
-                if kind == "revolute"
-                else self.line_joint(spec, field, kind, a, b, units)
-            )
+            if kind != "gear":
+                for key in _GEAR_KEYS:
+                    if key in spec:
+                        self.fail(f"{field}.{key}", f"no {key} on a {kind} joint (it is a gear pair's)", repr(key))
+            if kind == "gear":
+                gears.append((i, spec, field, a, b))
+                joints.append(None)
+            elif kind == "revolute":
+                joints.append(self.revolute(spec, field, a, b))
+            else:
+                joints.append(self.line_joint(spec, field, kind, a, b, units))
+        for i, spec, field, a, b in gears:
+            joints[i] = self.gear(spec, field, a, b, bodies, [j for j in joints if j is not None], units)
+        names: set[str] = set()
+        for i, joint in enumerate(joints):
             if joint.name in names:
-                self.fail(f"{field}.name", "a name no other joint has", repr(joint.name))
+                self.fail(f"joints[{i}].name", "a name no other joint has", repr(joint.name))
             names.add(joint.name)
-            joints.append(joint)
         return joints
 
     def point_of(self, label: Any, body: Body, field: str) -> str:
@@ -484,6 +499,95 @@ class _Reader:
         if "angle" in spec:
             self.fail(f"{field}.angle", "no locked angle on a pin-in-slot joint", repr(spec["angle"]))
         return PinInSlot(name, a.name, b.name, p0, direction, point)
+
+    def gear(self, spec: dict, field: str, a: Body, b: Body, bodies: dict[str, Body], joints: list, units: Units):
+        """A gear pair: its gears ``a`` and ``b`` each turn on the carrier about a
+        revolute joint, whose points are the gears' centres; pitch radii (or tooth
+        counts, the radii then following from the centres' distance), mesh, phase."""
+        for key in ("point", "points", "line", "direction", "angle"):
+            if key in spec:
+                self.fail(f"{field}.{key}", "the keys of a gear pair (carrier, radii or teeth, mesh, phase)", repr(key))
+        carrier = spec.get("carrier", GROUND)
+        if not isinstance(carrier, str) or carrier not in bodies:
+            self.fail(f"{field}.carrier", f"a body ({', '.join(bodies)})", _describe(carrier))
+        if carrier in (a.name, b.name):
+            self.fail(f"{field}.carrier", f"a body other than the gears {a.name} and {b.name}", repr(carrier))
+        centres = []  # per gear: (its pin's name, its centre's label, the centre's label on the carrier)
+        for gear in (a, b):
+            pins = [j for j in joints if isinstance(j, Revolute) and {j.body_a, j.body_b} == {gear.name, carrier}]
+            if not pins:
+                self.fail(
+                    f"{field}.carrier",
+                    f"the body gear {gear.name} turns on about a revolute joint at its centre",
+                    f"{carrier!r}, with no revolute joint between {gear.name} and {carrier}",
+                )
+            pin = pins[0]
+            ends = (pin.point_a, pin.point_b) if pin.body_a == gear.name else (pin.point_b, pin.point_a)
+            centres.append((pin.name, *ends))
+        on_carrier = bodies[carrier].points
+        distance = float(np.hypot(*(on_carrier[centres[1][2]] - on_carrier[centres[0][2]])))
+        if distance <= 1e-12:
+            self.fail(f"{field}.bodies", "gears whose centres are apart", f"both centred at {centres[0][2]}")
+        mesh = self.choice(spec.get("mesh", "external"), f"{field}.mesh", ("external", "internal"))
+        sign = 1.0 if mesh == "external" else -1.0
+        if ("radii" in spec) == ("teeth" in spec):
+            self.fail(
+                f"{field}.radii",
+                "either radii (the pitch radii) or teeth (tooth counts)",
+                "both" if "radii" in spec else "neither",
+            )
+
+        def shown(length: float) -> str:
+            return units.show_input("slide", length, digits=10)
+
+        if "teeth" in spec:
+            teeth = [
+                self.number(z, f"{field}.teeth[{k}]", positive=True)
+                for k, z in enumerate(self.pair(spec["teeth"], f"{field}.teeth"))
+            ]
+            if mesh == "internal" and teeth[0] == teeth[1]:
+                self.fail(
+                    f"{field}.teeth",
+                    "two different tooth counts for an internal mesh (a pinion in a ring)",
+                    f"{teeth[0]:g} twice",
+                )
+            radii = [distance * z / abs(teeth[0] + sign * teeth[1]) for z in teeth]
+        else:
+            radii = [
+                self.number(r, f"{field}.radii[{k}]", units.length_factor, positive=True)
+                for k, r in enumerate(self.pair(spec["radii"], f"{field}.radii"))
+            ]
+            reach = abs(radii[0] + sign * radii[1])
+            if abs(reach - distance) > _MESH_TOLERANCE * distance:
+                how = "sum" if mesh == "external" else "difference"
+                self.fail(
+                    f"{field}.radii",
+                    f"pitch radii whose {how} is the distance of the centres {centres[0][2]} and {centres[1][2]} "
+                    f"on {carrier}, {shown(distance)} ({mesh} mesh)",
+                    f"{shown(radii[0])} and {shown(radii[1])}",
+                )
+        phase = self.number(spec.get("phase", 0.0), f"{field}.phase", units.angle_factor)
+        name = self.text(spec.get("name", f"{a.name}-{b.name}"), f"{field}.name")
+        (pin_a, centre_a, _), (pin_b, centre_b, _) = centres
+        return GearPair(
+            name,
+            a.name,
+            b.name,
+            carrier,
+            pin_a,
+            pin_b,
+            centre_a,
+            centre_b,
+            radii[0],
+            radii[1],
+            phase,
+            mesh == "internal",
+        )
+
+    def pair(self, value: Any, field: str) -> list:
+        if not (isinstance(value, list) and len(value) == 2):
+            self.fail(field, "two values [first gear, second gear]", _describe(value))
+        return value
 
     def check_shared_labels(self, bodies: list[Body], joints: list) -> None:
         """A label on two bodies must be a revolute joining them at that label

@@ -1,0 +1,115 @@
+"""The gear pair: two gears whose rotations relative to a carrier are coupled."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._base import Action, Joint
+from ._terms import Angles
+
+__all__ = ["GearPair"]
+
+
+@dataclass(frozen=True)
+class GearPair(Joint):
+    """Gears ``body_a`` and ``body_b`` meshing on a ``carrier`` (the ground, or an
+    arm both turn on), their pitch circles rolling without slip.
+
+    Each gear turns on the carrier about a revolute joint at its centre
+    (``pin_a``, ``pin_b``: the joints; ``centre_a``, ``centre_b``: their points
+    on the gears); the pitch radii
+    ``radius_a`` and ``radius_b`` (m) add up to the centres' distance for an
+    external mesh, differ by it for an internal one (a pinion in a ring).
+    With ``sigma`` +1 (external) or -1 (internal), the constraint (1 row, m) is
+    the arc the two pitch circles roll through relative to the carrier:
+
+        r_a (phi_a - phi_c) + sigma r_b (phi_b - phi_c - phase) = 0,
+
+    so that phi_b - phi_c = phase - sigma (r_a / r_b) (phi_a - phi_c) (Willis:
+    (omega_b - omega_c) / (omega_a - omega_c) = -sigma r_a / r_b), with
+    ``phase`` (rad) body b's frame angle relative to the carrier's where body
+    a's is zero. It cannot be driven (drive a gear's revolute).
+
+    The coupling acts as torques on the two gears and the carrier (the model
+    MuJoCo's, Drake's and pymunk's couplings share): its reactions are the
+    tooth force it stands for, ``tooth_force`` (N, positive where it turns
+    ``body_b`` counter-clockwise relative to the carrier) and ``reaction``
+    (N, 2), that force as a vector at the pitch point (pressure angle 0), gear
+    a on gear b. The gears' revolutes carry no share of it: a bearing's load
+    is its revolute's reaction plus the tooth force moved to the gear's centre.
+    """
+
+    carrier: str
+    pin_a: str
+    pin_b: str
+    centre_a: str
+    centre_b: str
+    radius_a: float
+    radius_b: float
+    phase: float = 0.0
+    internal: bool = False
+
+    kind = "gear"
+    rows = 1
+    quantities = ("reaction", "tooth_force")
+    connects = False  # a coupling: an engine closes it by a constraint, never as a tree joint
+
+    @property
+    def sigma(self) -> float:
+        """+1 for an external mesh, -1 for an internal one."""
+        return -1.0 if self.internal else 1.0
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body_a, self.body_b, self.carrier)
+
+    @property
+    def ratio(self) -> float:
+        """(omega_b - omega_c) / (omega_a - omega_c): -r_a / r_b external, +r_a / r_b internal."""
+        return -self.sigma * self.radius_a / self.radius_b
+
+    def needs_in_tree(self):
+        return (self.pin_a, self.pin_b)  # their coordinates are the gears' rotations relative to the carrier
+
+    def anchors(self):
+        return ()  # its centres are its gears' revolutes' points
+
+    def coefficients(self) -> tuple[float, float, float]:
+        """The row's coefficients of phi_a, phi_b, phi_c (m)."""
+        s = self.sigma
+        return self.radius_a, s * self.radius_b, -(self.radius_a + s * self.radius_b)
+
+    def terms(self, locate):
+        a, b, c = (locate(body, None)[0] for body in self.bodies)
+        offset = self.sigma * self.radius_b * self.phase
+        return [Angles(a, b, c, self.coefficients(), offset, is_angle=False)]
+
+    # -- dynamics ---------------------------------------------------------
+    def pitch_point(self, solution) -> tuple[np.ndarray, np.ndarray]:
+        """The pitch point P (N, 2) and the unit direction t (N, 2) in which a
+        positive tooth force pushes gear b there (turning it counter-clockwise):
+        P divides the line of centres as the radii do, t = R (P - B) / r_b."""
+        a, b = (solution.point(label, body)["position"] for body, label in self._centres())
+        s, ra, rb = self.sigma, self.radius_a, self.radius_b
+        p = (rb * a + s * ra * b) / (rb + s * ra)
+        t = (p - b) / rb
+        return p, np.stack([-t[:, 1], t[:, 0]], axis=1)
+
+    def reactions(self, multipliers, solution):
+        # the row's generalised force on phi_b is sigma r_b lambda: the torque of sigma lambda at radius r_b
+        force = self.sigma * multipliers[:, 0]
+        return self.reactions_from_unknowns(force[:, None], solution)
+
+    def reaction_actions(self, solution):
+        s, ra, rb = self.sigma, self.radius_a, self.radius_b
+        return [[Action(self.body_b, rb), Action(self.body_a, s * ra), Action(self.carrier, -(rb + s * ra))]]
+
+    def reactions_from_unknowns(self, unknowns, solution):
+        force = unknowns[:, 0]
+        _, t = self.pitch_point(solution)
+        return {"reaction": force[:, None] * t, "tooth_force": force}
+
+    def _centres(self) -> tuple[tuple[str, str], tuple[str, str]]:
+        return (self.body_a, self.centre_a), (self.body_b, self.centre_b)
