@@ -20,6 +20,7 @@ nothing but report figures.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -39,6 +40,7 @@ except ImportError:  # not on Windows: writers are not serialised there
 __all__ = [
     "write_atomic",
     "directory_lock",
+    "read_bounded",
     "read_regular",
     "marked",
     "MARK",
@@ -143,31 +145,49 @@ def directory_lock(directory: str | Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
-def read_regular(path: str | Path, limit: int) -> bytes | None:
-    """The first ``limit`` bytes of a regular file, or None where ``path`` is
-    missing, a link, a FIFO, a device or a folder, or cannot be read: opened
-    without following links and without blocking, so nothing a user put
-    there can hang or exhaust the reader."""
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+def read_bounded(path: str | Path, bound: int, whole: bool = True) -> tuple[bytes, os.stat_result]:
+    """The bytes of the regular file ``path`` (``whole``: all of them, at most
+    ``bound``; else its first ``bound`` bytes) and its status, opened without
+    following a link and without blocking, so nothing a user put there (a
+    FIFO, a device, a giant) can hang or exhaust the reader.
+
+    Raises
+    ------
+    OSError
+        Missing or unreadable; a link, FIFO, device or folder (``EINVAL``);
+        with ``whole``, larger than ``bound`` bytes (``EFBIG``).
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    fd = os.open(path, flags)
     try:
-        fd = os.open(path, flags)
-    except OSError:
-        return None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
-        chunks, left = [], limit
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise OSError(errno.EINVAL, "not a regular file", str(path))
+        if whole and info.st_size > bound:
+            raise OSError(errno.EFBIG, f"{info.st_size} bytes, more than {bound}", str(path))
+        chunks, left = [], bound + 1 if whole else bound  # one byte more than allowed tells a file that grew
         while left > 0:
             chunk = os.read(fd, min(left, 2**20))
             if not chunk:
                 break
             chunks.append(chunk)
             left -= len(chunk)
-        return b"".join(chunks)
-    except OSError:
-        return None
+        data = b"".join(chunks)
+        if len(data) > bound:
+            raise OSError(errno.EFBIG, f"more than {bound} bytes", str(path))
+        return data, info
     finally:
         os.close(fd)
+
+
+def read_regular(path: str | Path, limit: int) -> bytes | None:
+    """The first ``limit`` bytes of a regular file, or None where ``path`` is
+    missing, a link, a FIFO, a device or a folder, or cannot be read
+    (:func:`read_bounded`)."""
+    try:
+        return read_bounded(path, limit, whole=False)[0]
+    except OSError:
+        return None
 
 
 def read_json(path: str | Path) -> object | None:

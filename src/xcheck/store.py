@@ -19,7 +19,7 @@ must equal the running one, so an entry of other code is never served.
 
 An entry is opened without following a link, refused unless it is a regular
 file (a FIFO or a device would block or never end), and read with a size
-bound. Every entry that cannot be used is a miss with its reason
+bound (:func:`xcheck.fileio.read_bounded`). Every entry that cannot be used is a miss with its reason
 (:class:`Lookup`); the caller recomputes, says so and writes a fresh entry.
 An entry is written whole or not at all (:func:`xcheck.fileio.write_atomic`);
 a cache that cannot be written is no error.
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import errno
 import hashlib
 import hmac
 import json
@@ -38,7 +37,6 @@ import platform
 import re
 import secrets
 import shutil
-import stat
 import sys
 import tempfile
 from collections.abc import Mapping
@@ -49,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .fileio import write_atomic
+from .fileio import read_bounded, write_atomic
 
 __all__ = [
     "CACHE_ENV",
@@ -62,7 +60,6 @@ __all__ = [
     "digest",
     "entry_path",
     "read",
-    "read_bounded",
     "made_by",
     "source_digest",
     "write",
@@ -279,39 +276,6 @@ def _read_key(path: Path) -> bytes | None:
     data, info = read_bounded(path, KEY_BYTES)
     private = info.st_mode & 0o077 == 0 and (not hasattr(os, "getuid") or info.st_uid == os.getuid())
     return data if private and len(data) == KEY_BYTES else None
-
-
-def read_bounded(path: Path, bound: int) -> tuple[bytes, os.stat_result]:
-    """The bytes of the regular file ``path``, opened without following a link
-    and without blocking (a FIFO), and its status.
-
-    Raises
-    ------
-    OSError
-        Missing or unreadable; a link, FIFO, device or folder (``EINVAL``); larger
-        than ``bound`` bytes (``EFBIG``).
-    """
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-    fd = os.open(path, flags)
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise OSError(errno.EINVAL, "not a regular file", str(path))
-        if info.st_size > bound:
-            raise OSError(errno.EFBIG, f"{info.st_size} bytes, more than {bound}", str(path))
-        chunks, left = [], bound + 1  # one byte more than allowed tells a file that grew
-        while left > 0:
-            chunk = os.read(fd, min(left, 1 << 20))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            left -= len(chunk)
-        data = b"".join(chunks)
-        if len(data) > bound:
-            raise OSError(errno.EFBIG, f"more than {bound} bytes", str(path))
-        return data, info
-    finally:
-        os.close(fd)
 
 
 def _mac(key: bytes, header: dict, payload: bytes) -> str:

@@ -258,7 +258,7 @@ def _entry_points_file(folder: Path) -> bytes | None:
         Where it is no regular file (a FIFO would block for ever, a device never
         end) or larger than :data:`_MAX_ENTRY_POINTS_BYTES`.
     """
-    from ..store import read_bounded
+    from ..fileio import read_bounded
 
     try:
         return read_bounded(folder / "entry_points.txt", _MAX_ENTRY_POINTS_BYTES)[0]
