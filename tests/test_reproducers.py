@@ -5,6 +5,7 @@ the measured numbers beside the expected ones and exits 0 while the defect shows
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import subprocess
 import sys
@@ -17,12 +18,17 @@ SCRIPTS = sorted((ROOT / "reproducers").glob("*.py"))
 
 
 def _needs(script: Path) -> list[str]:
-    """The engine's modules the script imports (its ``import`` lines at the top level or in functions)."""
+    """The top-level packages the script imports, the standard library's and numpy left out."""
     names = []
-    for line in script.read_text(encoding="utf-8").splitlines():
-        words = line.split()
-        if len(words) >= 2 and words[0] in ("import", "from"):
-            top = words[1].split(".")[0]
+    for node in ast.walk(ast.parse(script.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            found = [node.module]
+        else:
+            continue
+        for name in found:
+            top = name.split(".")[0]
             if top not in sys.stdlib_module_names and top not in ("numpy", "__future__") and top not in names:
                 names.append(top)
     return names

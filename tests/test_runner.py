@@ -47,23 +47,23 @@ def test_every_mode_within_tolerance(whole_run, name):
     ran = set(run.outcomes) | set(run.not_applicable)
     assert ran == set(ALL_MODES) and run.left_out == {}
     # formulation II applies to every model here; Exudyn's driven mode drives angles only;
-    # PyBullet's and Drake's models hold no pin-in-slot
+    # PyBullet's, Drake's and DART's models hold no pin-in-slot
     mech = run.kinematics.mechanism
     slides = any(d.quantity == "slide" for d in mech.drivers)
     slots = any(type(j).__name__ == "PinInSlot" for j in mech.joints)
     assert set(run.not_applicable) <= (
         {"formulation-I"}
         | ({"exudyn-dynamic"} if slides else set())
-        | ({"pybullet-dynamic", "drake-dynamic"} if slots else set())
+        | ({"pybullet-dynamic", "drake-dynamic", "dart-dynamic"} if slots else set())
     )
     if "exudyn-dynamic" in run.not_applicable:
         assert "slide" in run.not_applicable["exudyn-dynamic"]
-    for mode in ("pybullet-dynamic", "drake-dynamic"):
+    for mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic"):
         if mode in run.not_applicable:
             assert "pin-in-slot" in run.not_applicable[mode]
     for outcome in run.outcomes.values():
         expected = {"position", "velocity", "acceleration"} if outcome.mode == "native" else set(CATEGORIES)
-        if outcome.mode in ("pybullet-dynamic", "drake-dynamic"):  # PyBullet gives none, Drake's not compared
+        if outcome.mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic"):  # PyBullet gives none; not compared
             expected -= {"acceleration", "alpha"}
         assert set(outcome.categories.category) == expected
 
@@ -90,8 +90,8 @@ def test_json_summary_shape(whole_run):
         assert entry["verdict"] == ("finding" if finding else "pass")
         assert (entry["finding"] is not None) is finding
         for category in ("position", "velocity", "acceleration"):
-            # PyBullet gives no accelerations; Drake's are not compared
-            if mode in ("pybullet-dynamic", "drake-dynamic") and category == "acceleration":
+            # PyBullet gives no accelerations; Drake's and DART's are not compared
+            if mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic") and category == "acceleration":
                 assert entry[category] is None
                 continue
             assert isinstance(entry[category], float) and entry[category] >= 0.0

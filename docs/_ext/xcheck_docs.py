@@ -92,7 +92,7 @@ class EngineFacts(_Markdown):
                 )
                 where += f"; series {', '.join(finding.series)}" if finding.series else ""
             else:
-                where = "worked around in xcheck's model"
+                where = "flags no mode's rows"
             lines += ["", f"**Stated finding** ({where}): {_cell(finding.title)}. {_cell(finding.text)}."]
             if finding.reproducer:
                 # the script as its engine's maintainers would run it (docs/engines/NAME.md -> the repository's root)

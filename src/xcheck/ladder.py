@@ -139,8 +139,9 @@ class Finding:
         the repository (``reproducers/NAME.py``: it imports only that engine and
         numpy, prints the measured numbers beside the expected ones, and exits 0
         while the defect shows); the tests run it where the engine is installed.
-        A defect xcheck's model works around (``kinds`` empty: no mode shows it)
-        is stated for its reproducer.
+        A finding that flags no mode's rows (``kinds`` empty: xcheck's model
+        works around the defect, or it shows as the runs' failure) is stated
+        for its reproducer.
     series : tuple of str
         The ladder series (:attr:`Series.key`) it holds for, where it is one of
         an engine's solvers (Newton's Featherstone); empty: every series, and

@@ -1,7 +1,9 @@
-"""DART's modes, as the engine contract calls them: the free ladder of :mod:`.free` (``dart-free``)."""
+"""DART's modes, as the engine contract calls them: the free ladder of :mod:`.free`
+(``dart-free``) and :func:`.dynamic.run_dynamic` (``dart-dynamic``)."""
 
 from __future__ import annotations
 
+from .dynamic import run_dynamic
 from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_dynamic", "run_free_once"]

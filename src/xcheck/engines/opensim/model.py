@@ -30,9 +30,11 @@ __all__ = ["OpenSimModel", "build", "opensim", "refuse"]
 
 def opensim():
     """The ``opensim`` module (imported when a mode runs), its log off: it writes on stdout,
-    where the JSON of ``--json`` goes, and what fails raises as well."""
+    where the JSON of ``--json`` goes, and into ``opensim.log`` in the working folder (a
+    user's), and what fails raises as well."""
     import opensim as osim
 
+    osim.Logger.removeFileSink()
     osim.Logger.setLevel(osim.Logger.Level_Off)
     return osim
 
