@@ -47,18 +47,18 @@ def test_every_mode_within_tolerance(whole_run, name):
     ran = set(run.outcomes) | set(run.not_applicable)
     assert ran == set(ALL_MODES) and run.left_out == {}
     # formulation II applies to every model here; Exudyn's driven mode drives angles only;
-    # PyBullet's, Drake's and DART's models hold no pin-in-slot
+    # PyBullet's, Drake's, DART's and OpenSim's models hold no pin-in-slot
     mech = run.kinematics.mechanism
     slides = any(d.quantity == "slide" for d in mech.drivers)
     slots = any(type(j).__name__ == "PinInSlot" for j in mech.joints)
     assert set(run.not_applicable) <= (
         {"formulation-I"}
         | ({"exudyn-dynamic"} if slides else set())
-        | ({"pybullet-dynamic", "drake-dynamic", "dart-dynamic"} if slots else set())
+        | ({"pybullet-dynamic", "drake-dynamic", "dart-dynamic", "opensim-dynamic"} if slots else set())
     )
     if "exudyn-dynamic" in run.not_applicable:
         assert "slide" in run.not_applicable["exudyn-dynamic"]
-    for mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic"):
+    for mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic", "opensim-dynamic"):
         if mode in run.not_applicable:
             assert "pin-in-slot" in run.not_applicable[mode]
     for outcome in run.outcomes.values():

@@ -88,10 +88,13 @@ class OpenSimModel:
         return self.tree.frames(values, origins)
 
 
-def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None) -> OpenSimModel:
+def build(
+    mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None, prescribed: dict[str, Any] | None = None
+) -> OpenSimModel:
     """The mechanism as an OpenSim model assembled at native body coordinates ``q``
     (x, y, phi per moving body; m, rad), its coordinates' default speeds the rates of
-    ``qd`` (zero without).
+    ``qd`` (zero without); ``prescribed``: tree joint name -> an OpenSim ``Function`` of
+    time that prescribes its coordinate (0 at the build state).
 
     Raises
     ------
@@ -145,6 +148,9 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None) -> OpenS
         coordinate.setDefaultSpeedValue(float(rates[joint.name]))
         coordinate.setRangeMin(-1e6)  # no joint limits: a coordinate turns freely
         coordinate.setRangeMax(1e6)
+        if prescribed and joint.name in prescribed:
+            coordinate.set_prescribed(True)
+            coordinate.setPrescribedFunction(prescribed[joint.name])
         coordinates[joint.name] = coordinate
     for k, (body_a, point_a, body_b, point_b) in enumerate(tree.cuts):
         constraint = osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b))
