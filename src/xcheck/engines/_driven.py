@@ -20,6 +20,8 @@ __all__ = [
     "LEFT_BRANCH",
     "branch_gap_status",
     "driven_result",
+    "driven_start",
+    "driven_trajectory",
     "empty_states",
     "ladder",
     "left_branch",
@@ -207,3 +209,51 @@ def driven_result(
         reason = f"{first['setting']} dt = {first['timestep']:.4g} s: {first['status']}"
         return ModeResult(mode, mech.name, False, reason, trajectories, summary, study)
     return ModeResult(mode, mech.name, True, "", trajectories, summary, study)
+
+
+def driven_start(kinematics: Kinematics, branch: str | None = None):
+    """The simulation window and the native state at t = 0 a driven run starts from:
+    (window, q (n,), qd (n,)), native body coordinates and rates.
+
+    Raises
+    ------
+    ValueError
+        If the native solver does not assemble the mechanism at t = 0.
+    """
+    from xcheck.motion import simulation_window
+
+    window = simulation_window(kinematics, branch)
+    q, qd, qdd = window.inputs(kinematics, np.zeros(1))
+    start = kinematics.solve(q, qd, qdd, branch=branch)
+    if start.status[0] > Status.NEAR_SINGULAR:
+        raise ValueError("the native solver does not assemble the mechanism at t = 0")
+    return window, start.q[0], start.qd[0]
+
+
+def driven_trajectory(
+    mode: str,
+    kinematics: Kinematics,
+    window,
+    states: tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray],
+    accelerations: np.ndarray | None,
+    settings: dict,
+    notes: str,
+) -> Trajectory:
+    """A driven run's samples as a Trajectory at the window's sample times after t = 0.
+
+    Parameters
+    ----------
+    states : (bodies, points, inputs, rates, gaps)
+        As :func:`empty_states` makes them, filled: the inputs and rates as the engine realised them.
+    accelerations : ndarray, shape (N, k), or None
+        The inputs' accelerations as the engine realised them (None: the motion laws').
+    settings : dict
+        The trajectory's settings (integrator, timestep, series, ...).
+    """
+    bodies, points, inputs, rates, gaps = states
+    times = window.times(len(inputs) + 1)[1:]
+    if accelerations is None:
+        accelerations = np.stack([d.law.at_time(times)[2] for d in kinematics.mechanism.drivers], axis=1)
+    law_q, law_qd, _ = window.inputs(kinematics, times)
+    diagnostics = {"input_error": inputs - law_q, "input_rate_error": rates - law_qd, "constraint_violation": gaps}
+    return Trajectory(mode, inputs, rates, accelerations, bodies, points, times, settings, diagnostics, notes)

@@ -94,6 +94,20 @@ class TreeFrames:
             out[joint.name] = float(w_p * np.array([-u[1], u[0]]) @ (r_c - r_p) + u @ (v_c - v_p))
         return out
 
+    def driver_signs(self, mech: Mechanism) -> list[tuple[str, float]]:
+        """Per driver: its tree joint's name and the sign of the joint coordinate against the
+        driver's value (every coordinate is 0 at the build state: value = value there + sign q)."""
+        frames = {j.name: j for j in self.joints}
+        out = []
+        for driver in mech.drivers:
+            joint, tree_joint = mech.joint(driver.joint), frames[driver.joint]
+            if isinstance(joint, Prismatic):  # the line on the parent: the coordinate is the slide's
+                forward = tree_joint.parent == joint.body_a
+            else:  # the child's angle less the parent's: phi_b - phi_a where the child is body_b
+                forward = tree_joint.child == joint.body_b
+            out.append((driver.joint, 1.0 if forward else -1.0))
+        return out
+
     def frames(self, coordinates: dict[str, float], origins: dict[str, np.ndarray]) -> dict[str, tuple]:
         """Per moving body: (origin (2,), angle) with the angle continuous from the
         state the frames were built at: the parent's plus the joint's turn.

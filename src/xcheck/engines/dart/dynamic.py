@@ -27,12 +27,12 @@ import time
 
 import numpy as np
 
-from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states, refined_steps
+from xcheck.engines._contract import NotApplicable, with_unit_mass
+from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
 from xcheck.engines._frames import loop_gap, world_point
-from xcheck.kinematics import Kinematics, Status
-from xcheck.model import GROUND, Prismatic
-from xcheck.motion import simulation_window
+from xcheck.engines._tree import tree_frames
+from xcheck.kinematics import Kinematics
+from xcheck.model import GROUND
 from xcheck.results import ModeResult, Trajectory
 
 from .model import DartModel, build
@@ -49,22 +49,6 @@ SMALLEST_STEP = 1e-4
 SAMPLES = 40
 #: the compared quantities (:func:`~xcheck.engines._driven.driven_result`'s ``errors``)
 ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel"}
-
-
-def _drivers(model: DartModel, kinematics: Kinematics) -> list[tuple[str, float]]:
-    """Per driver: its tree joint's name and the sign of the joint coordinate against the
-    driver's value (the coordinate is 0 at the start: value = start value + sign q)."""
-    mech = kinematics.mechanism
-    frames = {j.name: j for j in model.tree.joints}
-    out = []
-    for driver in mech.drivers:
-        joint, tree_joint = mech.joint(driver.joint), frames[driver.joint]
-        if isinstance(joint, Prismatic):  # the line on the parent: the coordinate is the slide's
-            forward = tree_joint.parent == joint.body_a
-        else:  # the child's angle less the parent's: the driven phi_b - phi_a where the child is body_b
-            forward = tree_joint.child == joint.body_b
-        out.append((driver.joint, 1.0 if forward else -1.0))
-    return out
 
 
 def _states(model: DartModel) -> dict[str, tuple]:
@@ -97,7 +81,7 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
     row["status"] = "ok"
     begin = time.process_time()
     model = build(massive.mechanism, q0, qd0, dt)
-    drivers = _drivers(model, kinematics)
+    drivers = model.tree.driver_signs(mech)
     joints = [model.joints[name] for name, _ in drivers]
     for joint in joints:
         joint.setActuatorType(dart.dynamics.ActuatorType.VELOCITY)
@@ -131,21 +115,13 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
     row["cpu_seconds"] = time.process_time() - begin
     if row["status"] != "ok":
         return row, None
-    times = window.times(SAMPLES + 1)[1:]
-    accelerations = np.stack([d.law.at_time(times)[2] for d in mech.drivers], axis=1)
-    law_q, law_qd, _ = window.inputs(kinematics, times)
-    trajectory = Trajectory(
-        MODE,
-        inputs,
-        rates,
-        accelerations,
-        bodies,
-        points,
-        times,
-        {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per},
-        diagnostics={"input_error": inputs - law_q, "input_rate_error": rates - law_qd, "constraint_violation": gaps},
-        notes=f"DART driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as DART realised them "
-        "(input accelerations: the motion laws'; DART's are not compared).",
+    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+    notes = (
+        f"DART driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as DART realised them "
+        "(input accelerations: the motion laws'; DART's are not compared)."
+    )
+    trajectory = driven_trajectory(
+        MODE, kinematics, window, (bodies, points, inputs, rates, gaps), None, settings, notes
     )
     return row, trajectory
 
@@ -179,24 +155,16 @@ def run_dynamic(
     """
     import dartpy  # noqa: F401 - imported before the first run's clock starts
 
-    from xcheck.engines._tree import tree_frames
-
     mech = kinematics.mechanism
     massive = Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
     try:
-        window = simulation_window(kinematics, branch)
-        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
-        start = kinematics.solve(q, qd, qdd, branch=branch)
-        if start.status[0] > Status.NEAR_SINGULAR:
-            raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        tree_frames(mech, start.q[0], "DART")
+        window, q0, qd0 = driven_start(kinematics, branch)
+        tree_frames(mech, q0, "DART")
         steps = fitted_steps(steps, window.duration / SAMPLES)
         if refine:
             steps = refined_steps(steps[0], refine)
-        runs = [simulate(kinematics, massive, window, start.q[0], start.qd[0], per) for per in steps]
+        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        from xcheck.errors import NotApplicable
-
         if isinstance(error, NotApplicable):
             raise
         return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])

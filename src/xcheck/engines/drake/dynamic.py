@@ -36,11 +36,10 @@ import time
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states, refined_steps
+from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
 from xcheck.engines._frames import loop_gap, world_point
-from xcheck.kinematics import Kinematics, Status
+from xcheck.kinematics import Kinematics
 from xcheck.model import GROUND, Revolute
-from xcheck.motion import simulation_window
 from xcheck.results import ModeResult, Trajectory
 from xcheck.topology import spanning_tree
 
@@ -175,22 +174,13 @@ def simulate(
     row["cpu_seconds"] = time.process_time() - begin
     if row["status"] != "ok":
         return row, None
-    times = window.times(SAMPLES + 1)[1:]
-    accelerations = np.stack([d.law.at_time(times)[2] for d in mech.drivers], axis=1)
-    law_q, law_qd, _ = window.inputs(kinematics, times)
-    trajectory = Trajectory(
-        MODE,
-        inputs,
-        rates,
-        accelerations,
-        bodies,
-        points,
-        times,
-        {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per},
-        diagnostics={"input_error": inputs - law_q, "input_rate_error": rates - law_qd, "constraint_violation": gaps},
-        notes=f"Drake driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as Drake realised them "
-        "(input accelerations: the motion laws'; Drake's are not compared).",
+    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+    notes = (
+        f"Drake driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as Drake realised them "
+        "(input accelerations: the motion laws'; Drake's are not compared)."
     )
+    filled = (bodies, points, inputs, rates, gaps)
+    trajectory = driven_trajectory(MODE, kinematics, window, filled, None, settings, notes)
     return row, trajectory
 
 
@@ -251,12 +241,8 @@ def run_dynamic(
     refuse(mech, spanning_tree(mech))
     drake()  # pydrake imported before the first run's clock starts
     try:
-        window = simulation_window(kinematics, branch)
-        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
-        start = kinematics.solve(q, qd, qdd, branch=branch)
-        if start.status[0] > Status.NEAR_SINGULAR:
-            raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        runs = [simulate(kinematics, massive, window, start.q[0], start.qd[0], per) for per in steps]
+        window, q0, qd0 = driven_start(kinematics, branch)
+        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
     except NotApplicable:
         raise
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line

@@ -26,11 +26,10 @@ import math
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states, refined_steps
+from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
 from xcheck.engines._frames import loop_gap
-from xcheck.kinematics import Kinematics, Status
-from xcheck.model import Prismatic
-from xcheck.motion import simulation_window
+from xcheck.engines._tree import tree_frames
+from xcheck.kinematics import Kinematics
 from xcheck.results import ModeResult, Trajectory
 
 from .model import OpenSimModel, build, opensim
@@ -51,21 +50,6 @@ ERRORS = {
     "acceleration": "rel",
     "alpha": "rel",
 }
-
-
-def _signs(mech, tree) -> list[tuple[str, float]]:
-    """Per driver: its tree joint's name and the sign of the joint coordinate against the
-    driver's value (the coordinate is 0 at the start: value = start value + sign q)."""
-    frames = {j.name: j for j in tree.joints}
-    out = []
-    for driver in mech.drivers:
-        joint, tree_joint = mech.joint(driver.joint), frames[driver.joint]
-        if isinstance(joint, Prismatic):
-            forward = tree_joint.parent == joint.body_a
-        else:
-            forward = tree_joint.child == joint.body_b
-        out.append((driver.joint, 1.0 if forward else -1.0))
-    return out
 
 
 def law_function(law, sign: float):
@@ -96,9 +80,7 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
     row = {"setting": "default", "integrator": "Runge-Kutta-Merson, fixed step, prescribed drivers", "timestep": dt}
     row["status"] = "ok"
     begin = time.process_time()
-    from xcheck.engines._tree import tree_frames
-
-    signs = _signs(mech, tree_frames(mech, q0, "OpenSim"))
+    signs = tree_frames(mech, q0, "OpenSim").driver_signs(mech)
     functions = {name: law_function(d.law, sign) for (name, sign), d in zip(signs, mech.drivers)}
     om: OpenSimModel = build(massive.mechanism, q0, qd0, prescribed=functions)
     model = om.model
@@ -154,21 +136,13 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
     row["cpu_seconds"] = time.process_time() - begin
     if row["status"] != "ok":
         return row, None
-    times = window.times(SAMPLES + 1)[1:]
-    law_q, law_qd, _ = window.inputs(kinematics, times)
-    trajectory = Trajectory(
-        MODE,
-        inputs,
-        rates,
-        accelerations,
-        bodies,
-        points,
-        times,
-        {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per},
-        diagnostics={"input_error": inputs - law_q, "input_rate_error": rates - law_qd, "constraint_violation": gaps},
-        notes=f"OpenSim driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs, rates and accelerations "
-        "as OpenSim realised them.",
+    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+    notes = (
+        f"OpenSim driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs, rates and accelerations "
+        "as OpenSim realised them."
     )
+    filled = (bodies, points, inputs, rates, gaps)
+    trajectory = driven_trajectory(MODE, kinematics, window, filled, accelerations, settings, notes)
     return row, trajectory
 
 
@@ -189,20 +163,14 @@ def run_dynamic(
     NotApplicable
         What :func:`.model.build` cannot hold.
     """
-    from xcheck.engines._tree import tree_frames
-
     mech = kinematics.mechanism
     if refine:
         steps = refined_steps(steps[0], refine)
     massive = Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
     try:
-        window = simulation_window(kinematics, branch)
-        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
-        start = kinematics.solve(q, qd, qdd, branch=branch)
-        if start.status[0] > Status.NEAR_SINGULAR:
-            raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        tree_frames(mech, start.q[0], "OpenSim")
-        runs = [simulate(kinematics, massive, window, start.q[0], start.qd[0], per) for per in steps]
+        window, q0, qd0 = driven_start(kinematics, branch)
+        tree_frames(mech, q0, "OpenSim")
+        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
     except NotApplicable:
         raise
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
