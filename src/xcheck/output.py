@@ -60,7 +60,8 @@ def print_engines(console: Console, rows: list[dict]) -> None:
     for header in ("engine", "version", "mode", "kind", "trusted for", "stated findings"):
         table.add_column(header, no_wrap=header != "stated findings")
     for row in rows:
-        version = row["version"] if row["available"] else f"[red]{escape(row['reason'])}[/red]"
+        # the reason (with its install command) goes under the table: in the column it squeezed the others out
+        version = row["version"] if row["available"] else "[red]not installed[/red]"
         for k, mode in enumerate(row["modes"]):
             findings = ", ".join(_CATEGORY_WORDS.get(c, c) for c in mode["findings"]) or "—"
             loops = [f["closed_loops"] for f in row.get("findings", ()) if mode["kind"] in f["kinds"]]
@@ -75,6 +76,9 @@ def print_engines(console: Console, rows: list[dict]) -> None:
                 f"[yellow]{escape(findings)}[/yellow]" if mode["findings"] else findings,
             )
     print_table(console, table)
+    for row in rows:
+        if not row["available"]:
+            console.print(f"{escape(row['name'])}: [red]{escape(row['reason'])}[/red]", highlight=False)
     console.print(
         "trusted for: a kinematic mode's largest position error per mechanism size; a dynamic mode's expected "
         "order of convergence as the time step halves. How each engine is modelled, its settings and the "
