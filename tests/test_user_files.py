@@ -140,6 +140,8 @@ def test_a_static_mechanism_runs_its_kinematic_modes(tmp_path):
         "pybullet-dynamic",
         "drake-dynamic",
         "mjx-dynamic",
+        "dart-dynamic",
+        "opensim-dynamic",
     }
 
 
@@ -340,12 +342,12 @@ def test_every_mode_runs_within_tolerance_on_the_issue_mechanisms(name, tmp_path
     assert set(document["engines"]) | set(document["not_applicable"]) == set(all_modes())
     # Exudyn's driven mode drives joint angles only (the trammel's and the wedge's inputs are slides)
     slides = name in ("elliptic-trammel", "wedge")
-    # PyBullet's and Drake's models hold no pin-in-slot (the yoke's and the wedge's slots)
+    # PyBullet's, Drake's, DART's and OpenSim's models hold no pin-in-slot (the yoke's and the wedge's slots)
     slots = 'type = "pin-in-slot"' in (DATA / f"{name}.toml").read_text(encoding="utf-8")
     assert set(document["not_applicable"]) <= (
         {"formulation-I"}
         | ({"exudyn-dynamic"} if slides else set())
-        | ({"pybullet-dynamic", "drake-dynamic"} if slots else set())
+        | ({"pybullet-dynamic", "drake-dynamic", "dart-dynamic", "opensim-dynamic"} if slots else set())
     )
 
 

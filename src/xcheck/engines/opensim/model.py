@@ -15,6 +15,7 @@ dampers, rotational springs and loads (not built here).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,9 @@ from xcheck.engines._tree import TreeFrames, tree_frames
 from xcheck.model import GROUND, Mechanism
 
 __all__ = ["OpenSimModel", "build", "opensim", "refuse"]
+
+#: characters OpenSim refuses in a component's name (its component paths use them)
+_NOT_IN_NAMES = re.compile(r"[\\*+\s/]")
 
 
 def opensim():
@@ -52,6 +56,15 @@ def refuse(mech: Mechanism) -> None:
         raise NotApplicable(
             f"spring {damped[0].name!r} has damping: OpenSim's PointToPointSpring has none (not built here)"
         )
+
+
+def component_name(name: str, index: int) -> str:
+    """An OpenSim component's name for xcheck's ``name`` (any text), the ``index``-th of its
+    kind: OpenSim refuses spaces, slashes, ``*``, ``+`` and backslashes in names (and a
+    refused component, once adopted, crashes the process), so these become ``_`` and
+    the index keeps names that differ only there apart."""
+    safe = _NOT_IN_NAMES.sub("_", name)
+    return safe if safe == name else f"{safe}_{index}"
 
 
 @dataclass
@@ -108,7 +121,7 @@ def build(
     refuse(mech)
     tree = tree_frames(mech, q, "OpenSim")
     model = osim.Model()
-    model.setName(mech.name)
+    model.setName(component_name(mech.name, 0))
     gravity = np.asarray(mech.gravity, dtype=float)
     model.setGravity(osim.Vec3(float(gravity[0]), float(gravity[1]), 0.0))
     size = mech.size
@@ -117,12 +130,15 @@ def build(
         return osim.Vec3(float(xy[0]), float(xy[1]), float(z))
 
     bodies: dict[str, Any] = {}
-    for body in mech.moving_bodies:
+    for k, body in enumerate(mech.moving_bodies):
         assert body.mass is not None and body.inertia is not None
         com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
         inertia = positive_inertia(float(body.mass), float(body.inertia), size)
         bodies[body.name] = osim.Body(
-            body.name, float(body.mass), vec3(com), osim.Inertia(inertia, inertia, inertia, 0.0, 0.0, 0.0)
+            component_name(body.name, k),
+            float(body.mass),
+            vec3(com),
+            osim.Inertia(inertia, inertia, inertia, 0.0, 0.0, 0.0),
         )
         model.addBody(bodies[body.name])
 
@@ -131,10 +147,10 @@ def build(
 
     coordinates: dict[str, Any] = {}
     rates = tree.rates(mech, q, np.zeros_like(q) if qd is None else qd)
-    for joint in tree.joints:
+    for k, joint in enumerate(tree.joints):
         kind = osim.PinJoint if joint.kind == "revolute" else osim.SliderJoint
         built = kind(
-            joint.name,
+            component_name(joint.name, k),
             frame(joint.parent),
             vec3(joint.parent_point),
             osim.Vec3(0.0, 0.0, joint.parent_angle),
@@ -157,12 +173,12 @@ def build(
         constraint.setName(f"loop{k}")
         model.addConstraint(constraint)
     owners = mech.point_owners
-    for spring in mech.springs:
+    for k, spring in enumerate(mech.springs):
         (a, pa), (b, pb) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
         force = osim.PointToPointSpring(
             frame(a), vec3(pa), frame(b), vec3(pb), float(spring.stiffness), float(spring.rest_length)
         )
-        force.setName(spring.name)
+        force.setName(component_name(spring.name, k))
         model.addForce(force)
     state = model.initSystem()
     return OpenSimModel(model, state, tree, bodies, coordinates)
