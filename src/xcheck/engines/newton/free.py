@@ -7,10 +7,10 @@ The series, one per solver, each at its defaults on the CPU (warp, float32):
 ``mujoco`` (``SolverMuJoCo`` on MuJoCo's C library, contacts off), ``xpbd``
 (``SolverXPBD``), ``featherstone`` (``SolverFeatherstone``: it ignores loop
 joints, a finding; its rows show the loops coming apart) and ``semi-implicit``
-(``SolverSemiImplicit``). ``SolverSteel`` refuses a loop joint whose parent is
-in another articulation than its child, and takes a single articulation
-otherwise. Each solver's warp kernels compile on its first use on a machine (a
-minute or more, cached after in warp's kernel cache).
+(``SolverSemiImplicit``). ``SolverSteel`` is not a series (built as two
+articulations, the four-bar's loop joint was refused: its parent must be in the
+child's articulation). Each solver's warp kernels compile on its first use on a
+machine (a minute or more, cached after in warp's kernel cache).
 """
 
 from __future__ import annotations

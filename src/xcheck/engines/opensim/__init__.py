@@ -5,7 +5,7 @@ in free motion by Simbody's integrators with projection onto the constraints
 
 from __future__ import annotations
 
-from xcheck.engines._contract import Engine, Mode
+from xcheck.engines._contract import Engine, Finding, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, Tolerance
 
 __all__ = ["OpenSim"]
@@ -21,6 +21,23 @@ _DYNAMIC = Tolerance(
     "observed order 4.0 in every quantity over models/ (fourbar positions 2.1e-8, 1.4e-9, 8.7e-11 m, "
     "accelerations 4.6e-7 .. 1.9e-9 relative; task-2-1 7.9e-7 .. 3.4e-9 m), loops closed to 3e-7 m or less"
     + CONVERGENCE_NOTE,
+)
+
+
+#: Shown as failed runs on the double four-bar; stated for its reproducer.
+_SINGULAR_PASS = Finding(
+    "Simbody's Merson runs break down at a double four-bar's third or fourth singular pass",
+    "On the IFToMM double four-bar (A02, cut at the second and third cranks' tips by PointConstraints) "
+    "Runge-Kutta-Merson at fixed steps of 1, 0.5, 0.25 ms with projection onto the constraints keeps the "
+    "energy to 1.4e-6, 2.4e-4, 2.1e-2 J until it breaks down at the third or fourth singular pass "
+    "(2.66, 3.18, 3.17 s: the energy off by joules, or non-finite; opensim 4.6). On xcheck's model of A02 "
+    "its fixed-step runs turn non-finite at 6.4, 3.75, 3.2 s and its error-controlled ones leave the "
+    "parallelogram branch at 2.7 s, where xcheck's native reference, Exudyn and DART pass every singular "
+    "pass of the 10 s",
+    ("position", "angle"),
+    kinds=(),
+    closed_loops=True,
+    reproducer="reproducers/opensim_singular_pass.py",
 )
 
 
@@ -44,6 +61,7 @@ class OpenSim(Engine):
         ),
         Mode("opensim-free", "free", FREE_MOTION, style=dict(color="tab:olive", lw=1, ls="-")),
     )
+    findings = (_SINGULAR_PASS,)
     color = "tab:olive"
     notes = (
         "Revolute and prismatic joints: an OpenSim Model of PinJoint and SliderJoint (xcheck's body frames as "
