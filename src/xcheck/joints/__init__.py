@@ -8,12 +8,12 @@ engine's kinematic tree makes of it. :data:`JOINT_TYPES` maps a mechanism file's
 ``type`` to the class.
 """
 
-from ._base import Action, Joint
+from ._base import Action, Joint, converter
 from ._gear import GearPair
 from ._line import LineJoint, PinInSlot, Prismatic
 from ._revolute import Revolute
 
-__all__ = ["Action", "Joint", "GearPair", "LineJoint", "PinInSlot", "Prismatic", "Revolute", "JOINT_TYPES"]
+__all__ = ["Action", "Joint", "converter", "GearPair", "LineJoint", "PinInSlot", "Prismatic", "Revolute", "JOINT_TYPES"]
 
 #: every joint type by its ``type`` in a mechanism file
 JOINT_TYPES: dict[str, type[Joint]] = {cls.kind: cls for cls in (Revolute, Prismatic, PinInSlot, GearPair)}

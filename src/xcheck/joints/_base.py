@@ -5,17 +5,19 @@ and wires, each type adds its geometry and small hooks).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, ClassVar
+from typing import TYPE_CHECKING, Callable, ClassVar, TypeVar
 
 import numpy as np
 
+from ..errors import NotApplicable
 from ._terms import Term
 
 if TYPE_CHECKING:
     from ..kinematics import Solution
 
-__all__ = ["Joint", "Action", "Locate"]
+__all__ = ["Joint", "Action", "Locate", "converter"]
 
 #: (body name, point label or None) -> (the body's index, -1 for the ground; the point in its
 #: frame (2,), m, or its origin where no label is given)
@@ -74,6 +76,10 @@ class Joint:
     tree_rank : int
         An engine that builds a kinematic tree takes the connecting joints of
         lower rank first (after the driven ones) and closes the loops at the rest.
+    tree_axes : tuple of str
+        What it is as a tree joint, from the parent side: ``"hinge"`` (a turn
+        about z at its point) and ``"slide"`` (along its line), in order; empty
+        where it is never a tree joint.
     """
 
     name: str
@@ -87,6 +93,7 @@ class Joint:
     pivots: ClassVar[bool] = False
     connects: ClassVar[bool] = True
     tree_rank: ClassVar[int] = 0
+    tree_axes: ClassVar[tuple[str, ...]] = ()
 
     @property
     def bodies(self) -> tuple[str, ...]:
@@ -102,6 +109,19 @@ class Joint:
         """``phi_b - phi_a`` (rad) where it keeps its bodies' relative angle (an
         engine closing a loop cut at it welds rather than pins), else None."""
         return None
+
+    @property
+    def tree_points(self) -> tuple[str, str]:
+        """The labels of ``body_a`` and ``body_b`` that coincide where its tree
+        coordinates are zero (a pin's two points; a line's point and the sliding point)."""
+        raise NotImplementedError(f"a {self.kind} joint is no tree joint")
+
+    def coordinate(self, state) -> tuple[float, float]:
+        """Its driven quantity (rad or m) and rate at one state: ``state(body, label)``
+        gives a body point's (position (2,), velocity (2,)) and the body's (angle,
+        angular rate), with ``label`` None for the frame's origin (any engine's
+        state read back the same way)."""
+        raise TypeError(f"a {self.kind} joint has no coordinate")
 
     def needs_in_tree(self) -> tuple[str, ...]:
         """The joints (by name) an engine's kinematic tree must hold for it: a
@@ -139,3 +159,29 @@ class Joint:
     def driver_actions(self, solution: Solution) -> list[Action]:
         """What a unit driving effort does to the bodies (Newton-Euler form)."""
         raise TypeError(f"a {self.kind} joint cannot be driven")
+
+
+T = TypeVar("T")
+
+
+def converter(table: Mapping[type, T | str], joint: Joint, engine: str) -> T:
+    """An engine's converter for a joint, found by its type: the entry of
+    ``table`` for the joint's class, or its nearest base class that has one.
+
+    Raises
+    ------
+    NotApplicable
+        Where the entry is a string: the reason the engine cannot hold such a
+        joint, formatted with the joint's ``name`` and ``kind`` where it names
+        them (``"a loop is cut at the {kind} joint {name!r}: ..."``), else after
+        "joint NAME is a KIND joint: "; or where there is no entry.
+    """
+    for cls in type(joint).__mro__:
+        if cls in table:
+            entry = table[cls]
+            if isinstance(entry, str):
+                if "{name" in entry or "{kind" in entry:
+                    raise NotApplicable(entry.format(name=joint.name, kind=joint.kind))
+                raise NotApplicable(f"joint {joint.name!r} is a {joint.kind} joint: {entry}")
+            return entry
+    raise NotApplicable(f"joint {joint.name!r} is a {joint.kind} joint, which {engine} here has no converter for")

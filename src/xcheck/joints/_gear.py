@@ -87,11 +87,12 @@ class GearPair(Joint):
         return [Angles(a, b, c, self.coefficients(), offset, is_angle=False)]
 
     # -- dynamics ---------------------------------------------------------
-    def pitch_point(self, solution) -> tuple[np.ndarray, np.ndarray]:
-        """The pitch point P (N, 2) and the unit direction t (N, 2) in which a
-        positive tooth force pushes gear b there (turning it counter-clockwise):
-        P divides the line of centres as the radii do, t = R (P - B) / r_b."""
-        a, b = (solution.point(label, body)["position"] for body, label in self._centres())
+    def pitch_point(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pitch point P and the unit direction t in which a positive tooth
+        force pushes gear b there (turning it counter-clockwise), from the gears'
+        centres ``a`` and ``b`` (N, 2), m: P divides the line of centres as the
+        radii do, t = R (P - B) / r_b; (N, 2) each."""
+        a, b = np.atleast_2d(a), np.atleast_2d(b)
         s, ra, rb = self.sigma, self.radius_a, self.radius_b
         p = (rb * a + s * ra * b) / (rb + s * ra)
         t = (p - b) / rb
@@ -108,7 +109,7 @@ class GearPair(Joint):
 
     def reactions_from_unknowns(self, unknowns, solution):
         force = unknowns[:, 0]
-        _, t = self.pitch_point(solution)
+        _, t = self.pitch_point(*(solution.point(label, body)["position"] for body, label in self._centres()))
         return {"reaction": force[:, None] * t, "tooth_force": force}
 
     def _centres(self) -> tuple[tuple[str, str], tuple[str, str]]:

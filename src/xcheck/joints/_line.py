@@ -41,6 +41,18 @@ class LineJoint(Joint):
         return ((self.body_b, self.point),)  # the line's points only place the line
 
     @property
+    def tree_points(self):
+        return (self.line_point, self.point)
+
+    def coordinate(self, state):
+        r_line, v_line, phi_a, omega_a = state(self.body_a, self.line_point)
+        r_point, v_point, _, _ = state(self.body_b, self.point)
+        u = rotate(phi_a, self.direction)
+        gap = np.asarray(r_point) - np.asarray(r_line)
+        turning = omega_a * np.array([-u[1], u[0]])
+        return float(u @ gap), float(turning @ gap + u @ (np.asarray(v_point) - np.asarray(v_line)))
+
+    @property
     def normal(self) -> np.ndarray:
         """The line's left normal in ``body_a``'s frame, (2,)."""
         return np.array([-self.direction[1], self.direction[0]])
@@ -89,6 +101,7 @@ class Prismatic(LineJoint):
 
     kind = "prismatic"
     rows = 2
+    tree_axes = ("slide",)
     quantities = ("reaction", "normal", "moment")
 
     @property
@@ -116,5 +129,6 @@ class PinInSlot(LineJoint):
 
     kind = "pin-in-slot"
     rows = 1
+    tree_axes = ("slide", "hinge")
     quantities = ("reaction", "normal")
     pivots = True

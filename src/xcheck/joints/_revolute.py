@@ -29,6 +29,15 @@ class Revolute(Joint):
     quantities = ("reaction",)
     pivots = True
     tree_rank = 1  # loops are cut at revolutes: a point constraint closes them
+    tree_axes = ("hinge",)
+
+    @property
+    def tree_points(self):
+        return (self.point_a, self.point_b)
+
+    def coordinate(self, state):
+        (_, _, phi_a, omega_a), (_, _, phi_b, omega_b) = state(self.body_a, None), state(self.body_b, None)
+        return phi_b - phi_a, omega_b - omega_a
 
     def anchors(self):
         return ((self.body_a, self.point_a), (self.body_b, self.point_b))

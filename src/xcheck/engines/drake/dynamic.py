@@ -39,7 +39,7 @@ from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
 from xcheck.engines._frames import loop_gap, world_point
 from xcheck.kinematics import Kinematics
-from xcheck.model import GROUND, Revolute
+from xcheck.model import GROUND
 from xcheck.results import ModeResult, Trajectory
 from xcheck.topology import spanning_tree
 
@@ -68,7 +68,7 @@ def gains(kinematics: Kinematics, dt: float, stiffness: float = STIFFNESS, dampi
     mass = sum(float(b.mass or 0.0) for b in mech.moving_bodies)
     out = {}
     for driver in mech.drivers:
-        inertia = mass * mech.size**2 if isinstance(mech.joint(driver.joint), Revolute) else mass
+        inertia = mass * mech.size**2 if driver.quantity == "angle" else mass
         kp = stiffness * inertia / dt**2
         out[driver.joint] = (kp, damping * kp * dt)
     return out
@@ -82,7 +82,7 @@ def _signs(kinematics: Kinematics) -> list[tuple[str, float]]:
     out = []
     for driver in mech.drivers:
         tj = tree[driver.joint]
-        flipped = isinstance(tj.joint, Revolute) and tj.child != tj.joint.body_b
+        flipped = tj.joint.tree_axes == ("hinge",) and tj.child != tj.joint.body_b  # a revolute against its order
         out.append((tj.child, -1.0 if flipped else 1.0))
     return out
 

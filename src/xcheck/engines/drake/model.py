@@ -37,7 +37,7 @@ which runs.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,8 +46,9 @@ import numpy as np
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import NotApplicable
 from xcheck.engines._frames import world_point
+from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism
 from xcheck.topology import Topology, spanning_tree
 
 __all__ = ["DrakeModel", "apply_loads", "build", "drake", "energy", "refuse", "set_state"]
@@ -121,18 +122,11 @@ def drake():
 
 def refuse(mech: Mechanism, topology: Topology) -> None:
     """:class:`NotApplicable` with the reason if the Drake model here cannot hold the mechanism."""
-    slots = [j for j in mech.joints if isinstance(j, PinInSlot)]
-    if slots:
-        raise NotApplicable(
-            f"joint {slots[0].name!r} is a pin-in-slot: Drake has no pin-in-slot joint and xcheck's Drake model "
-            "has revolute and prismatic joints only (a massless carrier link is not built)"
-        )
-    sliding = [j for j in topology.cuts if not isinstance(j, Revolute)]
-    if sliding:
-        raise NotApplicable(
-            f"a loop is cut at the prismatic joint {sliding[0].name!r}: xcheck's Drake model closes loops with "
-            "ball constraints only (a carrier welded by AddWeldConstraint is not built)"
-        )
+    for each in mech.joints:
+        if each.connects:
+            converter(_TREE_JOINTS, each, "Drake")
+    for closing in topology.cuts:
+        converter(_CLOSURES, closing, "Drake")
     cut = {j.name for j in topology.cuts}
     across = [s for s in mech.rotational_springs if s.joint in cut]
     if across:
@@ -145,6 +139,75 @@ def refuse(mech: Mechanism, topology: Topology) -> None:
         raise NotApplicable(
             f"spring {short[0].name!r} has rest length 0: Drake's LinearSpringDamper needs a positive free length"
         )
+
+
+def _revolute(tj, j: Revolute, frame, tree_module, damping: dict, xyz):
+    """A revolute: Drake's revolute joint between frames at the pin in each body's orientation
+    (its angle the child's minus the parent's)."""
+    l_parent, l_child = j.tree_points[::-1] if tj.reversed else j.tree_points
+    joint = tree_module.RevoluteJoint(
+        j.name, frame(j.name, tj.parent, l_parent), frame(j.name, tj.child, l_child), [0.0, 0.0, 1.0],
+        damping.get(j.name, 0.0),
+    )  # fmt: skip
+    return joint, 0.0
+
+
+def _prismatic(tj, j: Prismatic, frame, tree_module, damping: dict, xyz):
+    """A prismatic joint: Drake's prismatic joint along the line, the sliding body's frame turned by its
+    locked angle."""
+    d = np.asarray(j.direction, dtype=float)
+    if not tj.reversed:  # the line is the parent's: the child's point slides along it
+        on_parent, on_child = frame(j.name, j.body_a, j.line_point), frame(j.name, j.body_b, j.point, -j.angle)
+        axis, turn = d, j.angle
+    else:  # the line is the child's: frames in the line's orientation, the slide reversed
+        on_parent, on_child = frame(j.name, j.body_b, j.point, -j.angle), frame(j.name, j.body_a, j.line_point)
+        axis, turn = -d, -j.angle
+    return tree_module.PrismaticJoint(j.name, on_parent, on_child, xyz(axis)), turn
+
+
+#: a tree joint as a Drake joint, by its type: (the joint, its child's angle minus its parent's at zero)
+_TREE_JOINTS: dict[type, Callable | str] = {
+    Revolute: _revolute,
+    Prismatic: _prismatic,
+    PinInSlot: "joint {name!r} is a pin-in-slot: Drake has no pin-in-slot joint and xcheck's Drake model has "
+    "revolute and prismatic joints only (a massless carrier link is not built)",
+}
+
+
+def _ball(plant, cut: Revolute, mech: Mechanism, anchor, of, joints: dict, topology: Topology, xyz):
+    """A loop cut at a revolute: a ball constraint between its two points."""
+    (a, pa), (b, pb) = ((body, np.asarray(mech.body(body).points[label], dtype=float)) for body, label in cut.anchors())
+    plant.AddBallConstraint(anchor if a == GROUND else of(a), xyz(pa), anchor if b == GROUND else of(b), xyz(pb))
+    return (a, pa, b, pb)
+
+
+def _coupler(plant, gear: GearPair, mech: Mechanism, anchor, of, joints: dict, topology: Topology, xyz):
+    """A gear pair: Drake's coupler constraint q_pin_b = rho q_pin_a + offset between its gears'
+    revolutes, whose angles are the gears' rotations relative to the carrier up to a sign s
+    (-1 where the carrier is the child): rho = -sigma s_a s_b r_a / r_b, offset = s_b phase."""
+    tree = {tj.joint.name: tj for tj in topology.tree}
+    signs = []
+    for pin, body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
+        if pin not in tree:
+            raise NotApplicable(
+                f"gear pair {gear.name!r}: its gear {body}'s revolute {pin!r} closes a loop, and Drake's coupler "
+                "constraint couples tree joints"
+            )
+        signs.append(1.0 if tree[pin].child == body else -1.0)
+    rho = -gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b
+    plant.AddCouplerConstraint(
+        joints[tree[gear.pin_b].child], joints[tree[gear.pin_a].child], rho, signs[1] * gear.phase
+    )
+    return None
+
+
+#: how a loop cut at each joint type is closed (its two points, or None)
+_CLOSURES: dict[type, Callable | str] = {
+    Revolute: _ball,
+    LineJoint: "a loop is cut at the {kind} joint {name!r}: xcheck's Drake model closes loops with ball constraints "
+    "only (a carrier welded by AddWeldConstraint is not built)",
+    GearPair: _coupler,
+}
 
 
 def build(kinematics: Kinematics, dt: float, pd: Mapping[str, tuple[float, float]] | None = None) -> DrakeModel:
@@ -203,34 +266,7 @@ def build(kinematics: Kinematics, dt: float, pd: Mapping[str, tuple[float, float
     turns: dict[str, float] = {}
     for tj in topology.tree:
         j = tj.joint
-        if isinstance(j, Revolute):
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            joint = tree_module.RevoluteJoint(
-                j.name,
-                frame(j.name, tj.parent, l_parent),
-                frame(j.name, tj.child, l_child),
-                [0.0, 0.0, 1.0],
-                damping.get(j.name, 0.0),
-            )
-            turn = 0.0
-        else:
-            assert isinstance(j, Prismatic)
-            d = np.asarray(j.direction, dtype=float)
-            if not tj.reversed:  # the line is the parent's: the child's point slides along it
-                on_parent, on_child, axis, turn = (
-                    frame(j.name, j.body_a, j.line_point),
-                    frame(j.name, j.body_b, j.point, -j.angle),
-                    d,
-                    j.angle,
-                )
-            else:  # the line is the child's: frames in the line's orientation, the slide reversed
-                on_parent, on_child, axis, turn = (
-                    frame(j.name, j.body_b, j.point, -j.angle),
-                    frame(j.name, j.body_a, j.line_point),
-                    -d,
-                    -j.angle,
-                )
-            joint = tree_module.PrismaticJoint(j.name, on_parent, on_child, xyz(axis))
+        joint, turn = converter(_TREE_JOINTS, j, "Drake")(tj, j, frame, tree_module, damping, xyz)
         joints[tj.child] = plant.AddJoint(joint)
         if pd and j.name in pd:
             actuator = plant.AddJointActuator(j.name, joints[tj.child])
@@ -269,18 +305,9 @@ def build(kinematics: Kinematics, dt: float, pd: Mapping[str, tuple[float, float
             tree_module.WeldJoint("ground-anchor", world.body_frame(), anchor.body_frame(), RigidTransform())
         )
     for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        pa, pb = (
-            np.asarray(mech.body(n).points[label], dtype=float)
-            for n, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b))
-        )
-        plant.AddBallConstraint(
-            anchor if cut.body_a == GROUND else of(cut.body_a),
-            xyz(pa),
-            anchor if cut.body_b == GROUND else of(cut.body_b),
-            xyz(pb),
-        )
-        cuts.append((cut.body_a, pa, cut.body_b, pb))
+        ends = converter(_CLOSURES, cut, "Drake")(plant, cut, mech, anchor, of, joints, topology, xyz)
+        if ends is not None:
+            cuts.append(ends)
     plant.mutable_gravity_field().set_gravity_vector(xyz(mech.gravity))
     plant.Finalize()
     loads = [
@@ -340,14 +367,11 @@ def set_state(model: DrakeModel, kinematics: Kinematics, q: np.ndarray, qd: np.n
             joint.set_angle(context, phi - phi0)
             joint.set_angular_rate(context, omega - omega0)
             continue
-        j = mech.joint(joint.name())
-        assert isinstance(j, Prismatic)
-        r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
-        r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
-        u = rotate(phi_a, j.direction)
-        gap = r_point - r_line
-        joint.set_translation(context, float(u @ gap))
-        joint.set_translation_rate(context, float(omega_a * np.array([-u[1], u[0]]) @ gap + u @ (v_point - v_line)))
+        value, rate = mech.joint(joint.name()).coordinate(
+            lambda body, label: state(body, None if label is None else mech.body(body).points[label])
+        )
+        joint.set_translation(context, value)
+        joint.set_translation_rate(context, rate)
     size = mech.size
     for name, (origin, phi, velocity, omega) in model.frames().items():
         k = index[name]

@@ -20,12 +20,14 @@ at a prismatic joint is not converted, as in free motion
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from xml.sax.saxutils import escape
 
 import numpy as np
 
+from xcheck.joints import GearPair, Prismatic, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, Prismatic, Revolute
+from xcheck.model import GROUND
 from xcheck.precision import number, numbers
 from xcheck.topology import spanning_tree
 
@@ -117,17 +119,11 @@ def sdf_text(kinematics: Kinematics) -> str:
     if defaults:
         lines += [f"    Default mass properties (the mechanism gives none) for {', '.join(defaults)}."]
     lines += ["  -->"]
+    for cut in topology.cuts:  # what the file cannot hold, said before it is written
+        converter(_LOOPS, cut, "Drake's SDF")
     for tj in topology.tree:
         j = tj.joint
-        if isinstance(j, Revolute):
-            at = j.point_a if tj.reversed else j.point_b
-            kind, axis = "revolute", np.array([0.0, 0.0, 1.0])
-        else:
-            assert isinstance(j, Prismatic)
-            at = j.line_point if tj.reversed else j.point
-            # the line's direction in the child's frame: body_a's direction, turned back by the locked angle on body_b
-            d = np.asarray(j.direction, dtype=float) if tj.reversed else rotate(-j.angle, j.direction)
-            kind, axis = "prismatic", np.array([d[0], d[1], 0.0])
+        at, kind, axis = converter(_JOINTS, j, "Drake's SDF")(tj, j)
         point = mech.body(tj.child).points[at]
         parent = "ground" if tj.parent == GROUND else tj.parent
         body_lines += [
@@ -139,19 +135,47 @@ def sdf_text(kinematics: Kinematics) -> str:
             "    </joint>",
         ]
     for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        a, b = ("ground" if n == GROUND else n for n in (cut.body_a, cut.body_b))
-        pa, pb = mech.body(cut.body_a).points[cut.point_a], mech.body(cut.body_b).points[cut.point_b]
-        body_lines += [
-            "    <!-- loop cut at " + _name(cut.name).replace("--", "- -") + " -->",
-            "    <drake:ball_constraint>",
-            f"      <drake:ball_constraint_body_A>{_name(a)}</drake:ball_constraint_body_A>",
-            f"      <drake:ball_constraint_body_B>{_name(b)}</drake:ball_constraint_body_B>",
-            f"      <drake:ball_constraint_p_AP>{_vec(pa[0], pa[1], 0.0, scale=size)}</drake:ball_constraint_p_AP>",
-            f"      <drake:ball_constraint_p_BQ>{_vec(pb[0], pb[1], 0.0, scale=size)}</drake:ball_constraint_p_BQ>",
-            "    </drake:ball_constraint>",
-        ]
+        body_lines += converter(_LOOPS, cut, "Drake's SDF")(mech, cut, size)
     return "\n".join([*lines, *body_lines, "  </model>", "</sdf>", ""])
+
+
+def _revolute(tj, j: Revolute) -> tuple[str, str, np.ndarray]:
+    """A revolute: an SDF revolute joint at the child's pin point, about z."""
+    return (j.point_a if tj.reversed else j.point_b), "revolute", np.array([0.0, 0.0, 1.0])
+
+
+def _prismatic(tj, j: Prismatic) -> tuple[str, str, np.ndarray]:
+    """A prismatic joint: an SDF prismatic joint at the child's point, along the line in the child's frame
+    (body_a's direction, turned back by the locked angle on body_b)."""
+    d = np.asarray(j.direction, dtype=float) if tj.reversed else rotate(-j.angle, j.direction)
+    return (j.line_point if tj.reversed else j.point), "prismatic", np.array([d[0], d[1], 0.0])
+
+
+#: a tree joint in the SDF, by its type: (its point on the child, SDF type, axis)
+_JOINTS: dict[type, Callable] = {Revolute: _revolute, Prismatic: _prismatic}
+
+
+def _ball(mech, cut: Revolute, size: float) -> list[str]:
+    """A loop cut at a revolute: Drake's ball constraint between its two points."""
+    a, b = ("ground" if n == GROUND else n for n in (cut.body_a, cut.body_b))
+    pa, pb = (mech.body(body).points[label] for body, label in cut.anchors())
+    return [
+        "    <!-- loop cut at " + _name(cut.name).replace("--", "- -") + " -->",
+        "    <drake:ball_constraint>",
+        f"      <drake:ball_constraint_body_A>{_name(a)}</drake:ball_constraint_body_A>",
+        f"      <drake:ball_constraint_body_B>{_name(b)}</drake:ball_constraint_body_B>",
+        f"      <drake:ball_constraint_p_AP>{_vec(pa[0], pa[1], 0.0, scale=size)}</drake:ball_constraint_p_AP>",
+        f"      <drake:ball_constraint_p_BQ>{_vec(pb[0], pb[1], 0.0, scale=size)}</drake:ball_constraint_p_BQ>",
+        "    </drake:ball_constraint>",
+    ]
+
+
+#: a loop cut in the SDF, by its type
+_LOOPS: dict[type, Callable | str] = {
+    Revolute: _ball,
+    GearPair: "Drake's SDF parser here makes no coupler constraint of SDFormat's <mimic> (xcheck's Drake modes "
+    "build the coupler themselves)",
+}
 
 
 def export_files(kinematics: Kinematics) -> dict[str, str]:

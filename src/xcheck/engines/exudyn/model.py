@@ -23,15 +23,16 @@ A massless moving body cannot be held (its mass matrix is singular):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, positive_inertia
-from xcheck.joints import LineJoint
+from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import rotate
-from xcheck.model import GROUND, Mechanism, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism
 
 __all__ = ["Setting", "ExudynModel", "build_system", "energy", "joint_gaps", "matched", "refuse", "solver_settings"]
 
@@ -99,8 +100,81 @@ def refuse(mech: Mechanism) -> None:
             f"massless body {massless[0]}: Exudyn's RigidBody2D needs a positive mass (its mass matrix is singular)"
         )
     for joint in mech.joints:
-        if not isinstance(joint, (Revolute, Prismatic, PinInSlot)):
-            raise NotApplicable(f"joint {joint.name}: no Exudyn 2-D joint for {type(joint).__name__}")
+        converter(_JOINTS, joint, "Exudyn")
+
+
+def _revolute(mech: Mechanism, joint: Revolute, ei, mbs, nodes, reference, position_marker, rigid_marker):
+    """A revolute: Exudyn's 2-D revolute joint between its two points."""
+    markers = [position_marker(body, label) for body, label in joint.anchors()]
+    return ei.ObjectJointRevolute2D(markerNumbers=markers, visualization=ei.VObjectJointRevolute2D(show=False))
+
+
+def _prismatic(mech: Mechanism, joint: LineJoint, ei, mbs, nodes, reference, position_marker, rigid_marker):
+    """A line joint: Exudyn's 2-D prismatic joint, (p_line - p_pin) . A_a n = 0 with marker 0 the pin
+    (body_b) and marker 1 the line (body_a); a prismatic joint also keeps the pin's axis A_b t0 (= A_a d
+    at the locked angle) normal to A_a n (constrainRotation)."""
+    d = np.asarray(joint.direction, dtype=float)
+    normal = np.array([-d[1], d[0]])
+    axis = rotate(-(joint.locked_angle or 0.0), d)
+    pin = rigid_marker(joint.body_b, mech.body(joint.body_b).points[joint.point])
+    line = rigid_marker(joint.body_a, mech.body(joint.body_a).points[joint.line_point])
+    return ei.ObjectJointPrismatic2D(
+        markerNumbers=[pin, line],
+        axisMarker0=[float(axis[0]), float(axis[1]), 0.0],
+        normalMarker1=[float(normal[0]), float(normal[1]), 0.0],
+        constrainRotation=joint.locked_angle is not None,
+        visualization=ei.VObjectJointPrismatic2D(show=False),
+    )
+
+
+def _gear(mech: Mechanism, gear: GearPair, ei, mbs, nodes, reference, position_marker, rigid_marker):
+    """A gear pair: Exudyn's coordinate constraint, factor1 q_j - q_i = offset, between two nodes'
+    angle coordinates (displacements from their reference angles): the row k_i phi_i + k_j phi_j =
+    offset where the third of the gears and the carrier is the ground."""
+    offset = gear.sigma * gear.radius_b * gear.phase
+    moving = [(body, k) for body, k in zip(gear.bodies, gear.coefficients()) if body != GROUND]
+    if len(moving) > 2:
+        raise NotApplicable(
+            f"gear pair {gear.name!r} couples three moving bodies ({', '.join(b for b, _ in moving)}): Exudyn's "
+            "coordinate constraint couples two coordinates"
+        )
+    (i, k_i), (j, k_j) = moving
+    markers = [mbs.AddMarker(ei.MarkerNodeCoordinate(nodeNumber=nodes[body], coordinate=2)) for body in (i, j)]
+    constant = (k_i * reference[i][2] + k_j * reference[j][2] - offset) / k_i
+    return ei.CoordinateConstraint(markerNumbers=markers, factor1=-k_j / k_i, offset=constant)
+
+
+#: a joint as an Exudyn object, by its type
+_JOINTS: dict[type, Callable] = {Revolute: _revolute, LineJoint: _prismatic, GearPair: _gear}
+
+
+def _pin_gap(joint: Revolute, where, angles: dict, size: float) -> np.ndarray:
+    gap = where(joint.body_a, joint.point_a) - where(joint.body_b, joint.point_b)
+    return np.hypot(gap[:, 0], gap[:, 1])
+
+
+def _line_gap(joint: LineJoint, where, angles: dict, size: float) -> np.ndarray:
+    phi_a = angles[joint.body_a] if joint.body_a != GROUND else 0.0
+    d = rotate(phi_a, np.asarray(joint.direction, dtype=float)) if joint.body_a != GROUND else joint.direction
+    d = np.broadcast_to(np.asarray(d, dtype=float), (len(next(iter(angles.values()))), 2))
+    off = where(joint.body_b, joint.point) - where(joint.body_a, joint.line_point)
+    value = np.abs(off[:, 0] * d[:, 1] - off[:, 1] * d[:, 0])
+    if joint.locked_angle is not None:
+        phi_b = angles[joint.body_b] if joint.body_b != GROUND else 0.0
+        value = np.maximum(value, size * np.abs(np.asarray(phi_b - phi_a) - joint.locked_angle))
+    return value
+
+
+def _mesh_gap(gear: GearPair, where, angles: dict, size: float) -> np.ndarray:
+    """The arcs the pitch circles have slipped by, m."""
+    total = -gear.sigma * gear.radius_b * gear.phase
+    for body, k in zip(gear.bodies, gear.coefficients()):
+        total = total + k * (angles[body] if body != GROUND else 0.0)
+    return np.abs(np.broadcast_to(total, (len(next(iter(angles.values()))),)))
+
+
+#: how far a joint has come apart, by its type
+_GAPS: dict[type, Callable] = {Revolute: _pin_gap, LineJoint: _line_gap, GearPair: _mesh_gap}
 
 
 def _mass(body, size: float) -> tuple[float, float]:
@@ -170,29 +244,8 @@ def build_system(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> ExudynModel:
         return mbs.AddMarker(ei.MarkerBodyRigid(bodyNumber=bodies[body], localPosition=local(body, xy)))
 
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            markers = [position_marker(joint.body_a, joint.point_a), position_marker(joint.body_b, joint.point_b)]
-            mbs.AddObject(
-                ei.ObjectJointRevolute2D(markerNumbers=markers, visualization=ei.VObjectJointRevolute2D(show=False))
-            )
-            continue
-        assert isinstance(joint, LineJoint)
-        # (p_line - p_pin) . A_a n = 0 with marker 0 the pin (body_b) and marker 1 the line (body_a);
-        # a prismatic joint also keeps the pin's axis A_b t0 (= A_a d at the locked angle) normal to A_a n
-        d = np.asarray(joint.direction, dtype=float)
-        normal = np.array([-d[1], d[0]])
-        angle = joint.angle if isinstance(joint, Prismatic) else 0.0
-        axis = rotate(-angle, d)
-        pin = rigid_marker(joint.body_b, mech.body(joint.body_b).points[joint.point])
-        line = rigid_marker(joint.body_a, mech.body(joint.body_a).points[joint.line_point])
         mbs.AddObject(
-            ei.ObjectJointPrismatic2D(
-                markerNumbers=[pin, line],
-                axisMarker0=[float(axis[0]), float(axis[1]), 0.0],
-                normalMarker1=[float(normal[0]), float(normal[1]), 0.0],
-                constrainRotation=isinstance(joint, Prismatic),
-                visualization=ei.VObjectJointPrismatic2D(show=False),
-            )
+            converter(_JOINTS, joint, "Exudyn")(mech, joint, ei, mbs, nodes, reference, position_marker, rigid_marker)
         )
     gravity = np.asarray(mech.gravity, dtype=float)
     if np.any(gravity != 0.0):
@@ -295,19 +348,7 @@ def joint_gaps(mech: Mechanism, points: dict, angles: dict) -> np.ndarray:
         return c
 
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            gap = where(joint.body_a, joint.point_a) - where(joint.body_b, joint.point_b)
-            value = np.hypot(gap[:, 0], gap[:, 1])
-        else:
-            assert isinstance(joint, LineJoint)
-            phi_a = angles[joint.body_a] if joint.body_a != GROUND else 0.0
-            d = rotate(phi_a, np.asarray(joint.direction, dtype=float)) if joint.body_a != GROUND else joint.direction
-            d = np.broadcast_to(np.asarray(d, dtype=float), (len(next(iter(angles.values()))), 2))
-            off = where(joint.body_b, joint.point) - where(joint.body_a, joint.line_point)
-            value = np.abs(off[:, 0] * d[:, 1] - off[:, 1] * d[:, 0])
-            if isinstance(joint, Prismatic):
-                phi_b = angles[joint.body_b] if joint.body_b != GROUND else 0.0
-                value = np.maximum(value, size * np.abs(np.asarray(phi_b - phi_a) - joint.angle))
+        value = converter(_GAPS, joint, "Exudyn")(joint, where, angles, size)
         gaps = value if gaps is None else np.maximum(gaps, value)
     return np.zeros(len(next(iter(angles.values())))) if gaps is None else gaps
 

@@ -27,16 +27,17 @@ The MJCF writer's input joints have ``qpos`` equal to the driven quantity, so
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 
 from xcheck.dynamics import Forces, applied_loads, determined_states
-from xcheck.joints import LineJoint
+from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
+from xcheck.model import GROUND
 
-from .mjcf import Layout, carrier_name, joint_coordinates, mass_properties, weld_site
+from .mjcf import Layout, carrier_name, coupling, joint_coordinates, mass_properties, weld_site
 from .oracle import Oracle
 
 __all__ = ["inverse_forces"]
@@ -86,18 +87,9 @@ def inverse_forces(
         dyn.body_ipos[body], dyn.body_iquat[body] = [*props.com, 0.0], [1.0, 0.0, 0.0, 0.0]
     data = mujoco.MjData(dyn)
     nv, n = dyn.nv, inputs.shape[0]
-    cuts = lay.topology.cuts
-    cut_sites = []  # per cut: (site on body_a's side, site on body_b, with a moment?)
-    for c in cuts:
-        if isinstance(c, Revolute):
-            cut_sites.append((dyn.site(f"{c.body_a}.{c.point_a}").id, dyn.site(f"{c.body_b}.{c.point_b}").id, False))
-            continue
-        carrier = dyn.body(carrier_name(c)).id
-        dyn.body_mass[carrier], dyn.body_inertia[carrier] = 0.0, 0.0
-        other = f"{c.body_b}.{c.point}" if isinstance(c, PinInSlot) else weld_site(c)
-        cut_sites.append((dyn.site(carrier_name(c)).id, dyn.site(other).id, isinstance(c, Prismatic)))
-    carriers = any(not isinstance(c, Revolute) for c in cuts)
-    unknowns = sum(3 if moment else 2 for _, _, moment in cut_sites)
+    cuts = [converter(_CUTS, cut, "MuJoCo")(cut, dyn, lay) for cut in lay.topology.cuts]
+    carriers = any(cut.carrier for cut in cuts)
+    unknowns = sum(cut.count for cut in cuts)
     loads = [(load, dyn.body(load.body).id) for load in applied_loads(solution)]  # springs' pulls included
     body_ids = {b.name: dyn.body(b.name).id for b in mech.moving_bodies}
     joints, drivers = {}, {d.name: {"effort": np.full(n, np.nan)} for d in mech.drivers}
@@ -129,15 +121,8 @@ def inverse_forces(
             force, torque = np.array([*load.force[i], 0.0]), np.array([0.0, 0.0, load.torque[i]])
             mujoco.mj_applyFT(dyn, data, force, torque, at, body, applied)
             load_wrenches.append((body, force, torque, at))
-        columns = []
-        for site_a, site_b, moment in cut_sites:
-            mujoco.mj_jacSite(dyn, data, jacp_a, jacr_a, site_a)
-            mujoco.mj_jacSite(dyn, data, jacp_b, jacr_b, site_b)
-            columns.append((jacp_a[:2] - jacp_b[:2]).T)  # force on site a's body; its opposite on b's
-            if moment:  # a couple on site a's body; its opposite on b's
-                columns.append((jacr_a[2:] - jacr_b[2:]).T)
-        columns.append(oracle.selector.T)
-        matrix = np.hstack(columns)
+        columns = [column[:, None] for cut in cuts for column in cut.columns(dyn, data)]
+        matrix = np.hstack([*columns, oracle.selector.T])
         rhs = rne - applied
         x = np.linalg.solve(matrix, rhs)
         residual[i] = np.linalg.norm(matrix @ x - rhs) / max(float(np.linalg.norm(rhs)), 1e-300)
@@ -150,49 +135,23 @@ def inverse_forces(
             data.xfrc_applied[body, :3] += force
             data.xfrc_applied[body, 3:] += torque + np.cross(at - data.xipos[body], force)
         offset = 0
-        for cut, (site_a, site_b, has_moment) in zip(cuts, cut_sites):
-            f = np.array([x[offset], x[offset + 1], 0.0])
-            couple = np.array([0.0, 0.0, x[offset + 2] if has_moment else 0.0])
-            offset += 3 if has_moment else 2
-            for site, sign in ((site_a, 1.0), (site_b, -1.0)):
-                body = dyn.site_bodyid[site]
-                if body == 0:
-                    continue
-                data.xfrc_applied[body, :3] += sign * f
-                arm = data.site_xpos[site] - data.xipos[body]
-                data.xfrc_applied[body, 3:] += np.cross(arm, sign * f) + sign * couple
-            out = joints[cut.name]
-            out["reaction"][i] = -f[:2]  # f acts on body_a (through the carrier): body_a on body_b is -f
-            if isinstance(cut, LineJoint):
-                u = rotate(_angle(data, body_ids, cut.body_a), cut.direction)
-                out["normal"][i] = -f[:2] @ np.array([-u[1], u[0]])
-                if has_moment:  # about the sliding point, where both sites are
-                    out["moment"][i] = -couple[2]
+        for cut in cuts:
+            values = x[offset : offset + cut.count]
+            offset += cut.count
+            cut.apply(values, dyn, data)
+            for quantity, value in cut.reactions(values, dyn, data, body_ids).items():
+                joints[cut.joint.name][quantity][i] = value
         mujoco.mj_rnePostConstraint(dyn, data)
 
         for tj in lay.topology.tree:
-            joint, child = tj.joint, tj.child
-            body = body_ids[child]
+            body = body_ids[tj.child]
             wrench = data.cfrc_int[body]  # [torque, force] about the subtree's centre of mass, world axes
             reference = data.subtree_com[dyn.body_rootid[body]]
-            force = wrench[3:5].copy()
             sign = -1.0 if tj.reversed else 1.0  # cfrc_int: parent on child; we want body_a on body_b
-            out = joints[joint.name]
-            if isinstance(joint, Revolute):
-                out["reaction"][i] = sign * force
-                continue
-            assert isinstance(joint, LineJoint)
-            at = _site_position(dyn, data, joint.body_b, joint.point)
-            moment = wrench[2] + _cross(reference[:2] - at, force)
-            force_ab, moment_ab = sign * force, sign * moment
-            u = rotate(_angle(data, body_ids, joint.body_a), joint.direction)
-            normal = np.array([-u[1], u[0]])
-            if joint.name in driven:
-                force_ab = force_ab - tau[driven[joint.name]] * u
-            out["reaction"][i] = force_ab
-            out["normal"][i] = force_ab @ normal
-            if isinstance(joint, Prismatic):
-                out["moment"][i] = moment_ab
+            effort = tau[driven[tj.joint.name]] if tj.joint.name in driven else 0.0
+            read = converter(_TREE, tj.joint, "MuJoCo")
+            for quantity, value in read(tj.joint, sign * wrench, reference, effort, dyn, data, body_ids).items():
+                joints[tj.joint.name][quantity][i] = value
     return Forces(
         "mujoco",
         inputs,
@@ -207,6 +166,131 @@ def inverse_forces(
         "from [J_cut^T S^T] x = rne - loads (mj_jacSite, mj_applyFT); tree joints' reactions "
         "from cfrc_int (mj_rnePostConstraint with the cut forces and loads as xfrc_applied).",
     )
+
+
+class _Cut:
+    """A loop cut at a revolute: a force at its two points' sites (the base of
+    the cuts whose unknowns are a force at two sites)."""
+
+    carrier = False
+    moment = False
+
+    def __init__(self, joint, dyn: mujoco.MjModel, lay: Layout):
+        self.joint = joint
+        self.sites = self._sites(joint, dyn)
+        self.count = 3 if self.moment else 2
+        self._jac = [(np.zeros((3, dyn.nv)), np.zeros((3, dyn.nv))) for _ in range(2)]
+
+    def _sites(self, joint, dyn: mujoco.MjModel) -> tuple[int, int]:
+        a, b = (dyn.site(f"{body}.{label}").id for body, label in joint.anchors())
+        return a, b
+
+    def columns(self, dyn: mujoco.MjModel, data: mujoco.MjData) -> list[np.ndarray]:
+        """Its unknowns' generalised forces (nv, each): a force on site a's body (its opposite on b's), a couple."""
+        for site, (jacp, jacr) in zip(self.sites, self._jac):
+            mujoco.mj_jacSite(dyn, data, jacp, jacr, site)
+        (jacp_a, jacr_a), (jacp_b, jacr_b) = self._jac
+        columns = list((jacp_a[:2] - jacp_b[:2]))
+        return columns + [jacr_a[2] - jacr_b[2]] if self.moment else columns
+
+    def apply(self, x: np.ndarray, dyn: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Its solved force and couple as xfrc_applied on the bodies it joins."""
+        f = np.array([x[0], x[1], 0.0])
+        couple = np.array([0.0, 0.0, x[2] if self.moment else 0.0])
+        for site, sign in zip(self.sites, (1.0, -1.0)):
+            body = dyn.site_bodyid[site]
+            if body == 0:
+                continue
+            data.xfrc_applied[body, :3] += sign * f
+            arm = data.site_xpos[site] - data.xipos[body]
+            data.xfrc_applied[body, 3:] += np.cross(arm, sign * f) + sign * couple
+
+    def reactions(self, x: np.ndarray, dyn: mujoco.MjModel, data: mujoco.MjData, body_ids: dict) -> dict:
+        return {"reaction": -x[:2]}  # x acts on body_a: body_a on body_b is -x
+
+
+class _CarrierCut(_Cut):
+    """A loop cut at a pin-in-slot or prismatic joint: a force (and, welded to a
+    block, a couple) between its carrier, massless here, and the pin or block."""
+
+    carrier = True
+
+    def __init__(self, joint: LineJoint, dyn: mujoco.MjModel, lay: Layout):
+        self.moment = joint.locked_angle is not None
+        carrier = dyn.body(carrier_name(joint)).id
+        dyn.body_mass[carrier], dyn.body_inertia[carrier] = 0.0, 0.0
+        super().__init__(joint, dyn, lay)
+
+    def _sites(self, joint, dyn: mujoco.MjModel) -> tuple[int, int]:
+        other = weld_site(joint) if self.moment else f"{joint.body_b}.{joint.point}"
+        return dyn.site(carrier_name(joint)).id, dyn.site(other).id
+
+    def reactions(self, x: np.ndarray, dyn: mujoco.MjModel, data: mujoco.MjData, body_ids: dict) -> dict:
+        out = super().reactions(x, dyn, data, body_ids)  # x acts on body_a through the carrier
+        u = rotate(_angle(data, body_ids, self.joint.body_a), self.joint.direction)
+        out["normal"] = -x[:2] @ np.array([-u[1], u[0]])
+        return out | ({"moment": -x[2]} if self.moment else {})  # about the sliding point, where both sites are
+
+
+class _Coupling:
+    """A gear pair's unknown: its joint equality's force, a generalised force
+    on its gears' revolutes (:func:`~xcheck.engines.mujoco.mjcf.coupling`)."""
+
+    carrier = False
+    count = 1
+
+    def __init__(self, gear: GearPair, dyn: mujoco.MjModel, lay: Layout):
+        self.joint = gear
+        self.k, _, self.s_b = coupling(gear, lay)
+        self.column = np.zeros(dyn.nv)
+        self.column[dyn.joint(gear.pin_b).dofadr[0]] = 1.0
+        self.column[dyn.joint(gear.pin_a).dofadr[0]] = -self.k
+        self.centres = [dyn.site(f"{body}.{label}").id for body, label in gear._centres()]
+
+    def columns(self, dyn: mujoco.MjModel, data: mujoco.MjData) -> list[np.ndarray]:
+        return [self.column]
+
+    def tooth_force(self, x: np.ndarray) -> float:
+        """The tooth force (N): x is the row q_b - k q_a's force, a torque s_b x on gear b about its
+        centre (relative to the carrier), which the tooth force makes at radius r_b."""
+        return float(self.s_b * x[0] / self.joint.radius_b)
+
+    def apply(self, x: np.ndarray, dyn: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Its couples on the gears and the carrier (the coupling's row's coefficients times sigma F)."""
+        force = self.tooth_force(x)
+        for body, coefficient in zip(self.joint.bodies, self.joint.coefficients()):
+            if body != GROUND:
+                data.xfrc_applied[dyn.body(body).id, 5] += coefficient * self.joint.sigma * force
+
+    def reactions(self, x: np.ndarray, dyn: mujoco.MjModel, data: mujoco.MjData, body_ids: dict) -> dict:
+        force = self.tooth_force(x)
+        _, t = self.joint.pitch_point(*(data.site_xpos[site][:2] for site in self.centres))
+        return {"tooth_force": force, "reaction": force * t[0]}
+
+
+#: a loop cut's unknowns, by the cut joint's type
+_CUTS: dict[type, type] = {Revolute: _Cut, LineJoint: _CarrierCut, GearPair: _Coupling}
+
+
+def _pin(joint, wrench, reference, effort, dyn, data, body_ids) -> dict:
+    """A tree revolute's reaction: the force its parent transmits (body_a on body_b)."""
+    return {"reaction": wrench[3:5].copy()}
+
+
+def _line(joint, wrench, reference, effort, dyn, data, body_ids) -> dict:
+    """A tree line joint's reaction: the force normal to its line (less a driven slide's effort along it)
+    and, prismatic, the couple about the sliding point."""
+    force = wrench[3:5].copy()
+    at = _site_position(dyn, data, joint.body_b, joint.point)
+    moment = wrench[2] + _cross(reference[:2] - at, force)
+    u = rotate(_angle(data, body_ids, joint.body_a), joint.direction)
+    force = force - effort * u
+    out = {"reaction": force, "normal": force @ np.array([-u[1], u[0]])}
+    return out | ({"moment": moment} if joint.locked_angle is not None else {})
+
+
+#: a tree joint's reactions from the wrench its parent transmits, by its type
+_TREE: dict[type, Callable[..., dict]] = {Revolute: _pin, LineJoint: _line}
 
 
 def _angle(data: mujoco.MjData, body_ids: dict, body: str) -> float:

@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from xcheck.engines._contract import positive_inertia
-from xcheck.errors import XcheckError
-from xcheck.joints import LineJoint
+from xcheck.errors import NotApplicable, XcheckError
+from xcheck.joints import GearPair, LineJoint, converter
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
 from xcheck.motion import simulation_window
@@ -73,6 +73,7 @@ __all__ = [
     "carrier_note",
     "weld_site",
     "carrier_split",
+    "coupling",
     "file_mass_properties",
     "joint_coordinates",
     "mjcf_text",
@@ -184,7 +185,7 @@ def carrier_split(
         line_body.mass if line_body is not None else DEFAULT_MASS,
     )
     mass, com, inertia = carrier
-    if isinstance(cut, PinInSlot):
+    if cut.locked_angle is None:  # a pin's carrier turns with the slot: MuJoCo needs it some inertia
         inertia = _carrier_inertia(mass, mechanism.size**2)
     if rest is None:
         return MassProperties(mass, com, inertia, False), None
@@ -204,7 +205,7 @@ def carrier_note(mechanism: Mechanism, topology: Topology) -> str:
     pins = {
         name: props
         for name, props in carriers.items()
-        if isinstance(mechanism.joint(name[: -len(".carrier")]), PinInSlot)
+        if mechanism.joint(name.removesuffix(".carrier")).locked_angle is None
     }
     text = (
         f"Loops with no undriven revolute are closed through carrier bodies ({', '.join(carriers)}) whose "
@@ -231,7 +232,7 @@ def file_mass_properties(mechanism: Mechanism, topology: Topology) -> tuple[dict
     bodies = mass_properties(mechanism)
     carriers = {}
     for cut in topology.cuts:
-        if isinstance(cut, Revolute):
+        if not isinstance(cut, LineJoint):
             continue
         carrier, rest = carrier_split(mechanism, cut, bodies.get(cut.body_b), bodies.get(cut.body_a))
         carriers[carrier_name(cut)] = carrier
@@ -273,15 +274,17 @@ def _site(body: str, label: str) -> str:
     return f"{body}.{label}"
 
 
+def _mj_name(joint: Joint, kind: str) -> str:
+    """The MuJoCo joint of a tree joint's axis ``kind``: the joint's name, or
+    ``"<joint>.<kind>"`` where it has two (a pin-in-slot: a slide and a hinge)."""
+    return joint.name if len(joint.tree_axes) == 1 else f"{joint.name}.{kind}"
+
+
 def _tree_joints(tj: TreeJoint) -> list[tuple[str, str]]:
-    """(MuJoCo joint name, kind) of a tree joint, in the order the body applies them."""
-    joint = tj.joint
-    if isinstance(joint, Revolute):
-        return [(joint.name, "hinge")]
-    if isinstance(joint, Prismatic):
-        return [(joint.name, "slide")]
-    pair = [(f"{joint.name}.slide", "slide"), (f"{joint.name}.hinge", "hinge")]
-    return pair[::-1] if tj.reversed else pair
+    """(MuJoCo joint name, kind) of a tree joint, in the order the body applies them:
+    its axes from the parent side (:attr:`~xcheck.joints.Joint.tree_axes`)."""
+    axes = tj.joint.tree_axes[::-1] if tj.reversed else tj.joint.tree_axes
+    return [(_mj_name(tj.joint, kind), kind) for kind in axes]
 
 
 def _children(topology: Topology) -> dict[str, list[TreeJoint]]:
@@ -294,7 +297,7 @@ def _children(topology: Topology) -> dict[str, list[TreeJoint]]:
 
 def _carried(topology: Topology, body: str) -> list:
     """The pin-in-slot and prismatic cuts whose line is on ``body`` (their carriers hang from it)."""
-    return [cut for cut in topology.cuts if not isinstance(cut, Revolute) and cut.body_a == body]
+    return [cut for cut in topology.cuts if isinstance(cut, LineJoint) and cut.body_a == body]
 
 
 def layout(mechanism: Mechanism) -> Layout:
@@ -320,7 +323,7 @@ def layout(mechanism: Mechanism) -> Layout:
     driver_joints = []
     for driver in mechanism.drivers:
         joint = mechanism.joint(driver.joint)
-        driver_joints.append(f"{joint.name}.slide" if isinstance(joint, PinInSlot) else joint.name)
+        driver_joints.append(_mj_name(joint, "hinge" if driver.quantity == "angle" else "slide"))
     return Layout(topology, tuple(joints), tuple(driver_joints))
 
 
@@ -341,19 +344,18 @@ def joint_coordinates(mechanism: Mechanism, lay: Layout, q: np.ndarray) -> np.nd
     for i, body in enumerate(mechanism.moving_bodies):
         frames[body.name] = (np.asarray(q[3 * i : 3 * i + 2]), float(q[3 * i + 2]))
 
-    def world(body: str, label: str) -> np.ndarray:
+    def state(body: str, label: str | None):
         r, phi = frames[body]
-        return r + rotate(phi, mechanism.body(body).points[label])
+        at = r if label is None else r + rotate(phi, mechanism.body(body).points[label])
+        return at, np.zeros(2), phi, 0.0
 
     qpos = []
     for mj in lay.joints:
         joint = mj.joint
         if mj.kind == "hinge":
             qpos.append(frames[joint.body_b][1] - frames[joint.body_a][1])
-        else:
-            assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
-            direction = rotate(frames[joint.body_a][1], joint.direction)
-            qpos.append(float(direction @ (world(joint.body_b, joint.point) - world(joint.body_a, joint.line_point))))
+        else:  # a slide: its joint's (or, a carrier's, its cut's) slide displacement
+            qpos.append(joint.coordinate(state)[0])
     return np.array(qpos)
 
 
@@ -448,6 +450,61 @@ def _assembled(
         moved.append((name, kind, back, direction))
         suffix = _compose(_joint_motion(kind, anchor, axis, refs[name]), suffix)
     return total, moved[::-1]
+
+
+def _connect(cut: Revolute, lay: Layout, refs: dict) -> tuple[str, dict]:
+    """A loop cut at a revolute: a connect between its two points' sites."""
+    return "connect", {"site1": _site(cut.body_a, cut.point_a), "site2": _site(cut.body_b, cut.point_b)}
+
+
+def _hold(cut: PinInSlot, lay: Layout, refs: dict) -> tuple[str, dict]:
+    """A loop cut at a pin-in-slot: the carrier on the slot connected to the pin."""
+    return "connect", {"site1": carrier_name(cut), "site2": _site(cut.body_b, cut.point)}
+
+
+def _weld(cut: Prismatic, lay: Layout, refs: dict) -> tuple[str, dict]:
+    """A loop cut at a prismatic joint: the carrier on the line welded to the block."""
+    return "weld", {"site1": carrier_name(cut), "site2": weld_site(cut)}
+
+
+def coupling(gear: GearPair, lay: Layout) -> tuple[float, float, float]:
+    """A gear pair in its gears' revolutes' coordinates, which are the gears'
+    rotations relative to the carrier up to a sign s per pin (a pin's ``qpos``
+    is ``phi_b - phi_a`` of its own joint): the mesh, r_a (phi_a - phi_c) +
+    sigma r_b (phi_b - phi_c - phase) = 0, is q_pin_b = s_b phase + k q_pin_a.
+
+    Returns
+    -------
+    (k, s_a, s_b), k = -sigma s_a s_b r_a / r_b.
+
+    Raises
+    ------
+    NotApplicable
+        Where a gear's revolute closes a loop: a joint equality couples tree joints only.
+    """
+    hinges = {mj.name for mj in lay.joints if mj.kind == "hinge"}
+    signs = []
+    for pin, gear_body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
+        if pin not in hinges:
+            raise NotApplicable(
+                f"gear pair {gear.name!r}: its gear {gear_body}'s revolute {pin!r} closes a loop, and MuJoCo's joint "
+                "equality couples tree joints only"
+            )
+        revolute = next(tj.joint for tj in lay.topology.tree if tj.joint.name == pin)
+        signs.append(1.0 if revolute.body_b == gear_body else -1.0)
+    return -gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b, signs[0], signs[1]
+
+
+def _couple(gear: GearPair, lay: Layout, refs: dict) -> tuple[str, dict]:
+    """A gear pair: a joint equality between its gears' revolutes (:func:`coupling`);
+    MuJoCo keeps q_b - ref_b = c0 + k (q_a - ref_a), so c0 = s_b phase + k ref_a - ref_b."""
+    k, _, s_b = coupling(gear, lay)
+    c0 = s_b * gear.phase + k * refs[gear.pin_a] - refs[gear.pin_b]
+    return "joint", {"joint1": gear.pin_b, "joint2": gear.pin_a, "polycoef": _vec(c0, k, 0.0, 0.0, 0.0)}
+
+
+#: how a loop cut at each joint type is closed (the gear pair is always such a "cut")
+_CLOSURES: dict[type, Any] = {Revolute: _connect, PinInSlot: _hold, Prismatic: _weld, GearPair: _couple}
 
 
 def _comment(text: str) -> ET.Element[Any]:
@@ -562,11 +619,11 @@ def mjcf_text(kinematics: Kinematics) -> str:
         """The sites that prismatic cuts weld to: at the sliding point, turned by -angle (so that the
         weld holds phi_b - phi_a = angle)."""
         for cut in lay.topology.cuts:
-            if isinstance(cut, Prismatic) and cut.body_b == body:
+            if isinstance(cut, LineJoint) and cut.locked_angle is not None and cut.body_b == body:
                 xy = mech.body(body).points[cut.point]
                 attrs = {"name": weld_site(cut), "pos": _vec(xy[0], xy[1], 0.0, scale=size)}
-                if cut.angle != 0.0:
-                    attrs["axisangle"] = _vec(0.0, 0.0, 1.0, -cut.angle)
+                if cut.locked_angle != 0.0:
+                    attrs["axisangle"] = _vec(0.0, 0.0, 1.0, -cut.locked_angle)
                 ET.SubElement(el, "site", attrs)
 
     worldbody = ET.SubElement(root, "worldbody")
@@ -581,12 +638,8 @@ def mjcf_text(kinematics: Kinematics) -> str:
         parent = mech.body(tj.parent)
         # the two points that coincide at zero joint coordinates: the pin's, or the
         # line point (body_a) and the sliding point (body_b)
-        if isinstance(joint, Revolute):
-            point_a, point_b = joint.point_a, joint.point_b
-        else:
-            assert isinstance(joint, LineJoint)
-            point_a, point_b = joint.line_point, joint.point
-        angle = joint.angle if isinstance(joint, Prismatic) else 0.0  # phi_b - phi_a, locked
+        point_a, point_b = joint.tree_points
+        angle = joint.locked_angle or 0.0  # phi_b - phi_a, locked
         if tj.reversed:
             s_parent, s_child, angle = parent.points[point_b], body.points[point_a], -angle
         else:
@@ -677,20 +730,8 @@ def mjcf_text(kinematics: Kinematics) -> str:
     if lay.topology.cuts:
         equality = ET.SubElement(root, "equality")
         for cut in lay.topology.cuts:
-            if isinstance(cut, Revolute):
-                ET.SubElement(
-                    equality,
-                    "connect",
-                    name=cut.name,
-                    site1=_site(cut.body_a, cut.point_a),
-                    site2=_site(cut.body_b, cut.point_b),
-                )
-            elif isinstance(cut, PinInSlot):
-                ET.SubElement(
-                    equality, "connect", name=cut.name, site1=carrier_name(cut), site2=_site(cut.body_b, cut.point)
-                )
-            else:
-                ET.SubElement(equality, "weld", name=cut.name, site1=carrier_name(cut), site2=weld_site(cut))
+            tag, attrs = converter(_CLOSURES, cut, "MuJoCo")(cut, lay, refs)
+            ET.SubElement(equality, tag, {"name": cut.name, **attrs})
 
     if mech.springs:  # spatial tendons between the ends' sites: MuJoCo's tendon spring-damper is the same law
         tendon = ET.SubElement(root, "tendon")

@@ -8,7 +8,6 @@ import mujoco
 import numpy as np
 
 from xcheck.errors import XcheckError
-from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism
 
@@ -78,21 +77,18 @@ def joint_velocities(mechanism: Mechanism, lay: Layout, q: np.ndarray, qd: np.nd
             float(qd[3 * i + 2]),
         )
 
-    def world(body: str, label: str) -> tuple[np.ndarray, np.ndarray]:
+    def state(body: str, label: str | None):
         r, phi, v, w = frames[body]
+        if label is None:
+            return r, v, phi, w
         arm = rotate(phi, mechanism.body(body).points[label])
-        return r + arm, v + w * np.array([-arm[1], arm[0]])
+        return r + arm, v + w * np.array([-arm[1], arm[0]]), phi, w
 
     qvel = []
     for mj in lay.joints:
         joint = mj.joint
         if mj.kind == "hinge":
             qvel.append(frames[joint.body_b][3] - frames[joint.body_a][3])
-        else:
-            assert isinstance(joint, LineJoint)  # a slide belongs to a line joint
-            phi_a, w_a = frames[joint.body_a][1], frames[joint.body_a][3]
-            direction = rotate(phi_a, joint.direction)
-            turning = w_a * np.array([-direction[1], direction[0]])
-            (p_b, v_b), (p_a, v_a) = world(joint.body_b, joint.point), world(joint.body_a, joint.line_point)
-            qvel.append(float(turning @ (p_b - p_a) + direction @ (v_b - v_a)))
+        else:  # a slide: its joint's (or, a carrier's, its cut's) slide displacement
+            qvel.append(joint.coordinate(state)[1])
     return np.array(qvel)

@@ -88,11 +88,9 @@ class Oracle:
         self.bodies = [(b.name, model.body(b.name).id) for b in mechanism.moving_bodies]
         owners = mechanism.point_owners
         self.points = [(label, model.site(f"{owners[label]}.{label}").id) for label in owners]
-        # (site 1, site 2, weld?) per equality: connects give 3 rows, welds 6 (translation, then rotation)
-        self.equalities = [
-            (model.eq_obj1id[i], model.eq_obj2id[i], model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD)
-            for i in range(model.neq)
-        ]
+        # (object 1, object 2, type) per equality: a connect gives 3 rows (its sites' points), a weld 6
+        # (translation, then rotation), a joint equality (a gear pair) 1 (its joints' coordinates)
+        self.equalities = [(model.eq_obj1id[i], model.eq_obj2id[i], model.eq_type[i]) for i in range(model.neq)]
         self._jacp, self._jacr = np.zeros((3, self.nv)), np.zeros((3, self.nv))
         # coordinates made dimensionless: hinges in rad, slides per mechanism size
         self.coordinate_scale = np.array(
@@ -122,7 +120,9 @@ class Oracle:
             mujoco.mju_sparse2dense(dense, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
         else:
             dense = d.efc_J[: d.nefc * self.nv].reshape(d.nefc, self.nv)
-        return d.efc_pos[rows].copy(), dense[rows].copy()
+        # a joint equality's row is in radians: in metres, as the native residual's, times the size
+        scale = np.where(m.eq_type[d.efc_id[rows]] == mujoco.mjtEq.mjEQ_JOINT, self.size, 1.0)
+        return d.efc_pos[rows] * scale, dense[rows] * scale[:, None]
 
     def _system(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The loop rows stacked over the input rows: residual (r,) and matrix (r + k, nv)."""
@@ -236,16 +236,20 @@ class Oracle:
 
         A weld's rotation rows have no drift in a plane: their Jacobian is
         constant (rotations about z only) and their residual, the vector part
-        of the relative quaternion, has a zero second-order term where it is zero.
+        of the relative quaternion, has a zero second-order term where it is
+        zero; a joint equality (a gear pair's, linear) has none either.
         """
         m, d = self.model, self.data
         d.qpos[:], d.qvel[:] = qpos, qvel
         mujoco.mj_fwdPosition(m, d)
         mujoco.mj_comVel(m, d)
         out = []
-        for site1, site2, weld in self.equalities:
-            out.append(self._point_drift(site1, qvel) - self._point_drift(site2, qvel))
-            if weld:
+        for obj1, obj2, kind in self.equalities:
+            if kind == mujoco.mjtEq.mjEQ_JOINT:  # linear in the joints' coordinates: no drift
+                out.append(np.zeros(1))
+                continue
+            out.append(self._point_drift(obj1, qvel) - self._point_drift(obj2, qvel))
+            if kind == mujoco.mjtEq.mjEQ_WELD:
                 out.append(np.zeros(3))
         return np.concatenate(out) if out else np.zeros(0)
 

@@ -26,6 +26,7 @@ import pandas as pd
 import pinocchio as pin
 
 from xcheck.engines._driven import refined_steps
+from xcheck.errors import NotApplicable
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import convergence_study, observed_order
 from xcheck.motion import simulation_window
@@ -327,6 +328,8 @@ def run_dynamic(
         if not converged:
             raise ValueError("the native configuration at t = 0 does not close Pinocchio's loops")
         v0 = oracle.rates(q0, c0[1])
+    except NotApplicable:
+        raise  # what Pinocchio cannot hold: the mode does not apply
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(MODE, mech.name, False, one_line(error))
 

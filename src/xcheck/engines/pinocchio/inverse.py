@@ -20,13 +20,15 @@ accelerations with the drift of the frames' classical accelerations). Then:
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pinocchio as pin
 
 from xcheck.dynamics import Forces, applied_loads, determined_states
-from xcheck.joints import LineJoint
+from xcheck.joints import LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics
-from xcheck.model import GROUND, Prismatic, Revolute
+from xcheck.model import GROUND
 
 from .model import build_model, joint_coordinates, point_frame, tree_spec
 from .oracle import Oracle
@@ -119,31 +121,13 @@ def inverse_forces(
         cut_forces = []
         for c, cut in enumerate(cuts):
             f = x[offsets[c] : offsets[c] + 2]
-            couple = x[offsets[c] + 2] if isinstance(cut, Prismatic) else 0.0
-            if isinstance(cut, Revolute):
-                for body, label, sign in ((cut.body_a, cut.point_a, 1.0), (cut.body_b, cut.point_b, -1.0)):
-                    if body == GROUND:
-                        continue
-                    at = data.oMf[point_ids[point_frame(body, label)]].translation[:2]
-                    cut_forces.append((body_joint[body], _force(sign * f, at)))
-            else:  # anchor 1 on the carrier, anchor 2 on body_b, both at the sliding point
-                cm = pm.constraints[c]
-                for jid, placement, sign in (
-                    (cm.joint1_id, cm.joint1_placement, 1.0),
-                    (cm.joint2_id, cm.joint2_placement, -1.0),
-                ):
-                    if jid == 0:
-                        continue
-                    at = (data.oMi[jid] * placement).translation[:2]
-                    cut_forces.append((jid, _force(sign * f, at, sign * couple)))
+            couple = x[offsets[c] + 2] if cut.locked_angle is not None else 0.0
             out = joints[cut.name]
             out["reaction"][i] = -f  # f acts on body_a: body_a on body_b is -f
-            if isinstance(cut, LineJoint):
-                line = np.eye(3) if cut.body_a == GROUND else data.oMf[pm.body_frames[cut.body_a]].rotation
-                u = line[:2, :2] @ cut.direction
-                out["normal"][i] = -f @ np.array([-u[1], u[0]])
-                if isinstance(cut, Prismatic):
-                    out["moment"][i] = -couple  # about the sliding point
+            found = converter(_CUT_FORCES, cut, "Pinocchio")(cut, f, couple, pm, data, point_ids, body_joint, c)
+            cut_forces += found[0]
+            for quantity, value in found[1].items():
+                out[quantity][i] = value
         remaining = pin.rnea(model, data, q, v, a, external(applied + cut_forces))
         residual[i] = np.linalg.norm(remaining - selector.T @ efforts) / max(float(np.linalg.norm(tau)), 1e-300)
 
@@ -154,22 +138,10 @@ def inverse_forces(
             world = data.oMi[jid].act(data.f[jid])  # parent on the subtree, about the world origin
             sign = 1.0 if parent == joint.body_a else -1.0
             force = sign * world.linear[:2]
-            out = joints[joint.name]
-            if isinstance(joint, Revolute):
-                out["reaction"][i] = force
-                continue
-            assert isinstance(joint, LineJoint)
-            at = data.oMf[point_ids[point_frame(joint.body_b, joint.point)]].translation[:2]
-            moment = sign * world.angular[2] - (at[0] * force[1] - at[1] * force[0])
-            line = np.eye(3) if joint.body_a == GROUND else data.oMf[pm.body_frames[joint.body_a]].rotation
-            u = line[:2, :2] @ joint.direction
-            normal = np.array([-u[1], u[0]])
-            if joint.name in driven:
-                force = force - efforts[driven[joint.name]] * u
-            out["reaction"][i] = force
-            out["normal"][i] = force @ normal
-            if isinstance(joint, Prismatic):
-                out["moment"][i] = moment
+            effort = efforts[driven[joint.name]] if joint.name in driven else 0.0
+            read = converter(_TREE_REACTIONS, joint, "Pinocchio")
+            for quantity, value in read(joint, force, sign * world.angular[2], effort, pm, data, point_ids).items():
+                joints[joint.name][quantity][i] = value
     return Forces(
         "pinocchio",
         inputs,
@@ -183,3 +155,56 @@ def inverse_forces(
         "loads as external forces); loop-cut forces and input efforts from [J_cut^T S^T] x = rnea; "
         "tree joints' reactions from data.f of a second rnea with the cut forces added.",
     )
+
+
+def _pin_cut(cut, f, couple, pm, data, point_ids, body_joint, c) -> tuple[list, dict]:
+    """A loop cut at a revolute: f on body_a's point, -f on body_b's (as external forces)."""
+    forces = []
+    for (body, label), sign in zip(cut.anchors(), (1.0, -1.0)):
+        if body != GROUND:
+            at = data.oMf[point_ids[point_frame(body, label)]].translation[:2]
+            forces.append((body_joint[body], _force(sign * f, at)))
+    return forces, {}
+
+
+def _carrier_cut(cut, f, couple, pm, data, point_ids, body_joint, c) -> tuple[list, dict]:
+    """A loop cut at a line joint: anchor 1 on the carrier, anchor 2 on body_b, both at the sliding point;
+    its normal force and, welded (prismatic), its couple about the sliding point."""
+    cm, forces = pm.constraints[c], []
+    for jid, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0), (cm.joint2_id, cm.joint2_placement, -1.0)):
+        if jid != 0:
+            at = (data.oMi[jid] * placement).translation[:2]
+            forces.append((jid, _force(sign * f, at, sign * couple)))
+    u = _line_direction(cut, pm, data)
+    found = {"normal": -f @ np.array([-u[1], u[0]])}
+    return forces, found | ({"moment": -couple} if cut.locked_angle is not None else {})
+
+
+#: a loop cut's forces (external forces on the bodies) and its reactions besides the force, by its type
+_CUT_FORCES: dict[type, Callable] = {Revolute: _pin_cut, LineJoint: _carrier_cut}
+
+
+def _line_direction(joint, pm, data) -> np.ndarray:
+    """A line joint's direction in the world, (2,)."""
+    line = np.eye(3) if joint.body_a == GROUND else data.oMf[pm.body_frames[joint.body_a]].rotation
+    return line[:2, :2] @ joint.direction
+
+
+def _pin_reaction(joint, force, moment, effort, pm, data, point_ids) -> dict:
+    """A tree revolute's reaction: the force its parent transmits (body_a on body_b)."""
+    return {"reaction": force}
+
+
+def _line_reaction(joint, force, moment, effort, pm, data, point_ids) -> dict:
+    """A tree line joint's reaction: the force normal to its line (less a driven slide's effort along it) and,
+    prismatic, the couple about the sliding point (``moment``: about the world origin)."""
+    at = data.oMf[point_ids[point_frame(joint.body_b, joint.point)]].translation[:2]
+    moment = moment - (at[0] * force[1] - at[1] * force[0])
+    u = _line_direction(joint, pm, data)
+    force = force - effort * u
+    found = {"reaction": force, "normal": force @ np.array([-u[1], u[0]])}
+    return found | ({"moment": moment} if joint.locked_angle is not None else {})
+
+
+#: a tree joint's reactions from the force and couple its parent transmits, by its type
+_TREE_REACTIONS: dict[type, Callable] = {Revolute: _pin_reaction, LineJoint: _line_reaction}

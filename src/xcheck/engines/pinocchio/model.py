@@ -39,16 +39,17 @@ Conventions (planar mechanism in the x-y plane, rotation about z):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from xcheck.errors import ModelError
-from xcheck.joints import LineJoint
+from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
 from xcheck.kinematics import rotate
-from xcheck.model import GROUND, Body, Joint, Mechanism, Prismatic, Revolute
-from xcheck.topology import carrier_share, spanning_tree
+from xcheck.model import GROUND, Body, Joint, Mechanism
+from xcheck.topology import TreeJoint, carrier_share, spanning_tree
 
 __all__ = [
     "JointSpec",
@@ -212,6 +213,51 @@ def _unit3(xy) -> np.ndarray:
 _Z = np.array([0.0, 0.0, 1.0])
 
 
+def _revolute_steps(mechanism: Mechanism, tj: TreeJoint, j: Revolute):
+    """A revolute: one revolute Pinocchio joint at the pin; its coordinate, signed as the driver's."""
+    l_parent, l_child = j.tree_points[::-1] if tj.reversed else j.tree_points
+    s_parent = mechanism.body(tj.parent).points[l_parent]
+    s_child = mechanism.body(tj.child).points[l_child]
+    return [("revolute", j.name, s_parent, 0.0, _Z)], s_parent, s_child, (j.name, -1.0 if tj.reversed else 1.0)
+
+
+def _line_ends(mechanism: Mechanism, j: LineJoint):
+    return mechanism.body(j.body_a).points[j.line_point], mechanism.body(j.body_b).points[j.point], j.direction
+
+
+def _prismatic_steps(mechanism: Mechanism, tj: TreeJoint, j: Prismatic):
+    """A prismatic joint: one prismatic Pinocchio joint, its frame at the line's point of the
+    parent turned by the locked angle (or at the child's line point, axis reversed)."""
+    s_line, s_point, d = _line_ends(mechanism, j)
+    if not tj.reversed:  # frame at the sliding point, turned by the locked angle
+        steps = [("prismatic", j.name, s_line, j.angle, _unit3(rotate(-j.angle, d)))]
+        return steps, s_line, s_point, (j.name, 1.0)
+    steps = [("prismatic", j.name, s_point, -j.angle, -_unit3(d))]  # frame at the line point of the child
+    return steps, s_point, s_line, (j.name, 1.0)
+
+
+def _slot_steps(mechanism: Mechanism, tj: TreeJoint, j: PinInSlot):
+    """A pin-in-slot: a slide and a hinge through a massless link."""
+    s_line, s_point, d = _line_ends(mechanism, j)
+    slide = (f"{j.name}.slide", 1.0)
+    if not tj.reversed:
+        steps = [
+            ("prismatic", f"{j.name}.slide", s_line, 0.0, _unit3(d)),
+            ("revolute", f"{j.name}.turn", np.zeros(2), 0.0, _Z),
+        ]
+        return steps, s_line, s_point, slide
+    steps = [
+        ("revolute", f"{j.name}.turn", s_point, 0.0, _Z),
+        ("prismatic", f"{j.name}.slide", np.zeros(2), 0.0, -_unit3(d)),
+    ]
+    return steps, s_point, s_line, slide
+
+
+#: a tree joint's Pinocchio joints, by its type: (steps, its point on the parent and on the child, the driven
+#: coordinate and its sign)
+_TREE_STEPS: dict[type, Callable] = {Revolute: _revolute_steps, Prismatic: _prismatic_steps, PinInSlot: _slot_steps}
+
+
 def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     """The Pinocchio description of a mechanism (see the module notes).
 
@@ -237,42 +283,9 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
     drivers: dict[str, tuple[str, float]] = {}
     for tj in topology.tree:
         j, parent, child = tj.joint, tj.parent, tj.child
-        if isinstance(j, Revolute):
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            s_parent = mechanism.body(parent).points[l_parent]
-            s_child = mechanism.body(child).points[l_child]
-            steps = [("revolute", j.name, s_parent, 0.0, _Z)]
-            if tj.driver:
-                drivers[tj.driver] = (j.name, -1.0 if tj.reversed else 1.0)
-        else:
-            assert isinstance(j, LineJoint)
-            s_line = mechanism.body(j.body_a).points[j.line_point]
-            s_point = mechanism.body(j.body_b).points[j.point]
-            d = j.direction
-            if isinstance(j, Prismatic):
-                if not tj.reversed:  # frame at the sliding point, turned by the locked angle
-                    steps = [("prismatic", j.name, s_line, j.angle, _unit3(rotate(-j.angle, d)))]
-                    s_parent, s_child = s_line, s_point
-                else:  # frame at the line point of the child, axis reversed
-                    steps = [("prismatic", j.name, s_point, -j.angle, -_unit3(d))]
-                    s_parent, s_child = s_point, s_line
-                slide = j.name
-            else:  # pin-in-slot: slide and hinge through a massless carrier
-                if not tj.reversed:
-                    steps = [
-                        ("prismatic", f"{j.name}.slide", s_line, 0.0, _unit3(d)),
-                        ("revolute", f"{j.name}.turn", np.zeros(2), 0.0, _Z),
-                    ]
-                    s_parent, s_child = s_line, s_point
-                else:
-                    steps = [
-                        ("revolute", f"{j.name}.turn", s_point, 0.0, _Z),
-                        ("prismatic", f"{j.name}.slide", np.zeros(2), 0.0, -_unit3(d)),
-                    ]
-                    s_parent, s_child = s_point, s_line
-                slide = f"{j.name}.slide"
-            if tj.driver:
-                drivers[tj.driver] = (slide, 1.0)
+        steps, s_parent, s_child, coordinate = converter(_TREE_STEPS, j, "Pinocchio")(mechanism, tj, j)
+        if tj.driver:
+            drivers[tj.driver] = coordinate
         frame = parent
         for kind, name, origin, angle, axis in steps:
             link = f"{name}.link"
@@ -303,13 +316,13 @@ def tree_spec(mechanism: Mechanism, carrier_mass: bool = True) -> TreeSpec:
                 (cut.body_a, cut.body_a),
             )
         )
-        if isinstance(cut, Prismatic):
+        if cut.locked_angle is not None:
             blocks.append(
                 (
                     cut.body_b,
                     block_frame(cut),
                     np.array(mechanism.body(cut.body_b).points[cut.point], dtype=float),
-                    -float(cut.angle),
+                    -float(cut.locked_angle),
                 )
             )
 
@@ -515,18 +528,8 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
         )
     constraints = []
     for cut in spec.cuts:
-        anchors, kind = [], pin.ContactType.CONTACT_3D
-        if isinstance(cut, Revolute):
-            frames = [
-                point_frames[point_frame(cut.body_a, cut.point_a)],
-                point_frames[point_frame(cut.body_b, cut.point_b)],
-            ]
-        elif isinstance(cut, Prismatic):
-            frames = [frame_id[f"{carrier_joint(cut)}.link"], block_frames[block_frame(cut)]]
-            kind = pin.ContactType.CONTACT_6D
-        else:
-            assert isinstance(cut, LineJoint)
-            frames = [frame_id[f"{carrier_joint(cut)}.link"], point_frames[point_frame(cut.body_b, cut.point)]]
+        anchors = []
+        kind, frames = converter(_CONTACTS, cut, "Pinocchio")(cut, frame_id, point_frames, block_frames)
         for fid in frames:
             frame = model.frames[fid]
             anchors += [frame.parentJoint, frame.placement]
@@ -536,6 +539,33 @@ def build_model(spec: TreeSpec) -> PinocchioMechanism:
     index = {model.names[j]: model.idx_qs[j] for j in range(1, model.njoints)}
     drivers = tuple(DriverCoordinate(name, joint, index[joint], sign) for name, joint, sign in spec.drivers)
     return PinocchioMechanism(spec, model, constraints, body_frames, point_frames, drivers)
+
+
+def _pin_contact(cut: Revolute, frame_id: dict, point_frames: dict, block_frames: dict):
+    """A loop cut at a revolute: a 3-D contact between its two points' frames."""
+    frames = [point_frames[point_frame(body, label)] for body, label in cut.anchors()]
+    return pin.ContactType.CONTACT_3D, frames
+
+
+def _weld_contact(cut: Prismatic, frame_id: dict, point_frames: dict, block_frames: dict):
+    """A loop cut at a prismatic joint: a 6-D contact between its carrier and the block."""
+    return pin.ContactType.CONTACT_6D, [frame_id[f"{carrier_joint(cut)}.link"], block_frames[block_frame(cut)]]
+
+
+def _slot_contact(cut: PinInSlot, frame_id: dict, point_frames: dict, block_frames: dict):
+    """A loop cut at a pin-in-slot: a 3-D contact between its carrier and the pin."""
+    frames = [frame_id[f"{carrier_joint(cut)}.link"], point_frames[point_frame(cut.body_b, cut.point)]]
+    return pin.ContactType.CONTACT_3D, frames
+
+
+#: how a loop cut at each joint type is closed
+_CONTACTS: dict[type, Callable | str] = {
+    Revolute: _pin_contact,
+    Prismatic: _weld_contact,
+    PinInSlot: _slot_contact,
+    GearPair: "Pinocchio's constraint models (contacts, anchors, joint limits and friction) couple no joint "
+    "coordinates (a mimic joint would; xcheck's Pinocchio model does not build one)",
+}
 
 
 def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarray:
@@ -562,9 +592,9 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
         k = 3 * names.index(body)
         return q_bodies[k : k + 2], float(q_bodies[k + 2])
 
-    def where(body, xy):
+    def state(body, label):
         r, phi = pose(body)
-        return r + rotate(phi, xy)
+        return (r if label is None else r + rotate(phi, mech.body(body).points[label])), np.zeros(2), phi, 0.0
 
     q = np.zeros(pm.model.nq)
     model = pm.model
@@ -574,10 +604,6 @@ def joint_coordinates(pm: PinocchioMechanism, q_bodies: np.ndarray) -> np.ndarra
             parent, child = js.bodies
             q[idx] = pose(child)[1] - pose(parent)[1]
         else:
-            j = mech.joint(js.tree_joint)
-            assert isinstance(j, LineJoint)  # a prismatic Pinocchio joint belongs to a line joint
-            gap = where(j.body_b, mech.body(j.body_b).points[j.point]) - where(
-                j.body_a, mech.body(j.body_a).points[j.line_point]
-            )
-            q[idx] = float(rotate(pose(j.body_a)[1], j.direction) @ gap)
+            # a prismatic Pinocchio joint: its line joint's (or, a carrier's, its cut's) slide displacement
+            q[idx] = mech.joint(js.tree_joint).coordinate(state)[0]
     return q

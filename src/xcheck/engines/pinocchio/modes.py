@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from xcheck.errors import NotApplicable
 from xcheck.kinematics import Kinematics
 from xcheck.motion import law_states, sweep_span
 from xcheck.results import ModeResult, Trajectory, differences
@@ -227,6 +228,8 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         )
         summary = differences(kinematics, trajectory, branch)
         return ModeResult(KINEMATIC, name, True, "", [trajectory], summary)
+    except NotApplicable:
+        raise  # what Pinocchio cannot hold: the mode does not apply
     except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
         return ModeResult(KINEMATIC, name, False, one_line(error))
 

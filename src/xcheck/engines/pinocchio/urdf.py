@@ -26,10 +26,12 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Callable
 
 import numpy as np
 
-from xcheck.model import GROUND, Prismatic, Revolute
+from xcheck.joints import LineJoint, Revolute, converter
+from xcheck.model import GROUND
 from xcheck.precision import number, numbers
 
 from .model import TreeSpec, block_frame, carrier_joint, fixed_joint, point_frame
@@ -189,7 +191,7 @@ def urdf_text(spec: TreeSpec, n: UrdfNames | None = None) -> str:
         "Visuals (no collision geometry): cylinders between a body's consecutive points, spheres at",
         "the points and joints, boxes for one-point bodies, carriers and blocks; they carry no mass.",
     ]
-    if any(not isinstance(cut, Revolute) for cut in spec.cuts):
+    if any(isinstance(cut, LineJoint) for cut in spec.cuts):
         header += [
             "A loop with no undriven revolute is cut at a pin-in-slot or prismatic joint J: the prismatic",
             "joint 'J__carrier' (a carrier along J's line on its first body) is closed to the pin's point",
@@ -293,7 +295,7 @@ def loops_json(spec: TreeSpec, n: UrdfNames | None = None, assembly: dict[str, f
         "reference values and every loop closed; 'names' maps the model's names to the URDF's."
         + (
             ""
-            if all(isinstance(cut, Revolute) for cut in spec.cuts)
+            if not any(isinstance(cut, LineJoint) for cut in spec.cuts)
             else " A loop of kind pin-in-slot or prismatic is a joint of that kind cut open: frame1 is its "
             "carrier (a prismatic joint along the line), held to the pin by CONTACT_3D (x, y act) or to "
             "the block frame by CONTACT_6D (x, y and rotation z act)."
@@ -315,16 +317,24 @@ def loops_json(spec: TreeSpec, n: UrdfNames | None = None, assembly: dict[str, f
 
 def _loop(cut, n: UrdfNames) -> dict:
     """One loop closure of the JSON: the two links whose frames are held together."""
-    if isinstance(cut, Revolute):
-        frame2, kind = point_frame(cut.body_b, cut.point_b), "CONTACT_3D"
-        return {
-            "cut": cut.name,
-            "frame1": n(point_frame(cut.body_a, cut.point_a)),
-            "frame2": n(frame2),
-            "contact_type": kind,
-            "reference_frame": "LOCAL_WORLD_ALIGNED",
-        }
-    if isinstance(cut, Prismatic):
+    return converter(_LOOPS, cut, "Pinocchio's URDF")(cut, n)
+
+
+def _pin_loop(cut: Revolute, n: UrdfNames) -> dict:
+    """A revolute cut open: its two points' frames held together (CONTACT_3D)."""
+    frames = [n(point_frame(body, label)) for body, label in cut.anchors()]
+    return {
+        "cut": cut.name,
+        "frame1": frames[0],
+        "frame2": frames[1],
+        "contact_type": "CONTACT_3D",
+        "reference_frame": "LOCAL_WORLD_ALIGNED",
+    }
+
+
+def _carrier_loop(cut: LineJoint, n: UrdfNames) -> dict:
+    """A line joint cut open: its carrier held to the block (CONTACT_6D) or to the pin (CONTACT_3D)."""
+    if cut.locked_angle is not None:
         frame2, kind = block_frame(cut), "CONTACT_6D"
     else:
         frame2, kind = point_frame(cut.body_b, cut.point), "CONTACT_3D"
@@ -336,6 +346,10 @@ def _loop(cut, n: UrdfNames) -> dict:
         "contact_type": kind,
         "reference_frame": "LOCAL_WORLD_ALIGNED",
     }
+
+
+#: a loop closure of the JSON, by the cut joint's type
+_LOOPS: dict[type, Callable] = {Revolute: _pin_loop, LineJoint: _carrier_loop}
 
 
 def export_texts(spec: TreeSpec, assembly: dict[str, float] | None = None) -> dict[str, str]:

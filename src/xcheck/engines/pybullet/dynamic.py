@@ -30,7 +30,7 @@ from xcheck.engines._frames import loop_gap, world_point
 from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, Status, rotate
 from xcheck.ladder import Series
-from xcheck.model import GROUND, Revolute
+from xcheck.model import GROUND
 from xcheck.motion import simulation_window
 from xcheck.results import ModeResult, Trajectory
 from xcheck.topology import spanning_tree
@@ -64,7 +64,7 @@ def _sign(mb: Multibody, kinematics: Kinematics) -> dict[str, tuple[int, float]]
     out = {}
     for driver in mech.drivers:
         tj = tree[driver.joint]
-        reversed_angle = isinstance(tj.joint, Revolute) and tj.child != tj.joint.body_b
+        reversed_angle = driver.quantity == "angle" and tj.child != tj.joint.body_b
         out[driver.name] = (mb.links[tj.child], -1.0 if reversed_angle else 1.0)
     return out
 

@@ -34,6 +34,7 @@ import importlib
 import math
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,10 +42,10 @@ import numpy as np
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.engines._frames import world_point
-from xcheck.joints import LineJoint
+from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
-from xcheck.model import GROUND, PinInSlot, Prismatic, Revolute
-from xcheck.topology import spanning_tree
+from xcheck.model import GROUND, Mechanism
+from xcheck.topology import Topology, spanning_tree
 
 
 def _import_quietly():
@@ -65,6 +66,8 @@ p = _import_quietly()
 
 __all__ = ["Setting", "Multibody", "build", "set_state", "Forces", "velocity", "energy", "p"]
 
+#: the gear constraint's error reduction (PyBullet's default, 0, corrects no slip of the mesh)
+GEAR_ERP = 1.0
 #: joint speed limit set on every link (PyBullet's default, 100 rad/s, is not the model's)
 MAX_JOINT_VELOCITY = 1e6
 
@@ -183,20 +186,12 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
         If a moving body has no mass data.
     """
     mech = kinematics.mechanism
-    slots = [j for j in mech.joints if isinstance(j, PinInSlot)]
-    if slots:
-        raise NotApplicable(
-            f"joint {slots[0].name!r} is a pin-in-slot: xcheck's PyBullet model has revolute and prismatic "
-            "links only (a pin-in-slot would need a massless intermediate link, not converted)"
-        )
+    for joint in mech.joints:  # what cannot be converted, said before any work
+        if joint.connects:
+            converter(_LINKS, joint, "PyBullet")
     require_mass_data(mech)
     topology = spanning_tree(mech)
-    sliding_cuts = [j for j in topology.cuts if not isinstance(j, Revolute)]
-    if sliding_cuts:
-        raise NotApplicable(
-            f"a loop is cut at the prismatic joint {sliding_cuts[0].name!r}: xcheck's PyBullet model closes "
-            "loops with point-to-point constraints only (PyBullet's multibody slider constraint is not converted)"
-        )
+    closures = [converter(_LOOPS, cut, "PyBullet") for cut in topology.cuts]
     size = kinematics.system.size
     links: dict[str, int] = {}
     parents: dict[str, str] = {}
@@ -205,18 +200,8 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
     coms: dict[str, np.ndarray] = {}
     masses, positions, orientations, inertial, parent_index, inertias, types, axes = ([] for _ in range(8))
     for tj in _depth_first(topology.tree):
-        j = tj.joint
         body = mech.body(tj.child)
-        if isinstance(j, Revolute):  # link frame at the pin, the body's orientation
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            turn, kind, axis = 0.0, p.JOINT_REVOLUTE, [0.0, 0.0, 1.0]
-        else:  # prismatic: the child's joint point on the parent's, turned by the locked angle
-            assert isinstance(j, Prismatic)
-            if not tj.reversed:  # the line is the parent's: the child's point slides along it
-                l_parent, l_child, turn, direction = j.line_point, j.point, j.angle, rotate(-j.angle, j.direction)
-            else:  # the line is the child's: its line point slides back along it from the parent's point
-                l_parent, l_child, turn, direction = j.point, j.line_point, -j.angle, -np.asarray(j.direction)
-            kind, axis = p.JOINT_PRISMATIC, [float(direction[0]), float(direction[1]), 0.0]
+        l_parent, l_child, turn, kind, axis = converter(_LINKS, tj.joint, "PyBullet")(tj, tj.joint)
         s_parent = np.asarray(mech.body(tj.parent).points[l_parent], dtype=float)
         s_child = np.asarray(body.points[l_child], dtype=float)
         offset = pivots[tj.parent] if tj.parent != GROUND else np.zeros(2)
@@ -270,26 +255,100 @@ def build(kinematics: Kinematics, client: int) -> Multibody:
             raise RuntimeError(f"PyBullet holds the inertia {held:g} kg m^2 for {inertia:g} on link {k}")
     p.setJointMotorControlArray(uid, list(range(n)), p.VELOCITY_CONTROL, forces=[0.0] * n, physicsClientId=client)
     cuts, constraints = [], []
-    for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        ends = []
-        for name, label in ((cut.body_a, cut.point_a), (cut.body_b, cut.point_b)):
-            point = np.asarray(mech.body(name).points[label], dtype=float)
-            if name == GROUND:
-                ends.append((-1, point, name, point))
-            else:
-                body = mech.body(name)
-                com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
-                ends.append((links[name], point - com, name, point))  # frame: the link's centre of mass
-        (la, fa, na, pa), (lb, fb, nb, pb) = ends
-        cid = p.createConstraint(
-            uid, la, uid, lb, p.JOINT_POINT2POINT, [0.0, 0.0, 0.0], [*fa, 0.0], [*fb, 0.0], physicsClientId=client
-        )
+    for cut, close in zip(topology.cuts, closures):
+        cid, ends = close(mech, cut, uid, links, topology, client)
         constraints.append(cid)
-        cuts.append((na, pa, nb, pb))
+        if ends is not None:
+            cuts.append(ends)
     return Multibody(
         client, uid, links, parents, pivots, turns, [t == p.JOINT_PRISMATIC for t in types], coms, cuts, constraints
     )
+
+
+def _revolute_link(tj, j: Revolute):
+    """A revolute: a revolute link, its frame at the pin with the body's orientation."""
+    l_parent, l_child = j.tree_points[::-1] if tj.reversed else j.tree_points
+    return l_parent, l_child, 0.0, p.JOINT_REVOLUTE, [0.0, 0.0, 1.0]
+
+
+def _prismatic_link(tj, j: Prismatic):
+    """A prismatic joint: a prismatic link, the child's joint point on the parent's, turned by the locked angle."""
+    if not tj.reversed:  # the line is the parent's: the child's point slides along it
+        l_parent, l_child, turn, direction = j.line_point, j.point, j.angle, rotate(-j.angle, j.direction)
+    else:  # the line is the child's: its line point slides back along it from the parent's point
+        l_parent, l_child, turn, direction = j.point, j.line_point, -j.angle, -np.asarray(j.direction)
+    return l_parent, l_child, turn, p.JOINT_PRISMATIC, [float(direction[0]), float(direction[1]), 0.0]
+
+
+#: a tree joint's link, by its type: (its point on the parent and on the child, turn, PyBullet joint type, axis)
+_LINKS: dict[type, Callable | str] = {
+    Revolute: _revolute_link,
+    Prismatic: _prismatic_link,
+    PinInSlot: "joint {name!r} is a pin-in-slot: xcheck's PyBullet model has revolute and prismatic links only "
+    "(a pin-in-slot would need a massless intermediate link, not converted)",
+}
+
+
+def _point2point(mech: Mechanism, cut: Revolute, uid: int, links: dict, topology: Topology, client: int):
+    """A loop cut at a revolute: a point-to-point constraint between its two points
+    (each in its link's frame, the link's centre of mass)."""
+    ends = []
+    for name, label in cut.anchors():
+        point = np.asarray(mech.body(name).points[label], dtype=float)
+        if name == GROUND:
+            ends.append((-1, point, name, point))
+        else:
+            body = mech.body(name)
+            com = np.zeros(2) if body.com is None else np.asarray(body.com, dtype=float)
+            ends.append((links[name], point - com, name, point))  # frame: the link's centre of mass
+    (la, fa, na, pa), (lb, fb, nb, pb) = ends
+    cid = p.createConstraint(
+        uid, la, uid, lb, p.JOINT_POINT2POINT, [0.0, 0.0, 0.0], [*fa, 0.0], [*fb, 0.0], physicsClientId=client
+    )
+    return cid, (na, pa, nb, pb)
+
+
+def _gear(mech: Mechanism, gear: GearPair, uid: int, links: dict, topology: Topology, client: int):
+    """A gear pair: PyBullet's gear constraint between its gears' revolute links, q_A + ratio q_B =
+    target. Each link's coordinate is its child's angle minus its parent's, the gear's rotation
+    relative to the carrier up to a sign s (-1 where the carrier is the child): the mesh,
+    r_a (phi_a - phi_c) + sigma r_b (phi_b - phi_c - phase) = 0, is q_pin_b + k q_pin_a = s_b phase
+    with k = sigma s_a s_b r_a / r_b."""
+    tree = {tj.joint.name: tj for tj in topology.tree}
+    signs, pin_links = [], []
+    for pin, body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
+        if pin not in tree:
+            raise NotApplicable(
+                f"gear pair {gear.name!r}: its gear {body}'s revolute {pin!r} closes a loop, and PyBullet's gear "
+                "constraint couples the links' joint coordinates"
+            )
+        signs.append(1.0 if tree[pin].child == body else -1.0)
+        pin_links.append(links[tree[pin].child])
+    ratio = gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b
+    cid = p.createConstraint(
+        uid, pin_links[1], uid, pin_links[0], p.JOINT_GEAR, [0.0, 0.0, 1.0], [0.0] * 3, [0.0] * 3,
+        physicsClientId=client,
+    )  # fmt: skip
+    # its position error corrected at every step (erp 1): with PyBullet's default (0) the velocity rows
+    # alone let the mesh slip, which the ladder shows (positions at order 1 instead of 2)
+    p.changeConstraint(
+        cid,
+        gearRatio=ratio,
+        relativePositionTarget=signs[1] * gear.phase,
+        maxForce=1e30,
+        erp=GEAR_ERP,
+        physicsClientId=client,
+    )
+    return cid, None
+
+
+#: how a loop cut at each joint type is closed: (the constraint's id, the cut's two points or None)
+_LOOPS: dict[type, Callable | str] = {
+    Revolute: _point2point,
+    LineJoint: "a loop is cut at the {kind} joint {name!r}: xcheck's PyBullet model closes loops with "
+    "point-to-point constraints only (PyBullet's multibody slider constraint is not converted)",
+    GearPair: _gear,
+}
 
 
 def _depth_first(tree) -> list:
@@ -326,21 +385,18 @@ def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarr
         arm = np.zeros(2) if point is None else rotate(phi, point)
         return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
 
+    def points(body: str, label: str) -> np.ndarray:
+        return mech.body(body).points[label]
+
     topology = spanning_tree(mech)
     for tj in topology.tree:
         name, j = tj.child, tj.joint
-        if isinstance(j, Revolute):
+        if j.tree_axes == ("hinge",):  # a revolute link: the child's angle minus its parent's
             _, _, phi, omega = state(name)
             _, _, phi0, omega0 = state(tj.parent)
             value, rate = phi - phi0 - mb.turns[name], omega - omega0
-        else:
-            assert isinstance(j, LineJoint)
-            r_line, v_line, phi_a, omega_a = state(j.body_a, mech.body(j.body_a).points[j.line_point])
-            r_point, v_point, _, _ = state(j.body_b, mech.body(j.body_b).points[j.point])
-            u = rotate(phi_a, j.direction)
-            gap = r_point - r_line
-            value = float(u @ gap)
-            rate = float(omega_a * np.array([-u[1], u[0]]) @ gap + u @ (v_point - v_line))
+        else:  # a prismatic link: its joint's slide displacement
+            value, rate = j.coordinate(lambda body, label: state(body, None if label is None else points(body, label)))
         p.resetJointState(
             mb.uid, mb.links[name], targetValue=float(value), targetVelocity=float(rate), physicsClientId=mb.client
         )

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from xcheck.joints import LineJoint
-from xcheck.model import GROUND, Mechanism, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism
 
 from .scene import Scene
 
@@ -31,21 +31,20 @@ def snapshot(scene: Scene) -> dict:
         "gap": scene.joint_gaps()[0],
     }
     for joint in mech.joints:
-        if isinstance(joint, Revolute):
-            grounded = GROUND in (joint.body_a, joint.body_b)
-            shot["pins"].append((scene.world_point(joint.body_b, joint.point_b), grounded))
-        else:
-            assert isinstance(joint, LineJoint)
+        if isinstance(joint, LineJoint):
             body, start, end = scene.grooves[joint.name]
             ends = [scene.bodies[body].local_to_world(tuple(p)) for p in (start, end)]
             shot["grooves"].append(
                 (
                     np.array([[p.x, p.y] for p in ends]),
-                    isinstance(joint, Prismatic),
+                    joint.locked_angle is not None,
                     scene.world_point(joint.body_b, joint.point),
                     scene.bodies[joint.body_b].angle,
                 )
             )
+        elif joint.connects:  # a revolute: its pin, at its second body's point
+            body, label = joint.anchors()[-1]
+            shot["pins"].append((scene.world_point(body, label), GROUND in (joint.body_a, joint.body_b)))
     return shot
 
 

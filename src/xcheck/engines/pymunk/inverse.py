@@ -25,13 +25,15 @@ time step (pymunk integrates by semi-implicit Euler).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pymunk as pm
 
 from xcheck.dynamics import Forces
 from xcheck.engines._driven import branch_gap_status
+from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics
-from xcheck.model import Prismatic, Revolute
 
 from .scene import build_scene, native_window
 
@@ -44,6 +46,33 @@ STEPS_PER_SAMPLE = 100
 #: Solver iterations: a SimpleMotor needs 50+ to hold its rate (engine notes); the
 #: groove and pivot chains of two-loop models needed more than 200 (pymunk-dynamic).
 ITERATIONS = 500
+
+
+def _pin_sources(joint, made: list, scene) -> list[tuple]:
+    """A pivot joint's impulse: the magnitude of the pin's reaction."""
+    return [("|reaction|", made[0], 1.0)]
+
+
+def _line_sources(joint, made: list, scene) -> list[tuple]:
+    """A groove's impulse: the normal force (the whole reaction); a prismatic lock's: the couple."""
+    groove = next(c for c in made if isinstance(c, pm.GrooveJoint))
+    found: list[tuple] = [("|reaction|", groove, 1.0), ("|normal|", groove, 1.0)]
+    if joint.locked_angle is not None:
+        found.append(("|moment|", next(c for c in made if isinstance(c, pm.GearJoint)), 1.0))
+    return found
+
+
+def _gear_sources(gear: GearPair, made: list, scene) -> list[tuple]:
+    """A gear joint's impulse is a torque on its second body, whose coefficient in the
+    gear pair's row is k_j: the tooth force is that torque over |k_j| (and so is the
+    reaction, that force as a vector)."""
+    second = next(name for name, body in scene.bodies.items() if body is made[0].b)
+    k_j = dict(zip(gear.bodies, gear.coefficients()))[second]
+    return [("|tooth_force|", made[0], 1.0 / abs(k_j)), ("|reaction|", made[0], 1.0 / abs(k_j))]
+
+
+#: a joint's constraints' impulses as its reactions, by its type
+_SOURCES: dict[type, Callable] = {Revolute: _pin_sources, LineJoint: _line_sources, GearPair: _gear_sources}
 
 
 def inverse_forces(
@@ -93,18 +122,13 @@ def inverse_forces(
     wanted = {int(n + offset) for n in sample_steps for offset in (-1, 0, 1)}
     k = len(mech.drivers)
     recorded: dict[int, tuple] = {}
-    sources = []  # (kind, name, quantity, constraint)
+    sources = []  # (kind, name, quantity, constraint, force per impulse per second)
     for joint in mech.joints:
         made = scene.constraints[joint.name]
-        if isinstance(joint, Revolute):
-            sources.append(("joint", joint.name, "|reaction|", made[0]))
-        else:
-            groove = next(c for c in made if isinstance(c, pm.GrooveJoint))
-            sources += [("joint", joint.name, "|reaction|", groove), ("joint", joint.name, "|normal|", groove)]
-            if isinstance(joint, Prismatic):
-                sources.append(("joint", joint.name, "|moment|", next(c for c in made if isinstance(c, pm.GearJoint))))
+        found = converter(_SOURCES, joint, "pymunk")(joint, made, scene)
+        sources += [("joint", joint.name, *source) for source in found]
     for driver in mech.drivers:
-        sources.append(("driver", driver.name, "|effort|", scene.constraints[f"driver:{driver.name}"][0]))
+        sources.append(("driver", driver.name, "|effort|", scene.constraints[f"driver:{driver.name}"][0], 1.0))
     gap_bound = 0.05 * mech.size
     ground = mech.ground.name
     owners = [(body, label) for label, body in mech.point_owners.items() if body != ground]
@@ -113,7 +137,7 @@ def inverse_forces(
         if n not in wanted:
             continue
         q, qd = scene.inputs()
-        impulses = np.array([c.impulse for *_, c in sources])
+        impulses = np.array([c.impulse * per for *_, c, per in sources])
         gap, _ = scene.joint_gaps()
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd)) and np.all(np.isfinite(impulses))):
             raise ValueError(f"the pymunk scene went non-finite at t = {n * dt:.6g} s")
@@ -139,7 +163,7 @@ def inverse_forces(
         raise ValueError(f"the pymunk scene {left}")
     joints: dict = {j.name: {} for j in mech.joints}
     drivers: dict = {d.name: {} for d in mech.drivers}
-    for column, (kind, name, quantity, _) in enumerate(sources):
+    for column, (kind, name, quantity, *_) in enumerate(sources):
         (joints if kind == "joint" else drivers)[name][quantity] = forces[:, column]
     return Forces(
         "pymunk",

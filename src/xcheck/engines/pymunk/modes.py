@@ -25,6 +25,7 @@ import pandas as pd
 import pymunk as pm  # the library: absolute imports, so not this module (xcheck.engines.pymunk.modes)
 
 from xcheck.engines._driven import refined_steps
+from xcheck.errors import NotApplicable
 from xcheck.fileio import write_atomic
 from xcheck.kinematics import Kinematics, Solution
 from xcheck.ladder import convergence_study, observed_order
@@ -382,6 +383,8 @@ def run_dynamic(
         speed_bound = 10.0 * max(top, mech.size / window.duration)
         runs = [_simulate(kinematics, native, window, samples, s, fd_steps, bound, speed_bound) for s in settings]
         summary = _summary(kinematics, runs, branch)
+    except NotApplicable:
+        raise  # what pymunk cannot hold: the mode does not apply
     except Exception as err:  # the other modes still run: report, never raise
         reason = " ".join(str(err).split())
         if not isinstance(err, ValueError) or not reason:

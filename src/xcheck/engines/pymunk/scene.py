@@ -44,15 +44,17 @@ every step (pymunk clears forces after each step).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pymunk as pm
 
 from xcheck.engines._contract import positive_inertia
-from xcheck.joints import LineJoint
+from xcheck.errors import NotApplicable
+from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics, Solution, Status, rotate
-from xcheck.model import GROUND, Mechanism, MotionLaw, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism, MotionLaw
 from xcheck.motion import SimulationWindow, simulation_window
 
 __all__ = ["DEFAULT_MASS", "Scene", "build_scene", "native_window"]
@@ -266,41 +268,100 @@ class Scene:
 
     def joint_gaps(self) -> tuple[float, float]:
         """How far the joints have come apart: the largest distance (m) between
-        points that should coincide or from a point to its line, and the largest
-        error (rad) of a prismatic joint's locked angle."""
+        points that should coincide, from a point to its line, or between a gear
+        pair's pitch arcs, and the largest error (rad) of a locked angle."""
         gap, lock = 0.0, 0.0
         for joint in self.mechanism.joints:
-            if isinstance(joint, Revolute):
-                d = self.world_point(joint.body_a, joint.point_a) - self.world_point(joint.body_b, joint.point_b)
-                gap = max(gap, float(math.hypot(*d)))
-                continue
-            assert isinstance(joint, LineJoint)
-            a = self.bodies[joint.body_a]
-            u = rotate(a.angle, joint.direction)
-            r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
-            gap = max(gap, abs(float(u[0] * r[1] - u[1] * r[0])))
-            if isinstance(joint, Prismatic):
-                err = self.bodies[joint.body_b].angle - a.angle - joint.angle
-                lock = max(lock, abs((err + math.pi) % (2.0 * math.pi) - math.pi))
+            apart, off = converter(_GAPS, joint, "pymunk")(self, joint)
+            gap, lock = max(gap, apart), max(lock, off)
         return gap, lock
+
+    def state(self, body: str, label: str | None):
+        """A body point's (position, velocity) and the body's (angle, angular rate),
+        the frame origin's where ``label`` is None (:meth:`xcheck.joints.Joint.coordinate`)."""
+        b = self.bodies[body]
+        if label is None:
+            frame = _frame_origin(b)
+            return frame[0], frame[1], b.angle, b.angular_velocity
+        return self.world_point(body, label), self.point_velocity(body, label), b.angle, b.angular_velocity
 
     def inputs(self) -> tuple[np.ndarray, np.ndarray]:
         """The drivers' values and rates as the bodies realise them, each (k,), SI."""
         mech = self.mechanism
         q, qd = np.empty(len(mech.drivers)), np.empty(len(mech.drivers))
         for k, driver in enumerate(mech.drivers):
-            joint = mech.joint(driver.joint)
-            a, b = self.bodies[joint.body_a], self.bodies[joint.body_b]
-            if driver.quantity == "angle":
-                q[k], qd[k] = b.angle - a.angle, b.angular_velocity - a.angular_velocity
-                continue
-            assert isinstance(joint, LineJoint)  # a slide is on a line joint
-            u = rotate(a.angle, joint.direction)
-            r = self.world_point(joint.body_b, joint.point) - self.world_point(joint.body_a, joint.line_point)
-            v = self.point_velocity(joint.body_b, joint.point) - self.point_velocity(joint.body_a, joint.line_point)
-            q[k] = u @ r
-            qd[k] = u @ v + a.angular_velocity * (u[0] * r[1] - u[1] * r[0])
+            q[k], qd[k] = mech.joint(driver.joint).coordinate(self.state)
         return q, qd
+
+
+def _frame_origin(body: pm.Body) -> tuple[np.ndarray, np.ndarray]:
+    """A pymunk body's frame origin: position and velocity (m, m/s)."""
+    p, v = body.local_to_world((0.0, 0.0)), body.velocity_at_local_point((0.0, 0.0))
+    return np.array([p.x, p.y]), np.array([v.x, v.y])
+
+
+def _pin_gap(scene: Scene, joint: Revolute) -> tuple[float, float]:
+    d = scene.world_point(joint.body_a, joint.point_a) - scene.world_point(joint.body_b, joint.point_b)
+    return float(math.hypot(*d)), 0.0
+
+
+def _line_gap(scene: Scene, joint: LineJoint) -> tuple[float, float]:
+    a = scene.bodies[joint.body_a]
+    u = rotate(a.angle, joint.direction)
+    r = scene.world_point(joint.body_b, joint.point) - scene.world_point(joint.body_a, joint.line_point)
+    lock = 0.0
+    if joint.locked_angle is not None:
+        err = scene.bodies[joint.body_b].angle - a.angle - joint.locked_angle
+        lock = abs((err + math.pi) % (2.0 * math.pi) - math.pi)
+    return abs(float(u[0] * r[1] - u[1] * r[0])), lock
+
+
+def _mesh_gap(scene: Scene, gear: GearPair) -> tuple[float, float]:
+    """The arcs the pitch circles have slipped by (m): the gear pair's row."""
+    angles = [0.0 if body == GROUND else scene.bodies[body].angle for body in gear.bodies]
+    (a, b, c), (ka, kb, kc) = angles, gear.coefficients()
+    return abs(ka * a + kb * b + kc * c - gear.sigma * gear.radius_b * gear.phase), 0.0
+
+
+#: how far a joint has come apart, by its type
+_GAPS: dict[type, Callable] = {Revolute: _pin_gap, LineJoint: _line_gap, GearPair: _mesh_gap}
+
+
+def _pivot(mech: Mechanism, joint: Revolute, bodies: dict, grooves: dict) -> list[pm.Constraint]:
+    """A revolute: a pivot joint at its two points."""
+    points = (mech.body(body).points[label] for body, label in joint.anchors())
+    return [pm.PivotJoint(bodies[joint.body_a], bodies[joint.body_b], *(tuple(p) for p in points))]
+
+
+def _groove(mech: Mechanism, joint: LineJoint, bodies: dict, grooves: dict) -> list[pm.Constraint]:
+    """A pin-in-slot: a groove on the line's body; a prismatic joint also locks the angle (a gear joint, ratio 1)."""
+    a, b = bodies[joint.body_a], bodies[joint.body_b]
+    _, start, end = grooves[joint.name]
+    made: list[pm.Constraint] = [
+        pm.GrooveJoint(a, b, tuple(start), tuple(end), tuple(mech.body(joint.body_b).points[joint.point]))
+    ]
+    if joint.locked_angle is not None:
+        made.append(pm.GearJoint(a, b, float(joint.locked_angle), 1.0))
+    return made
+
+
+def _gear(mech: Mechanism, gear: GearPair, bodies: dict, grooves: dict) -> list[pm.Constraint]:
+    """A gear pair: pymunk's gear joint, which keeps ratio phi_j - phi_i = phase of two
+    bodies' absolute angles: the row k_i phi_i + k_j phi_j = offset where the third of the
+    gears and the carrier is the ground (its angle is zero)."""
+    offset = gear.sigma * gear.radius_b * gear.phase
+    moving = [(body, k) for body, k in zip(gear.bodies, gear.coefficients()) if body != GROUND]
+    if len(moving) > 2:
+        raise NotApplicable(
+            f"gear pair {gear.name!r} couples three moving bodies ({', '.join(b for b, _ in moving)}): pymunk's "
+            "GearJoint couples two bodies' absolute angles"
+        )
+    (i, k_i), (j, k_j) = moving
+    return [pm.GearJoint(bodies[i], bodies[j], -offset / k_i, -k_j / k_i)]
+
+
+#: a joint's pymunk constraints, by its type
+_CONSTRAINTS: dict[type, Callable] = {Revolute: _pivot, LineJoint: _groove, GearPair: _gear}
 
 
 def _place(body: pm.Body, origin, angle: float, origin_velocity, omega: float) -> None:
@@ -390,7 +451,7 @@ def build_scene(
         sign = 1.0 if joint.body_a == GROUND else -1.0
         if driver.quantity == "angle" and on_ground and driver.law.kind == "constant-rate" and moving not in prescribed:
             prescribed[moving] = _Drive(k, "kinematic-rate", sign=sign, law=driver.law)
-        elif driver.quantity == "slide" and on_ground and isinstance(joint, Prismatic) and moving not in prescribed:
+        elif driver.quantity == "slide" and on_ground and joint.locked_angle is not None and moving not in prescribed:
             # the slide grows when body_b moves along the line (line in body_a)
             # or when body_a moves against it (line in the moving body)
             prescribed[moving] = _Drive(k, "kinematic-slide", sign=sign, law=driver.law)
@@ -424,12 +485,11 @@ def build_scene(
             if drive.kind == "kinematic-rate":
                 # turning about the centre of gravity is exact in pymunk: put it on the pivot
                 joint = mech.joint(mech.drivers[drive.driver_index].joint)
-                assert isinstance(joint, Revolute)  # see prescribed
-                pivot = body.points[joint.point_b if joint.body_b == body.name else joint.point_a]
+                pivot = body.points[joint.tree_points[1 if joint.body_b == body.name else 0]]  # see prescribed
                 pb.center_of_gravity = (float(pivot[0]), float(pivot[1]))
             else:
                 joint = mech.joint(mech.drivers[drive.driver_index].joint)
-                assert isinstance(joint, Prismatic)  # see prescribed
+                assert isinstance(joint, LineJoint)  # see prescribed: a prismatic joint
                 line_angle = 0.0 if joint.body_a == GROUND else angle
                 drive.direction = rotate(line_angle, joint.direction)
             drives.append(drive)
@@ -447,24 +507,8 @@ def build_scene(
     for joint in mech.joints:
         a, b = bodies[joint.body_a], bodies[joint.body_b]
         made: list[pm.Constraint] = []
-        if dynamic(joint.body_a, joint.body_b):
-            if isinstance(joint, Revolute):
-                made.append(
-                    pm.PivotJoint(
-                        a,
-                        b,
-                        tuple(mech.body(joint.body_a).points[joint.point_a]),
-                        tuple(mech.body(joint.body_b).points[joint.point_b]),
-                    )
-                )
-            else:
-                assert isinstance(joint, LineJoint)
-                _, start, end = grooves[joint.name]
-                made.append(
-                    pm.GrooveJoint(a, b, tuple(start), tuple(end), tuple(mech.body(joint.body_b).points[joint.point]))
-                )
-                if isinstance(joint, Prismatic):
-                    made.append(pm.GearJoint(a, b, float(joint.angle), 1.0))
+        if dynamic(*joint.bodies):
+            made = converter(_CONSTRAINTS, joint, "pymunk")(mech, joint, bodies, grooves)
         constraints[joint.name] = made
 
     for k, driver in enumerate(() if free else mech.drivers):
