@@ -70,10 +70,18 @@ def test_compiled_integrator_matches_the_numpy_one(name):
         assert len(compiled.singular_passes) == 1
 
 
-def test_compiled_integrator_reports_a_blow_up(tmp_path):
-    """A state that goes non-finite is an error with its time, not NaNs passed on."""
+@pytest.mark.parametrize("compiled", [True, False])
+def test_integrator_reports_a_blow_up_as_the_runs_result(compiled):
+    """A state that goes non-finite ends the run with its time, the outputs before it kept,
+    never NaNs passed on (both integrators): from a non-finite start, at once; from a
+    speed no step can follow (1e150 m/s), at the first output."""
     kin = Kinematics(load_mechanism(CASES["iftomm-a02"][0]))
     start = release_state(kin)
     bad = type(start)(start.q, np.full_like(start.qd, np.inf))
-    with pytest.raises(FloatingPointError, match="non-finite at t = 0.01 s"):
-        simulate_free(kin, bad, 0.1, 0.01, 2.5e-3)
+    motion = simulate_free(kin, bad, 0.1, 0.01, 2.5e-3, compiled=compiled)
+    assert motion.failure == "the state went non-finite at t = 0 s"
+    assert len(motion.times) == len(motion.q) == len(motion.energy) == 0
+    fast = type(start)(start.q, start.qd * 1e150)
+    motion = simulate_free(kin, fast, 0.1, 0.01, 2.5e-3, compiled=compiled)
+    assert motion.failure.startswith("the state went non-finite at t = ")
+    assert len(motion.times) >= 1 and np.all(np.isfinite(motion.q)) and np.all(np.isfinite(motion.qd))

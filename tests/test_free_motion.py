@@ -488,7 +488,7 @@ def test_reference_ladder_stops_where_the_difference_grows(monkeypatch):
     def fake(kinematics, start, duration, output_step, step, compiled=True):
         q = np.zeros((3, kinematics.system.n))
         q[:, 0] = errors[round(step, 9)]
-        return types.SimpleNamespace(q=q, step=step, seconds=0.0)
+        return types.SimpleNamespace(q=q, step=step, seconds=0.0, times=np.arange(3) * 0.5, statistics={}, failure="")
 
     monkeypatch.setattr(free, "simulate_free", fake)
     reference = free.free_reference(kin, start, 1.0, 0.01, tolerance=1e-12, first_step=0.0025)

@@ -592,6 +592,7 @@ def simulate(
     duration: float | None = None,
     branch: str | None = None,
     models: str | Path | None = None,
+    check: bool = False,
 ) -> pd.DataFrame:
     """The native reference of a mechanism's free motion (``[free_motion]`` of
     its file; ``xcheck simulate`` without the engines): one row per output
@@ -599,14 +600,16 @@ def simulate(
 
     Columns: ``time_s``, ``body``, ``x_m``, ``y_m``, ``angle_rad`` (the body
     frame), ``vx_m_s``, ``vy_m_s``, ``omega_rad_s``, ``error_bound_m`` (the
-    reference's stated error at that time: the largest difference so far
-    between the returned run and the one before it in the step ladder). ``attrs`` holds ``converged`` (bool) and
-    ``relative_error`` (the bound per mechanism size).
+    reference's stated error at that time). ``attrs`` holds ``method``,
+    ``converged`` (bool), ``relative_error`` (the stated error per mechanism
+    size) and, with ``check``, ``check_agreement_m`` and ``check_consistent``.
 
     Parameters
     ----------
     duration : float, optional
-        Simulated time, s (default: the file's).
+        Simulated time, s, a whole number of the file's output steps (default: the file's).
+    check : bool
+        Check the reference by the second native method, as ``xcheck simulate`` does.
 
     >>> import xcheck
     >>> motion = xcheck.simulate("iftomm-a01", duration=0.05)
@@ -619,11 +622,7 @@ def simulate(
 
     loaded = name if isinstance(name, Assembled) else load(name, models, branch)
     mech = loaded.mechanism
-    if mech.free_motion is None:
-        raise InputError(f"{mech.path}: free_motion: expected a [free_motion] section to simulate, found none")
-    if duration is not None:
-        duration = arguments.duration(duration)
-    reference = free_simulate(loaded.kinematics, loaded.branch, duration)
+    reference = free_simulate(loaded.kinematics, loaded.branch, duration, check=check)
     motion = reference.motion
     index = loaded.kinematics.system.body_index
     parts = []
@@ -645,5 +644,12 @@ def simulate(
             )
         )
     frame = pd.concat(parts, ignore_index=True).sort_values(["time_s"], kind="stable", ignore_index=True)
-    frame.attrs = {"converged": bool(reference.converged), "relative_error": float(reference.relative)}
+    frame.attrs = {
+        "method": reference.method,
+        "converged": bool(reference.converged),
+        "relative_error": float(reference.relative),
+    }
+    if reference.check is not None:
+        frame.attrs["check_agreement_m"] = float(reference.check.agreement.max(initial=0.0))
+        frame.attrs["check_consistent"] = bool(reference.check.consistent)
     return frame

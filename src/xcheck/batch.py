@@ -311,14 +311,18 @@ def simulate_model(
     command: str = "",
     progress=None,
     jobs: int = 1,
+    check: bool = True,
 ) -> tuple[SimulationResult, Path | None, str | None]:
-    """A mechanism's free motion (:func:`xcheck.simulation.simulate_all`) and, if
-    ``report``, its report (with ``command``, the line that reproduces it) and
-    the index. Returns (the result, the report's path or None, a line saying why
-    the report could not be written, or None): the results stand either way."""
+    """A mechanism's free motion (:func:`xcheck.simulation.simulate_all`; ``check``: the
+    reference checked by the second native method) and, if ``report``, its report (with
+    ``command``, the line that reproduces it) and the index. Returns (the result, the
+    report's path or None, a line saying why the report could not be written, or None):
+    the results stand either way."""
+    from .dynamics._reference import free_duration
     from .simulation import simulate_all
 
     kin = Kinematics(load_mechanism(path))
+    free_duration(kin, duration, "--duration")  # a duration off the output steps is one line before any work
     kin.assemble(branch)
     target = reports_dir(path, out)
     if report:  # what is in the report's way is said before the work, not after
@@ -326,7 +330,7 @@ def simulate_model(
 
         claim_report(target, kin.mechanism.name)
         claim_index(target)
-    result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs)
+    result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs, check=check)
     if not report:
         return result, None, None
     from .report import update_index, write_simulation_report

@@ -800,8 +800,9 @@ def print_run(console: Console, run) -> None:
 
 def simulation_json(reference, result=None) -> dict:
     """The JSON document of ``xcheck simulate --json`` (SI units): the native
-    reference's final state, its stated error, the singular positions passed,
-    the loop closure and energy balance, and the step ladder; with ``result``
+    reference's final state, its method, stated error and its basis, the second
+    method's check, the singular positions passed, the loop closure and energy
+    balance, and the ladder; with ``result``
     (:class:`xcheck.simulation.SimulationResult`) each free mode's ladder
     under ``engines`` and the modes that did not run under ``not_applicable``."""
     motion = reference.motion
@@ -832,15 +833,17 @@ def simulation_json(reference, result=None) -> dict:
         "output_step": _number(motion.times[1] - motion.times[0]) if len(motion.times) > 1 else None,
         "native": {
             "final": final,
+            "method": reference.method,
             "error_estimate": {
                 "largest": _number(reference.estimate.max()),
                 "relative": _number(reference.relative),
                 "final": _number(reference.estimate[-1]),
                 "converged": reference.converged,
-                "basis": "the largest difference so far between the finer run and the one before it in a "
-                "halving ladder of RK4 runs (about 15 times the finer run's error); the ladder stops at "
-                "the tolerance, or where the difference grows as the step halves (round-off: then not converged)",
+                "tolerance": _number(reference.tolerance),
+                "basis": reference.basis,
+                "rule": FREE_ERROR_RULE,
             },
+            "check": _free_check_json(reference),
             "step": _number(motion.step),
             "singular_passes": [_number(t) for t in motion.singular_passes],
             "loop_closure": _number(motion.residual.max()),
@@ -849,7 +852,7 @@ def simulation_json(reference, result=None) -> dict:
                 "energy_start": _number(motion.energy[0]),
                 "note": "E(t) - E(0) - W(t): kinetic + potential energy against the work of loads and dampers",
             },
-            "ladder": [{k: _number(v) for k, v in entry.items()} for entry in reference.ladder],
+            "ladder": [_ladder_entry(entry) for entry in reference.ladder],
             "cpu_seconds": _number(sum(entry["seconds"] for entry in reference.ladder)),
         },
         "engines": {}
@@ -857,6 +860,47 @@ def simulation_json(reference, result=None) -> dict:
         else {mode: _free_mode_json(outcome) for mode, outcome in result.outcomes.items()},
         "not_applicable": {} if result is None else dict(result.not_applicable),
         "left_out": {} if result is None else dict(result.left_out),
+    }
+
+
+#: how a native reference's stated error is obtained, for the JSON (see dynamics._reference)
+FREE_ERROR_RULE = (
+    "per output, the largest difference so far of a body position (m) or angle (rad times the size) between "
+    "the run kept and the one before it in the ladder (the previous run's error, which the finer one does not "
+    "exceed); for RK4, where the last two differences fell 16 times a halving or faster, 1.25 times the "
+    "difference over 15 there instead (Roache's grid convergence index); the ladder stops at the tolerance, "
+    "where a difference grows (round-off: the previous pair's finer run is kept, not converged), at its finest "
+    "setting or at its work budget"
+)
+
+
+def _ladder_entry(entry: dict) -> dict:
+    """A ladder row, numbers as JSON numbers, status and rule as text."""
+    return {k: (v if isinstance(v, str) else _number(v)) for k, v in entry.items()}
+
+
+def _free_check_json(reference) -> dict | None:
+    """The second native method against the reference: its own ladder and their agreement."""
+    check = reference.check
+    if check is None:
+        return None
+    other = check.reference
+    return {
+        "method": other.method,
+        "agreement": _number(check.agreement.max(initial=0.0)),
+        "agreement_relative": _number(check.relative),
+        "compared_outputs": len(check.times),
+        "consistent": check.consistent,
+        "note": "the largest difference of a body position (m) or angle (rad times the size) between the two "
+        "methods' runs at the compared outputs; consistent: within the sum of their stated errors",
+        "error_estimate": {
+            "largest": _number(other.estimate.max()),
+            "relative": _number(other.relative),
+            "converged": other.converged,
+            "basis": other.basis,
+        },
+        "ladder": [_ladder_entry(entry) for entry in other.ladder],
+        "cpu_seconds": _number(sum(entry["seconds"] for entry in other.ladder)),
     }
 
 
@@ -893,8 +937,8 @@ def print_simulation(console, reference, result=None, report: str | None = None)
     state = "converged" if estimate["converged"] else "[red]NOT converged[/red]"
     console.print(
         f"[bold]{escape(doc['mechanism'])}[/bold] — free motion for {doc['duration']:g} s: native reference "
-        f"{state}, error <= {_e(estimate['largest'])} m ({_e(estimate['relative'])} of the size) at a step of "
-        f"{_e(native['step'])} s",
+        f"({native['method']}) {state}, error <= {_e(estimate['largest'])} m ({_e(estimate['relative'])} of the "
+        f"size) at a mean step of {_e(native['step'])} s",
         highlight=False,
     )
     passes = native["singular_passes"]
@@ -905,6 +949,14 @@ def print_simulation(console, reference, result=None, report: str | None = None)
         + f"; CPU {native['cpu_seconds']:.3g} s over {len(native['ladder'])} runs",
         highlight=False,
     )
+    check = native["check"]
+    if check is not None:
+        verdict = "within their stated errors" if check["consistent"] else "[red]beyond their stated errors[/red]"
+        console.print(
+            f"  checked by {check['method']} (error <= {_e(check['error_estimate']['largest'])} m, CPU "
+            f"{check['cpu_seconds']:.3g} s): the two agree to {_e(check['agreement'])} m, {verdict}",
+            highlight=False,
+        )
     if doc["engines"]:
         table = Table(box=None, pad_edge=False, header_style="bold")
         headers = (

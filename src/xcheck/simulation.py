@@ -64,6 +64,7 @@ def simulate_all(
     branch: str | None = None,
     progress=None,
     jobs: int = 1,
+    check: bool = False,
 ) -> SimulationResult:
     """The native reference of the mechanism's free motion and each free mode against it.
 
@@ -81,14 +82,11 @@ def simulate_all(
         another in this process), where the reference took at least
         :data:`PARALLEL_REFERENCE`; the modes of engines registered at run time
         run here. The results are those of a serial run.
+    check : bool
+        Check the reference by the second native method (``reference.check``).
     """
     start = time.perf_counter()
-    reference = simulate(
-        kinematics,
-        branch,
-        duration,
-        progress=None if progress is None else (lambda h: progress(f"native: RK4 at {h:.4g} s")),
-    )
+    reference = simulate(kinematics, branch, duration, progress=progress, check=check)
     result = SimulationResult(kinematics, reference, seconds={"native": time.perf_counter() - start})
     from .runner import default_modes, left_out
 

@@ -115,9 +115,15 @@ class FreeMotion:
         minimum of the smallest singular value of the dimensionless
         constraint Jacobian below :data:`SINGULAR_THRESHOLD`).
     step : float
-        The time step, s.
+        The time step, s (an adaptive method's: the duration over its steps).
     seconds : float
         CPU time of the integration, s.
+    method : str
+        "RK4" (:func:`simulate_free`) or "DOP853" (:mod:`._partitioned`).
+    failure : str
+        "" or why the run stopped early (its outputs are then those reached).
+    statistics : dict
+        An adaptive run's counts: steps, rejected, evaluations, exchanges.
     """
 
     kinematics: Kinematics
@@ -131,6 +137,9 @@ class FreeMotion:
     singular_passes: list[float]
     step: float
     seconds: float
+    method: str = "RK4"
+    failure: str = ""
+    statistics: dict = field(default_factory=dict)
 
     def solution(self) -> Solution:
         """The motion as a :class:`~xcheck.kinematics.Solution` (points, bodies,
@@ -166,25 +175,33 @@ class FreeMotion:
 
 @dataclass
 class FreeReference:
-    """The native reference: the run a step ladder keeps and its error estimate.
+    """A native reference: the run a ladder keeps and its stated error (see
+    :mod:`._reference` for the rule).
 
     Attributes
     ----------
     motion : FreeMotion
-        The run returned: the finest, or, where the ladder stopped because the
-        difference grew as the step halved, the finer run of the last pair whose
-        difference fell.
+        The run kept: the one that met the tolerance, or where the ladder stopped
+        short of it, the finer run of the last pair whose difference fell.
     estimate : ndarray, shape (N,)
-        At each output, the largest difference so far of a body position (m)
-        or angle (rad, times the mechanism's size) between that run and the one
-        before it in the ladder, at least 1e-14 of the size: the stated error
-        bound (for RK4 about 15 times the finer run's own error).
+        The stated error at each output: a bound on the largest error so far of a
+        body position (m) or angle (rad, times the mechanism's size), at least
+        1e-14 of the size.
     relative : float
         max(estimate) / size.
     converged : bool
         relative <= ``tolerance``, the requested accuracy (relative to the size).
     ladder : list of dict
-        Per run: step (s), steps, seconds, and the difference from the previous run (m).
+        Per run: setting (RK4: the step, s; DOP853: the local tolerance), steps,
+        seconds (CPU), difference from the previous run that went through (m),
+        status ("ok" or why it failed), and, from the second run on, error (its
+        stated error, m) and rule (how it was obtained); RK4's also step (s).
+    method : str
+        "DOP853" or "RK4".
+    basis : str
+        The ladder and how it stopped, in words.
+    check : FreeCheck or None
+        The other native method against this one, where it ran.
     """
 
     motion: FreeMotion
@@ -193,6 +210,36 @@ class FreeReference:
     converged: bool
     ladder: list[dict] = field(default_factory=list)
     tolerance: float = math.nan
+    method: str = "RK4"
+    basis: str = ""
+    check: FreeCheck | None = None
+
+
+@dataclass
+class FreeCheck:
+    """The second native method's reference against the first.
+
+    Attributes
+    ----------
+    reference : FreeReference
+        The second method's own ladder and run.
+    times : ndarray, shape (K,)
+        The outputs compared (s): the second run's, each an output of the first.
+    agreement : ndarray, shape (K,)
+        The largest difference so far between the two runs' body positions (m) and
+        angles (rad x size).
+    relative : float
+        max(agreement) / size.
+    consistent : bool
+        Whether the largest agreement is within the sum of the two largest stated errors
+        (where not, one of them is wrong: a finding).
+    """
+
+    reference: FreeReference
+    times: np.ndarray
+    agreement: np.ndarray
+    relative: float
+    consistent: bool
 
 
 def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -658,13 +705,16 @@ def simulate_free(
     per_output = max(1, math.ceil(output_step / step - 1e-9))
     h = output_step / per_output
     outputs = int(round(duration / output_step))
-    if compiled:
-        return _simulate_compiled(dyn, start, outputs, output_step, per_output, h, begin)
     n = kinematics.system.n
     times = np.arange(outputs + 1) * output_step
     q_out, qd_out, qdd_out = (np.empty((outputs + 1, n)) for _ in range(3))
     residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)
     q, qd = np.asarray(start.q, dtype=float).copy(), np.asarray(start.qd, dtype=float).copy()
+    arrays = (q_out, qd_out, qdd_out, residual, energy, work)
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+        return _stopped(kinematics, times, arrays, [], h, begin, 0)
+    if compiled:
+        return _simulate_compiled(dyn, start, outputs, output_step, per_output, h, begin)
     w = 0.0
     passes: list[float] = []
     sigma = [dyn.project(q, qd)[3]] * 2
@@ -684,17 +734,38 @@ def simulate_free(
             q = q + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
             qd = qd + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             w += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+                break  # (the least-squares solves refuse non-finite input)
             q, qd, before, value = dyn.project(q, qd)
             drift = max(drift, before)
             if sigma[1] < SINGULAR_THRESHOLD and sigma[1] <= sigma[0] and sigma[1] < value:
                 passes.append(float(times[i - 1] + j * h))  # the previous step was the closest
             sigma = [sigma[1], value]
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
-            raise FloatingPointError(f"the integration went non-finite at t = {times[i]:.6g} s")
+            return _stopped(kinematics, times, arrays, passes, h, begin, i)
         q_out[i], qd_out[i], qdd_out[i] = q, qd, dyn.acceleration(q, qd, times[i])
         residual[i], energy[i], work[i] = drift, dyn.energy(q, qd), w
     return FreeMotion(
         kinematics, times, q_out, qd_out, qdd_out, residual, energy, work, passes, h, time.process_time() - begin
+    )
+
+
+def _stopped(kinematics, times, arrays, passes, h, begin, failed) -> FreeMotion:
+    """A run that went non-finite before output ``failed``: its outputs before it, and why."""
+    q, qd, qdd, residual, energy, work = (a[:failed] for a in arrays)
+    return FreeMotion(
+        kinematics,
+        times[:failed],
+        q,
+        qd,
+        qdd,
+        residual,
+        energy,
+        work,
+        [t for t in passes if t < times[failed]],
+        h,
+        time.process_time() - begin,
+        failure=f"the state went non-finite at t = {times[failed]:.6g} s",
     )
 
 
@@ -710,9 +781,10 @@ def _simulate_compiled(
     q, qd, qdd, residual, energy, work, passes, failed = integrate(
         packed.arrays(), packed.structure(), q0, qd0, h, per_output, outputs, output_step
     )
-    if failed >= 0:
-        raise FloatingPointError(f"the integration went non-finite at t = {failed * output_step:.6g} s")
     times = np.arange(outputs + 1) * output_step
+    if failed >= 0:
+        passed = [float(t) for t in passes]
+        return _stopped(dyn.kinematics, times, (q, qd, qdd, residual, energy, work), passed, h, begin, failed)
     return FreeMotion(
         dyn.kinematics,
         times,
@@ -735,14 +807,77 @@ def consistent_state(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> F
     return FreeState(q, qd)
 
 
-def _difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) -> np.ndarray:
-    """Per output, the largest |fine - coarse| so far over body positions (m)
-    and angles (rad x size), at least the round-off floor: the running maximum,
-    because the two runs' difference may pass through zero where the error does not."""
-    size = kinematics.system.size
-    delta = np.abs(fine.q - coarse.q)
-    delta[:, 2::3] *= size
-    return np.maximum(np.maximum.accumulate(delta.max(axis=1)), ROUND_OFF * size)
+class StepLadder:
+    """RK4 (:func:`simulate_free`) at halving steps from ``first_step`` (s): at most
+    ``max_halvings`` + 1 runs; its error falls 16 times a halving (order 4)."""
+
+    name = "RK4"
+    nominal: float | None = 16.0
+
+    def __init__(self, kinematics, start, duration, output_step, first_step, max_halvings, compiled=True):
+        self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
+        self.first, self.halvings, self.compiled = first_step, max(int(max_halvings), 1), compiled
+
+    def settings(self) -> list[float]:
+        return [self.first / 2.0**k for k in range(self.halvings + 1)]
+
+    def run(self, setting: float) -> FreeMotion:
+        return simulate_free(self.kinematics, self.start, self.duration, self.output_step, setting, self.compiled)
+
+    def work(self, setting: float) -> float:
+        """Evaluations: four accelerations and a projection a step."""
+        per_output = max(1, math.ceil(self.output_step / setting - 1e-9))
+        return 5.0 * per_output * round(self.duration / self.output_step)
+
+    def describe(self) -> str:
+        return (
+            f"RK4 at a fixed step on the index-1 equations (accelerations by Gauss's principle), positions and "
+            f"velocities projected onto the constraints after every step; steps halved from {self.first:.4g} s, "
+            f"at most {self.halvings + 1} runs"
+        )
+
+
+class ToleranceLadder:
+    """DOP853 (:mod:`._adaptive`) at local tolerances divided by ten from ``first`` down to
+    :data:`FINEST_TOLERANCE`."""
+
+    name = "DOP853"
+    nominal: float | None = None
+
+    def __init__(self, kinematics, start, duration, output_step, first, time_scale):
+        self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
+        self.first, self.scale = first, time_scale
+
+    def settings(self) -> list[float]:
+        count = max(1, int(math.floor(math.log10(self.first / FINEST_TOLERANCE) + 1e-9)) + 1)
+        return [self.first / 10.0**k for k in range(count)]
+
+    def run(self, setting: float) -> FreeMotion:
+        from ._adaptive import simulate_adaptive
+        from ._reference import WORK_BUDGET
+
+        budget = int(WORK_BUDGET / self.kinematics.system.n)
+        return simulate_adaptive(self.kinematics, self.start, self.duration, self.output_step, setting, budget)
+
+    def work(self, setting: float) -> float:
+        """Evaluations, from the shortest time scale: DOP853's steps stay below about 3.3 of it
+        (its stability on the negative real axis), each 13 evaluations (more with a finer
+        tolerance), and an output costs two."""
+        steps = self.duration / (3.3 * self.scale) if self.scale > 0.0 else 0.0
+        return 13.0 * steps + 2.0 * round(self.duration / self.output_step)
+
+    def describe(self) -> str:
+        return (
+            "DOP853 (Dormand and Prince's Runge-Kutta pair of order 8 with error control and its dense "
+            "output) on the index-1 equations, positions and velocities projected onto the constraints "
+            f"after every step; local tolerances divided by ten from {self.first:.3g}, at most down to "
+            f"{FINEST_TOLERANCE:g}"
+        )
+
+
+#: the finest local tolerance of a DOP853 ladder (float64's round-off of the state over a few
+#: thousand steps; on the IFToMM double four-bar 1e-15 stalls at the first singular pass)
+FINEST_TOLERANCE = 1e-14
 
 
 def free_reference(
@@ -755,52 +890,41 @@ def free_reference(
     max_halvings: int = 6,
     progress=None,
 ) -> FreeReference:
-    """The native reference of a free motion: RK4 runs at halving steps until
-    two consecutive ones differ by at most ``tolerance`` x the mechanism's
-    size at every output (see :class:`FreeReference`). Where a difference
-    grows from the previous pair's, the finer steps only add round-off (on
-    iftomm-a02-n40 the singular passes cost more energy the closer a step lands,
-    and below 1.25 ms each halving made the true error larger, 39 us a run 1.3e-3
-    off whose difference from the 78 us one was 4.2e-4): the ladder stops there,
-    not converged, with the previous pair's finer run and its difference.
+    """The RK4 reference: runs at halving steps judged by :func:`._reference.run_ladder`.
 
     Parameters
     ----------
     first_step : float, optional
-        The coarsest step, s (default: output_step / 4, at most duration / 1000).
+        The coarsest step, s (default: output_step / 4, at most duration / 1000, and at
+        most half the motion's shortest time scale, :func:`._reference.time_scale`).
+    max_halvings : int
+        The ladder has at most this many runs after the first.
     progress : callable, optional
-        Called with each run's step before it starts.
+        Called with a line before each run.
     """
-    size = kinematics.system.size
-    step = first_step or min(output_step / 4.0, duration / 1000.0)
-    ladder: list[dict] = []
-    coarse = None
-    estimate, relative = np.full(1, math.inf), math.inf  # no estimate before two runs
-    previous: tuple[FreeMotion, np.ndarray, float] | None = None  # the last pair's finer run, estimate, relative
-    for _ in range(max(max_halvings, 1) + 1):
-        if progress is not None:
-            progress(step)
-        motion = simulate_free(kinematics, start, duration, output_step, step)
-        entry = {
-            "step": motion.step,
-            "steps": int(round(duration / motion.step)),
-            "seconds": motion.seconds,
-            "difference": math.nan,
-        }
-        if coarse is not None:
-            estimate = _difference(kinematics, motion, coarse)
-            entry["difference"] = float(estimate.max())
-            ladder.append(entry)
-            relative = float(estimate.max()) / size
-            if relative <= tolerance:
-                return FreeReference(motion, estimate, relative, True, ladder, tolerance)
-            if previous is not None and relative > previous[2]:
-                return FreeReference(*previous, False, ladder, tolerance)
-            previous = (motion, estimate, relative)
-        else:
-            ladder.append(entry)
-        coarse, step = motion, motion.step / 2.0
-    return FreeReference(motion, estimate, relative, False, ladder, tolerance)
+    from ._reference import run_ladder, time_scale
+
+    if first_step is None:
+        first_step = min(output_step / 4.0, duration / 1000.0, 0.5 * time_scale(kinematics, start)[0])
+    method = StepLadder(kinematics, start, duration, output_step, first_step, max_halvings)
+    return run_ladder(kinematics, method, tolerance, progress=progress)
+
+
+def adaptive_reference(
+    kinematics: Kinematics,
+    start: FreeState,
+    duration: float,
+    output_step: float,
+    tolerance: float = 1e-9,
+    progress=None,
+) -> FreeReference:
+    """The DOP853 reference: runs at local tolerances from a tenth of ``tolerance`` (at most
+    1e-6) down, judged by :func:`._reference.run_ladder`."""
+    from ._reference import run_ladder, time_scale
+
+    first = min(max(0.1 * tolerance, FINEST_TOLERANCE), 1e-6)
+    method = ToleranceLadder(kinematics, start, duration, output_step, first, time_scale(kinematics, start)[0])
+    return run_ladder(kinematics, method, tolerance, progress=progress)
 
 
 def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeState:
@@ -863,13 +987,32 @@ def release_state(kinematics: Kinematics, branch: str | None = None) -> FreeStat
 
 
 def simulate(
-    kinematics: Kinematics, branch: str | None = None, duration: float | None = None, progress=None
+    kinematics: Kinematics,
+    branch: str | None = None,
+    duration: float | None = None,
+    progress=None,
+    check: bool = False,
 ) -> FreeReference:
-    """The native reference of the mechanism's ``[free_motion]`` (optionally
-    over another ``duration``, s): :func:`free_reference` from :func:`release_state`."""
+    """The native reference of the mechanism's ``[free_motion]`` (over ``duration``, s, a
+    whole number of output steps, instead of the file's): DOP853's ladder from
+    :func:`release_state`; with ``check``, RK4's ladder too, compared with it
+    (``reference.check``).
+
+    Raises
+    ------
+    InputError
+        A duration that is not a whole number of output steps, too many outputs, a
+        motion no run can follow within the work budget.
+    """
+    from ._reference import compare_runs, free_duration
+
     spec = kinematics.mechanism.free_motion
-    start = release_state(kinematics, branch)
+    length = free_duration(kinematics, duration)
     assert spec is not None
-    length = spec.duration if duration is None else duration
+    start = release_state(kinematics, branch)
     output = min(spec.output_step, length)
-    return free_reference(kinematics, start, length, output, spec.tolerance, progress=progress)
+    reference = adaptive_reference(kinematics, start, length, output, spec.tolerance, progress=progress)
+    if check:
+        second = free_reference(kinematics, start, length, output, spec.tolerance, progress=progress)
+        reference.check = compare_runs(kinematics, reference, second)
+    return reference

@@ -658,16 +658,12 @@ def _band_measure(schur, lower, band, start):
 
 
 @njit(cache=True)
-def _constrained_banded(
-    mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
-):
-    """As ``_Dynamics._constrained_banded``: (x, singularity measure or NaN). M^-1 by
-    3 x 3 blocks, J by its (at most three) bodies per row, J M^-1 J^T assembled body
-    by body in the rows' banded order and factored as banded; the least-squares
-    solve (dense SVD) only where that factor does not exist or below
-    :data:`BANDED_LEAST_SQUARES_BELOW`."""
+def _banded_schur(mass, jac, load, gap, scale_rows, d, mass_scale, structure, work):
+    """J M^-1 J^T (scaled) assembled in the rows' banded order into ``work[0]``, for
+    :func:`_constrained_banded`: (M^-1 load (n,), M^-1 applied to each row's scaled J on
+    its bodies (m, SLOTS, 3), the multipliers' right-hand side in banded order (m,))."""
     row_body, body_ptr, body_row, body_slot, position, band_info, start, _, _ = structure
-    schur, lower = work
+    schur = work[0]
     band = band_info[1]
     m, n = jac.shape
     bodies = n // 3
@@ -727,6 +723,24 @@ def _constrained_banded(
                     + rows[r, sr, 1] * solved[c, sc, 1]
                     + rows[r, sr, 2] * solved[c, sc, 2]
                 )
+    return free, solved, rhs
+
+
+@njit(cache=True)
+def _constrained_banded(
+    mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
+):
+    """As ``_Dynamics._constrained_banded``: (x, singularity measure or NaN). M^-1 by
+    3 x 3 blocks, J by its (at most three) bodies per row, J M^-1 J^T assembled body
+    by body in the rows' banded order and factored as banded; the least-squares
+    solve (dense SVD) only where that factor does not exist or below
+    :data:`BANDED_LEAST_SQUARES_BELOW`."""
+    row_body, body_ptr, body_row, body_slot, position, band_info, start, _, _ = structure
+    schur, lower = work
+    band = band_info[1]
+    m, n = jac.shape
+    bodies = n // 3
+    free, solved, rhs = _banded_schur(mass, jac, load, gap, scale_rows, d, mass_scale, structure, work)
     factored = _band_cholesky(schur, lower, band)
     singularity = math.nan
     plain = last_measure > BANDED_LEAST_SQUARES_BELOW
@@ -749,6 +763,18 @@ def _constrained_banded(
                 total += solved[r, slot, i] * multipliers[position[r]]
             x[3 * k + i] = total / d[3 * k + i]
     return x, singularity
+
+
+@njit(cache=True)
+def _banded_measure(mass, jac, scale_rows, d, mass_scale, structure, work):
+    """The singularity measure of :func:`_constrained_banded` alone (0 where J M^-1 J^T has no
+    Cholesky factor), never through its least-squares fallback."""
+    _banded_schur(mass, jac, np.zeros(jac.shape[1]), np.zeros(jac.shape[0]), scale_rows, d, mass_scale, structure, work)
+    schur, lower = work
+    band = structure[5][1]
+    if not _band_cholesky(schur, lower, band):
+        return 0.0
+    return _band_measure(schur, lower, band, structure[6])
 
 
 @njit(cache=True)
@@ -858,6 +884,40 @@ def _project(model, structure, work, buffers, q, qd):
         work,
     )
     return q, qd + correction, before, singular
+
+
+@njit(cache=True)
+def _jacobian_of(model, q, out):
+    """Phi_q at q into ``out`` (m, n; its non-structural entries must be zero)."""
+    (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, _, _,
+     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _) = model  # fmt: skip
+    _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out)
+
+
+@njit(cache=True)
+def _gamma_of(model, q, qd, out):
+    """gamma = Phi_q q'' at (q, qd) into ``out`` (m,)."""
+    (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, _, _,
+     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _) = model  # fmt: skip
+    _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out)
+
+
+@njit(cache=True)
+def _mass_of(model, q, out):
+    """M(q) into ``out`` (n, n; only its 3 x 3 diagonal blocks are written)."""
+    _mass(q, model[0], model[1], model[2], out)
+
+
+@njit(cache=True)
+def _forces_of(model, q, qd, t, out):
+    """Q at time t (s) into ``out`` (n,): gravity, loads, springs, dampers and M's velocity terms."""
+    (mass, _, com, _, _, _, _, _, _, _, _, gravity,
+     l_body, l_point, l_force, l_torque, s_body, s_point, s_law, _, _, _, _, _,
+     r_body, r_law, l_law) = model  # fmt: skip
+    _forces(
+        q, qd, t, mass, com, gravity, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law,
+        out,
+    )  # fmt: skip
 
 
 @njit(cache=True)

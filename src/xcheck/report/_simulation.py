@@ -120,7 +120,7 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
                     alpha=0.8,
                 )
         ax.loglog(
-            [result.reference.ladder[-1]["seconds"]],
+            [result.reference.motion.seconds],
             [max(result.reference.estimate.max(), 1e-18)],
             "k*",
             ms=10,
@@ -143,6 +143,55 @@ def _setting(trajectory) -> str:
     if "timestep" in settings:
         parts.append(f"dt = {float(settings['timestep']):.3g} s")
     return ", ".join(parts)
+
+
+def _reference_section(reference) -> list[str]:
+    """The native reference's paragraphs and ladder tables: how it was run and stopped, its
+    stated error, and the second method's check."""
+    motion = reference.motion
+    passes = ", ".join(f"{t:.4g}" for t in motion.singular_passes) or "none"
+    lines = [
+        f"{reference.method}: {reference.basis}. The run kept has a mean step of {motion.step:g} s; stated "
+        f"error {_g(float(reference.estimate.max()), 3)} m ({_g(reference.relative, 3)} of the size; "
+        f"{'converged' if reference.converged else '**not converged**'}). Singular positions passed at {passes} s. "
+        f"Loop closure before each projection at most {_g(float(motion.residual.max()), 2)} m; energy balance "
+        f"at most {_g(float(np.abs(motion.energy_error).max()), 2)} J.",
+        _ladder_table(reference),
+    ]
+    check = reference.check
+    if check is not None:
+        other = check.reference
+        verdict = (
+            "within the sum of their stated errors"
+            if check.consistent
+            else "**beyond the sum of their stated errors: one of them is wrong**"
+        )
+        lines += [
+            f"Checked by {other.method} ({other.basis}; stated error {_g(float(other.estimate.max()), 3)} m, "
+            f"{'converged' if other.converged else '**not converged**'}): the two agree to "
+            f"{_g(float(check.agreement.max(initial=0.0)), 3)} m ({_g(check.relative, 3)} of the size) over "
+            f"{len(check.times)} outputs, {verdict}.",
+            _ladder_table(other),
+        ]
+    return lines
+
+
+def _ladder_table(reference) -> str:
+    """A native ladder as a table: the setting, steps, CPU, difference and the stated error."""
+    setting = "step [s]" if reference.method == "RK4" else "local tolerance"
+    rows = [
+        [
+            _g(e["setting"], 4),
+            f"{int(e['steps'])}",
+            _g(e["seconds"], 3),
+            _g(e["difference"], 3),
+            _g(e.get("error", float("nan")), 3),
+            "ok" if e.get("status", "ok") == "ok" else e["status"],
+        ]
+        for e in reference.ladder
+    ]
+    headers = [setting, "steps", "CPU [s]", "difference from the previous run [m]", "stated error [m]", "status"]
+    return _table(headers, rows, "rrrrrl")
 
 
 def mode_parts(result: SimulationResult, made: dict) -> dict[str, dict]:
@@ -183,7 +232,6 @@ def markdown(result: SimulationResult, evidence: Evidence, images: dict[str, str
     reference = result.reference
     motion = reference.motion
     spec = mech.free_motion
-    passes = ", ".join(f"{t:.4g}" for t in motion.singular_passes) or "none"
     marks, provenance = _provenance(evidence)
     lines = [
         f"# {mech.name}: {mech.title} — free motion",
@@ -194,25 +242,7 @@ def markdown(result: SimulationResult, evidence: Evidence, images: dict[str, str
         mech.notes.strip(),
         f"![the mechanism]({images['drawing']})",
         "## The native reference",
-        (
-            f"RK4 on the index-1 equations (accelerations by Gauss's principle), positions and velocities "
-            f"projected onto the constraints after every step, at halving steps until two runs agree to "
-            f"{reference.tolerance:g} of the size, or until their difference grows as the step halves "
-            f"(round-off: the finer run of the last pair whose difference fell is kept). Step of the run "
-            f"kept {motion.step:g} s; stated error "
-            f"{_g(float(reference.estimate.max()), 3)} m ({_g(reference.relative, 3)} of the size; "
-            f"{'converged' if reference.converged else '**not converged**'}). Singular positions passed at "
-            f"{passes} s. Loop closure before each projection at most {_g(float(motion.residual.max()), 2)} m; "
-            f"energy balance at most {_g(float(np.abs(motion.energy_error).max()), 2)} J."
-        ),
-        _table(
-            ["step [s]", "steps", "CPU [s]", "difference from the previous run [m]"],
-            [
-                [_g(e["step"], 4), f"{int(e['steps'])}", _g(e["seconds"], 3), _g(e["difference"], 3)]
-                for e in reference.ladder
-            ],
-            "rrrr",
-        ),
+        *_reference_section(reference),
         f"![energy balance and loop closure]({images['energy']})",
         "## Engines in free motion",
     ]

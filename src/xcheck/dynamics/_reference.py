@@ -1,0 +1,283 @@
+"""How a free-motion reference is run and judged: its ladder of runs, the error it
+states, the second method's check, the bounds on its work, and its duration.
+
+One rule (:func:`run_ladder`) serves both native methods: runs at ever finer
+settings (RK4: the step halved; DOP853: the local tolerance divided by ten),
+each compared with the last one that went through. The stated error of a run is
+the largest difference so far from that previous run, at every output (the
+previous run's own error, which the finer one is taken not to exceed). Where the
+method's error has a nominal rate (RK4's falls 16 times a halving) and, at an
+output, the last two differences fell at least that fast, it is instead
+:data:`SAFETY` times the difference over (rate - 1) there, the error left after a
+geometric series at that rate (Roache's grid convergence index, with his factor
+of safety for three or more runs). DOP853's global error has no such rate under
+its local error control (measured from one tolerance to the next a tenth of it:
+4 to 17 times smaller), so its runs state the difference. The ladder stops at the requested tolerance;
+where a difference grows, the finer runs only add round-off, and the finer run
+of the pair before is kept, not converged; it also stops where the next run
+would overrun the work budget. A run that fails (goes non-finite, or cannot
+follow the motion) is the ladder's entry with its reason, and the ladder goes on
+from the next setting.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
+
+from .. import arguments
+from ..errors import InputError
+from ..kinematics import Kinematics
+from ._free import ROUND_OFF, FreeCheck, FreeMotion, FreeReference, FreeState
+
+__all__ = [
+    "SAFETY",
+    "WORK_BUDGET",
+    "MAX_OUTPUT_VALUES",
+    "run_ladder",
+    "stated_error",
+    "difference",
+    "compare_runs",
+    "time_scale",
+    "free_duration",
+    "LadderMethod",
+]
+
+#: Roache's factor of safety on an error extrapolated from an observed rate (three or more runs)
+SAFETY = 1.25
+#: the work one method's ladder may do: evaluations of the accelerations times the coordinates
+#: (about a minute of CPU on any mechanism; RK4 counts five evaluations a step)
+WORK_BUDGET = 2e8
+#: the most values an output array may hold (outputs times coordinates: 160 MB each)
+MAX_OUTPUT_VALUES = 2e7
+
+
+class LadderMethod(Protocol):
+    """What a ladder needs of a method: its name, the rate its error nominally falls by from
+    one setting to the next (None: none), its settings (coarsest first), a run at a setting,
+    the work a setting would cost (evaluations), and a line describing the ladder."""
+
+    name: str
+    nominal: float | None
+
+    def settings(self) -> Sequence[float]: ...
+
+    def run(self, setting: float) -> FreeMotion: ...
+
+    def work(self, setting: float) -> float: ...
+
+    def describe(self) -> str: ...
+
+
+def difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) -> np.ndarray:
+    """Per output, the largest |fine - coarse| so far over body positions (m) and angles
+    (rad x size), at least the round-off floor: the running maximum, because the two runs'
+    difference may pass through zero where the error does not. Both runs must share their
+    output times (N,)."""
+    size = kinematics.system.size
+    delta = np.abs(fine.q - coarse.q)
+    delta[:, 2::3] *= size
+    return np.maximum(np.maximum.accumulate(delta.max(axis=1)), ROUND_OFF * size)
+
+
+def stated_error(gap: np.ndarray, previous: np.ndarray | None, nominal: float | None) -> tuple[np.ndarray, str]:
+    """The stated error of a run (m, (N,)) from ``gap``, its running difference from the run
+    before, ``previous``, the difference before that (None with one), and the method's
+    ``nominal`` rate (None: none); with how it was obtained."""
+    if nominal is None or previous is None:
+        return gap.copy(), "the difference"
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fast = previous / gap >= nominal
+    estimate = np.where(fast, SAFETY * gap / (nominal - 1.0), gap)
+    if not fast.any():
+        return estimate, "the difference"
+    share = "" if fast.all() else f" where it fell {nominal:g} times or faster (else the difference)"
+    return estimate, f"{SAFETY:g} x the difference / ({nominal:g} - 1){share}"
+
+
+def run_ladder(
+    kinematics: Kinematics,
+    method: LadderMethod,
+    tolerance: float,
+    budget: float = WORK_BUDGET,
+    progress: Callable[[str], None] | None = None,
+) -> FreeReference:
+    """Run ``method``'s ladder until its stated error is within ``tolerance`` x the mechanism's
+    size (see the module's docstring), within ``budget`` (evaluations x coordinates).
+
+    Raises
+    ------
+    InputError
+        If no run went through (each rung's reason in the message), or the first would
+        already overrun the budget.
+    """
+    size, n = kinematics.system.size, kinematics.system.n
+    settings = list(method.settings())
+    first = method.work(settings[0]) * n
+    if first > budget:
+        raise InputError(
+            f"{kinematics.mechanism.path}: free_motion: expected a motion the {method.name} reference can follow "
+            f"within {budget:.3g} evaluations x coordinates, found one its first run alone would need "
+            f"{first:.3g} for ({method.describe()})"
+        )
+    ladder: list[dict] = []
+    spent = 0.0
+    last: FreeMotion | None = None  # the last run that went through
+    pair: tuple[FreeMotion, np.ndarray, float, np.ndarray] | None = None  # the last pair's run, error, relative, gap
+    kept: tuple[FreeMotion, np.ndarray, float] | None = None
+    converged, stop = False, ""
+    for setting in settings:
+        cost = method.work(setting) * n
+        if spent + cost > budget:
+            stop = f"the next run would overrun the work budget ({budget:.3g} evaluations x coordinates)"
+            break
+        if progress is not None:
+            progress(f"native: {method.name} at {setting:.4g}")
+        motion = method.run(setting)
+        spent += cost
+        entry = {
+            "setting": setting,
+            "steps": int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
+            if len(motion.times)
+            else 0,
+            "seconds": motion.seconds,
+            "difference": math.nan,
+            "status": motion.failure or "ok",
+        }
+        if method.name == "RK4":
+            entry["step"] = motion.step
+        ladder.append(entry)
+        if motion.failure:
+            continue
+        if last is None:
+            last = motion
+            continue
+        gap = difference(kinematics, motion, last)
+        largest = float(gap.max())
+        entry["difference"] = largest
+        estimate, rule = stated_error(gap, None if pair is None else pair[3], method.nominal)
+        estimate = np.maximum(estimate, ROUND_OFF * size)
+        entry["error"], entry["rule"] = float(estimate.max()), rule
+        relative = float(estimate.max()) / size
+        if pair is not None and largest > float(pair[3].max()):  # finer runs only add round-off from here
+            stop = "the difference grew as the setting was refined: round-off rules there"
+            kept = pair[0], pair[1], pair[2]
+            break
+        pair = (motion, estimate, relative, gap)
+        last = motion
+        if relative <= tolerance:
+            converged, kept = True, (motion, estimate, relative)
+            break
+    else:
+        stop = f"the finest setting ({settings[-1]:.4g}) was reached"
+    if kept is None and pair is not None:
+        kept = pair[0], pair[1], pair[2]
+    if kept is None:
+        reasons = "; ".join(f"{e['setting']:.4g}: {e['status']}" for e in ladder) or stop
+        if last is not None:  # one run went through: its error is not known
+            kept = last, np.full(len(last.times), math.inf), math.inf
+        else:
+            raise InputError(
+                f"{kinematics.mechanism.path}: free_motion: expected a motion the {method.name} reference can "
+                f"follow, found none of its runs went through ({reasons})"
+            )
+    motion, estimate, relative = kept
+    basis = method.describe() + (
+        f"; stopped: {stop}" if not converged else f"; stopped at the tolerance, {tolerance:g} of the size"
+    )
+    return FreeReference(motion, estimate, relative, converged, ladder, tolerance, method.name, basis)
+
+
+def compare_runs(kinematics: Kinematics, reference: FreeReference, check: FreeReference) -> FreeCheck:
+    """The check's motion against the reference's at the check's output times (each an output
+    of the reference): their running largest difference (m, as :func:`difference`), and whether
+    its largest stays within the sum of their largest stated errors."""
+    ref, other = reference.motion, check.motion
+    spacing = float(ref.times[1] - ref.times[0]) if len(ref.times) > 1 else 1.0
+    index = np.rint(other.times / spacing).astype(int)
+    index = index[index < len(ref.times)]
+    count = len(index)
+    size = kinematics.system.size
+    delta = np.abs(ref.q[index] - other.q[:count])
+    delta[:, 2::3] *= size
+    agreement = np.maximum.accumulate(delta.max(axis=1)) if count else np.zeros(0)
+    bound = float(reference.estimate.max()) + float(check.estimate.max())
+    consistent = bool(count == len(other.times) and float(agreement.max(initial=0.0)) <= bound)
+    return FreeCheck(check, other.times[:count], agreement, float(agreement.max(initial=0.0)) / size, consistent)
+
+
+def time_scale(kinematics: Kinematics, start: FreeState) -> tuple[float, str]:
+    """The shortest time scale of the motion at its release (s) and what sets it: the fastest
+    rate of the system linearised about the release state on its constraints (stiffness of
+    springs and gravity: sqrt of the largest eigenvalue of M^-1 K in the joints' free
+    directions; dampers: the largest of M^-1 C), or of the release motion itself."""
+    from scipy.linalg import eigvals, null_space
+
+    from ._free import _Dynamics
+
+    dyn = _Dynamics(kinematics)
+    q, qd = np.asarray(start.q, dtype=float), np.asarray(start.qd, dtype=float)
+    scale = dyn.scale_coordinates
+    free = null_space(dyn.joints.jacobian(q) / scale[None, :]) / scale[:, None]  # (n, f), SI
+    rates = {"the release velocity": float(np.max(np.abs(qd * scale), initial=0.0))}
+    if free.shape[1]:
+        base = dyn.forces(q, qd)
+        stiffness, damping = np.zeros((len(q), free.shape[1])), np.zeros((len(q), free.shape[1]))
+        for j in range(free.shape[1]):
+            h = 1e-7 / max(float(np.abs(free[:, j] * scale).max()), 1e-300)
+            stiffness[:, j] = -(dyn.forces(q + h * free[:, j], qd) - base) / h
+            damping[:, j] = -(dyn.forces(q, qd + h * free[:, j]) - base) / h
+        mass = free.T @ dyn._mass(q) @ free
+        with np.errstate(all="ignore"):
+            spring = eigvals(free.T @ stiffness, mass)
+            dashpot = eigvals(free.T @ damping, mass)
+        spring = spring[np.isfinite(spring)]
+        dashpot = dashpot[np.isfinite(dashpot)]
+        rates["the springs and gravity"] = math.sqrt(float(np.max(np.abs(spring), initial=0.0)))
+        rates["the dampers"] = float(np.max(np.abs(dashpot), initial=0.0))
+    what = max(rates, key=lambda k: rates[k])
+    fastest = rates[what]
+    return (math.inf if not fastest > 0.0 else 1.0 / fastest), what
+
+
+def free_duration(kinematics: Kinematics, duration: float | None, argument: str = "duration") -> float:
+    """The duration of a free motion (s): the file's, or ``duration``, which must be a whole
+    number of the file's output steps, above 0 and at most 1e6 s, and keep the outputs within
+    :data:`MAX_OUTPUT_VALUES` (outputs x coordinates). ``argument`` names it in messages.
+
+    Raises
+    ------
+    InputError
+        One line naming what was expected and what was found.
+    """
+    spec = kinematics.mechanism.free_motion
+    if spec is None:
+        raise InputError(
+            f"{kinematics.mechanism.path}: free_motion: expected a [free_motion] section to simulate, found none"
+        )
+    if duration is None:
+        length = spec.duration
+    else:
+        duration = arguments.duration(duration, argument)
+        steps = duration / spec.output_step
+        if abs(steps - round(steps)) > 1e-9 * max(steps, 1.0) or round(steps) < 1:
+            below = max(math.floor(steps), 1) * spec.output_step
+            above = max(math.ceil(steps), 1) * spec.output_step
+            nearest = f"{below:g} s" if below == above else f"{below:g} s or {above:g} s"
+            raise InputError(
+                f"{argument}: expected a whole number of output steps ({spec.output_step:g} s), "
+                f"e.g. {nearest}, found {duration:g} s"
+            )
+        length = round(steps) * spec.output_step
+    outputs = round(length / spec.output_step) + 1
+    values = outputs * kinematics.system.n
+    if values > MAX_OUTPUT_VALUES:
+        raise InputError(
+            f"{kinematics.mechanism.path}: free_motion: expected at most {MAX_OUTPUT_VALUES:.3g} output values "
+            f"(outputs x {kinematics.system.n} coordinates), found {outputs} outputs over {length:g} s "
+            f"({values:.3g}); a longer output_step or a shorter duration"
+        )
+    return float(length)
