@@ -474,14 +474,15 @@ def test_double_fourbar_of_forty_windows_follows_its_reduction():
     assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
 
 
-def test_reference_ladder_stops_where_the_difference_grows(monkeypatch):
-    """A halving whose difference grows (round-off, not truncation, rules there) ends the
-    ladder: not converged, the previous pair's finer run with its difference."""
+def test_reference_ladder_stops_where_the_difference_grows_twice(monkeypatch):
+    """A difference that grows once (a coarse run off its asymptote) does not end the ladder;
+    one that grows twice in a row (round-off, not truncation, rules there) does: not
+    converged, the run with the least stated error kept."""
     import types
 
     import xcheck.dynamics._free as free
 
-    errors = {0.0025: 1e-6, 0.00125: 1e-7, 0.000625: 5e-6}  # m, the runs' own (made-up) errors
+    errors = {0.0025: 1e-6, 0.00125: 1e-7, 0.000625: 5e-6, 0.0003125: 5e-5, 0.00015625: 0.0}  # m, made up
     kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02.toml"))
     start = release_state(kin)
 
@@ -493,6 +494,7 @@ def test_reference_ladder_stops_where_the_difference_grows(monkeypatch):
     monkeypatch.setattr(free, "simulate_free", fake)
     reference = free.free_reference(kin, start, 1.0, 0.01, tolerance=1e-12, first_step=0.0025)
     assert not reference.converged
+    assert "grew twice" in reference.basis
     assert reference.motion.step == 0.00125
     assert reference.estimate.max() == pytest.approx(9e-7)
-    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625]
+    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625, 0.0003125]

@@ -651,5 +651,5 @@ def simulate(
     }
     if reference.check is not None:
         frame.attrs["check_agreement_m"] = float(reference.check.agreement.max(initial=0.0))
-        frame.attrs["check_consistent"] = bool(reference.check.consistent)
+        frame.attrs["check_consistent"] = reference.check.consistent  # None: inconclusive
     return frame

@@ -567,7 +567,13 @@ def simulate_command(
             err=True,
         )
     checked = reference.check
-    disagree = checked is not None and not checked.consistent
+    disagree = checked is not None and checked.consistent is False
+    if checked is not None and checked.consistent is None:
+        typer.echo(
+            f"xcheck: the {checked.reference.method} check is inconclusive: it or the reference did not reach "
+            f"the tolerance, so their agreement ({checked.agreement.max(initial=0.0):.3g} m) judges neither",
+            err=True,
+        )
     if checked is not None and disagree:
         second = checked.reference
         typer.echo(

@@ -868,9 +868,10 @@ FREE_ERROR_RULE = (
     "per output, the largest difference so far of a body position (m) or angle (rad times the size) between "
     "the run kept and the one before it in the ladder (the previous run's error, which the finer one does not "
     "exceed); for RK4, where the last two differences fell 16 times a halving or faster, 1.25 times the "
-    "difference over 15 there instead (Roache's grid convergence index); the ladder stops at the tolerance, "
-    "where a difference grows (round-off: the previous pair's finer run is kept, not converged), at its finest "
-    "setting or at its work budget"
+    "difference over 15 there instead (Roache's grid convergence index); the ladder stops at the tolerance "
+    "(converged), or, not converged, keeping the run with the least stated error: where the difference grew "
+    "twice in a row (round-off), at its finest setting or at its work budget; a run that fails is the ladder's "
+    "entry with its reason"
 )
 
 
@@ -892,7 +893,8 @@ def _free_check_json(reference) -> dict | None:
         "compared_outputs": len(check.times),
         "consistent": check.consistent,
         "note": "the largest difference of a body position (m) or angle (rad times the size) between the two "
-        "methods' runs at the compared outputs; consistent: within the sum of their stated errors",
+        "methods' runs at the compared outputs; consistent: within the sum of their stated errors (null: "
+        "inconclusive, where either did not reach its tolerance)",
         "error_estimate": {
             "largest": _number(other.estimate.max()),
             "relative": _number(other.relative),
@@ -951,7 +953,11 @@ def print_simulation(console, reference, result=None, report: str | None = None)
     )
     check = native["check"]
     if check is not None:
-        verdict = "within their stated errors" if check["consistent"] else "[red]beyond their stated errors[/red]"
+        verdict = {
+            True: "within their stated errors",
+            False: "[red]beyond their stated errors[/red]",
+            None: "inconclusive (one of them is not converged)",
+        }[check["consistent"]]
         console.print(
             f"  checked by {check['method']} (error <= {_e(check['error_estimate']['largest'])} m, CPU "
             f"{check['cpu_seconds']:.3g} s): the two agree to {_e(check['agreement'])} m, {verdict}",

@@ -230,16 +230,17 @@ class FreeCheck:
         angles (rad x size).
     relative : float
         max(agreement) / size.
-    consistent : bool
+    consistent : bool or None
         Whether the largest agreement is within the sum of the two largest stated errors
-        (where not, one of them is wrong: a finding).
+        (where not, one of them is wrong: a finding); None where either did not meet its
+        tolerance (inconclusive).
     """
 
     reference: FreeReference
     times: np.ndarray
     agreement: np.ndarray
     relative: float
-    consistent: bool
+    consistent: bool | None
 
 
 def mass_matrix(kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
@@ -821,10 +822,10 @@ class StepLadder:
     def settings(self) -> list[float]:
         return [self.first / 2.0**k for k in range(self.halvings + 1)]
 
-    def run(self, setting: float) -> FreeMotion:
+    def run(self, setting: float, evaluations: float) -> FreeMotion:
         return simulate_free(self.kinematics, self.start, self.duration, self.output_step, setting, self.compiled)
 
-    def work(self, setting: float) -> float:
+    def work(self, setting: float, previous: FreeMotion | None) -> float:
         """Evaluations: four accelerations and a projection a step."""
         per_output = max(1, math.ceil(self.output_step / setting - 1e-9))
         return 5.0 * per_output * round(self.duration / self.output_step)
@@ -836,6 +837,9 @@ class StepLadder:
             f"at most {self.halvings + 1} runs"
         )
 
+    def cost(self) -> str:
+        return f"steps of {self.first:.3g} s over {self.duration:g} s"
+
 
 class ToleranceLadder:
     """DOP853 (:mod:`._adaptive`) at local tolerances divided by ten from ``first`` down to
@@ -844,25 +848,27 @@ class ToleranceLadder:
     name = "DOP853"
     nominal: float | None = None
 
-    def __init__(self, kinematics, start, duration, output_step, first, time_scale):
+    def __init__(self, kinematics, start, duration, output_step, first, time_scale, source=""):
         self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
-        self.first, self.scale = first, time_scale
+        self.first, self.scale, self.source = first, time_scale, source
 
     def settings(self) -> list[float]:
         count = max(1, int(math.floor(math.log10(self.first / FINEST_TOLERANCE) + 1e-9)) + 1)
         return [self.first / 10.0**k for k in range(count)]
 
-    def run(self, setting: float) -> FreeMotion:
+    def run(self, setting: float, evaluations: float) -> FreeMotion:
         from ._adaptive import simulate_adaptive
-        from ._reference import WORK_BUDGET
 
-        budget = int(WORK_BUDGET / self.kinematics.system.n)
+        budget = int(min(evaluations, 2**62))
         return simulate_adaptive(self.kinematics, self.start, self.duration, self.output_step, setting, budget)
 
-    def work(self, setting: float) -> float:
-        """Evaluations, from the shortest time scale: DOP853's steps stay below about 3.3 of it
-        (its stability on the negative real axis), each 13 evaluations (more with a finer
-        tolerance), and an output costs two."""
+    def work(self, setting: float, previous: FreeMotion | None) -> float:
+        """Evaluations: the last run's 1.4 times (measured: 1.3 to 1.4 times a tenth of the
+        tolerance), or before any, from the shortest time scale: DOP853's steps stay below about
+        3.3 of it (its stability on the negative real axis), each 13 evaluations; an output
+        costs two."""
+        if previous is not None and "evaluations" in previous.statistics:
+            return 1.4 * float(previous.statistics["evaluations"])
         steps = self.duration / (3.3 * self.scale) if self.scale > 0.0 else 0.0
         return 13.0 * steps + 2.0 * round(self.duration / self.output_step)
 
@@ -872,6 +878,13 @@ class ToleranceLadder:
             "output) on the index-1 equations, positions and velocities projected onto the constraints "
             f"after every step; local tolerances divided by ten from {self.first:.3g}, at most down to "
             f"{FINEST_TOLERANCE:g}"
+        )
+
+    def cost(self) -> str:
+        by = f", set by {self.source}" if self.source else ""
+        return (
+            f"steps of at most 3.3 x the motion's shortest time scale, {self.scale:.3g} s{by}, over "
+            f"{self.duration:g} s, and {round(self.duration / self.output_step)} outputs"
         )
 
 
@@ -919,11 +932,11 @@ def adaptive_reference(
     progress=None,
 ) -> FreeReference:
     """The DOP853 reference: runs at local tolerances from a tenth of ``tolerance`` (at most
-    1e-6) down, judged by :func:`._reference.run_ladder`."""
+    1e-6, at least 1e-12) down, judged by :func:`._reference.run_ladder`."""
     from ._reference import run_ladder, time_scale
 
-    first = min(max(0.1 * tolerance, FINEST_TOLERANCE), 1e-6)
-    method = ToleranceLadder(kinematics, start, duration, output_step, first, time_scale(kinematics, start)[0])
+    first = min(max(0.1 * tolerance, 100.0 * FINEST_TOLERANCE), 1e-6)  # three runs at least
+    method = ToleranceLadder(kinematics, start, duration, output_step, first, *time_scale(kinematics, start))
     return run_ladder(kinematics, method, tolerance, progress=progress)
 
 
@@ -1004,7 +1017,7 @@ def simulate(
         A duration that is not a whole number of output steps, too many outputs, a
         motion no run can follow within the work budget.
     """
-    from ._reference import compare_runs, free_duration
+    from ._reference import compare_runs, free_duration, time_scale
 
     spec = kinematics.mechanism.free_motion
     length = free_duration(kinematics, duration)
@@ -1012,7 +1025,20 @@ def simulate(
     start = release_state(kinematics, branch)
     output = min(spec.output_step, length)
     reference = adaptive_reference(kinematics, start, length, output, spec.tolerance, progress=progress)
-    if check:
-        second = free_reference(kinematics, start, length, output, spec.tolerance, progress=progress)
+    if check:  # RK4 at outputs a whole number of the reference's apart, about four of its first steps
+        natural = min(length / 1000.0, 0.5 * time_scale(kinematics, start)[0])
+        spacing = output * _divisor_at_most(round(length / output), max(1, int(4.0 * natural / output)))
+        second = free_reference(
+            kinematics, start, length, spacing, spec.tolerance, first_step=min(spacing / 4.0, natural),
+            progress=progress,
+        )  # fmt: skip
         reference.check = compare_runs(kinematics, reference, second)
     return reference
+
+
+def _divisor_at_most(count: int, most: int) -> int:
+    """The largest divisor of ``count`` that is at most ``most`` (1 at least)."""
+    for k in range(min(count, most), 0, -1):
+        if count % k == 0:
+            return k
+    return 1

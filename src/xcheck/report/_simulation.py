@@ -161,11 +161,11 @@ def _reference_section(reference) -> list[str]:
     check = reference.check
     if check is not None:
         other = check.reference
-        verdict = (
-            "within the sum of their stated errors"
-            if check.consistent
-            else "**beyond the sum of their stated errors: one of them is wrong**"
-        )
+        verdict = {
+            True: "within the sum of their stated errors",
+            False: "**beyond the sum of their stated errors: one of them is wrong**",
+            None: "inconclusive: one of them did not reach its tolerance, so their stated errors bound nothing",
+        }[check.consistent]
         lines += [
             f"Checked by {other.method} ({other.basis}; stated error {_g(float(other.estimate.max()), 3)} m, "
             f"{'converged' if other.converged else '**not converged**'}): the two agree to "
