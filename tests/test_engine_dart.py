@@ -82,6 +82,10 @@ def test_forces_other_than_gravity_are_not_applicable(released_fourbar):
     kin = Kinematics(load_mechanism(DATA / "free-slider-crank-spring.toml"))
     with pytest.raises(NotApplicable, match="spring .* applies gravity only"):
         run_free("dart-free", kin, reference)
+    geared = load_mechanism(DATA / "planetary-train.toml")
+    kin = Kinematics(dataclasses.replace(geared, loads=(), gravity=(0.0, -9.81)))
+    with pytest.raises(NotApplicable, match="'sun mesh' is a gear joint: xcheck's DART model couples no joint"):
+        run_free("dart-free", kin, reference)
 
 
 def test_driven_dynamics_converge_with_the_realised_inputs_on_the_law(kinematics):

@@ -9,22 +9,26 @@ frames are placed so that every coordinate is 0 at the state they are built
 from: an engine that assumes its model assembled at q = 0 (Newton's MuJoCo
 backend places loop anchors there) is then right, and the others start from
 q = 0 with the rates :meth:`TreeFrames.rates` gives. The loop cuts are the
-revolutes the tree leaves out, each a pair of body points.
+revolutes the tree leaves out, each a pair of body points, and the gear pairs
+couplings of their gears' coordinates; each tree joint and cut is converted by
+the converter of its type (:func:`xcheck.joints.converter`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from xcheck.errors import NotApplicable
+from xcheck.joints import GearPair, Joint, Prismatic, Revolute, converter
 from xcheck.kinematics import rotate
-from xcheck.model import GROUND, Mechanism, Prismatic, Revolute
+from xcheck.model import GROUND, Mechanism
 from xcheck.topology import spanning_tree
 
-__all__ = ["JointFrames", "TreeFrames", "gravity_only", "tree_frames"]
+__all__ = ["Coupling", "JointFrames", "TreeFrames", "gravity_only", "tree_frames"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,26 @@ class JointFrames:
 
 
 @dataclass(frozen=True)
+class Coupling:
+    """A gear pair as a coupling of two revolute tree joints' coordinates, both 0 at
+    the build state: ``dependent = ratio * independent``.
+
+    Attributes
+    ----------
+    name : str
+        The gear pair's name.
+    independent, dependent : str
+        The tree joints (the gears' revolutes on the carrier).
+    ratio : float
+    """
+
+    name: str
+    independent: str
+    dependent: str
+    ratio: float
+
+
+@dataclass(frozen=True)
 class TreeFrames:
     """The tree's joints (parents first) and the loop cuts, zeroed at a state.
 
@@ -64,10 +88,13 @@ class TreeFrames:
     joints : tuple of JointFrames
     cuts : tuple of (str, ndarray, str, ndarray)
         Per cut revolute: (body, point (2,) in its frame, body, point (2,)).
+    couplings : tuple of Coupling
+        The gear pairs.
     """
 
     joints: tuple[JointFrames, ...]
     cuts: tuple[tuple[str, np.ndarray, str, np.ndarray], ...]
+    couplings: tuple[Coupling, ...] = ()
 
     def rates(self, mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> dict[str, float]:
         """Each tree joint's coordinate rate (rad/s or m/s) at native body coordinates ``q``
@@ -128,30 +155,89 @@ class TreeFrames:
         return out
 
 
-def tree_frames(mech: Mechanism, q: np.ndarray, engine: str) -> TreeFrames:
+def _revolute_frames(mech: Mechanism, tj, angle, position) -> JointFrames:
+    """A revolute tree joint's frames: at its points, the child's turned to the parent's."""
+    j = tj.joint
+    l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
+    return JointFrames(
+        j.name,
+        "revolute",
+        tj.parent,
+        tj.child,
+        np.asarray(mech.body(tj.parent).points[l_parent], dtype=float),
+        np.asarray(mech.body(tj.child).points[l_child], dtype=float),
+        angle(tj.child) - angle(tj.parent),
+        0.0,
+    )
+
+
+def _prismatic_frames(mech: Mechanism, tj, angle, position) -> JointFrames:
+    """A prismatic tree joint's frames: along its line, the line's frame moved to the start."""
+    j = tj.joint
+    heading = math.atan2(j.direction[1], j.direction[0])
+    line = np.asarray(mech.body(j.body_a).points[j.line_point], dtype=float)
+    point = np.asarray(mech.body(j.body_b).points[j.point], dtype=float)
+    gap = position(j.body_b, j.point) - position(j.body_a, j.line_point)
+    slide = float(rotate(angle(j.body_a), j.direction) @ gap)
+    if not tj.reversed:  # the line is the parent's: its frame moved along the line to the start
+        parent_point, child_point = line + slide * np.asarray(j.direction), point
+        parent_angle, child_angle = heading, heading - j.angle
+    else:  # the line is the child's: the frames in the line's orientation, the child's moved back
+        parent_point, child_point = point, line + slide * np.asarray(j.direction)
+        parent_angle, child_angle = heading - j.angle, heading
+    return JointFrames(j.name, "prismatic", tj.parent, tj.child, parent_point, child_point, parent_angle, child_angle)
+
+
+def _revolute_cut(mech: Mechanism, cut: Revolute, signs) -> tuple[str, np.ndarray, str, np.ndarray]:
+    """A loop cut at a revolute: its two body points."""
+    return (
+        cut.body_a,
+        np.asarray(mech.body(cut.body_a).points[cut.point_a], dtype=float),
+        cut.body_b,
+        np.asarray(mech.body(cut.body_b).points[cut.point_b], dtype=float),
+    )
+
+
+def _gear_coupling(mech: Mechanism, gear: GearPair, signs) -> Coupling:
+    """A gear pair as a coupling of its gears' revolutes' coordinates (0 at the build
+    state, where the mesh holds): omega_b - omega_c = ratio (omega_a - omega_c)."""
+    sign_a, sign_b = signs(gear.pin_a, gear.body_a), signs(gear.pin_b, gear.body_b)
+    return Coupling(gear.name, gear.pin_a, gear.pin_b, gear.ratio * sign_a * sign_b)
+
+
+def _converters(engine: str, couplings: bool) -> tuple[dict, dict]:
+    """The tree joints' and the cuts' converters by joint type, for ``engine``."""
+    tree: dict[type, Callable | str] = {
+        Revolute: _revolute_frames,
+        Prismatic: _prismatic_frames,
+        Joint: f"xcheck's {engine} model has revolute and prismatic tree joints only",
+    }
+    cuts: dict[type, Callable | str] = {
+        Revolute: _revolute_cut,
+        GearPair: _gear_coupling if couplings else f"xcheck's {engine} model couples no joint coordinates",
+        Joint: f"a loop is cut at the {{kind}} joint {{name!r}}: xcheck's {engine} model closes loops at "
+        "revolutes only",
+    }
+    return tree, cuts
+
+
+def tree_frames(mech: Mechanism, q: np.ndarray, engine: str, couplings: bool = False) -> TreeFrames:
     """The mechanism's tree with every joint coordinate 0 at native body coordinates
-    ``q`` (x, y, phi per moving body in ``moving_bodies`` order; m, rad).
+    ``q`` (x, y, phi per moving body in ``moving_bodies`` order; m, rad): each tree
+    joint and each cut by the converter of its type; ``couplings``: whether the
+    engine couples joint coordinates (a gear pair), ``engine`` names it in reasons.
 
     Raises
     ------
     NotApplicable
-        Where the mechanism has a joint other than revolute and prismatic, or a loop
-        cut at a prismatic joint (``engine`` names the engine in the reason).
+        Where a tree joint is neither revolute nor prismatic, a loop is cut at a joint
+        other than a revolute, or a gear pair needs a coupling the engine lacks.
     """
     index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
     topology = spanning_tree(mech)
-    other = [j for j in mech.joints if not isinstance(j, (Revolute, Prismatic))]
-    if other:
-        raise NotApplicable(
-            f"joint {other[0].name!r} is a {other[0].kind}: xcheck's {engine} model has revolute and prismatic "
-            "joints only"
-        )
-    sliding = [j for j in topology.cuts if not isinstance(j, Revolute)]
-    if sliding:
-        raise NotApplicable(
-            f"a loop is cut at the prismatic joint {sliding[0].name!r}: xcheck's {engine} model closes loops "
-            "at revolutes only"
-        )
+    tree_table, cut_table = _converters(engine, couplings)
+    tree_converters = [converter(tree_table, tj.joint, engine) for tj in topology.tree]
+    cut_converters = [converter(cut_table, cut, engine) for cut in topology.cuts]
 
     def angle(name: str) -> float:
         return 0.0 if name == GROUND else float(q[index[name] + 2])
@@ -160,51 +246,19 @@ def tree_frames(mech: Mechanism, q: np.ndarray, engine: str) -> TreeFrames:
         point = np.asarray(mech.body(name).points[label], dtype=float)
         return point if name == GROUND else q[index[name] : index[name] + 2] + rotate(angle(name), point)
 
-    joints = []
-    for tj in topology.tree:
-        j = tj.joint
-        if isinstance(j, Revolute):
-            l_parent, l_child = (j.point_b, j.point_a) if tj.reversed else (j.point_a, j.point_b)
-            joints.append(
-                JointFrames(
-                    j.name,
-                    "revolute",
-                    tj.parent,
-                    tj.child,
-                    np.asarray(mech.body(tj.parent).points[l_parent], dtype=float),
-                    np.asarray(mech.body(tj.child).points[l_child], dtype=float),
-                    angle(tj.child) - angle(tj.parent),
-                    0.0,
-                )
-            )
-            continue
-        assert isinstance(j, Prismatic)
-        heading = math.atan2(j.direction[1], j.direction[0])
-        line = np.asarray(mech.body(j.body_a).points[j.line_point], dtype=float)
-        point = np.asarray(mech.body(j.body_b).points[j.point], dtype=float)
-        gap = position(j.body_b, j.point) - position(j.body_a, j.line_point)
-        slide = float(rotate(angle(j.body_a), j.direction) @ gap)
-        if not tj.reversed:  # the line is the parent's: its frame moved along the line to the start
-            parent_point, child_point = line + slide * np.asarray(j.direction), point
-            parent_angle, child_angle = heading, heading - j.angle
-        else:  # the line is the child's: the frames in the line's orientation, the child's moved back
-            parent_point, child_point = point, line + slide * np.asarray(j.direction)
-            parent_angle, child_angle = heading - j.angle, heading
-        joints.append(
-            JointFrames(j.name, "prismatic", tj.parent, tj.child, parent_point, child_point, parent_angle, child_angle)
-        )
-    cuts = []
-    for cut in topology.cuts:
-        assert isinstance(cut, Revolute)
-        cuts.append(
-            (
-                cut.body_a,
-                np.asarray(mech.body(cut.body_a).points[cut.point_a], dtype=float),
-                cut.body_b,
-                np.asarray(mech.body(cut.body_b).points[cut.point_b], dtype=float),
-            )
-        )
-    return TreeFrames(tuple(joints), tuple(cuts))
+    joints = tuple(convert(mech, tj, angle, position) for convert, tj in zip(tree_converters, topology.tree))
+    children = {frames.name: frames.child for frames in joints}
+
+    def sign(joint: str, body: str) -> float:
+        """The sign of a revolute tree joint's coordinate against ``body``'s turn relative to the other body."""
+        return 1.0 if children[joint] == body else -1.0
+
+    closed = [convert(mech, cut, sign) for convert, cut in zip(cut_converters, topology.cuts)]
+    return TreeFrames(
+        joints,
+        tuple(c for c in closed if not isinstance(c, Coupling)),
+        tuple(c for c in closed if isinstance(c, Coupling)),
+    )
 
 
 def gravity_only(mech: Mechanism, engine: str) -> None:

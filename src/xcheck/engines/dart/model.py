@@ -10,13 +10,15 @@ steps semi-implicit Euler with the constraints solved as a velocity-level LCP
 (Dantzig, PGS as its fallback), their drift corrected by error reduction
 (ERP) and softened by constraint force mixing (CFM). Gravity is the world's.
 
-Not converted (:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and
-loops cut at a prismatic joint (:func:`~xcheck.engines._tree.tree_frames`),
+Each tree joint is converted by the converter of its type. Not converted
+(:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints, loops cut at a
+prismatic joint and gear pairs (:func:`~xcheck.engines._tree.tree_frames`),
 springs, dampers and loads (not built here).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +27,7 @@ import numpy as np
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import positive_inertia
 from xcheck.engines._tree import TreeFrames, gravity_only, tree_frames
+from xcheck.joints import Prismatic, Revolute, converter
 from xcheck.kinematics import rotate
 from xcheck.model import GROUND, Mechanism
 
@@ -69,6 +72,24 @@ def _isometry(point, angle: float):
     return transform
 
 
+def _revolute(dart, skeleton) -> tuple[Any, Callable]:
+    """A revolute tree joint: DART's properties, its axis the frames' z, and the skeleton's maker."""
+    props = dart.dynamics.RevoluteJointProperties()
+    props.mAxis = [0.0, 0.0, 1.0]
+    return props, skeleton.createRevoluteJointAndBodyNodePair
+
+
+def _prismatic(dart, skeleton) -> tuple[Any, Callable]:
+    """A prismatic tree joint: DART's properties, its axis the frames' x, and the skeleton's maker."""
+    props = dart.dynamics.PrismaticJointProperties()
+    props.mAxis = [1.0, 0.0, 0.0]
+    return props, skeleton.createPrismaticJointAndBodyNodePair
+
+
+#: each tree joint type's converter: (dartpy, the skeleton) -> (joint properties, the skeleton's joint-and-body maker)
+_JOINTS: dict[type, Callable] = {Revolute: _revolute, Prismatic: _prismatic}
+
+
 def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray, dt: float, cut: str = "revolute") -> DartModel:
     """The mechanism as a DART world with time step ``dt`` (s), at native body coordinates
     ``q`` and rates ``qd`` (x, y, phi per moving body; m, rad, m/s, rad/s), each loop cut
@@ -96,18 +117,12 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray, dt: float, cut: str = 
     bodies: dict[str, Any] = {}
     joints: dict[str, Any] = {}
     for frames in tree.joints:
-        revolute = frames.kind == "revolute"
-        props = dart.dynamics.RevoluteJointProperties() if revolute else dart.dynamics.PrismaticJointProperties()
+        props, create = converter(_JOINTS, mech.joint(frames.name), "DART")(dart, skeleton)
         props.mName = frames.name
-        props.mAxis = [0.0, 0.0, 1.0] if revolute else [1.0, 0.0, 0.0]
         props.mT_ParentBodyToJoint = _isometry(frames.parent_point, frames.parent_angle)
         props.mT_ChildBodyToJoint = _isometry(frames.child_point, frames.child_angle)
         parent = None if frames.parent == GROUND else bodies[frames.parent]
-        node_props = dart.dynamics.BodyNodeProperties()
-        if revolute:
-            joint, node = skeleton.createRevoluteJointAndBodyNodePair(parent, props, node_props)
-        else:
-            joint, node = skeleton.createPrismaticJointAndBodyNodePair(parent, props, node_props)
+        joint, node = create(parent, props, dart.dynamics.BodyNodeProperties())
         node.setName(frames.child)
         body = mech.body(frames.child)
         assert body.mass is not None and body.inertia is not None

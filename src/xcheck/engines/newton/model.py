@@ -9,14 +9,16 @@ backend computes a loop joint's anchors at q = 0 (a finding): zeroed at the
 start, they are right. Gravity is the model's; the model is finalised on the CPU
 (warp's float32).
 
-Not converted (:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and
-loops cut at a prismatic joint (:func:`~xcheck.engines._tree.tree_frames`),
+Each tree joint is converted by the converter of its type. Not converted
+(:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints, loops cut at a
+prismatic joint and gear pairs (:func:`~xcheck.engines._tree.tree_frames`),
 springs, dampers and loads (not built here).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +27,7 @@ import numpy as np
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import positive_inertia
 from xcheck.engines._tree import TreeFrames, gravity_only, tree_frames
+from xcheck.joints import Prismatic, Revolute, converter
 from xcheck.model import GROUND, Mechanism
 
 __all__ = ["NewtonModel", "build", "newton"]
@@ -81,6 +84,13 @@ class NewtonModel:
             turned = before + math.remainder(raw - before, 2.0 * math.pi)
             out[name] = (np.asarray(pose[:2], dtype=float), turned)
         return out
+
+
+#: each tree joint type's converter: the model builder -> (its method adding the joint, the joint's axis in its frames)
+_JOINTS: dict[type, Callable] = {
+    Revolute: lambda builder: (builder.add_joint_revolute, (0.0, 0.0, 1.0)),
+    Prismatic: lambda builder: (builder.add_joint_prismatic, (1.0, 0.0, 0.0)),
+}
 
 
 def _depth_first(tree: TreeFrames) -> list:
@@ -140,14 +150,14 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
 
     joints = []
     for frames in _depth_first(tree):
-        add = builder.add_joint_revolute if frames.kind == "revolute" else builder.add_joint_prismatic
+        add, axis = converter(_JOINTS, mech.joint(frames.name), "Newton")(builder)
         joints.append(
             add(
                 link(frames.parent),
                 link(frames.child),
                 parent_xform=xform(frames.parent_point, frames.parent_angle),
                 child_xform=xform(frames.child_point, frames.child_angle),
-                axis=(0.0, 0.0, 1.0) if frames.kind == "revolute" else (1.0, 0.0, 0.0),
+                axis=axis,
                 label=frames.name,
             )
         )

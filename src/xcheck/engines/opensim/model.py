@@ -5,17 +5,20 @@ bodies are xcheck's body frames, hung from their parents by ``PinJoint`` s
 value, 0, is the state the model is built at (OpenSim's assembly at
 ``initSystem()`` starts from the defaults: elsewhere it fails by centimetres).
 Each loop cut at a revolute is a ``PointConstraint`` between its two points
-(Simbody's ball constraint: its z row is redundant and accepted). Gravity is
+(Simbody's ball constraint: its z row is redundant and accepted), each gear pair
+a ``CoordinateCouplerConstraint`` of its gears' revolutes' coordinates. Gravity is
 the model's; a linear spring without damping is a ``PointToPointSpring``.
 
-Not converted (:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and
-loops cut at a prismatic joint (:func:`~xcheck.engines._tree.tree_frames`),
-dampers, rotational springs and loads (not built here).
+Each tree joint is converted by the converter of its type. Not converted
+(:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and loops cut at a
+prismatic joint (:func:`~xcheck.engines._tree.tree_frames`), dampers,
+rotational springs and loads (not built here); gear pairs in the driven mode.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,10 +27,16 @@ import numpy as np
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import NotApplicable, positive_inertia
 from xcheck.engines._tree import TreeFrames, tree_frames
+from xcheck.joints import Prismatic, Revolute, converter
 from xcheck.model import GROUND, Mechanism
 
 __all__ = ["OpenSimModel", "build", "opensim", "refuse"]
 
+#: each tree joint type's OpenSim joint class (from the module): a turn about the frames' z, a slide along their x
+_JOINTS: dict[type, Callable[[Any], Any]] = {
+    Revolute: lambda osim: osim.PinJoint,
+    Prismatic: lambda osim: osim.SliderJoint,
+}
 #: characters OpenSim refuses in a component's name (its component paths use them)
 _NOT_IN_NAMES = re.compile(r"[\\*+\s/]")
 
@@ -119,7 +128,7 @@ def build(
     osim = opensim()
     require_mass_data(mech)
     refuse(mech)
-    tree = tree_frames(mech, q, "OpenSim")
+    tree = tree_frames(mech, q, "OpenSim", couplings=True)
     model = osim.Model()
     model.setName(component_name(mech.name, 0))
     gravity = np.asarray(mech.gravity, dtype=float)
@@ -148,8 +157,7 @@ def build(
     coordinates: dict[str, Any] = {}
     rates = tree.rates(mech, q, np.zeros_like(q) if qd is None else qd)
     for k, joint in enumerate(tree.joints):
-        kind = osim.PinJoint if joint.kind == "revolute" else osim.SliderJoint
-        built = kind(
+        built = converter(_JOINTS, mech.joint(joint.name), "OpenSim")(osim)(
             component_name(joint.name, k),
             frame(joint.parent),
             vec3(joint.parent_point),
@@ -172,6 +180,15 @@ def build(
         constraint = osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b))
         constraint.setName(f"loop{k}")
         model.addConstraint(constraint)
+    for coupling in tree.couplings:  # a gear pair: the dependent coordinate a linear function of the other
+        coupler = osim.CoordinateCouplerConstraint()
+        coupler.setName(component_name(coupling.name, len(tree.cuts)))
+        independent = osim.ArrayStr()
+        independent.append(coordinates[coupling.independent].getName())
+        coupler.setIndependentCoordinateNames(independent)
+        coupler.setDependentCoordinateName(coordinates[coupling.dependent].getName())
+        coupler.setFunction(osim.LinearFunction(float(coupling.ratio), 0.0))
+        model.addConstraint(coupler)
     owners = mech.point_owners
     for k, spring in enumerate(mech.springs):
         (a, pa), (b, pb) = ((owners[label], mech.body(owners[label]).points[label]) for label in spring.points)
