@@ -582,7 +582,9 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
                 "ratio": relative / bound if bound > 0 else math.nan,
             }
             label = source if source == "newton-euler" else f"{source}-forces"
-            if not ok:
+            if not forces.applies:
+                rows.append(row(label, "not-applicable", "engine", str(forces.reason)))
+            elif not ok:
                 rows.append(row(label, "error", "engine", str(forces.reason), **figures))
             else:
                 passed = bool(forces.passed)

@@ -672,7 +672,7 @@ def run_json(run) -> dict:
             "scale_floor": _number(getattr(row, "floor", math.nan)),
             "worst": f"{row.name} {row.quantity}".strip() or None,
             "states": int(row.states),
-            "pass": bool(row.passed),
+            "pass": bool(row.passed) if row.applies else None,
             "reason": row.reason or None,
         }
     energy = (
@@ -767,6 +767,9 @@ def print_run(console: Console, run) -> None:
     if not run.force_table.empty:
         parts = []
         for row in run.force_table.itertuples():
+            if not row.applies:
+                parts.append(f"{row.engine} not applicable ({row.reason})")
+                continue
             if not row.ok:
                 parts.append(f"[red]{row.engine} failed[/red] ({row.reason})")
                 continue

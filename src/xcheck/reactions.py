@@ -18,6 +18,7 @@ import numpy as np
 
 from . import engines
 from .dynamics import Forces, force_differences, newton_euler, require_mass_data, window_states
+from .errors import NotApplicable
 from .kinematics import Kinematics
 from .ladder import one_line
 
@@ -49,6 +50,9 @@ class ForceResult:
         :func:`force_differences` of ``forces``.
     seconds : float
         Run time.
+    applies : bool
+        False where the engine cannot hold the mechanism (``reason`` says
+        why): not a failure.
     """
 
     engine: str
@@ -58,6 +62,7 @@ class ForceResult:
     forces: Forces | None = None
     table: pd.DataFrame | None = None
     seconds: float = 0.0
+    applies: bool = True
 
 
 def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None, **options) -> ForceResult:
@@ -89,6 +94,10 @@ def engine_forces(kinematics: Kinematics, engine: str, branch: str | None = None
         else:
             raise ValueError(f"expected an engine ({', '.join(['newton-euler', *force_engines()])}), found {engine!r}")
         table = force_differences(kinematics, forces, branch)
+    except NotApplicable as error:
+        return ForceResult(
+            engine, mech.name, False, one_line(error), seconds=time.perf_counter() - start, applies=False
+        )
     except Exception as error:  # noqa: BLE001 - a failed engine is data: reported, the others still run
         return ForceResult(engine, mech.name, False, one_line(error), seconds=time.perf_counter() - start)
     return ForceResult(engine, mech.name, True, "", forces, table, time.perf_counter() - start)
@@ -109,7 +118,7 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
     ``reason``, the worst ``max_rel`` with its ``name`` and ``quantity`` (NaN
     and empty for a failed engine), ``max_abs`` there (SI, ``unit``), the
     physical ``floor`` of that unit's scale (:func:`force_floors`),
-    ``states`` and ``seconds``."""
+    ``states``, ``seconds`` and ``applies``."""
     import pandas as pd
 
     rows = []
@@ -126,6 +135,7 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
             "floor": np.nan,
             "states": 0,
             "seconds": r.seconds,
+            "applies": r.applies,
         }
         if r.ok and r.table is not None and not r.table.empty:
             worst = r.table.iloc[int(np.nanargmax(r.table["max_rel"].to_numpy()))]

@@ -299,7 +299,8 @@ class RunResult:
         with findings" when every failure is an engine's stated finding
         (:attr:`findings`), else "fail". The exit code of ``xcheck run`` follows
         it (:data:`EXIT_CODES`)."""
-        forces_pass = self.force_table.empty or bool(self.force_table.passed.all())
+        table = self.force_table
+        forces_pass = table.empty or bool((table.passed | ~table.applies).all())  # not applicable: no verdict
         energy_pass = self.energy is None or bool(self.energy["passed"])
         return run_verdict([o.verdict for o in self.outcomes.values()], forces_pass and energy_pass)
 
@@ -912,7 +913,7 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress, cache: bool
                 setattr(run, name, kept[name])
             return
     _compute_forces(run, sources, branch)
-    if cache and all(r.ok for r in run.forces):
+    if cache and all(r.ok or not r.applies for r in run.forces):
         kept = {name: getattr(run, name) for name in _FORCE_FIELDS}
         run.provenance["forces"] = result_cache.keep(kinematics, parts, used, kept, run.provenance["forces"].recomputed)
 

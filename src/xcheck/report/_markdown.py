@@ -378,6 +378,14 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
     whether it passed and ``made``, where it comes from."""
     parts = {}
     for r in run.force_table.to_dict("records"):
+        if not r["applies"]:  # the engine cannot hold the mechanism: no verdict either way
+            parts[str(r["engine"])] = {
+                "row": [f"not applicable: {r['reason']}", "—", "—", "—", "—"],
+                "basis": "",
+                "passed": True,
+                "produced": made,
+            }
+            continue
         if not r["ok"]:
             parts[str(r["engine"])] = {
                 "row": [f"**failed**: {r['reason']}", "—", "—", "—", "—"],

@@ -1,0 +1,58 @@
+"""Gear pairs in the engines, through `xcheck run`: each engine that offers a
+coupling (MuJoCo's joint equality, pymunk's GearJoint, PyBullet's gear
+constraint, Drake's coupler constraint, Exudyn's coordinate constraint) holds
+the files of tests/data within its tolerance, judged by the runner's one rule;
+Pinocchio has none and says why.
+
+The files' answers are derived without xcheck's solver in tests/test_gears.py;
+here the native solution is the reference every mode is compared with.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from conftest import DATA, invoke
+
+
+def run(name: str, engines: str) -> dict:
+    """``xcheck run`` of a test file with a few samples, its JSON summary."""
+    done = invoke("run", str(DATA / f"{name}.toml"), "--engines", engines, "--samples", "9", "--json")
+    assert "Traceback" not in done.stderr, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_an_arm_carrying_a_planet_round_a_fixed_sun_in_mujoco_pybullet_and_drake():
+    pytest.importorskip("mujoco")
+    pytest.importorskip("pybullet")
+    pytest.importorskip("pydrake")
+    summary = run("planetary-fixed-sun", "native,mujoco,pybullet-dynamic,drake-dynamic,pinocchio-kinematic")
+    verdicts = {mode: result["verdict"] for mode, result in summary["engines"].items()}
+    assert verdicts == dict.fromkeys(
+        ("native", "mujoco-kinematic", "mujoco-dynamic", "pybullet-dynamic", "drake-dynamic"), "pass"
+    )
+    assert "couple no joint coordinates" in summary["not_applicable"]["pinocchio-kinematic"]
+    assert summary["verdict"] == "pass"
+
+
+def test_a_planet_inside_a_fixed_ring_in_pymunk_and_exudyn():
+    """pymunk's GearJoint couples the two bodies' absolute angles, Exudyn's
+    coordinate constraint two nodes' angles: each holds the internal mesh."""
+    pytest.importorskip("pymunk")
+    pytest.importorskip("exudyn")
+    summary = run("planetary-fixed-ring", "native,pymunk-dynamic,exudyn-dynamic")
+    verdicts = {mode: result["verdict"] for mode, result in summary["engines"].items()}
+    assert verdicts == dict.fromkeys(("native", "pymunk-dynamic", "exudyn-dynamic"), "pass")
+
+
+def test_a_geared_fivebar_in_pybullet():
+    """A gear pair on a closed loop: PyBullet's gear constraint with its slip
+    corrected at every step (without, positions converged at order 1 and failed)."""
+    pytest.importorskip("pybullet")
+    summary = run("geared-fivebar", "native,pybullet-dynamic")
+    assert {mode: result["verdict"] for mode, result in summary["engines"].items()} == {
+        "native": "pass",
+        "pybullet-dynamic": "pass",
+    }
+    assert summary["verdict"] == "pass"
