@@ -43,7 +43,7 @@ from .errors import InputError
 from .kinematics import Kinematics, Solution, Status
 from .model import Mechanism, load_mechanism
 from .motion import drive_warnings
-from .states import asked_states, drawn_state, instant_states, limit_warnings, solve_asked
+from .states import drawn_state, limit_warnings, solve_asked, states_asked
 from .textbook import check_printed, load_comparisons
 
 if TYPE_CHECKING:
@@ -302,15 +302,7 @@ class Assembled:
         >>> float(given.solution.qd[0, 2] / declared.solution.qd[0, 2])
         2.0
         """
-        if at is None:
-            if rates is not None or accelerations is not None:
-                raise InputError(
-                    f"{self.mechanism.path}: rates: expected them with at (the instants carry their own), found no at"
-                )
-            asked = instant_states(self.kinematics)
-        else:
-            asked = asked_states(self.kinematics, at, rates, accelerations, si)
-        solved = solve_asked(self.kinematics, asked, self.branch)
+        solved = solve_asked(self.kinematics, states_asked(self.kinematics, at, rates, accelerations, si), self.branch)
         for line in solved.warnings:
             warnings.warn(line, stacklevel=2)
         return Result(solved.solution, solved.labels, solved.warnings)

@@ -33,6 +33,7 @@ __all__ = [
     "run_models",
     "run_model",
     "simulate_model",
+    "reference_notes",
     "export_models",
     "shown_path",
     "shown_model",
@@ -151,6 +152,14 @@ class RunBatch:
 
     results: list[RunResult] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        """2 where a file failed, else the worst of the runs' verdicts' codes
+        (:data:`xcheck.runner.EXIT_CODES`), 0 for none."""
+        from .runner import EXIT_CODES
+
+        return 2 if self.failures else max((EXIT_CODES[r.verdict] for r in self.results), default=0)
 
 
 def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
@@ -350,6 +359,34 @@ def simulate_model(
 
 
 # -- export ---------------------------------------------------------------------------
+
+
+def reference_notes(reference) -> tuple[list[str], int]:
+    """What a user is told of a free-motion reference beside its results: a
+    line each where it did not reach its tolerance, where its check is
+    inconclusive and where the two methods disagree; and the exit code, 1
+    where it did not converge or they disagree, else 0."""
+    notes = []
+    if not reference.converged:
+        notes.append(
+            f"the {reference.method} reference did not reach the tolerance ({reference.tolerance:g} of "
+            f"the size): stated {reference.relative:.3g} ({reference.basis.rsplit('; stopped: ', 1)[-1]})"
+        )
+    checked = reference.check
+    disagree = checked is not None and checked.consistent is False
+    if checked is not None and checked.consistent is None:
+        notes.append(
+            f"the {checked.reference.method} check is inconclusive: it or the reference did not reach "
+            f"the tolerance, so their agreement ({checked.agreement.max(initial=0.0):.3g} m) judges neither"
+        )
+    if checked is not None and disagree:
+        second = checked.reference
+        notes.append(
+            f"the {reference.method} reference and its {second.method} check disagree by "
+            f"{checked.agreement.max():.3g} m, beyond their stated errors ({reference.estimate.max():.3g} "
+            f"and {second.estimate.max():.3g} m)"
+        )
+    return notes, 1 if not reference.converged or disagree else 0
 
 
 def export_models(

@@ -42,6 +42,7 @@ __all__ = [
     "LIMIT_FRACTION",
     "LIMIT_CONDITIONING",
     "Asked",
+    "states_asked",
     "values_of_text",
     "given_inputs",
     "asked_states",
@@ -230,6 +231,34 @@ def asked_states(
         for row in inputs
     ]
     return Asked(inputs, qd, qdd, labels, option=at_option)
+
+
+def states_asked(
+    kinematics: Kinematics,
+    at=None,
+    rates=None,
+    accelerations=None,
+    si: bool = False,
+    options: tuple[str, str, str] = ("at", "rates", "accelerations"),
+) -> Asked:
+    """The states asked for: the inputs ``at`` given (:func:`asked_states`), or
+    without them the file's instants (:func:`instant_states`), which carry
+    their own rates, so that rates or accelerations without ``at`` are refused.
+
+    Raises
+    ------
+    InputError, ModelError
+        As :func:`asked_states` and :func:`instant_states`; rates or accelerations without inputs.
+    """
+    if at is not None:
+        return asked_states(kinematics, at, rates, accelerations, si, options)
+    if rates is not None or accelerations is not None:
+        option = options[1] if rates is not None else options[2]
+        raise InputError(
+            f"{kinematics.mechanism.path}: {option}: expected it with {options[0]} (the instants of the file "
+            f"carry their own rates), found no {options[0]}"
+        )
+    return instant_states(kinematics)
 
 
 def _per_state(values: np.ndarray, inputs: np.ndarray, path: str, option: str) -> np.ndarray:
