@@ -39,7 +39,9 @@ def test_simulate_prints_a_summary_with_units_and_where_the_report_is(tmp_path):
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
     assert len(lines) <= 12, result.output
-    assert re.match(r"iftomm-a01 — free motion for 0.2 s: native reference \(DOP853\) converged, error <= \S+ m", lines[0])
+    assert re.match(
+        r"iftomm-a01 — free motion for 0.2 s: native reference \(DOP853\) converged, error <= \S+ m", lines[0]
+    )
     header = next(line for line in lines if line.startswith("mode "))
     for unit in ("error [m]", "loop drift [m]", "energy drift [J]", "CPU [s per s]"):
         assert unit in header
