@@ -55,6 +55,21 @@ def branch_map_cache(tmp_path_factory):
             os.environ[name] = value
 
 
+@pytest.fixture(autouse=True)
+def _cache_environment(branch_map_cache):
+    """Every test ends with the run's cache environment (:func:`branch_map_cache`)
+    as it found it: a test that turned the results cache on, or pointed the cache
+    elsewhere, and undid it in the wrong order (a ``monkeypatch`` undone after a
+    :func:`results_cache_on` it was set inside) would otherwise leave it so for
+    the tests that follow in its worker, which then read results kept by others."""
+    from xcheck.result_cache import RESULTS_ENV
+    from xcheck.store import CACHE_ENV
+
+    yield
+    os.environ[CACHE_ENV] = str(branch_map_cache)
+    os.environ[RESULTS_ENV] = "off"
+
+
 @contextlib.contextmanager
 def results_cache_on():
     """The results cache (xcheck.result_cache) on, in the run's cache directory, for

@@ -19,10 +19,11 @@ ARGS = ("--samples", "21", "--models", str(MODELS))
 
 @pytest.fixture
 def cache_on(tmp_path, monkeypatch):
-    """The results cache on, in a folder of this test's own."""
+    """The results cache on, in a folder of this test's own (through ``monkeypatch``,
+    so that a test's own ``monkeypatch`` of the same variables is undone first)."""
     monkeypatch.setenv(store.CACHE_ENV, str(tmp_path / "cache"))
-    with results_cache_on():
-        yield tmp_path / "cache"
+    monkeypatch.delenv(result_cache.RESULTS_ENV)
+    return tmp_path / "cache"
 
 
 def _run(*args: str) -> tuple[dict, str]:

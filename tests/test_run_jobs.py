@@ -18,8 +18,9 @@ SMALL = ("fourbar", "slider-crank", "two-body-arm")
 
 
 def _run(name: str, models, engines: str, out, jobs: str) -> tuple[list | dict, dict]:
-    """``xcheck run NAME`` with --json and --report: its JSON without the timings,
-    and every file it wrote (the --out folder in the Markdown named OUT)."""
+    """``xcheck run NAME`` with --json and --report, every result computed (the
+    results cache off, as the tests run): its JSON without the timings, and every
+    file it wrote (the --out folder in the Markdown named OUT)."""
     done = invoke(
         "run",
         name,
@@ -40,6 +41,7 @@ def _run(name: str, models, engines: str, out, jobs: str) -> tuple[list | dict, 
     assert done.returncode in (0, 1), done.stderr
     documents = json.loads(done.stdout)
     for document in documents if isinstance(documents, list) else [documents]:
+        assert document["cache"] == {"from_cache": {}, "recomputed": {}}, document["cache"]
         del document["timings"]
     files = {}
     for path in sorted(p for p in out.rglob("*") if p.is_file()):
@@ -321,3 +323,4 @@ def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
         assert list(result.outcomes) == modes and all(result.outcomes[m].ok for m in modes)
         documents.append(without_timings(simulation_json(result.reference, result)))
     assert documents[1] == documents[0]
+
