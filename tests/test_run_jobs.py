@@ -324,3 +324,16 @@ def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
         documents.append(without_timings(simulation_json(result.reference, result)))
     assert documents[1] == documents[0]
 
+
+def test_a_task_that_kills_its_worker_fails_alone():
+    """A worker that dies (an engine crashing its process) takes its pool and every
+    task in it down; those run again, each in a worker of its own, and only the
+    one that kills its process fails."""
+    import time
+
+    from xcheck._parallel import WORKER_DIED, collect, process_pool, submit
+
+    calls = {"dies": (os._exit, (3,)), "sleeps": (time.sleep, (1,)), "sums": (sum, ((1, 2),))}
+    with process_pool(2) as pool:
+        results = collect(submit(pool, calls), lambda key, why: why, None, calls, 2)
+    assert results == {"dies": WORKER_DIED, "sleeps": None, "sums": 3}

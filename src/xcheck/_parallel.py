@@ -17,11 +17,11 @@ import signal
 import threading
 import types
 from collections.abc import Callable, Hashable
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, as_completed, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
-__all__ = ["process_pool", "picklable_mechanisms", "known_to_workers", "collect", "WORKER_DIED"]
+__all__ = ["process_pool", "picklable_mechanisms", "known_to_workers", "submit", "collect", "WORKER_DIED"]
 
 Key = TypeVar("Key", bound=Hashable)
 
@@ -49,21 +49,31 @@ def _read_only(items: dict) -> types.MappingProxyType:
     return types.MappingProxyType(items)
 
 
-def process_pool(jobs: int) -> ProcessPoolExecutor:
+class Pool(ProcessPoolExecutor):
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` that counts its workers
+    that started (``started.value``: those that ran the initializer)."""
+
+    def __init__(self, jobs: int, context, broken: dict[str, str]):
+        self.started = context.Value("i", 0)
+        super().__init__(
+            max_workers=jobs, mp_context=context, initializer=_start_worker, initargs=(broken, self.started)
+        )
+
+
+def process_pool(jobs: int) -> Pool:
     """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both
     ways, and that end with the process that started them."""
     from . import engines
 
     picklable_mechanisms()
-    context = multiprocessing.get_context("spawn")
     # a plug-in this process could not load is not tried again in each worker (its import may hang)
-    broken = engines.load_problems()
-    return ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_start_worker, initargs=(broken,))
+    return Pool(jobs, multiprocessing.get_context("spawn"), engines.load_problems())
 
 
-def _start_worker(broken: dict[str, str] | None = None) -> None:
+def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     """The pool's initializer: mechanisms picklable, plug-ins the parent could
-    not load (``broken``: name -> reason) left alone, Ctrl-C, and a watch on the parent.
+    not load (``broken``: name -> reason) left alone, Ctrl-C, a watch on the
+    parent, and the pool's count of started workers (``started``) raised.
 
     Ctrl-C reaches the whole foreground process group: the parent ends the run
     (exit code 130), and a worker is ended by the signal's default action, at
@@ -81,6 +91,9 @@ def _start_worker(broken: dict[str, str] | None = None) -> None:
     parent = multiprocessing.parent_process()
     if parent is not None:
         threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True).start()
+    if started is not None:
+        with started.get_lock():
+            started.value += 1
 
 
 #: the limits set in a worker process (kept: they hold while this object does)
@@ -116,20 +129,78 @@ def known_to_workers(mode: str) -> bool:
     return not engines.registered_at_run_time(engine.name)
 
 
-def collect(futures: dict[Future, Key], failed: Callable, done: Callable | None = None) -> dict[Key, Any]:
+def submit(pool: ProcessPoolExecutor, calls: dict[Key, tuple[Callable, tuple]]) -> dict[Future, Key]:
+    """Each of ``calls`` (key to a function and its arguments) submitted to
+    ``pool``: future to key, for :func:`collect`."""
+    return {pool.submit(function, *arguments): key for key, (function, arguments) in calls.items()}
+
+
+def collect(
+    futures: dict[Future, Key],
+    failed: Callable,
+    done: Callable | None = None,
+    calls: dict[Key, tuple[Callable, tuple]] | None = None,
+    jobs: int = 1,
+) -> dict[Key, Any]:
     """The results of ``futures`` (future to its key: a mode's name, a mechanism's
     index) by key, as they finish; a result that does not come back is
     ``failed(key, reason)`` (a dead worker: :data:`WORKER_DIED`); ``done(key)``
-    after each."""
+    after each.
+
+    A worker that dies (an engine that crashes its process) takes the whole
+    pool with it, and every task still in it: with ``calls`` (as given to
+    :func:`submit`), each of those runs again in a worker of its own, ``jobs``
+    at once, so that only the task that crashes its process fails."""
     results: dict[Key, Any] = {}
+    broken = []
     for future in as_completed(futures):
         key = futures[future]
-        try:
-            results[key] = future.result()
-        except BrokenProcessPool:
-            results[key] = failed(key, WORKER_DIED)
-        except Exception as err:  # noqa: BLE001 - a result that could not come back (pickling) is the mode's
-            results[key] = failed(key, f"{type(err).__name__}: {err}".splitlines()[0])
+        if calls is not None and key in calls and isinstance(future.exception(), BrokenProcessPool):
+            broken.append(key)
+            continue
+        results[key] = _result(future, key, failed)
         if done is not None:
             done(key)
+    if broken and calls is not None:
+        results.update(_each_alone(broken, calls, failed, done, jobs))
+    return results
+
+
+def _result(future: Future, key, failed: Callable):
+    """A finished future's result, or ``failed(key, reason)``."""
+    try:
+        return future.result()
+    except BrokenProcessPool:
+        return failed(key, WORKER_DIED)
+    except Exception as err:  # noqa: BLE001 - a result that could not come back (pickling) is the task's
+        return failed(key, f"{type(err).__name__}: {err}".splitlines()[0])
+
+
+def _each_alone(keys: list, calls: dict, failed: Callable, done: Callable | None, jobs: int) -> dict:
+    """Each of ``keys``' calls in a pool of one worker of its own, ``jobs`` at
+    once. Where such a worker dies before it started (a script that starts
+    workers outside its main guard: every worker dies so), the calls not yet
+    started are not tried."""
+    results: dict = {}
+    pending = list(keys)
+    running: dict[Future, tuple[Any, Pool]] = {}
+    while pending or running:
+        while pending and len(running) < max(1, jobs):
+            key = pending.pop(0)
+            pool = process_pool(1)
+            function, arguments = calls[key]
+            running[pool.submit(function, *arguments)] = (key, pool)
+        finished, _ = wait(running, return_when=FIRST_COMPLETED)
+        for future in finished:
+            key, pool = running.pop(future)
+            pool.shutdown()
+            results[key] = _result(future, key, failed)
+            ended = [key]
+            if isinstance(future.exception(), BrokenProcessPool) and pool.started.value == 0:
+                results.update((other, failed(other, WORKER_DIED)) for other in pending)
+                ended += pending
+                pending = []
+            for each in ended:
+                if done is not None:
+                    done(each)
     return results

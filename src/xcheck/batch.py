@@ -270,7 +270,7 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     the outcomes in the order of the names."""
     import contextlib
 
-    from ._parallel import collect, process_pool
+    from ._parallel import collect, process_pool, submit
 
     def failed(index: int, reason: str) -> tuple:
         return None, None, [f"{names[index]}: expected its run back from a worker process, found that {reason}"]
@@ -282,13 +282,14 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     outcomes = {}
     with contextlib.ExitStack() as stack:
         if away:
+            calls = {i: (run_model, (names[i], settings)) for i in away}
             pool = stack.enter_context(process_pool(min(jobs, len(away))))
-            futures = {pool.submit(run_model, names[i], settings): i for i in away}
+            futures = submit(pool, calls)
         for i in here:  # where it is the one mechanism not in the cache: its modes in worker processes
             outcomes[i] = run_model(names[i], settings, jobs=1 if away else jobs)
             done()
         if away:
-            outcomes.update(collect(futures, failed, lambda _: done()))
+            outcomes.update(collect(futures, failed, lambda _: done(), calls, jobs))
     return [outcomes[i] for i in range(len(names))]
 
 

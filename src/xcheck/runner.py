@@ -864,20 +864,21 @@ def _run_modes_in_parallel(
     know (:func:`xcheck._parallel.known_to_workers`). Returns mode name to
     its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
     engine's crash) is that mode's failure, with the reason."""
-    from ._parallel import collect, known_to_workers, process_pool
+    from ._parallel import collect, known_to_workers, process_pool, submit
 
     branch = arguments[3]  # (kinematics, native, samples, branch, floors)
     here = [mode for mode in runnable if not known_to_workers(mode)]
     away = sorted((mode for mode in runnable if mode not in here), key=lambda mode: -engines.mode(mode).cost)
+    calls = {mode: (_run_or_not_applicable, (mode, *arguments)) for mode in away}
     with process_pool(max(1, min(jobs, len(away)))) as pool:
-        futures = {pool.submit(_run_or_not_applicable, mode, *arguments): mode for mode in away}
+        futures = submit(pool, calls)
         _add_forces(run, modes, branch, progress, cache)
         ran = {}
         for mode in here:
             if progress is not None:
                 progress(mode)
             ran[mode] = _run_or_not_applicable(mode, *arguments)
-        ran.update(collect(futures, lambda mode, why: ModeOutcome(mode, False, why), progress))
+        ran.update(collect(futures, lambda mode, why: ModeOutcome(mode, False, why), progress, calls, jobs))
     return ran
 
 

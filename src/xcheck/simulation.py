@@ -94,7 +94,7 @@ def simulate_all(
     result.left_out = left_out(chosen, ("free",))
     missing = {mode: engines.engine_of(mode).available() for mode in chosen}
     runnable = [mode for mode in chosen if not missing[mode]]
-    from ._parallel import collect, known_to_workers, process_pool
+    from ._parallel import collect, known_to_workers, process_pool, submit
 
     # a short or simple motion (its reference under PARALLEL_REFERENCE s) has short ladders too:
     # a worker's start (about 1 s of CPU) would cost more than it saves
@@ -110,9 +110,9 @@ def simulate_all(
         def failed(mode: str, why: str):  # its time: until the pool said so
             return ModeResult(mode, kinematics.mechanism.name, False, why), time.perf_counter() - begin
 
+        calls = {mode: (_run_free, (mode, kinematics, reference, branch)) for mode in away}
         with process_pool(min(jobs, len(away))) as pool:
-            futures = {pool.submit(_run_free, mode, kinematics, reference, branch): mode for mode in away}
-            ran.update(collect(futures, failed, progress))
+            ran.update(collect(submit(pool, calls), failed, progress, calls, jobs))
     for mode in here:
         if progress is not None:
             progress(mode)
