@@ -181,7 +181,10 @@ def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: i
     dict
         ``residual`` (W): the largest |drive + loads - dT/dt - dV/dt| over the
         states; ``scale`` (W): the largest of |drive|, |loads|, |dT/dt|,
-        |dV/dt|; ``relative`` = residual / scale; ``work_error`` (J): the
+        |dV/dt| and the largest kinetic energy times the characteristic rate
+        (:func:`~xcheck.results.scale_floors`; a train turning at constant
+        speed exchanges no power, and its balance is judged against the power
+        its motion holds, not against round-off); ``relative`` = residual / scale; ``work_error`` (J): the
         largest difference over the window between the work the drivers and
         loads did since t = 0 (trapezoidal rule) and the change of T + V since
         t = 0 (quadrature error, falling as samples^-2), with ``energy_swing``
@@ -201,10 +204,12 @@ def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: i
     solved = kinematics.solve(*window.inputs(kinematics, times), branch=branch)
     solution = determined_states(kinematics, branch, solution=solved)
     balance = energy_balance(solution, inverse_dynamics(solution))
-    scale = float(balance[["drive", "loads", "kinetic_rate", "potential_rate"]].abs().to_numpy().max())
+    kinetic, potential = mechanical_energy(solution)
+    rate = scale_floors(kinematics.mechanism, solved.input_rates, solved.input_accelerations)["rate"]
+    measured = float(balance[["drive", "loads", "kinetic_rate", "potential_rate"]].abs().to_numpy().max())
+    scale = max(measured, float(np.max(kinetic, initial=0.0)) * rate)
     residual = float(balance["residual"].abs().max())
     power = (balance["drive"] + balance["loads"]).to_numpy()
-    kinetic, potential = mechanical_energy(solution)
     work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(times))])
     change = kinetic + potential - kinetic[0] - potential[0]
     return {
