@@ -88,7 +88,7 @@ def main() -> int:
     mujoco.mj_forward(model, data)
     jac, drift = site_terms(mujoco, model, data)
     c_residual = jac @ data.qacc + drift
-    mjx_data = mjx.forward(mjx.put_model(model), mjx.put_data(model, data))
+    mjx_data = jax.jit(mjx.forward)(mjx.put_model(model), mjx.put_data(model, data))
     mjx_qacc = np.asarray(mjx_data.qacc, dtype=float)
     mjx_residual = jac @ mjx_qacc + drift
     size = np.linalg.norm(drift[:2])
