@@ -499,10 +499,27 @@ def test_export_check_lists_missing_and_stale_files(models_with_a_bad_file):
     result = _export("--check", "--format", "mjcf", "--models", str(models))
     assert result.exit_code == 1
     stale, missing = result.stdout.splitlines()
-    assert stale.startswith(f"stale: {models / 'mjcf' / 'fourbar.xml'}: line 1 differs: ")
+    assert (
+        stale
+        == f"stale: {models / 'mjcf' / 'fourbar.xml'}: line 1 differs: '<mujoco/>' -> '<mujoco model=\"fourbar\">'"
+    )
     assert missing == f"missing: {models / 'mjcf' / 'scotch-yoke.xml'}"
     assert not (models / "mjcf" / "scotch-yoke.xml").exists()
     assert _export("--format", "mjcf", "--models", str(models)).exit_code == 0
+    assert _export("--check", "--format", "mjcf", "--models", str(models)).exit_code == 0
+    # a value that moved: named with its line, its two values and how far it moved
+    path = models / "mjcf" / "fourbar.xml"
+    text = path.read_text()
+    path.write_text(text.replace('<site name="ground.D" pos="0.6 0 0" />', '<site name="ground.D" pos="0.61 0 0" />'))
+    result = _export("--check", "--format", "mjcf", "--models", str(models))
+    assert result.exit_code == 1
+    line = next(n for n, row in enumerate(text.splitlines(), 1) if 'name="ground.D"' in row)
+    assert result.stdout.splitlines() == [
+        f"stale: {path}: line {line}: 0.61 -> 0.6 (moved by 0.01; the precision allows 1e-12)"
+    ]
+    # and one a step apart in its last digit, as another CPU may write it, is current
+    path.write_text(text.replace('pos="0.194855715851 0.1125 0"', 'pos="0.194855715852 0.1125 0"'))
+    assert text != path.read_text()
     assert _export("--check", "--format", "mjcf", "--models", str(models)).exit_code == 0
 
 

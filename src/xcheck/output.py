@@ -616,8 +616,11 @@ def run_json(run) -> dict:
 
     Per mode: the largest absolute difference per category (m, m/s, m/s^2,
     rad, rad/s, rad/s^2), the same relative (see :class:`xcheck.runner.ModeOutcome`),
-    the tolerances, the physical floor of each category's scale (SI; ``scale_floors``:
-    the run's, :func:`xcheck.results.scale_floors`), pass and reason; a
+    the tolerances, the round-off bound of each relative difference (below it,
+    its digits are noise that differs from machine to machine; the reports show
+    "< bound" there: :func:`xcheck.precision.shown`), the physical floor of each
+    category's scale (SI; ``scale_floors``: the run's,
+    :func:`xcheck.results.scale_floors`), pass and reason; a
     dynamic mode adds ``convergence`` per category: the basis of its verdict
     (expected and observed order, the coarser run's error and time step (s),
     the time step compared, the error the expected order predicts there and
@@ -636,11 +639,13 @@ def run_json(run) -> dict:
         entry: dict[str, Any] = {c: None for c in CATEGORIES}
         entry["relative"] = {c: None for c in CATEGORIES}
         entry["tolerance"] = {c: None for c in CATEGORIES}
+        entry["round_off"] = {c: None for c in CATEGORIES}
         entry["scale_floor"] = {c: None for c in CATEGORIES}
         for row in outcome.categories.itertuples():
             entry[row.category] = _number(row.max_abs)
             entry["relative"][row.category] = _number(row.relative)
             entry["tolerance"][row.category] = _number(row.tolerance)
+            entry["round_off"][row.category] = _number(getattr(row, "round_off", math.nan))
             entry["scale_floor"][row.category] = _number(getattr(row, "floor", math.nan))
             if hasattr(row, "basis"):  # a dynamic mode judged by its convergence
                 entry.setdefault("convergence", {})[row.category] = {
@@ -669,6 +674,7 @@ def run_json(run) -> dict:
             "unit": row.unit or None,
             "relative": _number(row.max_rel),
             "tolerance": _number(row.tolerance),
+            "round_off": _number(getattr(row, "round_off", math.nan)),
             "scale_floor": _number(getattr(row, "floor", math.nan)),
             "worst": f"{row.name} {row.quantity}".strip() or None,
             "states": int(row.states),

@@ -28,6 +28,7 @@ import os
 import shutil
 from pathlib import Path
 
+from ..errors import InputError
 from ..fileio import (
     MANIFEST,
     PENDING_MARKDOWN,
@@ -58,10 +59,12 @@ __all__ = [
 ]
 
 
-def claim_report(directory: str | Path, name: str) -> None:
+def claim_report(directory: str | Path, name: str, partial: bool = False) -> None:
     """Check that the report of mechanism ``name`` may be written in
-    ``directory``: its name is no index file's, and NAME.md and NAME/ are
-    absent or xcheck's (:func:`xcheck.fileio.claim`).
+    ``directory``: NAME.md and NAME/ are absent or xcheck's
+    (:func:`xcheck.fileio.claim`), and, for a run of some modes only
+    (``partial``), an earlier report there has the evidence that keeps the
+    other modes' parts (a report of an earlier version has none).
 
     Raises
     ------
@@ -70,7 +73,15 @@ def claim_report(directory: str | Path, name: str) -> None:
     """
     if Path(name).name != name or name in (".", ".."):  # the loader allows plain file names only
         raise ValueError(f"a mechanism name that is a plain file name, found {name!r}")
-    claim(Path(directory), [f"{name}.md", name], "a report")
+    directory = Path(directory)
+    claim(directory, [f"{name}.md", name], "a report")
+    folder = directory / name
+    if partial and folder.is_dir() and not (folder / MANIFEST).is_file():
+        raise InputError(
+            f"{folder}: expected a report with its evidence ({MANIFEST}) to keep the modes this run leaves out, "
+            "found a report of an earlier version of xcheck without it (it is left as it is: run every mode "
+            "once, without --engines, remove it, or write elsewhere with --out)"
+        )
 
 
 def write_report(

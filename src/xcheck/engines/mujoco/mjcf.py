@@ -395,7 +395,9 @@ def _servo_inertia(kinematics: Kinematics, masses: dict[str, MassProperties]) ->
                 mass[:, i, j] += props.mass * np.sum(v_i * v_j, axis=1) + props.inertia * w_i * w_j
     good = np.all(np.isfinite(mass), axis=(1, 2))
     apparent = 1.0 / np.diagonal(np.linalg.inv(mass[good]), axis1=1, axis2=2)
-    return [float(v) for v in apparent.min(axis=0)]
+    # to 12 digits first, so that the gains' rounding to 3 digits is the same on every machine:
+    # iftomm-a02's 3.0 kg m^2 gives kp = 187 500, a tie that round-off of 3.0 tipped to 187 000
+    return [_round(float(v), 12) for v in apparent.min(axis=0)]
 
 
 def _round(x: float, digits: int = 3) -> float:
