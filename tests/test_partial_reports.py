@@ -72,6 +72,11 @@ def test_the_index_line_of_a_partial_run_counts_the_kept_modes(tmp_path):
     assert "Result: **some modes beyond tolerance**" in (out / "fourbar.md").read_text(encoding="utf-8")
     entry = json.loads((out / "index.json").read_text(encoding="utf-8"))["entries"][0]
     assert entry["name"] == "fourbar" and entry["passed"] is False
+    # a kept figure the user removed is drawn afresh (of the modes run), not left out
+    (out / "fourbar" / "differences.png").unlink()
+    assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0
+    assert (out / "fourbar" / "differences.png").is_file()
+    assert "![differences](fourbar/differences.png)\n\n## Dynamic modes" in (out / "fourbar.md").read_text()
 
 
 def test_a_report_of_an_earlier_version_is_not_merged_into_but_kept(tmp_path):

@@ -183,11 +183,9 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
         kin.assemble(s.branch)
         label = kin.mechanism.name
         if s.report:  # what is in the report's way is said before the work, not after
-            from .api import select_modes
-            from .report import claim_index, claim_report
+            from .report import claim_index, claim_report, leaves_out
 
-            # a run of some modes keeps the others' parts of an earlier report
-            claim_report(reports_dir(path, s.out), label, partial=not set(select_modes()) <= set(s.modes))
+            claim_report(reports_dir(path, s.out), label, partial=leaves_out(s.modes))
             claim_index(reports_dir(path, s.out))
         textbook, _ = printed_answers(kin, s.comparisons)
         run = run_mechanism(
@@ -338,11 +336,9 @@ def simulate_model(
     kin.assemble(branch)
     target = reports_dir(path, out)
     if report:  # what is in the report's way is said before the work, not after
-        from .api import select_modes
-        from .report import claim_index, claim_report
+        from .report import claim_index, claim_report, leaves_out
 
-        every = set(select_modes(kinds=("free",))[1:])
-        claim_report(target, kin.mechanism.name, partial=not every <= set(modes))
+        claim_report(target, kin.mechanism.name, partial=leaves_out(modes, ("free",)))
         claim_index(target)
     result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs, check=check)
     if not report:

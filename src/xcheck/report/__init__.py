@@ -23,11 +23,14 @@ any figure that shows them (:func:`._evidence.merge`).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from ..engines import DRIVEN_KINDS
 from ..errors import InputError
 from ..fileio import (
     MANIFEST,
@@ -52,11 +55,31 @@ __all__ = [
     "write_simulation_report",
     "claim_report",
     "claim_index",
+    "leaves_out",
     "write_index",
     "read_index",
     "update_index",
     "INDEX_DATA",
 ]
+
+
+def leaves_out(modes: Iterable[str], kinds: tuple[str, ...] = DRIVEN_KINDS) -> bool:
+    """Whether a run of ``modes`` (of ``kinds``) leaves out modes a run without
+    ``--engines`` runs: its report keeps theirs from an earlier one."""
+    from ..api import select_modes
+
+    return not set(select_modes(kinds=kinds)) - {"native"} <= set(modes)
+
+
+@contextlib.contextmanager
+def _writing(directory: Path, name: str, partial: bool) -> Iterator[None]:
+    """Hold the directory's lock, with what killed writers left completed or
+    removed, and the report's files claimed (:func:`claim_report`)."""
+    with directory_lock(directory):
+        complete_reports(directory)
+        remove_stale_staging(directory)
+        claim_report(directory, name, partial)
+        yield
 
 
 def claim_report(directory: str | Path, name: str, partial: bool = False) -> None:
@@ -109,10 +132,7 @@ def write_report(
         Where NAME.md or NAME/ is something xcheck did not write (nothing is written).
     """
     directory = Path(directory)
-    with directory_lock(directory):
-        complete_reports(directory)
-        remove_stale_staging(directory)
-        claim_report(directory, run.mechanism.name)
+    with _writing(directory, run.mechanism.name, leaves_out([*run.outcomes, *run.not_applicable])):
         return _write_report(run, directory, command, gif, jobs)
 
 
@@ -179,7 +199,7 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         source_parts(run, made),
         {file: {"modes": _figure_modes(run, function), "produced": made} for file, function, _ in wanted},
     )
-    evidence = merge(fresh, read_evidence(directory / name, "run", name))
+    evidence = _merged(fresh, directory / name)
     drawing = [(file, function, key) for file, function, key in wanted if file not in evidence.kept]
 
     def render(staging: Path) -> str:
@@ -235,20 +255,25 @@ def _cached_figures(run: RunResult, functions: list[str]) -> dict:
     return found
 
 
+def _merged(fresh: Evidence, folder: Path) -> Evidence:
+    """``fresh`` merged with the evidence of the report in ``folder``
+    (:func:`._evidence.merge`); a figure to keep whose file is gone is drawn afresh."""
+    evidence = merge(fresh, read_evidence(folder, fresh.kind, fresh.mechanism))
+    for file in sorted(evidence.kept):
+        if not (folder / file).is_file() or (folder / file).is_symlink():
+            evidence.kept.discard(file)
+            evidence.figures[file] = fresh.figures[file]
+    return evidence
+
+
 def _keep_figures(old: Path, staging: Path, evidence: Evidence, keys: dict[str, str]) -> dict[str, str]:
     """Copy the figures ``evidence`` keeps from the old report folder into the
-    staging folder; returns their Markdown keys -> paths (a kept figure whose
-    file is gone is dropped)."""
+    staging folder; returns their Markdown keys -> paths."""
     images = {}
     for key, file in keys.items():
-        if file not in evidence.kept:
-            continue
-        if (old / file).is_file() and not (old / file).is_symlink():
+        if file in evidence.kept:
             shutil.copyfile(old / file, staging / file)
             images[key] = f"{old.name}/{file}"
-        else:
-            evidence.figures.pop(file, None)
-            evidence.kept.discard(file)
     return images
 
 
@@ -304,11 +329,8 @@ def write_simulation_report(result, directory: str | Path, command: str) -> tupl
         figures={f"{key}.png": {"modes": m, "produced": made} for key, m in _simulation.figure_modes(result).items()},
     )
 
-    with directory_lock(directory):
-        complete_reports(directory)
-        remove_stale_staging(directory)
-        claim_report(directory, name)
-        evidence = merge(fresh, read_evidence(directory / name, "simulate", name))
+    with _writing(directory, name, leaves_out([*result.outcomes, *result.not_applicable], ("free",))):
+        evidence = _merged(fresh, directory / name)
 
         def render(staging: Path) -> str:
             keys = {key: f"{key}.png" for key in _simulation.figure_modes(result)}
@@ -326,12 +348,12 @@ def write_simulation_report(result, directory: str | Path, command: str) -> tupl
 
         path = _replace_report(directory, name, evidence, render)
     reference = result.reference
-    ran = ", ".join(m for m, p in evidence.modes.items() if "section" in p) or "native only"
+    engines = ", ".join(m for m, p in evidence.modes.items() if "section" in p) or "native only"
     entry = {
         "name": name,
         "title": result.kinematics.mechanism.title,
         "passed": bool(reference.converged),
-        "worst": f"free motion: reference error {reference.relative:.2g} of the size ({ran})",
+        "worst": f"free motion: reference error {reference.relative:.2g} of the size ({engines})",
         "textbook": "—",
         "command": command,
     }
