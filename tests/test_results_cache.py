@@ -41,8 +41,8 @@ def test_the_same_results_and_report_with_and_without_the_cache(cache_on, tmp_pa
     """Twice with the cache (the second run takes every mode, the reactions and the
     report's figures from it: none is drawn again) and once with --no-cache: the JSON
     is the same but for timings and the cache's fields, and so are the reports'
-    figures, byte for byte; the report and the terminal say what came from the
-    cache, and when it was computed."""
+    figures, byte for byte, and their Markdown; the terminal and the report's
+    evidence say what came from the cache, and when it was computed."""
     out = {name: tmp_path / name for name in ("first", "second", "none")}
     first, _ = _run("--report", "--out", str(out["first"]), "--no-gif")
     figures = {p: p.stat().st_mtime_ns for p in (cache_on / result_cache.FIGURES).glob("*.entry")}
@@ -56,10 +56,22 @@ def test_the_same_results_and_report_with_and_without_the_cache(cache_on, tmp_pa
     assert _without_timings_and_cache(second) == _without_timings_and_cache(first) == _without_timings_and_cache(fresh)
     for image in sorted(p.relative_to(out["first"]) for p in out["first"].rglob("*.png")):
         assert (out["second"] / image).read_bytes() == (out["none"] / image).read_bytes(), image
+    # the report reads the same whichever way its results came; its evidence says when each was computed
     report = (out["second"] / "fourbar.md").read_text(encoding="utf-8")
-    when = second["cache"]["from_cache"]["mujoco-kinematic"].replace("T", " ").replace("Z", " UTC")
-    assert "From the results cache:" in report and when in report
-    assert "From the results cache" not in (out["none"] / "fourbar.md").read_text(encoding="utf-8")
+    assert report.replace(str(out["second"]), "OUT") == (out["none"] / "fourbar.md").read_text(
+        encoding="utf-8"
+    ).replace(str(out["none"]), "OUT").replace(" --no-cache", "")
+    evidence = json.loads((out["second"] / "fourbar" / "results.json").read_text(encoding="utf-8"))
+    assert (
+        evidence["modes"]["mujoco-kinematic"]["produced"]["computed"]
+        == second["cache"]["from_cache"]["mujoco-kinematic"]
+    )
+    assert (
+        "computed"
+        not in json.loads((out["none"] / "fourbar" / "results.json").read_text(encoding="utf-8"))["modes"][
+            "mujoco-kinematic"
+        ]["produced"]
+    )
     table = invoke("run", "fourbar", *ARGS, "--no-report")
     assert "from the results cache:" in table.stdout and "--no-cache computes them again" in table.stdout
 

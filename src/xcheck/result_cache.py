@@ -203,7 +203,8 @@ def keep(kinematics, parts: tuple, engines_used, value, recomputed: str = "") ->
 
 def summary(provenance: dict[str, Provenance]) -> str:
     """One line naming the results taken from the cache and when they were
-    computed ("" where none was): what the terminal and the report say."""
+    computed ("" where none was): what the terminal says (a report's evidence
+    keeps each time; its text is the same either way)."""
     times: dict[str, list[str]] = {}
     for name, where in provenance.items():
         if where.from_cache:

@@ -134,7 +134,7 @@ def _worst(outcome) -> dict | None:
 def mode_parts(run: RunResult, made: dict) -> dict[str, dict]:
     """What the report shows of each mode of the run (JSON: table rows as lists
     of cells, text), with its verdict and ``made``, where it comes from
-    (:func:`._evidence.produced`)."""
+    (:func:`._evidence.produced`; :func:`_made`)."""
     parts = {}
     for mode, outcome in run.outcomes.items():
         t = tolerance(mode)
@@ -146,11 +146,21 @@ def mode_parts(run: RunResult, made: dict) -> dict[str, dict]:
             "verdict": outcome.verdict,
             "ran": bool(outcome.ok and not outcome.categories.empty),
             "worst": _worst(outcome) if outcome.ok and not outcome.finding else None,
-            "produced": made,
+            "produced": _made(run, mode, made),
         }
     for mode, reason in run.not_applicable.items():
-        parts[mode] = {"not_applicable": reason, "produced": made}
+        parts[mode] = {"not_applicable": reason, "produced": _made(run, mode, made)}
     return parts
+
+
+def _made(run: RunResult, key: str, made: dict) -> dict:
+    """Where a mode's (or, for "forces", the reactions') part comes from:
+    ``made``, and for an outcome the results cache gave, when it was computed
+    (``computed``; the report's text is the same either way)."""
+    cached = run.provenance.get(key)
+    if cached is None or not cached.from_cache:
+        return made
+    return {**made, "computed": cached.computed_at}
 
 
 def _provenance(evidence: Evidence) -> tuple[dict[str, str], str]:
@@ -377,6 +387,7 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
     """What the report shows of each force source of the run (JSON), with
     whether it passed and ``made``, where it comes from."""
     parts = {}
+    made = _made(run, "forces", made)
     for r in run.force_table.to_dict("records"):
         if not r["applies"]:  # the engine cannot hold the mechanism: no verdict either way
             parts[str(r["engine"])] = {
@@ -494,7 +505,6 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
         "## Dynamic modes: error against time step\n\n" + _dynamic_section(evidence, images, marks),
         "## Joint reactions and driving effort\n\n" + _forces_section(run, evidence, images, marks),
         "## Native solver\n\n" + _solver_section(run),
-        _cached_text(run),
         "## Versions\n\n" + _table(["package", "version"], [[k, v] for k, v in versions().items()]),
         f"Reproduce: `{command}`",
     ]
@@ -505,14 +515,6 @@ def left_out_markdown(left: dict[str, str]) -> str:
     """The run's line on the modes it left out (:func:`xcheck.runner.left_out_text`) as a sentence."""
     line = re.sub(r"(--engines \S+?)([,)]| or)", r"`\1`\2", left_out_text(left))
     return line[0].upper() + line[1:] + "."
-
-
-def _cached_text(run: RunResult) -> str:
-    """The results taken from the cache and when they were computed, as a sentence ("" where none)."""
-    from ..result_cache import summary
-
-    line = summary(run.provenance)
-    return line and line[0].upper() + line[1:].replace("--no-cache", "`--no-cache`") + "."
 
 
 def index_markdown(entries: list[dict]) -> str:
