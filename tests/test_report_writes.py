@@ -117,10 +117,14 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
     lock, completes the unit before anything else."""
     import xcheck.report as report
 
+    from xcheck import api
+
     out = tmp_path / "reports"
+    run = api.run(MODELS / "fourbar.toml", "formulations", samples=31)
+    report.write_report(run, out, "xcheck run fourbar", gif=False)  # the earlier report, with its evidence
     old_report = marked("old report\n", "the report of fourbar").encode()
     _touch(out / "fourbar.md", old_report)
-    _touch(out / "fourbar" / "drawing.png", b"old image")  # a report folder of an earlier version
+    _touch(out / "fourbar" / "drawing.png", b"old image")
 
     complete = report.complete_reports
 
@@ -130,9 +134,6 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
         raise KeyboardInterrupt  # stands for SIGKILL between the two renames
 
     monkeypatch.setattr(report, "complete_reports", killed)
-    from xcheck import api
-
-    run = api.run(MODELS / "fourbar.toml", "formulations", samples=31)
     try:
         report.write_report(run, out, "xcheck run fourbar", gif=False)
     except KeyboardInterrupt:
