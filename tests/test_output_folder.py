@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import DATA
 from typer.testing import CliRunner
@@ -34,6 +36,8 @@ def _snapshot(folder: Path) -> dict[str, str]:
             found[key] = "-> " + os.readlink(path)
         elif path.is_dir():
             found[key] = "folder"
+        elif not stat.S_ISREG(path.stat().st_mode):
+            found[key] = "special"  # a FIFO: reading it would block
         else:
             found[key] = hashlib.sha256(path.read_bytes()).hexdigest()
     return found
@@ -168,3 +172,106 @@ def test_a_mechanism_may_not_take_the_indexs_or_another_reports_name(tmp_path, n
 @pytest.mark.parametrize("name", ["index", "readme-notes", "README2", "notes.mdx", "md"])
 def test_names_near_the_reserved_ones_are_fine(name):
     assert reserved_name(name) is None
+
+
+# -- a seeded campaign -----------------------------------------------------------
+#: what a user's folder may hold where xcheck writes: name -> (how to make it, whether xcheck may replace it)
+NAME = "fourbar-200"
+
+
+def _file(text: str):
+    return lambda path: path.write_text(text)
+
+
+def _folder(files: dict[str, str]):
+    def make(path: Path) -> None:
+        path.mkdir()
+        for name, text in files.items():
+            (path / name).write_text(text)
+
+    return make
+
+
+def _link(path: Path) -> None:
+    target = path.parent.parent / f"target-of-{path.name}"
+    target.write_text("the user's\n")
+    path.symlink_to(target)
+
+
+def _fifo(path: Path) -> None:
+    os.mkfifo(path)
+
+
+_MARKED = f"{MARK}: an earlier report. -->\n# old\n"
+_OLD = "# fourbar-200: old\n\nReproduce: `xcheck run fourbar-200`\n"
+#: (entry, variants: (label, make, xcheck may replace it))
+CHOICES = {
+    "README.md": [
+        ("user's", _file("# My project\n"), False),
+        ("xcheck's", _file(f"{MARK}: the index. -->\n# Reports\n"), True),
+        ("link", _link, False),
+        ("fifo", _fifo, False),
+    ],
+    "index.json": [
+        ("user's", _file('{"mine": 1}\n'), False),
+        ("xcheck's", _file('{"generator": "xcheck", "entries": []}\n'), True),
+        ("not json", _file("garbage\n"), False),
+    ],
+    f"{NAME}.md": [
+        ("user's", _file("my notes\n"), False),
+        ("xcheck's", _file(_MARKED), True),
+        ("an earlier version's", _file(_OLD), True),
+        ("a folder", _folder({"x.txt": "mine\n"}), False),
+        ("fifo", _fifo, False),
+    ],
+    NAME: [
+        ("user's folder", _folder({"thesis.tex": "mine\n"}), False),
+        ("figures and a user's file", _folder({"drawing.png": "png\n", "thesis.tex": "mine\n"}), False),
+        # an earlier version's report has no evidence to keep the modes a run of some modes leaves out
+        ("an earlier version's figures", _folder({"drawing.png": "png\n", "quantities.png": "png\n"}), False),
+        ("a foreign results.json", _folder({"results.json": '{"files": []}\n', "drawing.png": "png\n"}), False),
+        ("a file", _file("mine\n"), False),
+        ("link", _link, False),
+    ],
+    f".{NAME}.xcheck-staging-0a1b2c3d": [("named like staging, no mark", _folder({"mine.txt": "mine\n"}), True)],
+    f".{NAME}.md.1a2b3c4d": [("an old temporary's name", _file("mine\n"), True)],
+}
+
+
+def _campaign_case(seed: int, root: Path) -> tuple[Path, bool, list[str]]:
+    """A folder of random entries; whether a run must be refused; what it holds."""
+    rng = np.random.default_rng(seed)
+    root.mkdir()
+    refused, made = False, []
+    for entry, variants in CHOICES.items():
+        if rng.random() < 0.5:
+            continue
+        label, make, replaceable = variants[int(rng.integers(len(variants)))]
+        make(root / entry)
+        made.append(f"{entry}: {label}")
+        # a hidden entry is never in xcheck's way, whatever it holds
+        refused |= not replaceable and not entry.startswith(".")
+    return root, refused, made
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("seed", range(16))
+def test_a_seeded_campaign_of_users_folders(tmp_path, seed):
+    """Random folders of a user's files, xcheck's, earlier versions', links and
+    FIFOs where the report and the index go: a run (of some modes) writes its
+    reports (exit 0) exactly where nothing of the user's, and no report it
+    cannot keep the other modes of, is in the way, else says so in one line
+    (exit 2); either way every file of the user's is as it was."""
+    root, refused, made = _campaign_case(seed, tmp_path / "out")
+    before = _snapshot(tmp_path)
+    result = _cli("run", FOURBAR, "--out", root, *RUN)
+    if refused:
+        _one_line(result, "it is left as it is")
+        assert _snapshot(tmp_path) == before, made
+    else:
+        assert result.exit_code == 0, (made, result.output)
+        assert (root / f"{NAME}.md").read_text().startswith(MARK)
+        after = _snapshot(tmp_path)
+        # what links point at, and everything hidden, is the user's
+        users = {k: v for k, v in before.items() if k.startswith("target-of") or k.startswith("out/.")}
+        assert {k: after.get(k) for k in users} == users, made
