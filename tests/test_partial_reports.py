@@ -69,7 +69,7 @@ def test_the_index_line_of_a_partial_run_counts_the_kept_modes(tmp_path):
     document["modes"]["mujoco-kinematic"]["row"][0] = "**FAIL**"
     evidence.write_text(json.dumps(document), encoding="utf-8")
     assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0  # this run's modes pass
-    assert "Result: **some modes beyond tolerance**" in (out / "fourbar.md").read_text(encoding="utf-8")
+    assert "Result: **fail** (some modes beyond their tolerance)" in (out / "fourbar.md").read_text(encoding="utf-8")
     entry = json.loads((out / "index.json").read_text(encoding="utf-8"))["entries"][0]
     assert entry["name"] == "fourbar" and entry["passed"] is False
     # a kept figure the user removed is drawn afresh (of the modes run), not left out
