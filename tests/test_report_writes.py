@@ -116,7 +116,6 @@ def test_a_report_is_one_unit_completed_by_the_next_writer(tmp_path, monkeypatch
     in the image folder, the old one is untouched; the next writer, under the
     lock, completes the unit before anything else."""
     import xcheck.report as report
-
     from xcheck import api
 
     out = tmp_path / "reports"
