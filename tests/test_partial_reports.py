@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from xcheck.cli import app
 from xcheck.fileio import MANIFEST
+from xcheck.report import _evidence
 
 FOURBAR = ("run", "fourbar", "--models", MODELS, "--samples", "31", "--no-gif", "-q")
 
@@ -115,3 +116,23 @@ def test_simulating_the_reference_alone_keeps_the_engines_of_the_committed_repor
     assert "Reproduce: `xcheck simulate iftomm-a01 --engines native" in report
     entry = json.loads((out / "index.json").read_text(encoding="utf-8"))["entries"][0]
     assert all(mode in entry["worst"] for mode in engines)
+
+
+def test_a_rerun_on_another_day_leaves_the_evidence_as_it_was(tmp_path, monkeypatch):
+    """The parts a rerun of the same command reproduces keep their provenance, so
+    a committed report's evidence reads the same after ``make run`` on any day; a
+    part that shows something else is stamped anew."""
+    out = tmp_path / "reports"
+    assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0
+    evidence = out / "fourbar" / MANIFEST
+    first = {path: path.read_bytes() for path in (evidence, out / "fourbar.md")}
+    monkeypatch.setattr(_evidence, "_today", lambda: "2099-12-31")
+    assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0
+    assert {path: path.read_bytes() for path in first} == first
+
+    document = json.loads(evidence.read_text(encoding="utf-8"))
+    document["modes"]["formulation-I"]["row"][1] = "0.5 / 1e-12"  # as if that run had shown another difference
+    evidence.write_text(json.dumps(document), encoding="utf-8")
+    assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0
+    dates = {mode: part["produced"]["date"] for mode, part in json.loads(evidence.read_bytes())["modes"].items()}
+    assert dates["formulation-I"] == "2099-12-31" and dates["formulation-II"] != "2099-12-31"

@@ -12,6 +12,7 @@ wrote there, and nothing else in the folder is xcheck's.
 from __future__ import annotations
 
 import datetime
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,7 +27,11 @@ FORMAT = 1
 
 def produced(command: str) -> dict:
     """Where a part comes from: the command, xcheck's version and the date (UTC)."""
-    return {"command": command, "xcheck": __version__, "date": datetime.datetime.now(datetime.UTC).date().isoformat()}
+    return {"command": command, "xcheck": __version__, "date": _today()}
+
+
+def _today() -> str:
+    return datetime.datetime.now(datetime.UTC).date().isoformat()
 
 
 @dataclass
@@ -103,11 +108,12 @@ def merge(fresh: Evidence, previous: Evidence | None) -> Evidence:
     """The evidence of a report after a run: ``fresh``'s parts, and those of
     ``previous`` for the modes and sources the run did not run (``carried``).
     A figure of ``previous`` that shows a carried mode is kept (``kept``)
-    instead of the run's own, which would leave that mode out."""
+    instead of the run's own, which would leave that mode out. A fresh part
+    that reproduces ``previous``'s keeps its provenance (:func:`_restamped`)."""
     if previous is None:
         return fresh
-    modes = dict(fresh.modes)
-    sources = dict(fresh.sources)
+    modes = {key: _restamped(part, previous.modes.get(key)) for key, part in fresh.modes.items()}
+    sources = {key: _restamped(part, previous.sources.get(key)) for key, part in fresh.sources.items()}
     carried = set()
     for key, part in previous.modes.items():
         if key not in modes:
@@ -117,10 +123,31 @@ def merge(fresh: Evidence, previous: Evidence | None) -> Evidence:
         if key not in sources:
             sources[key] = part
             carried.add(key)
-    figures = dict(fresh.figures)
+    figures = {key: _restamped(part, previous.figures.get(key)) for key, part in fresh.figures.items()}
     kept = set()
     for file, figure in previous.figures.items():
         if carried & set(figure["modes"]):
             figures[file] = figure
             kept.add(file)
     return Evidence(fresh.kind, fresh.mechanism, modes, sources, figures, carried, kept)
+
+
+def _restamped(part: dict, earlier: dict | None) -> dict:
+    """``part`` with the provenance of ``earlier``, the same part of the report
+    before, where the run reproduced it: the same command and version of xcheck
+    produced what it shows (a figure: the modes it shows). The evidence then
+    still reads as it did, whatever the date or the results cache's times, so a
+    rerun of a committed report leaves its file as it was."""
+    if earlier is None:
+        return part
+    made, before = part["produced"], earlier["produced"]
+    if (made["command"], made["xcheck"]) != (before["command"], before["xcheck"]):
+        return part
+    if _shown(part) != _shown(earlier):
+        return part
+    return {**part, "produced": before}
+
+
+def _shown(part: dict) -> str:
+    """What a part shows, as its JSON reads, without its provenance."""
+    return json.dumps({key: value for key, value in part.items() if key != "produced"}, sort_keys=True)
