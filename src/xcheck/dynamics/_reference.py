@@ -145,11 +145,14 @@ def run_ladder(
             progress(f"native: {method.name} at {setting:.4g}")
         motion = method.run(setting, (budget - spent) / units)
         spent += float(motion.statistics.get("evaluations", cost / units)) * units
+        steps = (
+            int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
+            if len(motion.times)
+            else 0
+        )
         entry = {
             "setting": setting,
-            "steps": int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
-            if len(motion.times)
-            else 0,
+            "steps": steps,
             "seconds": motion.seconds,
             "difference": math.nan,
             "status": motion.failure or "ok",
@@ -165,7 +168,7 @@ def run_ladder(
         gap = difference(kinematics, motion, last)
         entry["difference"] = float(gap.max())
         estimate, rule = stated_error(gap, gaps[-1] if gaps else None, method.nominal)
-        estimate = np.maximum(estimate, ROUND_OFF * size)
+        estimate = np.maximum(estimate, round_off(kinematics, motion, steps))
         entry["error"], entry["rule"] = float(estimate.max()), rule
         relative = float(estimate.max()) / size
         # a difference that grows: a coarse run off its asymptote, or, twice in a row, finer
@@ -196,6 +199,15 @@ def run_ladder(
         f"; stopped at the tolerance, {tolerance:g} of the size" if converged else f"; stopped: {stop}"
     )
     return FreeReference(motion, estimate, relative, converged, ladder, tolerance, method.name, basis)
+
+
+def round_off(kinematics: Kinematics, motion: FreeMotion, steps: int) -> np.ndarray:
+    """The least error a run of ``steps`` steps may state at each output (m, (N,)): the
+    round-off of its state, :data:`ROUND_OFF` x the size at the start, and float64's epsilon x
+    the size more for every step taken by then (the worst case, a rounding a step that adds up;
+    the steps spread evenly over the run)."""
+    taken = steps * motion.times / motion.times[-1] if len(motion.times) > 1 else np.zeros(len(motion.times))
+    return kinematics.system.size * (ROUND_OFF + np.finfo(float).eps * taken)
 
 
 def _reasons(ladder: list[dict]) -> str:
