@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import NotApplicable
 from ._base import Action, Joint
 from ._terms import Angles
 
@@ -80,6 +82,68 @@ class GearPair(Joint):
         """The row's coefficients of phi_a, phi_b, phi_c (m)."""
         s = self.sigma
         return self.radius_a, s * self.radius_b, -(self.radius_a + s * self.radius_b)
+
+    def tree_coupling(self, sign: Callable[[str, str], float | None], coupling: str) -> tuple[float, float, float]:
+        """The mesh in its gears' revolutes' coordinates q_a, q_b, as an engine's
+        coupling of two tree joints holds it: q_b = s_b phase + k q_a.
+
+        Parameters
+        ----------
+        sign : callable
+            ``sign(pin, gear)``: +1 where the revolute ``pin``'s coordinate is
+            the gear's rotation relative to the carrier, -1 where it is the
+            carrier's relative to the gear, None where the revolute closes a
+            loop (no coordinate of the engine's tree).
+        coupling : str
+            The engine's coupling, for the reason it cannot hold the pair.
+
+        Returns
+        -------
+        (k, s_a, s_b)
+            k = -sigma s_a s_b r_a / r_b and the two revolutes' signs.
+
+        Raises
+        ------
+        NotApplicable
+            Where a gear's revolute closes a loop.
+        """
+        signs = []
+        for pin, gear in ((self.pin_a, self.body_a), (self.pin_b, self.body_b)):
+            s = sign(pin, gear)
+            if s is None:
+                raise NotApplicable(
+                    f"gear pair {self.name!r}: its gear {gear}'s revolute {pin!r} closes a loop, and {coupling} "
+                    "couples the coordinates of tree joints only"
+                )
+            signs.append(s)
+        return -self.sigma * signs[0] * signs[1] * self.radius_a / self.radius_b, signs[0], signs[1]
+
+    def angle_coupling(self, coupling: str) -> tuple[str, str, float, float]:
+        """The mesh as a relation of two moving bodies' absolute angles, as an
+        engine's coupling of two bodies holds it: ratio phi_j - phi_i = phase,
+        the third of the gears and the carrier being the ground.
+
+        Returns
+        -------
+        (i, j, ratio, phase)
+            The two bodies, ``-k_j / k_i`` and ``-offset / k_i`` (rad) of the
+            row k_i phi_i + k_j phi_j = offset.
+
+        Raises
+        ------
+        NotApplicable
+            Where the pair couples three moving bodies (``coupling`` says what
+            the engine's couples).
+        """
+        from ..model import GROUND  # the model imports the joint types
+
+        moving = [(body, k) for body, k in zip(self.bodies, self.coefficients()) if body != GROUND]
+        if len(moving) > 2:
+            raise NotApplicable(
+                f"gear pair {self.name!r} couples three moving bodies ({', '.join(b for b, _ in moving)}): {coupling}"
+            )
+        (i, k_i), (j, k_j) = moving
+        return i, j, -k_j / k_i, -self.sigma * self.radius_b * self.phase / k_i
 
     def terms(self, locate):
         a, b, c = (locate(body, None)[0] for body in self.bodies)

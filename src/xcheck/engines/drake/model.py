@@ -186,18 +186,11 @@ def _coupler(plant, gear: GearPair, mech: Mechanism, anchor, of, joints: dict, t
     revolutes, whose angles are the gears' rotations relative to the carrier up to a sign s
     (-1 where the carrier is the child): rho = -sigma s_a s_b r_a / r_b, offset = s_b phase."""
     tree = {tj.joint.name: tj for tj in topology.tree}
-    signs = []
-    for pin, body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
-        if pin not in tree:
-            raise NotApplicable(
-                f"gear pair {gear.name!r}: its gear {body}'s revolute {pin!r} closes a loop, and Drake's coupler "
-                "constraint couples tree joints"
-            )
-        signs.append(1.0 if tree[pin].child == body else -1.0)
-    rho = -gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b
-    plant.AddCouplerConstraint(
-        joints[tree[gear.pin_b].child], joints[tree[gear.pin_a].child], rho, signs[1] * gear.phase
+    rho, _, s_b = gear.tree_coupling(
+        lambda pin, body: None if pin not in tree else 1.0 if tree[pin].child == body else -1.0,
+        "Drake's coupler constraint",
     )
+    plant.AddCouplerConstraint(joints[tree[gear.pin_b].child], joints[tree[gear.pin_a].child], rho, s_b * gear.phase)
     return None
 
 

@@ -129,19 +129,12 @@ def _prismatic(mech: Mechanism, joint: LineJoint, ei, mbs, nodes, reference, pos
 
 def _gear(mech: Mechanism, gear: GearPair, ei, mbs, nodes, reference, position_marker, rigid_marker):
     """A gear pair: Exudyn's coordinate constraint, factor1 q_j - q_i = offset, between two nodes'
-    angle coordinates (displacements from their reference angles): the row k_i phi_i + k_j phi_j =
-    offset where the third of the gears and the carrier is the ground."""
-    offset = gear.sigma * gear.radius_b * gear.phase
-    moving = [(body, k) for body, k in zip(gear.bodies, gear.coefficients()) if body != GROUND]
-    if len(moving) > 2:
-        raise NotApplicable(
-            f"gear pair {gear.name!r} couples three moving bodies ({', '.join(b for b, _ in moving)}): Exudyn's "
-            "coordinate constraint couples two coordinates"
-        )
-    (i, k_i), (j, k_j) = moving
+    angle coordinates q (displacements from their reference angles): ratio phi_j - phi_i = phase
+    (:meth:`~xcheck.joints.GearPair.angle_coupling`)."""
+    i, j, ratio, phase = gear.angle_coupling("Exudyn's coordinate constraint couples two coordinates")
     markers = [mbs.AddMarker(ei.MarkerNodeCoordinate(nodeNumber=nodes[body], coordinate=2)) for body in (i, j)]
-    constant = (k_i * reference[i][2] + k_j * reference[j][2] - offset) / k_i
-    return ei.CoordinateConstraint(markerNumbers=markers, factor1=-k_j / k_i, offset=constant)
+    offset = phase - ratio * reference[j][2] + reference[i][2]
+    return ei.CoordinateConstraint(markerNumbers=markers, factor1=ratio, offset=offset)
 
 
 #: a joint as an Exudyn object, by its type

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from xcheck.engines._contract import positive_inertia
-from xcheck.errors import NotApplicable, XcheckError
+from xcheck.errors import XcheckError
 from xcheck.joints import GearPair, LineJoint, converter
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Joint, Mechanism, PinInSlot, Prismatic, Revolute
@@ -472,12 +472,8 @@ def _weld(cut: Prismatic, lay: Layout, refs: dict) -> tuple[str, dict]:
 def coupling(gear: GearPair, lay: Layout) -> tuple[float, float, float]:
     """A gear pair in its gears' revolutes' coordinates, which are the gears'
     rotations relative to the carrier up to a sign s per pin (a pin's ``qpos``
-    is ``phi_b - phi_a`` of its own joint): the mesh, r_a (phi_a - phi_c) +
-    sigma r_b (phi_b - phi_c - phase) = 0, is q_pin_b = s_b phase + k q_pin_a.
-
-    Returns
-    -------
-    (k, s_a, s_b), k = -sigma s_a s_b r_a / r_b.
+    is ``phi_b - phi_a`` of its own joint): (k, s_a, s_b) of
+    :meth:`~xcheck.joints.GearPair.tree_coupling`, q_pin_b = s_b phase + k q_pin_a.
 
     Raises
     ------
@@ -485,16 +481,11 @@ def coupling(gear: GearPair, lay: Layout) -> tuple[float, float, float]:
         Where a gear's revolute closes a loop: a joint equality couples tree joints only.
     """
     hinges = {mj.name for mj in lay.joints if mj.kind == "hinge"}
-    signs = []
-    for pin, gear_body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
-        if pin not in hinges:
-            raise NotApplicable(
-                f"gear pair {gear.name!r}: its gear {gear_body}'s revolute {pin!r} closes a loop, and MuJoCo's joint "
-                "equality couples tree joints only"
-            )
-        revolute = next(tj.joint for tj in lay.topology.tree if tj.joint.name == pin)
-        signs.append(1.0 if revolute.body_b == gear_body else -1.0)
-    return -gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b, signs[0], signs[1]
+    revolutes = {tj.joint.name: tj.joint for tj in lay.topology.tree}
+    return gear.tree_coupling(
+        lambda pin, body: None if pin not in hinges else 1.0 if revolutes[pin].body_b == body else -1.0,
+        "MuJoCo's joint equality",
+    )
 
 
 def _couple(gear: GearPair, lay: Layout, refs: dict) -> tuple[str, dict]:

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from xcheck.dynamics._forces import require_mass_data
-from xcheck.engines._contract import NotApplicable, positive_inertia
+from xcheck.engines._contract import positive_inertia
 from xcheck.engines._frames import world_point
 from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
@@ -311,20 +311,14 @@ def _point2point(mech: Mechanism, cut: Revolute, uid: int, links: dict, topology
 def _gear(mech: Mechanism, gear: GearPair, uid: int, links: dict, topology: Topology, client: int):
     """A gear pair: PyBullet's gear constraint between its gears' revolute links, q_A + ratio q_B =
     target. Each link's coordinate is its child's angle minus its parent's, the gear's rotation
-    relative to the carrier up to a sign s (-1 where the carrier is the child): the mesh,
-    r_a (phi_a - phi_c) + sigma r_b (phi_b - phi_c - phase) = 0, is q_pin_b + k q_pin_a = s_b phase
-    with k = sigma s_a s_b r_a / r_b."""
+    relative to the carrier up to a sign (-1 where the carrier is the child): the mesh is
+    q_pin_b = s_b phase + k q_pin_a (:meth:`~xcheck.joints.GearPair.tree_coupling`): ratio -k."""
     tree = {tj.joint.name: tj for tj in topology.tree}
-    signs, pin_links = [], []
-    for pin, body in ((gear.pin_a, gear.body_a), (gear.pin_b, gear.body_b)):
-        if pin not in tree:
-            raise NotApplicable(
-                f"gear pair {gear.name!r}: its gear {body}'s revolute {pin!r} closes a loop, and PyBullet's gear "
-                "constraint couples the links' joint coordinates"
-            )
-        signs.append(1.0 if tree[pin].child == body else -1.0)
-        pin_links.append(links[tree[pin].child])
-    ratio = gear.sigma * signs[0] * signs[1] * gear.radius_a / gear.radius_b
+    k, _, s_b = gear.tree_coupling(
+        lambda pin, body: None if pin not in tree else 1.0 if tree[pin].child == body else -1.0,
+        "PyBullet's gear constraint",
+    )
+    pin_links = [links[tree[pin].child] for pin in (gear.pin_a, gear.pin_b)]
     cid = p.createConstraint(
         uid, pin_links[1], uid, pin_links[0], p.JOINT_GEAR, [0.0, 0.0, 1.0], [0.0] * 3, [0.0] * 3,
         physicsClientId=client,
@@ -333,8 +327,8 @@ def _gear(mech: Mechanism, gear: GearPair, uid: int, links: dict, topology: Topo
     # alone let the mesh slip, which the ladder shows (positions at order 1 instead of 2)
     p.changeConstraint(
         cid,
-        gearRatio=ratio,
-        relativePositionTarget=signs[1] * gear.phase,
+        gearRatio=-k,
+        relativePositionTarget=s_b * gear.phase,
         maxForce=1e30,
         erp=GEAR_ERP,
         physicsClientId=client,

@@ -51,7 +51,6 @@ import numpy as np
 import pymunk as pm
 
 from xcheck.engines._contract import positive_inertia
-from xcheck.errors import NotApplicable
 from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics, Solution, Status, rotate
 from xcheck.model import GROUND, Mechanism, MotionLaw
@@ -347,17 +346,9 @@ def _groove(mech: Mechanism, joint: LineJoint, bodies: dict, grooves: dict) -> l
 
 def _gear(mech: Mechanism, gear: GearPair, bodies: dict, grooves: dict) -> list[pm.Constraint]:
     """A gear pair: pymunk's gear joint, which keeps ratio phi_j - phi_i = phase of two
-    bodies' absolute angles: the row k_i phi_i + k_j phi_j = offset where the third of the
-    gears and the carrier is the ground (its angle is zero)."""
-    offset = gear.sigma * gear.radius_b * gear.phase
-    moving = [(body, k) for body, k in zip(gear.bodies, gear.coefficients()) if body != GROUND]
-    if len(moving) > 2:
-        raise NotApplicable(
-            f"gear pair {gear.name!r} couples three moving bodies ({', '.join(b for b, _ in moving)}): pymunk's "
-            "GearJoint couples two bodies' absolute angles"
-        )
-    (i, k_i), (j, k_j) = moving
-    return [pm.GearJoint(bodies[i], bodies[j], -offset / k_i, -k_j / k_i)]
+    bodies' absolute angles (:meth:`~xcheck.joints.GearPair.angle_coupling`)."""
+    i, j, ratio, phase = gear.angle_coupling("pymunk's GearJoint couples two bodies' absolute angles")
+    return [pm.GearJoint(bodies[i], bodies[j], phase, ratio)]
 
 
 #: a joint's pymunk constraints, by its type
