@@ -389,19 +389,12 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
     parts = {}
     made = _made(run, "forces", made)
     for r in run.force_table.to_dict("records"):
-        if not r["applies"]:  # the engine cannot hold the mechanism: no verdict either way
+        if not r["ok"]:  # failed, or the engine cannot hold the mechanism (no verdict either way)
+            outcome = "**failed**" if r["applies"] else "not applicable"
             parts[str(r["engine"])] = {
-                "row": [f"not applicable: {r['reason']}", "—", "—", "—", "—"],
+                "row": [f"{outcome}: {r['reason']}", "—", "—", "—", "—"],
                 "basis": "",
-                "passed": True,
-                "produced": made,
-            }
-            continue
-        if not r["ok"]:
-            parts[str(r["engine"])] = {
-                "row": [f"**failed**: {r['reason']}", "—", "—", "—", "—"],
-                "basis": "",
-                "passed": False,
+                "passed": not r["applies"],
                 "produced": made,
             }
             continue
