@@ -198,11 +198,11 @@ def _revolute_cut(mech: Mechanism, cut: Revolute, signs) -> tuple[str, np.ndarra
     )
 
 
-def _gear_coupling(mech: Mechanism, gear: GearPair, signs) -> Coupling:
+def _gear_coupling(gear: GearPair, sign, engine: str) -> Coupling:
     """A gear pair as a coupling of its gears' revolutes' coordinates (0 at the build
-    state, where the mesh holds): omega_b - omega_c = ratio (omega_a - omega_c)."""
-    sign_a, sign_b = signs(gear.pin_a, gear.body_a), signs(gear.pin_b, gear.body_b)
-    return Coupling(gear.name, gear.pin_a, gear.pin_b, gear.ratio * sign_a * sign_b)
+    state, where the mesh holds: no offset), by :meth:`GearPair.tree_coupling`."""
+    ratio, _, _ = gear.tree_coupling(sign, f"xcheck's {engine} model")
+    return Coupling(gear.name, gear.pin_a, gear.pin_b, ratio)
 
 
 def _converters(engine: str, couplings: bool) -> tuple[dict, dict]:
@@ -214,7 +214,9 @@ def _converters(engine: str, couplings: bool) -> tuple[dict, dict]:
     }
     cuts: dict[type, Callable | str] = {
         Revolute: _revolute_cut,
-        GearPair: _gear_coupling if couplings else f"xcheck's {engine} model couples no joint coordinates",
+        GearPair: (lambda mech, gear, sign: _gear_coupling(gear, sign, engine))
+        if couplings
+        else f"xcheck's {engine} model couples no joint coordinates",
         Joint: f"a loop is cut at the {{kind}} joint {{name!r}}: xcheck's {engine} model closes loops at "
         "revolutes only",
     }
@@ -249,9 +251,10 @@ def tree_frames(mech: Mechanism, q: np.ndarray, engine: str, couplings: bool = F
     joints = tuple(convert(mech, tj, angle, position) for convert, tj in zip(tree_converters, topology.tree))
     children = {frames.name: frames.child for frames in joints}
 
-    def sign(joint: str, body: str) -> float:
-        """The sign of a revolute tree joint's coordinate against ``body``'s turn relative to the other body."""
-        return 1.0 if children[joint] == body else -1.0
+    def sign(joint: str, body: str) -> float | None:
+        """The sign of a revolute tree joint's coordinate against ``body``'s turn relative to the
+        other body; None where the joint closes a loop."""
+        return None if joint not in children else 1.0 if children[joint] == body else -1.0
 
     closed = [convert(mech, cut, sign) for convert, cut in zip(cut_converters, topology.cuts)]
     return TreeFrames(
