@@ -44,6 +44,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_main_job.py --out $(BENCH_OUT)/main-job
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck simulate iftomm-a02 --engines native --json --no-report
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_free_step.py
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_free_reference.py
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck fuzz --count 20 --seed 1 --out $(BENCH_OUT)/fuzz
 
 clean:

@@ -90,16 +90,32 @@ def difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) -> 
 def stated_error(gap: np.ndarray, previous: np.ndarray | None, nominal: float | None) -> tuple[np.ndarray, str]:
     """The stated error of a run (m, (N,)) from ``gap``, its running difference from the run
     before, ``previous``, the difference before that (None with one), and the method's
-    ``nominal`` rate (None: none); with how it was obtained."""
-    if nominal is None or previous is None:
+    ``nominal`` rate (None: none); with how it was obtained. Where the last two differences
+    fell at least ``nominal`` times: :data:`SAFETY` x the difference / (``nominal`` - 1); where
+    they fell less than 1 + :data:`SAFETY` times, the runs are not converging there:
+    :data:`SAFETY` x the larger of the two; elsewhere the difference."""
+    if previous is None:
         return gap.copy(), "the difference"
     with np.errstate(divide="ignore", invalid="ignore"):
-        fast = previous / gap >= nominal
-    estimate = np.where(fast, SAFETY * gap / (nominal - 1.0), gap)
-    if not fast.any():
+        rate = previous / gap
+    fast = rate >= nominal if nominal is not None else np.zeros(len(gap), dtype=bool)
+    slow = ~(rate >= 1.0 + SAFETY)  # NaN too
+    estimate = gap.copy()
+    if nominal is not None:
+        estimate[fast] = SAFETY * gap[fast] / (nominal - 1.0)
+    estimate[slow] = SAFETY * np.maximum(gap[slow], previous[slow])
+    rules = []
+    if fast.any():
+        rules.append(f"{SAFETY:g} x the difference / ({nominal:g} - 1) where it fell {nominal:g} times or faster")
+    if slow.any():
+        rules.append(
+            f"{SAFETY:g} x the larger of the last two differences where they fell less than {1 + SAFETY:g} times"
+        )
+    if not rules:
         return estimate, "the difference"
-    share = "" if fast.all() else f" where it fell {nominal:g} times or faster (else the difference)"
-    return estimate, f"{SAFETY:g} x the difference / ({nominal:g} - 1){share}"
+    if (fast | slow).all():
+        return estimate, "; ".join(rules)
+    return estimate, "; ".join(rules) + " (else the difference)"
 
 
 def run_ladder(

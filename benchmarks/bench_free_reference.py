@@ -1,0 +1,87 @@
+"""The native free-motion reference against its speed goals: its CPU time and its true error.
+
+- IFToMM A02 (the double four-bar, ten singular passes in 10 s): the DOP853 reference at the
+  file's tolerance and at the goal's (1e-11 m, 5e-12 of its 2 m size), its CPU time (the
+  ladder's runs, the release excluded) and its true error against the double four-bar reduced
+  to one degree of freedom, theta'' = -(3.5 / 3) g cos(theta) (DOP853 at rtol 1e-13);
+  goal: at most 1e-11 m in at most 1 CPU s.
+- iftomm-a02-n40 (81 bars, 243 coordinates) over its file's 20 s: the release's CPU time (the
+  branch's map), the reference's, whether it converged and its stated error, and its cranks'
+  true error against the chain's reduction, theta'' = -((41/2 + 40) / (41/3 + 40)) g cos(theta)
+  (as tests/test_free_motion.py); goal: converged to 1e-9 of its size in at most 60 CPU s.
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40]``
+"""
+
+from __future__ import annotations
+
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
+
+from xcheck import Kinematics, load_mechanism  # noqa: E402
+from xcheck.dynamics._free import adaptive_reference, release_state  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+G = 9.81
+
+
+def reduced_theta(k: float, times: np.ndarray) -> np.ndarray:
+    """The cranks' angle of a double four-bar chain on its parallelogram branch (rad, (N,)):
+    theta'' = -k g cos(theta) from theta = 90 deg at -1 rad/s."""
+    ode = solve_ivp(
+        lambda t, y: [y[1], -k * G * math.cos(y[0])],
+        (0.0, float(times[-1])),
+        [math.pi / 2, -1.0],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-14,
+        t_eval=times,
+    )
+    return ode.y[0]
+
+
+def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
+    begin = time.process_time()
+    kin = Kinematics(load_mechanism(ROOT / "models" / "benchmarks" / f"{name}.toml"))
+    kin.assemble()
+    start = release_state(kin)
+    release = time.process_time() - begin
+    spec = kin.mechanism.free_motion
+    assert spec is not None
+    size = kin.system.size
+    cranks = [3 * i + 2 for i, body in enumerate(kin.mechanism.moving_bodies) if body.name.startswith("crank")]
+    print(f"{name}: {kin.system.n} coordinates, {spec.duration:g} s; release {release:.2f} CPU s; goal: {goal}")
+    for tolerance in tolerances:
+        tolerance = spec.tolerance if tolerance is None else tolerance
+        begin = time.process_time()
+        reference = adaptive_reference(kin, start, spec.duration, spec.output_step, tolerance)
+        cpu = time.process_time() - begin
+        motion = reference.motion
+        theta = reduced_theta(k, motion.times)
+        true = float(np.abs(motion.q[:, cranks] - theta[:, None]).max()) * size
+        state = "converged" if reference.converged else "NOT converged"
+        print(
+            f"  tolerance {tolerance:g} of the size: {state}, {cpu:.2f} CPU s over {len(reference.ladder)} runs "
+            f"({sum(e['steps'] for e in reference.ladder)} steps); stated {reference.estimate.max():.3g} m, "
+            f"true {true:.3g} m (cranks' angles x the size)"
+        )
+        if not reference.converged:
+            print(f"    {reference.basis.rsplit('; stopped: ', 1)[-1]}")
+
+
+if __name__ == "__main__":
+    which = sys.argv[1:] or ["a02", "n40"]
+    if "a02" in which:
+        run("iftomm-a02", 3.5 / 3.0, [None, 5e-12], "<= 1e-11 m true error in <= 1 CPU s")
+    if "n40" in which:
+        run("iftomm-a02-n40", (41 / 2 + 40) / (41 / 3 + 40), [None], "converged to 1e-9 of the size in <= 60 CPU s")
