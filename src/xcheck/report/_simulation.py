@@ -149,11 +149,12 @@ def _reference_section(reference) -> list[str]:
     """The native reference's paragraphs and ladder tables: how it was run and stopped, its
     stated error, and the second method's check."""
     motion = reference.motion
-    passes = ", ".join(f"{t:.4g}" for t in motion.singular_passes) or "none"
+    at = ", ".join(f"{t:.4g}" for t in motion.singular_passes)
+    passes = f"Singular positions passed at {at} s." if at else "No singular position passed."
     lines = [
         f"{reference.method}: {reference.basis}. The run kept has a mean step of {motion.step:g} s; stated "
         f"error {_g(float(reference.estimate.max()), 3)} m ({_g(reference.relative, 3)} of the size; "
-        f"{'converged' if reference.converged else '**not converged**'}). Singular positions passed at {passes} s. "
+        f"{'converged' if reference.converged else '**not converged**'}). {passes} "
         f"Loop closure before each projection at most {_g(float(motion.residual.max()), 2)} m; energy balance "
         f"at most {_g(float(np.abs(motion.energy_error).max()), 2)} J.",
         _ladder_table(reference),
