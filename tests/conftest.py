@@ -148,12 +148,27 @@ def invoke(*args: str, cwd: Path = ROOT, unset: tuple[str, ...] = ("XCHECK_MODEL
     return subprocess.CompletedProcess(["xcheck", *args], result.exit_code, result.stdout, stderr)
 
 
-def run_free(mode: str, kinematics, reference, **options):
-    """A free mode's ladder through its engine (:meth:`xcheck.engines.Engine.run_free`;
-    ``options``: ``series``, ``steps``)."""
+def run_free(mode: str, kinematics, reference, series=None, timestep=None, rungs=None):
+    """A free mode's ladder through its engine (:meth:`xcheck.engines.Engine.run_free`),
+    of ``series`` (default: the engine's), each from ``timestep`` (s) over ``rungs`` runs
+    where given."""
+    import dataclasses
+
     from xcheck import engines
 
-    return engines.engine_of(mode).run_free(mode, kinematics, reference, **options)
+    engine = engines.engine_of(mode)
+    if timestep is not None or rungs is not None:
+        change = {k: v for k, v in (("timestep", timestep), ("rungs", rungs)) if v is not None}
+        series = [dataclasses.replace(s, **change) for s in (series or engine.free_series(mode, kinematics))]
+    return engine.run_free(mode, kinematics, reference, series=series)
+
+
+def run_dynamic(mode: str, kinematics, branch=None, **options):
+    """A dynamic mode's ladder through its engine (:meth:`xcheck.engines.Engine.dynamic_ladder`;
+    ``options``: ``series``, ``duration``), run."""
+    from xcheck import engines
+
+    return engines.engine_of(mode).dynamic_ladder(mode, kinematics, branch, **options).run()
 
 
 def assert_first_order(result, finest: float) -> None:

@@ -126,10 +126,10 @@ def test_mujoco_simulation_across_the_dead_centre_says_it_left_the_branch():
     """MuJoCo's soft loops carry tests/data/near-dead-centre.toml onto the other branch
     just past the dead centre (crank at 270 deg at t = 69.7 deg / 10 rad/s = 0.122 s):
     the mode fails with that reason and the time, not as a disagreement of 2 sizes."""
-    from xcheck.engines.mujoco.modes import run_dynamic
+    from xcheck import engines
 
     kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
-    result = run_dynamic(kinematics)
+    result = engines.engine("mujoco").dynamic_ladder("mujoco-dynamic", kinematics).run()
     assert not result.ok
     assert "left the assembly branch at t = " in result.reason
     t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
@@ -141,25 +141,25 @@ def test_mujoco_simulation_across_the_dead_centre_says_it_left_the_branch():
 def test_driven_engines_across_the_dead_centre_say_they_left_the_branch(engine):
     """PyBullet's motor and Drake's PD carry tests/data/near-dead-centre.toml onto the
     other branch near the dead centre as MuJoCo does: their driven modes fail with that
-    reason (engines._driven.left_branch), not with a disagreement of 2 sizes that
-    xcheck would own."""
-    import importlib
+    reason (xcheck.ladder.off_branch, the one rule for every driven mode), not with a
+    disagreement of 2 sizes that xcheck would own."""
+    from xcheck import engines
 
     pytest.importorskip({"pybullet": "pybullet", "drake": "pydrake"}[engine])
-    run_dynamic = importlib.import_module(f"xcheck.engines.{engine}.dynamic").run_dynamic
     kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
-    result = run_dynamic(kinematics)
+    result = engines.engine(engine).dynamic_ladder(f"{engine}-dynamic", kinematics).run()
     assert not result.ok
     assert "left the assembly branch at t = " in result.reason, result.reason
     t = float(result.reason.split("left the assembly branch at t = ")[1].split(" s")[0])
     assert math.radians(270.0 - 200.3) / 10.0 <= t <= 0.2
 
 
-def test_branch_gap_status_names_the_first_sample_off_the_branch():
-    """engines._driven.branch_gap_status (pymunk's forces, every driven mode): points on
-    the native configuration give "", a point moved 0.2 of the size from sample 3 on
-    gives that sample's time and gap; a move of 0.05 of the size is a gap, not a branch."""
-    from xcheck.engines._driven import LEFT_BRANCH, branch_gap_status
+def test_off_branch_names_the_first_sample_off_the_branch():
+    """xcheck.ladder.off_branch (pymunk's forces, every driven mode): points on the
+    native configuration give "", a point moved 0.2 of the size from sample 3 on gives
+    that sample's time and gap; a move of 0.05 of the size is a gap, not a branch."""
+    from xcheck.ladder import APART as LEFT_BRANCH
+    from xcheck.ladder import off_branch
 
     kinematics = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
     inputs = np.linspace(-1.0, 1.0, 7)[:, None]
@@ -167,13 +167,13 @@ def test_branch_gap_status_names_the_first_sample_off_the_branch():
     size = kinematics.mechanism.size
     points = {label: native.point(label)["position"].copy() for label in ("B", "C")}
     times = np.arange(7) * 0.5
-    assert branch_gap_status(kinematics, native, points, times, "Toy") == ""
+    assert off_branch(kinematics, native, points, times) == ""
     points["C"][3:, 1] += 0.5 * LEFT_BRANCH * size
-    assert branch_gap_status(kinematics, native, points, times, "Toy") == ""
+    assert off_branch(kinematics, native, points, times) == ""
     points["C"][3:, 1] += 1.5 * LEFT_BRANCH * size
-    status = branch_gap_status(kinematics, native, points, times, "Toy")
+    status = off_branch(kinematics, native, points, times)
     assert status.startswith("left the assembly branch at t = 1.5 s: a point ")
-    assert status.endswith("m from the native configuration at the inputs Toy realised")
+    assert status.endswith("m from the native configuration at the inputs realised")
     assert float(status.split("a point ")[1].split(" m")[0]) == pytest.approx(2.0 * LEFT_BRANCH * size, rel=1e-3)
 
 

@@ -58,7 +58,7 @@ def test_two_second_trammel_passes_by_its_own_convergence(two_second_trammel):
     assert 3.5 <= position.observed_order <= 4.5
     # the expected order's prediction from the coarser run agrees with the measured error
     assert position.estimate == pytest.approx(position.relative, rel=0.2)
-    assert position.step == pytest.approx(2.0 / 800, rel=1e-12)
+    assert position.step == pytest.approx(2.0 / 800, rel=1e-12)  # 200, 400, 800 steps over the 2 s window
     assert position.coarse_step == pytest.approx(2.0 / 400, rel=1e-12)
     assert "observed order" in position.basis
 

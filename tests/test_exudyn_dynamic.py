@@ -13,13 +13,12 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import MODELS
+from conftest import MODELS, run_dynamic
 
 pytest.importorskip("exudyn")
 
 from xcheck import Kinematics, load_mechanism  # noqa: E402
 from xcheck.engines import NotApplicable  # noqa: E402
-from xcheck.engines.exudyn.dynamic import run_dynamic  # noqa: E402
 
 
 def _kinematics(name: str) -> Kinematics:
@@ -29,7 +28,7 @@ def _kinematics(name: str) -> Kinematics:
 
 
 def test_fourbar_positions_at_round_off_velocities_at_second_order():
-    result = run_dynamic(_kinematics("fourbar"))
+    result = run_dynamic("exudyn-dynamic", _kinematics("fourbar"))
     assert result.ok, result.reason
     summary = result.summary
     assert (summary["status"] == "ok").all(), summary
@@ -46,4 +45,4 @@ def test_fourbar_positions_at_round_off_velocities_at_second_order():
 
 def test_a_slide_driver_is_not_applicable():
     with pytest.raises(NotApplicable, match="driver r_y: a slide"):
-        run_dynamic(_kinematics("task-2-2"))
+        run_dynamic("exudyn-dynamic", _kinematics("task-2-2"))

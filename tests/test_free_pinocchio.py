@@ -88,7 +88,7 @@ def test_rk4_converges_at_fourth_order(case, request):
     (order 4.00, then within the reference's stated error of 5.6e-10 m);
     loop drift on A02 at most 1.6e-13 m."""
     kin, reference = request.getfixturevalue(case)
-    result = run_free(MODE, kin, reference, series=_series("rk4-baumgarte"), steps=(1e-2, 5e-3, 2.5e-3))
+    result = run_free(MODE, kin, reference, series=_series("rk4-baumgarte"), timestep=1e-2)
     assert result.ok, result.reason
     summary, study = result.summary, result.study
     assert set(COLUMNS) <= set(summary.columns)
@@ -151,14 +151,14 @@ def test_a_run_that_fails_is_a_row_with_its_status(a02):
     assert len(result.summary) == 3 and not (result.summary.status == "ok").any()
     assert result.summary.status.str.contains("came apart|went non-finite").all()
     assert result.study.order.isna().all() and set(result.study.verdict) == {"cannot tell"}  # none counts
-    soft = run_free(MODE, kin, reference, series=_series("rk4", mu=1.0), steps=(1e-2,))
+    soft = run_free(MODE, kin, reference, series=_series("rk4", mu=1.0), timestep=1e-2, rungs=1)
     assert soft.summary.status.iloc[0].startswith("came apart at t = 1.87 s (loops 0.202 m open)")
     assert soft.summary.simulated.iloc[0] == pytest.approx(1.87)
 
 
 def test_bad_time_step_fails_in_one_line(a01):
     kin, reference = a01
-    result = run_free(MODE, kin, reference, steps=(3e-3,))
+    result = run_free(MODE, kin, reference, timestep=3e-3, rungs=1)
     assert not result.ok and "the step does not divide the output step (0.01 s)" in result.reason
 
 
@@ -169,7 +169,7 @@ def test_rk4_without_correction_dies_at_the_fourth_singular_pass():
     until then the error grows to 9.4e-6 m (the reference over 3.5 s: ~11 s CPU)."""
     kin, reference = _case("iftomm-a02", 3.5)
     assert reference.motion.singular_passes[3] == pytest.approx(3.17, abs=0.01)
-    result = run_free(MODE, kin, reference, series=_series("rk4"), steps=(1e-3,))
+    result = run_free(MODE, kin, reference, series=_series("rk4"), rungs=1)
     assert result.summary.status.iloc[0] == "went non-finite at t = 3.174 s"
     assert 1e-6 <= result.summary.position_error.iloc[0] <= 1e-4
 
@@ -210,7 +210,7 @@ def test_constant_loads_and_springs_are_generalised_forces(tmp_path):
     )
     for path, duration in ((loaded, 1.0), (DATA / "spring-block.toml", 0.5)):
         kin = Kinematics(load_mechanism(path))
-        result = run_free(MODE, kin, simulate(kin, None, duration=duration), series=_series("rk4"), steps=(1e-3,))
+        result = run_free(MODE, kin, simulate(kin, None, duration=duration), series=_series("rk4"), rungs=1)
         assert result.ok, result.reason
         row = result.summary.iloc[0]
         assert row.position_error <= 1e-9

@@ -7,6 +7,7 @@ Measured figures quoted below come from this file's own runs (MuJoCo 4.0.0);
 
 from __future__ import annotations
 
+import copy
 import xml.etree.ElementTree as ET
 
 import mujoco
@@ -14,9 +15,12 @@ import numpy as np
 import pytest
 from conftest import DATA, MODEL_NAMES, MODELS
 
-from xcheck import Kinematics, ModelError
-from xcheck.engines.mujoco.modes import export_files, inverse_dynamics, relative_error, run_dynamic, run_kinematic
+from xcheck import Kinematics, ModelError, engines
+from xcheck.engines.mujoco import modes
+from xcheck.engines.mujoco.dynamic import DEFAULT, TIGHT, simulate
+from xcheck.engines.mujoco.modes import export_files, inverse_dynamics, relative_error, run_kinematic
 from xcheck.errors import XcheckError
+from xcheck.ladder import DrivenLadder, DrivenProblem, Series
 from xcheck.model import parse_mechanism
 from xcheck.precision import canonical_numbers, drift
 from xcheck.results import differences
@@ -83,6 +87,31 @@ CASES = [*MODEL_NAMES, *STRINGS]
 
 # Tight setting's time steps in these tests (the mode's default plan has more).
 TEST_TIGHT_STEPS = (5e-4, 2.5e-4)
+
+
+def run_dynamic(kin, tight=(1e-3, 4), default=(2e-3, 3), xml=None, duration=None):
+    """mujoco-dynamic's ladder: the tight setting from ``tight[0]`` s over ``tight[1]``
+    runs (compared; None: not run), MuJoCo's defaults likewise, on ``xml`` where given."""
+    series = [
+        Series(
+            setting.name, setting.integrator, setting, name=f"{setting.name} {setting.integrator}", timestep=h, rungs=n
+        )
+        for setting, plan in ((TIGHT, tight), (DEFAULT, default))
+        if plan is not None
+        for h, n in (plan,)
+    ]
+    engine = engines.engine("mujoco")
+    ladder = DrivenLadder(
+        "mujoco-dynamic",
+        kin,
+        None,
+        lambda problem: series,
+        modes.run_dynamic_once,
+        lambda problem: modes.prepare_dynamic(problem, xml),
+        engine.findings,
+        duration,
+    )
+    return ladder.run()
 
 
 @pytest.fixture(scope="module")
@@ -213,10 +242,11 @@ def test_dynamic_mode_agrees_and_converges_at_second_order(case, name):
     in qacc): 1e-3 to 4.1e-3 (task-2-1) of the largest acceleration.
     """
     kin, text = case(name)
-    result = run_dynamic(kin, default_timesteps=(2e-3,), tight_timesteps=TEST_TIGHT_STEPS, xml=text)
+    result = run_dynamic(kin, tight=(TEST_TIGHT_STEPS[0], 2), default=(2e-3, 1), xml=text)
     assert result.ok, result.reason
     summary, compared = result.summary, result.trajectories[0]
-    assert compared.settings["setting"] == "tight" and compared.settings["timestep"] == 2.5e-4
+    dt = compared.settings["timestep"]  # 2.5e-4 s, shortened to divide the sample interval
+    assert compared.settings["setting"] == "tight" and 1.25e-4 < dt <= 2.5e-4
     assert compared.settings["accelerations"] == "qacc"
     assert result.trajectories[1].settings["accelerations"] == "oracle at simulated state"
     assert (summary.status == "ok").all(), summary.status.tolist()
@@ -224,7 +254,7 @@ def test_dynamic_mode_agrees_and_converges_at_second_order(case, name):
     mech = kin.mechanism
     assert set(table[table.kind == "body"].name) == {b.name for b in mech.moving_bodies}
     assert set(table[table.kind == "point"].name) == set(mech.point_owners)
-    row = summary.iloc[-1]  # tight, 2.5e-4 s: the compared run
+    row = summary[(summary.setting == "tight") & (summary.timestep == dt)].iloc[0]  # the compared run
     assert row.position_error == relative_error(table, "position", absolute=True)
     size = kin.system.size
     if not spanning_tree(mech).cuts:
@@ -232,13 +262,13 @@ def test_dynamic_mode_agrees_and_converges_at_second_order(case, name):
         assert row.position_error <= 1e-13 * size
         assert row.velocity_error <= 1e-12 and row.acceleration_error <= 1e-12
         return
-    w_dt = _speed(kin, table) * 2.5e-4
+    w_dt = _speed(kin, table) * dt
     assert row.position_error <= 0.2 * size * w_dt**2
     assert row.angle_error <= 0.25 * w_dt**2
     assert row.velocity_error <= 0.08 * w_dt
     assert row.acceleration_error_oracle <= 0.2 * w_dt
     assert row.acceleration_error <= 0.015
-    assert 1.7 <= row.observed_order <= 2.3
+    assert 1.7 <= row.order <= 2.3
 
 
 def test_dynamic_default_plan_reports_the_error_trend(case):
@@ -248,15 +278,16 @@ def test_dynamic_default_plan_reports_the_error_trend(case):
     the defaults' error does not fall with the time step (2.4e-5, 6.0e-5,
     7.8e-5 m: solref's 0.02 s time constant, not the step, sets it)."""
     kin, _ = case("fourbar")
-    result = run_dynamic(kin)
+    result = engines.engine("mujoco").dynamic_ladder("mujoco-dynamic", kin).run()
     assert result.ok, result.reason
     summary = result.summary
-    assert list(summary.setting) == ["default"] * 3 + ["tight"] * 4
-    assert list(summary.integrator) == ["Euler"] * 3 + ["RK4"] * 4
-    assert result.trajectories[0].settings["timestep"] == 1.25e-4
+    assert list(summary.setting) == ["tight"] * 4 + ["default"] * 3
+    assert list(summary.integrator) == ["RK4"] * 4 + ["Euler"] * 3
+    assert 1.2e-4 <= result.trajectories[0].settings["timestep"] <= 1.25e-4
     tight, default = summary[summary.setting == "tight"], summary[summary.setting == "default"]
-    assert np.all((tight.observed_order.iloc[1:] > 1.8) & (tight.observed_order.iloc[1:] < 2.2))
-    assert np.all(default.observed_order.iloc[1:] < 0.5)
+    assert np.all((tight.order.iloc[1:] > 1.8) & (tight.order.iloc[1:] < 2.2))
+    assert np.all(default.order.iloc[1:] < 0.5)
+    assert set(result.study[result.study.series == "default Euler"].verdict) == {"not converging"}
     assert default.position_error.min() > 1e4 * tight.position_error.min()
     assert len(result.trajectories) == 2 + 6  # compared run twice (qacc, oracle), then every other run
 
@@ -354,12 +385,12 @@ def test_scotch_yoke_simulates_within_the_dynamic_tolerance():
     runs converge at second order. Measured (5e-4, 2.5e-4 s): 1.9e-9, 4.6e-10 m
     (orders 2.02)."""
     kin = _yoke("slot")
-    result = run_dynamic(kin, default_timesteps=(), tight_timesteps=TEST_TIGHT_STEPS)
+    result = run_dynamic(kin, tight=(TEST_TIGHT_STEPS[0], 2), default=None)
     assert result.ok, result.reason
     assert "carrier" in result.trajectories[0].notes
     errors = result.summary.position_error.to_numpy()
     assert errors[-1] < 1e-8 * kin.mechanism.size
-    assert 1.8 < result.summary.observed_order.iloc[-1] < 2.2
+    assert 1.8 < result.summary.order.iloc[-1] < 2.2
 
 
 def test_a_loop_of_sliding_joints_only_runs():
@@ -376,7 +407,7 @@ def test_a_loop_of_sliding_joints_only_runs():
     np.testing.assert_allclose(w["position"], np.column_stack([s, s]), rtol=0, atol=1e-15 * np.max(np.abs(s)))
     np.testing.assert_allclose(w["velocity"], 0.5, rtol=0, atol=1e-15)
     np.testing.assert_allclose(w["acceleration"], 0.0, rtol=0, atol=1e-15)
-    assert run_dynamic(kin, default_timesteps=(), tight_timesteps=(5e-4,)).ok
+    assert run_dynamic(kin, tight=(5e-4, 1), default=None).ok
 
 
 def test_a_loop_of_driven_joints_only_fails_both_modes_in_one_line():
@@ -404,36 +435,45 @@ rate = 0.7071067811865476
         kin = Kinematics(parse_mechanism(text, "wedges"))
     except XcheckError:
         pytest.skip("the native model refuses a loop of driven joints itself")
-    for result in (run_kinematic(kin), run_dynamic(kin)):
-        assert not result.ok and "\n" not in result.reason
-        assert "driven joints only" in result.reason
+    kinematic, dynamic = run_kinematic(kin), run_dynamic(kin)
+    assert not kinematic.ok and "\n" not in kinematic.reason and "driven joints only" in kinematic.reason
+    # the driven ladder sets its problem up first: the native solver refuses the over-driven start
+    assert not dynamic.ok and "\n" not in dynamic.reason
+    assert "expected 1 driver(s), one per degree of freedom" in dynamic.reason, dynamic.reason
     with pytest.raises(ModelError, match="driven joints only"):
         export_files(kin)
 
 
 def test_a_diverging_simulation_fails_with_its_reason(case, tmp_path, monkeypatch):
     """RK4 at 50 ms: the 250 rad/s servo is far past RK4's stability limit. MuJoCo's
-    warning becomes the reason (and no MUJOCO_LOG.TXT is written)."""
+    warning becomes the run's failure (and no MUJOCO_LOG.TXT is written); in the
+    mode's ladder (the step shortened to divide the 41 ms sample interval) the loops
+    are 1.1 m open at the first sample (measured), before MuJoCo warns: the run came apart."""
     kin, text = case("fourbar")
     monkeypatch.chdir(tmp_path)
     handler = mujoco.get_mju_user_warning()
-    result = run_dynamic(kin, default_timesteps=(), tight_timesteps=(0.05,), xml=text)
-    assert not result.ok
-    assert "diverged" in result.reason and "unstable" in result.reason and "\n" not in result.reason
+    prepared = modes.prepare_dynamic(DrivenProblem.of(kin), text)
+    run = simulate(
+        copy.deepcopy(prepared.model),
+        kin.mechanism,
+        prepared.layout,
+        TIGHT,
+        0.05,
+        40,
+        1,
+        prepared.qpos0,
+        prepared.qvel0,
+    )
+    assert run.failure.startswith("diverged") and "unstable" in run.failure and "\n" not in run.failure
+    assert len(run.times) == 0
+    result = run_dynamic(kin, tight=(0.05, 1), default=None, xml=text)
+    assert not result.ok and "\n" not in result.reason
+    assert result.reason.startswith("tight RK4 dt = 0.04095 s: came apart at t = 0.04095"), result.reason
     row = result.summary.iloc[0]
-    assert row.status.startswith("diverged") and np.isnan(row.position_error)
+    assert row.status.startswith("came apart") and np.isnan(row.order)
     assert result.trajectories == []
     assert mujoco.get_mju_user_warning() == handler
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
-
-
-def test_a_loop_violation_past_the_bound_fails(case):
-    """MuJoCo's defaults leave the four-bar's loop open by 1e-5 m within 16 ms
-    (measured): past a bound of 1e-6 of the size, the run counts as diverged."""
-    kin, text = case("fourbar")
-    result = run_dynamic(kin, default_timesteps=(2e-3,), tight_timesteps=(), violation_bound=1e-6, xml=text)
-    assert not result.ok
-    assert "loop violation" in result.reason
 
 
 def test_a_motion_leaving_the_feasible_range_fails(case):

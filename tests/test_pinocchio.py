@@ -22,6 +22,7 @@ models/, the inverted and slider-driven slider-cranks and the two variants:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from functools import lru_cache
@@ -33,10 +34,13 @@ import pytest
 from conftest import DATA, MODEL_NAMES, MODELS
 
 from xcheck import Kinematics, engines, load_mechanism
+from xcheck.engines.pinocchio.dynamic import INTEGRATORS
 from xcheck.engines.pinocchio.model import joint_coordinates
-from xcheck.engines.pinocchio.modes import build, export_files, inverse_dynamics, run_dynamic, run_kinematic
+from xcheck.engines.pinocchio.modes import build, export_files, inverse_dynamics, run_kinematic
 from xcheck.engines.pinocchio.oracle import Oracle
+from xcheck.ladder import Series, observed_order
 from xcheck.model import parse_mechanism
+from xcheck.motion import simulation_window
 from xcheck.precision import canonical_numbers, drift, resolution
 from xcheck.results import differences
 
@@ -141,6 +145,23 @@ def _kin(name: str) -> Kinematics:
 @lru_cache(maxsize=None)
 def _kinematic(name: str):
     return run_kinematic(_kin(name))
+
+
+MODE = "pinocchio-dynamic"
+
+
+def run_dynamic(kin, integrators=None, steps: int = 200, rungs: int = 3, **setting):
+    """pinocchio-dynamic's ladder, of ``integrators`` (keys of INTEGRATORS; default all)
+    from ``steps`` per window over ``rungs`` runs, their settings changed as given."""
+    engine = engines.engine("pinocchio")
+    if integrators is None and not setting and (steps, rungs) == (200, 3):
+        return engine.dynamic_ladder(MODE, kin).run()
+    window = simulation_window(kin).duration
+    series = [
+        Series(name, name, dataclasses.replace(INTEGRATORS[name], **setting), timestep=window / steps, rungs=rungs)
+        for name in (integrators or INTEGRATORS)
+    ]
+    return engine.dynamic_ladder(MODE, kin, series=series).run()
 
 
 @lru_cache(maxsize=None)
@@ -295,7 +316,6 @@ def test_dynamic_mode_converges_with_the_expected_orders(name):
     assert len(summary) == 9
     first = result.trajectories[0]
     assert first.settings["integrator"] == "rk4" and first.settings["steps"] == 800
-    assert first.settings["role"] == "comparison"
     size = kin.system.size
     runs = {name: summary[summary.integrator == name] for name in summary.integrator.unique()}
     # RK4 and corrected Euler run through at every step; plain Euler may open
@@ -303,23 +323,24 @@ def test_dynamic_mode_converges_with_the_expected_orders(name):
     # task-2-6 at 200 and 400 steps per window): reported in its status
     assert (runs["rk4"].status == "ok").all() and (runs["semi-implicit-euler-baumgarte"].status == "ok").all()
     rk4 = runs["rk4"].iloc[-1]
-    assert rk4.position_error_m <= RK4_POSITION * size
-    assert rk4.velocity_rel <= RK4_VELOCITY
-    assert rk4.acceleration_rel <= RK4_ACCELERATION
+    assert rk4.position_error <= RK4_POSITION * size
+    assert rk4.velocity_error <= RK4_VELOCITY
+    assert rk4.acceleration_error <= RK4_ACCELERATION
     assert rk4.input_error <= RK4_POSITION * max(1.0, size)  # the engine realised the motion law
     if len(build(kin).constraints):
-        order = rk4.order_position
+        order = rk4.order
         assert math.isnan(order) or 3.5 < order < 4.5  # NaN: already at round-off
         plain = runs["semi-implicit-euler"]
         if (plain.status == "ok").sum() >= 2:
-            assert 0.8 < plain.order_position.iloc[-1] < 1.25
-        assert 1.5 < runs["semi-implicit-euler-baumgarte"].order_position.iloc[-1] < 2.2
-        corrected = runs["semi-implicit-euler-baumgarte"].constraint_violation_m.to_numpy()
+            assert 0.8 < plain.order.iloc[-1] < 1.25
+        assert 1.5 < runs["semi-implicit-euler-baumgarte"].order.iloc[-1] < 2.2
+        corrected = runs["semi-implicit-euler-baumgarte"].loop_drift.to_numpy()
         ran = (plain.status == "ok").to_numpy()
-        assert np.all(corrected[ran] < plain.constraint_violation_m.to_numpy()[ran])
+        assert np.all(corrected[ran] < plain.loop_drift.to_numpy()[ran])
     else:  # an open chain: nothing to drift, the state is exact at the realised inputs
-        assert summary.position_error_m.max() <= POSITION_TOLERANCE * size
-        assert 3.5 < runs["rk4"].order_input.iloc[-1] < 4.5
+        assert summary.position_error.max() <= POSITION_TOLERANCE * size
+        tracking, steps = runs["rk4"].input_error.to_numpy(), runs["rk4"].timestep.to_numpy()
+        assert 3.5 < observed_order(tracking[-2], tracking[-1], steps[-2], steps[-1]) < 4.5
     assert np.all(np.isfinite(first.diagnostics["constraint_violation"]))
 
 
@@ -328,10 +349,10 @@ def test_dynamic_mode_drives_a_reversed_input_joint():
     slider-crank runs as the slider-crank does (RK4 at 800 steps, measured
     6.9e-11 of the size, the same as the slider-crank's 6.2e-11)."""
     kin = _kin("reversed-driver")
-    result = run_dynamic(kin, steps=(800,), integrators=("rk4",))
+    result = run_dynamic(kin, ("rk4",), steps=800, rungs=1)
     assert result.ok, result.reason
     run = result.summary.iloc[0]
-    assert run.position_error_m <= RK4_POSITION * kin.system.size
+    assert run.position_error <= RK4_POSITION * kin.system.size
     assert run.input_error <= 1e-12
     np.testing.assert_allclose(result.trajectories[0].input_rates, 100.0, rtol=1e-12)
 
@@ -339,9 +360,7 @@ def test_dynamic_mode_drives_a_reversed_input_joint():
 def test_dynamic_mode_reports_a_diverging_run():
     """Baumgarte gains beyond the stability limit of semi-implicit Euler
     (measured: 1.0 per step diverges, 0.7 does not) are reported, not raised."""
-    result = run_dynamic(
-        _kin("fourbar"), steps=(100,), samples=11, integrators=("semi-implicit-euler-baumgarte",), baumgarte=1.5
-    )
+    result = run_dynamic(_kin("fourbar"), ("semi-implicit-euler-baumgarte",), steps=120, rungs=1, baumgarte=1.5)
     assert not result.ok and result.trajectories == []
     assert " at t = " in result.reason and "\n" not in result.reason
     assert result.summary.status.iloc[0] != "ok"
@@ -361,7 +380,7 @@ def test_a_loop_closed_by_sliding_joints_runs_in_both_modes():
     np.testing.assert_allclose(
         t.points["Y"]["position"], np.column_stack([0.1 * np.cos(theta), 0 * theta]), rtol=0, atol=1e-15
     )
-    assert run_dynamic(kin, steps=(200,), integrators=("rk4",)).ok
+    assert run_dynamic(kin, ("rk4",), rungs=1).ok
 
 
 # The Scotch yoke of tests/data (see test_mujoco for the closed form), cut at
@@ -408,10 +427,10 @@ def test_scotch_yoke_dynamics_converge_at_fourth_order(cut):
     """constraintDynamics with the carrier (its mass taken from the body it is
     held to): RK4 at 200 and 400 steps; measured 2.4e-10, 1.5e-11 m (slot), 1.8e-10,
     1.1e-11 m (guide): order 4.00."""
-    result = run_dynamic(_yoke(cut), steps=(200, 400), integrators=("rk4",))
+    result = run_dynamic(_yoke(cut), ("rk4",), rungs=2)
     assert result.ok, result.reason
     assert "carriers" in result.trajectories[0].notes
-    assert 3.8 < result.summary.order_position.iloc[-1] < 4.2
+    assert 3.8 < result.summary.order.iloc[-1] < 4.2
 
 
 @pytest.mark.parametrize("cut", YOKES)
@@ -462,9 +481,12 @@ def test_urdf_of_a_carrier_loads_and_matches_the_programmatic_model(cut, tmp_pat
     )
 
 
-def test_bad_options_fail_in_one_line():
-    result = run_dynamic(_kin("fourbar"), steps=(201,))
-    assert not result.ok and "multiples of samples - 1" in result.reason
+def test_a_series_of_a_bad_setting_fails_in_one_line():
+    """An integrator Pinocchio's driven run does not know: every run's status says so,
+    in one line, and the mode fails with it."""
+    result = run_dynamic(_kin("fourbar"), ("rk4",), rungs=1, scheme="leapfrog")
+    assert not result.ok and "\n" not in result.reason
+    assert result.reason.endswith("expected the scheme rk4 or euler, found 'leapfrog'"), result.reason
 
 
 def test_modes_and_exporter_are_registered():

@@ -79,24 +79,22 @@ def test_json_summary_shape(whole_run):
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     assert doc["mechanism"] == "fourbar" and doc["samples"] == WHOLE_RUN_SAMPLES and "pass" not in doc
-    # MJX's stated finding leaves the run's verdict a pass, with findings, and the exit code 0
-    assert doc["verdict"] == "pass with findings"
+    # MJX's stated finding (its qacc lacks the loops' J-dot qd) shows at an exact state, the
+    # start; the driven ladder compares the samples after it, where MJX's loops, held open,
+    # make up for it (measured 2.5e-3 of the largest acceleration at 0.125 ms, the bound 1.5e-2):
+    # every mode passes (its rows still name the finding: test_engine_mjx)
+    assert doc["verdict"] == "pass"
     assert set(doc["engines"]) == set(ALL_MODES) and "mjx-dynamic" in doc["engines"] and doc["left_out"] == {}
     assert set(doc["cache"]["from_cache"]) >= set(ALL_MODES) - {"native"} and doc["cache"]["recomputed"] == {}
     for mode, entry in doc["engines"].items():
-        # MJX's accelerations fail: its stated finding, which leaves the run's verdict a pass
-        finding = mode == "mjx-dynamic"
-        assert entry["pass"] is not finding and entry["reason"] is None
-        assert entry["verdict"] == ("finding" if finding else "pass")
-        assert (entry["finding"] is not None) is finding
+        assert entry["pass"] and entry["reason"] is None and entry["verdict"] == "pass" and entry["finding"] is None
         for category in ("position", "velocity", "acceleration"):
             # PyBullet gives no accelerations; Drake's and DART's are not compared
             if mode in ("pybullet-dynamic", "drake-dynamic", "dart-dynamic") and category == "acceleration":
                 assert entry[category] is None
                 continue
             assert isinstance(entry[category], float) and entry[category] >= 0.0
-            beyond = entry["relative"][category] > entry["tolerance"][category]
-            assert beyond is (finding and category == "acceleration")
+            assert entry["relative"][category] <= entry["tolerance"][category]
     textbook = doc["textbook"]
     assert len(textbook) == 96
     assert {"quantity", "printed", "computed", "deviation_percent", "verdict", "note"} <= set(textbook[0])
@@ -155,10 +153,11 @@ def test_perturbed_engine_model_is_caught_and_named(monkeypatch):
 
 
 def test_a_failing_mode_is_reported_and_others_run(monkeypatch):
-    def broken(self, mode, kinematics, **options):
+    def broken(self, mode, kinematics, *args, **options):
         raise RuntimeError("engine crashed")
 
-    monkeypatch.setattr(type(engines.engine("pymunk")), "run", broken)  # in this process only: --jobs 1
+    # a dynamic mode is its ladder: the engine crashes making it (in this process only: --jobs 1)
+    monkeypatch.setattr(type(engines.engine("pymunk")), "dynamic_ladder", broken)
     result = _cli(
         "run", "slider-crank", "--engines", "pymunk,formulations", "--no-report", "--samples", "21", "--jobs", "1"
     )

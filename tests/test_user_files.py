@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import MODELS
+from conftest import MODELS, run_dynamic
 from typer.testing import CliRunner
 
 from xcheck import Kinematics, load_mechanism
@@ -289,9 +289,7 @@ def test_inverse_trigonometry_out_of_its_domain_is_one_clear_line(tmp_path):
 
 
 def test_mujoco_dynamic_says_it_used_default_masses():
-    from xcheck.engines.mujoco.modes import run_dynamic
-
-    result = run_dynamic(Kinematics(load_mechanism(FOURBAR_200)), duration=0.05)
+    result = run_dynamic("mujoco-dynamic", Kinematics(load_mechanism(FOURBAR_200)), duration=0.05)
     assert result.ok, result.reason
     assert "Default mass properties (none in the model) for crank, coupler, rocker" in result.trajectories[0].notes
 

@@ -10,7 +10,6 @@ reason; the others still run.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import platform
 import time
@@ -33,7 +32,7 @@ from .dynamics import (
 from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
-from .ladder import ORDER_MARGIN, applicable_findings, convergence_study, empty_study, observed_order
+from .ladder import ORDER_MARGIN, applicable_findings, empty_study, observed_order, one_line
 from .motion import drive_warnings, law_states, simulation_window, sweep_span
 from .reactions import ForceResult, compare_forces, engine_forces, force_summary
 from .results import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
@@ -134,10 +133,10 @@ def tolerance(mode: str) -> Tolerance:
 
 
 #: How many times a dynamic mode whose observed order falls short is run again
-#: with its finest step halved once more (:meth:`xcheck.engines.Engine.run`'s
-#: ``refine``): near a singular configuration a ladder's finest pair may not yet
-#: be in the asymptotic range (fuzz cases s1-00022, s1-00093: an order of 0.3
-#: where 1 is expected), and only a finer pair tells that from a lower order.
+#: with its finest step halved once more (:meth:`xcheck.ladder.DrivenLadder.refine`):
+#: near a singular configuration a ladder's finest pair may not yet be in the
+#: asymptotic range (fuzz cases s1-00022, s1-00093: an order of 0.3 where 1 is
+#: expected), and only a finer pair tells that from a lower order.
 REFINEMENTS = 2
 
 #: a run's modes go to worker processes only where that could save more than this
@@ -620,14 +619,22 @@ def _run_mode(
     """Run one non-native mode; never raises (a failure is an outcome). ``floors``:
     the physical floors of the scales (:func:`scale_floors` of the native sweep)."""
     start = time.perf_counter()
+    engine, kind = engines.engine_of(mode), engines.mode(mode).kind
+    ladder = None
     try:
-        result = engines.engine_of(mode).run(mode, kinematics, native=native, samples=samples, branch=branch)
+        if kind == "dynamic":
+            try:
+                ladder = engine.dynamic_ladder(mode, kinematics, branch)
+            except NotImplementedError:  # a plug-in that runs its own ladder in run()
+                ladder = None
+        if ladder is not None:
+            result = ladder.run()
+        else:
+            result = engine.run(mode, kinematics, native=native, samples=samples, branch=branch)
     except NotApplicable:
         raise
     except Exception as err:  # an engine's failure is this mode's outcome, not the run's
-        return ModeOutcome(
-            mode, False, f"{type(err).__name__}: {err}".splitlines()[0], seconds=time.perf_counter() - start
-        )
+        return ModeOutcome(mode, False, one_line(err), seconds=time.perf_counter() - start)
     if not result.ok or not result.trajectories:
         return ModeOutcome(
             mode, False, result.reason or "no trajectory", result=result, seconds=time.perf_counter() - start
@@ -638,24 +645,25 @@ def _run_mode(
     for refine in range(1, REFINEMENTS + 1):
         if not _order_short(categories):
             break
+        if ladder is None:
+            note = "; not refined: the engine runs its own ladder (it has no run_dynamic_once)"
+            categories = _with_basis(categories, note, short)
+            break
         try:
-            finer = engines.engine_of(mode).run(
-                mode, kinematics, native=native, samples=samples, branch=branch, refine=refine
-            )
+            finer = ladder.refine(refine)
         except Exception as err:  # noqa: BLE001 - the ladder's verdict stands, with why it was not refined
-            finer = ModeResult(mode, kinematics.mechanism.name, False, f"{type(err).__name__}: {err}".splitlines()[0])
+            finer = ModeResult(mode, kinematics.mechanism.name, False, one_line(err))
         if not finer.ok or not finer.trajectories:
             why = finer.reason or "no trajectory"
             categories = _with_basis(categories, f"; its finest step halved {_times(refine)} failed: {why}", short)
             categories["refinement_failure"] = why
             break
-        result = _refined_result(result, finer)
+        result = finer
         trajectory, reference, details, categories = _judge(kinematics, mode, result, floors, branch)
         orders.append(_observed_orders(categories, short))
         categories = _with_basis(categories, _refinement_note(refine, orders), short)
         categories["refinements"] = refine
     passed = bool(not categories.empty and categories.passed.all())
-    engine, kind = engines.engine_of(mode), engines.mode(mode).kind
     findings = {
         c: tuple(applicable_findings(engine.findings, kind, c, kinematics.mechanism)) for c in categories.category
     }
@@ -728,21 +736,6 @@ def _with_basis(categories: pd.DataFrame, note: str, names: list[str]) -> pd.Dat
     judged = categories.category.isin(names)
     categories.loc[judged, "basis"] = categories.loc[judged, "basis"] + note
     return categories
-
-
-def _refined_result(result: ModeResult, finer: ModeResult) -> ModeResult:
-    """A dynamic mode's result with a refinement's run first (the compared run
-    becomes the finest) and the earlier runs after it; summaries and studies joined."""
-    summaries = [s for s in (finer.summary, result.summary) if s is not None]
-    summary = pd.concat(summaries, ignore_index=True) if summaries else None
-    studies = [s for s in (finer.study, result.study) if s is not None and not s.empty]
-    study = result.study
-    if studies:
-        joined = pd.concat(studies, ignore_index=True)
-        study = convergence_study(joined.series, joined.timestep, joined.position_error, joined.status)
-    return dataclasses.replace(
-        result, trajectories=list(finer.trajectories) + list(result.trajectories), summary=summary, study=study
-    )
 
 
 def run_mechanism(
@@ -997,8 +990,8 @@ def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | 
 
 def convergence_table(outcome: ModeOutcome) -> pd.DataFrame:
     """A dynamic mode's error against time step, the same for every engine: its
-    result's ``study`` (:func:`xcheck.results.convergence_study`; columns
-    series, timestep (s), position_error (m), status, order), empty if none."""
+    result's ``study`` (:func:`xcheck.ladder.convergence_study`; columns
+    series, timestep (s), position_error (m), status, order, verdict), empty if none."""
     study = None if outcome.result is None else outcome.result.study
     return empty_study() if study is None else study
 

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from xcheck.errors import NotApplicable
-from xcheck.ladder import FREE_STEPS, Finding, FreeProblem, Run, Rung, Series, free_study
+from xcheck.ladder import DrivenLadder, DrivenProblem, Finding, FreeProblem, Run, Rung, Series, free_study
 from xcheck.tolerances import Tolerance
 
 if TYPE_CHECKING:
@@ -204,11 +204,12 @@ class Engine:
         What of the canonical model it can represent and what not, for the reader.
     implementation : str
         The module (imported when a mode runs) whose functions the default
-        methods call: ``run_kinematic(kinematics, samples=, branch=)``,
-        ``run_dynamic(kinematics, branch=[, refine=])``, the free ladder's
+        methods call: ``run_kinematic(kinematics, samples=, branch=)``; the
+        dynamic ladder's ``dynamic_series(problem)``, ``prepare_dynamic(problem)``
+        and ``run_dynamic_once(prepared, problem, rung)``; the free ladder's
         ``FREE_SERIES``, ``prepare_free(problem)`` and
-        ``run_free_once(prepared, problem, rung)``, ``inverse_dynamics`` and
-        ``export_files``; an engine may override the methods instead.
+        ``run_free_once(prepared, problem, rung)``; ``inverse_dynamics`` and
+        ``export_files``. An engine may override the methods instead.
     findings : tuple of Finding
         Where the engine is known to be wrong (:class:`xcheck.ladder.Finding`:
         the quantities, the kinds of mode and the mechanisms where it holds,
@@ -251,9 +252,14 @@ class Engine:
         native: Solution,
         samples: int,
         branch: str | None = None,
-        refine: int = 0,
     ) -> ModeResult:
-        """Run one of the engine's modes on a mechanism.
+        """Run one of the engine's kinematic or dynamic modes on a mechanism.
+
+        A kinematic mode is :attr:`implementation`'s
+        ``run_kinematic(kinematics, samples=, branch=)``; a dynamic mode is
+        its ladder, :meth:`dynamic_ladder`'s ``run()`` (an engine implements
+        :meth:`dynamic_series`, :meth:`prepare_dynamic` and
+        :meth:`run_dynamic_once`, not this).
 
         Parameters
         ----------
@@ -264,30 +270,108 @@ class Engine:
             states); a mode may take its inputs or make its own sweep.
         samples : int
             Samples of a kinematic mode's sweep.
-        refine : int
-            A dynamic mode only: 0 runs its ladder of time steps; k > 0 runs
-            just the compared series at its finest step halved k times
-            (``run_dynamic(..., refine=k)``), for the runner to tell a ladder
-            not yet in its asymptotic range from a lower order.
 
         Returns
         -------
         ModeResult
-            A failure is ``ok`` False with its reason; raising is allowed too
-            (the runner turns it into the mode's failed outcome), and
+            A failure is ``ok`` False with its reason (one line);
             :class:`NotApplicable` says the mode does not apply.
         """
+        kind = self._kind(mode)
+        if kind == "kinematic":
+            return self._function("run_kinematic")(kinematics, samples=samples, branch=branch)
+        if kind == "dynamic":
+            return self.dynamic_ladder(mode, kinematics, branch).run()
+        raise ValueError(f"expected a kinematic or dynamic mode, found the {kind} mode {mode!r} (see run_free)")
+
+    def _kind(self, mode: str) -> str:
+        """The kind of one of the engine's modes."""
         kind = next((m.kind for m in self.modes if m.name == mode), None)
         if kind is None:
             raise ValueError(
                 f"expected a mode of {self.name} ({', '.join(m.name for m in self.modes)}), found {mode!r}"
             )
-        function = self._function(f"run_{kind}")
-        if kind == "kinematic":
-            return function(kinematics, samples=samples, branch=branch)
-        if refine:
-            return function(kinematics, branch=branch, refine=refine)
-        return function(kinematics, branch=branch)
+        return kind
+
+    def dynamic_ladder(
+        self,
+        mode: str,
+        kinematics: Kinematics,
+        branch: str | None = None,
+        *,
+        series: Sequence[Series] | None = None,
+        duration: float | None = None,
+    ) -> DrivenLadder:
+        """A dynamic mode's ladder (:class:`xcheck.ladder.DrivenLadder`, the same for
+        every engine): its ``run()`` is the mode's result, its ``refine(k)`` the
+        ladder with the compared series' finest step halved k times, which the
+        runner asks for where an observed order falls short.
+
+        Parameters
+        ----------
+        series : sequence of Series, optional
+            Instead of :meth:`dynamic_series`'s (the compared one first).
+        duration : float, optional
+            Simulated time, s (default: the drivers' simulation window).
+
+        Raises
+        ------
+        NotImplementedError
+            If the engine has no :meth:`run_dynamic_once` (it runs its own
+            ladder in :meth:`run`: the runner cannot refine it).
+        """
+        self._kind(mode)
+        module = importlib.import_module(self.implementation) if self.implementation else None
+        if type(self).run_dynamic_once is Engine.run_dynamic_once and not hasattr(module, "run_dynamic_once"):
+            raise NotImplementedError(f"{self.title or self.name} has no run_dynamic_once")
+        return DrivenLadder(
+            mode,
+            kinematics,
+            branch,
+            partial(self.dynamic_series, mode) if series is None else (lambda problem: tuple(series)),
+            partial(self.run_dynamic_once, mode),
+            partial(self.prepare_dynamic, mode),
+            self.findings,
+            duration,
+        )
+
+    def dynamic_series(self, mode: str, problem: DrivenProblem) -> Sequence[Series]:
+        """The series of a dynamic mode's ladder, the compared one first, each with
+        its coarsest ``timestep`` and its ``rungs``; by default
+        :attr:`implementation`'s ``dynamic_series(problem)``."""
+        return tuple(self._function("dynamic_series")(problem))
+
+    def prepare_dynamic(self, mode: str, problem: DrivenProblem) -> Any:
+        """What every run of a dynamic ladder shares, built once; by default
+        :attr:`implementation`'s ``prepare_dynamic(problem)``, or None where it
+        has none.
+
+        Raises
+        ------
+        NotApplicable
+            What the engine cannot represent; any other exception fails the mode
+            as a whole, its message the reason.
+        """
+        module = importlib.import_module(self.implementation) if self.implementation else None
+        function = getattr(module, "prepare_dynamic", None)
+        return None if function is None else function(problem)
+
+    def run_dynamic_once(self, mode: str, prepared: Any, problem: DrivenProblem, rung: Rung) -> Run:
+        """One driven run: the series ``rung.series`` at ``rung.timestep`` (s) from
+        the native state ``problem.start`` at t = 0, the drivers following their
+        laws, sampled at ``problem.times`` (``rung.counts`` steps apart), stopped
+        where it goes non-finite or comes apart
+        (:meth:`xcheck.ladder.DrivenProblem.came_apart`); by default
+        :attr:`implementation`'s ``run_dynamic_once(prepared, problem, rung)``.
+
+        Returns
+        -------
+        Run
+            The states it reached (:class:`xcheck.ladder.Run`): the inputs,
+            rates and accelerations as the engine realised them and what it
+            gives of the bodies' and points' quantities; or its failure.
+        """
+        return self._function("run_dynamic_once")(prepared, problem, rung)
 
     def run_free(
         self,
@@ -297,16 +381,15 @@ class Engine:
         branch: str | None = None,
         *,
         series: Sequence[Series] | None = None,
-        steps: Sequence[float] | None = None,
     ) -> ModeResult:
         """Run a ``free`` mode: the mechanism released as its ``[free_motion]``
         says, from the reference's initial state, compared with the reference.
 
         The ladder is :func:`xcheck.ladder.free_study`'s, the same for every
-        engine: the engine's series (:meth:`free_series`, or ``series``) at the
-        ladder's time steps (:data:`xcheck.ladder.FREE_STEPS`, or ``steps``),
-        each run made by :meth:`run_free_once` from what :meth:`prepare_free`
-        built, and judged by one rule. An engine implements those three, not this.
+        engine: the engine's series (:meth:`free_series`, or ``series``), each
+        at its halving time steps, each run made by :meth:`run_free_once` from
+        what :meth:`prepare_free` built, and judged by one rule. An engine
+        implements those three, not this.
 
         Returns
         -------
@@ -326,7 +409,6 @@ class Engine:
             partial(self.run_free_once, mode),
             partial(self.prepare_free, mode),
             self.findings,
-            FREE_STEPS if steps is None else steps,
         )
 
     def free_series(self, mode: str, kinematics: Kinematics) -> Sequence[Series]:

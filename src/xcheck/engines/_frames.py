@@ -1,6 +1,7 @@
 """Reading a mechanism back from the body frames an engine reports: world points,
-the loops' gap, and a free run's outputs recorded one by one (PyBullet, Drake,
-pymunk)."""
+the loops' gap, a free run's outputs recorded one by one (PyBullet, Drake,
+pymunk) and the arrays a driven run fills and hands back (PyBullet, Drake, DART,
+OpenSim)."""
 
 from __future__ import annotations
 
@@ -9,11 +10,11 @@ import math
 import numpy as np
 
 from xcheck.kinematics import rotate
-from xcheck.ladder import FreeProblem
+from xcheck.ladder import FreeProblem, Run
 from xcheck.model import GROUND
 from xcheck.results import Trajectory
 
-__all__ = ["FrameRecorder", "loop_gap", "world_point"]
+__all__ = ["FrameRecorder", "driven_run", "empty_states", "loop_gap", "world_point"]
 
 
 def world_point(frames, body: str, point: np.ndarray) -> np.ndarray:
@@ -98,3 +99,87 @@ class FrameRecorder:
             diagnostics["energy"] = self.energy[:n]
         times = self.problem.times[:n]
         return Trajectory(source, empty, empty, empty, bodies, points, times, settings, diagnostics, notes)
+
+
+def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray]:
+    """The NaN arrays a driven run fills sample by sample (:func:`driven_run` hands them back).
+
+    Parameters
+    ----------
+    samples : int
+        N, the samples of the run.
+    quantities : iterable of str
+        The body quantities kept: ``position`` and ``velocity`` (N, 2), the others (N,).
+
+    Returns
+    -------
+    bodies : dict of str to dict of str to ndarray
+        Per moving body, per quantity.
+    points : dict of str to dict of str to ndarray
+        Per named point off the ground, ``position`` and ``velocity`` (N, 2), m and m/s.
+    inputs, rates : ndarray, shape (N, k)
+        The drivers' realised values (rad or m) and rates.
+    gaps : ndarray, shape (N,)
+        The loops' largest opening (m), zeros.
+    """
+    bodies = {
+        body.name: {
+            key: np.full((samples, 2) if key in ("position", "velocity") else samples, np.nan) for key in quantities
+        }
+        for body in mechanism.moving_bodies
+    }
+    ground = mechanism.ground.name
+    points = {
+        label: {"position": np.full((samples, 2), np.nan), "velocity": np.full((samples, 2), np.nan)}
+        for label, owner in mechanism.point_owners.items()
+        if owner != ground
+    }
+    inputs = np.full((samples, len(mechanism.drivers)), np.nan)
+    return bodies, points, inputs, np.full_like(inputs, np.nan), np.zeros(samples)
+
+
+def driven_run(
+    source: str,
+    mechanism,
+    times: np.ndarray,
+    states: tuple[dict, dict, np.ndarray, np.ndarray, np.ndarray],
+    reached: int,
+    failure: str,
+    settings: dict,
+    notes: str,
+    accelerations: np.ndarray | None = None,
+) -> Run:
+    """A driven run's first ``reached`` samples (the states filled before it stopped) as
+    the :class:`~xcheck.ladder.Run` a driven ladder judges.
+
+    Parameters
+    ----------
+    times : ndarray, shape (N,)
+        The compared sample times, s (:attr:`xcheck.ladder.DrivenProblem.times`).
+    states : (bodies, points, inputs, rates, gaps)
+        As :func:`empty_states` makes them, filled: the inputs and rates as the engine
+        realised them, the loops' gaps (its ``constraint_violation``).
+    failure : str
+        Why it stopped ("" where it reached the end).
+    settings : dict
+        The trajectory's settings (integrator, timestep, series, steps_per_sample).
+    accelerations : ndarray, shape (N, k), optional
+        The inputs' accelerations as the engine realised them (default: the motion laws').
+    """
+    bodies, points, inputs, rates, gaps = states
+    kept = slice(0, reached)
+    if accelerations is None:
+        accelerations = np.stack([d.law.at_time(times)[2] for d in mechanism.drivers], axis=1)
+    trajectory = Trajectory(
+        source,
+        inputs[kept],
+        rates[kept],
+        accelerations[kept],
+        {name: {key: value[kept] for key, value in quantities.items()} for name, quantities in bodies.items()},
+        {label: {key: value[kept] for key, value in quantities.items()} for label, quantities in points.items()},
+        times[kept],
+        settings,
+        diagnostics={"constraint_violation": gaps[kept]},
+        notes=notes,
+    )
+    return Run(trajectory, failure)

@@ -43,7 +43,6 @@ class Formulations(Engine):
         native: Solution,
         samples: int,
         branch: str | None = None,
-        refine: int = 0,  # kinematic modes: no time step to refine
     ) -> ModeResult:
         from xcheck.formulations import formulation
         from xcheck.results import ModeResult

@@ -16,39 +16,45 @@ size^2 / 12 (:func:`xcheck.engines.with_unit_mass`), and springs and loads,
 which the DART model does not hold, are left out (they change the drivers'
 efforts, not the motion). DART's accelerations are not compared.
 
-Measured: see :func:`run_dynamic`.
+Measured: see :data:`xcheck.engines.dart.Dart`'s tolerance basis and its tests.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 
-from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
-from xcheck.engines._frames import loop_gap, world_point
+from xcheck.engines._contract import with_unit_mass
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
+from xcheck.ladder import DrivenProblem, Run, Rung, Series
 from xcheck.model import GROUND
-from xcheck.results import ModeResult, Trajectory
 
 from .model import DartModel, build
 
-__all__ = ["ERRORS", "MODE", "SAMPLES", "STEPS_PER_SAMPLE", "run_dynamic", "simulate"]
+__all__ = [
+    "INTEGRATOR",
+    "MODE",
+    "SMALLEST_STEP",
+    "STEPS_PER_SAMPLE",
+    "dynamic_series",
+    "fitted_steps",
+    "prepare_dynamic",
+    "run_dynamic_once",
+]
 
 MODE = "dart-dynamic"
-#: time steps per sample of the ladder, finest first
+INTEGRATOR = "semi-implicit Euler, LCP, velocity actuators"
+#: time steps per compared sample of the ladder's runs, finest first
 STEPS_PER_SAMPLE = (100, 50, 25)
 #: the finest step a ladder takes, s: below about 2e-5 s DART's loop constraints blow up on a
 #: fast mechanism (a stated finding), so a short window gets fewer steps per sample
 SMALLEST_STEP = 1e-4
-#: samples compared per run
-SAMPLES = 40
-#: the compared quantities (:func:`~xcheck.engines._driven.driven_result`'s ``errors``)
-ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel"}
+#: the body quantities DART's runs give (:func:`xcheck.engines._frames.empty_states`)
+QUANTITIES = ("position", "angle", "velocity", "omega")
 
 
 def _states(model: DartModel) -> dict[str, tuple]:
@@ -71,35 +77,60 @@ def _velocity(states, name: str, point: np.ndarray) -> np.ndarray:
     return velocity + omega * np.array([-arm[1], arm[0]])
 
 
-def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: int) -> tuple[dict, Trajectory | None]:
-    """One run of :data:`SAMPLES` x ``per`` steps over the window: (row, Trajectory or None)."""
+def fitted_steps(steps, interval: float) -> tuple[int, ...]:
+    """The steps per sample of a ladder whose samples are ``interval`` (s) apart: ``steps``
+    halved together while the finest step is below :data:`SMALLEST_STEP` and the
+    coarsest takes 6 or more."""
+    steps = tuple(int(n) for n in steps)
+    while steps[0] * SMALLEST_STEP > interval and steps[-1] >= 6:
+        steps = tuple(n // 2 for n in steps)
+    return steps
+
+
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: DART's defaults at :data:`STEPS_PER_SAMPLE` steps per sample,
+    fewer where the finest step would fall below :data:`SMALLEST_STEP` (:func:`fitted_steps`)."""
+    steps = fitted_steps(STEPS_PER_SAMPLE, problem.interval)
+    return (Series("default", INTEGRATOR, timestep=problem.interval / steps[-1], rungs=len(steps)),)
+
+
+def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
+    """The mechanism with unit masses where it has none and without springs and loads
+    (the drivers prescribe the motion), dartpy imported before the first run's clock starts.
+
+    Raises
+    ------
+    NotApplicable
+        What :func:`xcheck.engines._tree.tree_frames` and :func:`.model.build` cannot hold.
+    """
+    import dartpy  # noqa: F401 - imported before the first run's clock starts
+
+    mech = problem.kinematics.mechanism
+    tree_frames(mech, problem.start.q[0], "DART")
+    return Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
+
+
+def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`): each driven
+    joint's velocity actuator commanded before every step with the velocity that takes it
+    to the law's value at the step's end."""
     import dartpy as dart
 
-    mech = kinematics.mechanism
-    dt = window.duration / (SAMPLES * per)
-    row = {"setting": "default", "integrator": "semi-implicit Euler, LCP, velocity actuators", "timestep": dt}
-    row["status"] = "ok"
-    begin = time.process_time()
-    model = build(massive.mechanism, q0, qd0, dt)
+    mech = problem.kinematics.mechanism
+    dt, per, samples, times = rung.timestep, rung.counts[0], problem.samples, problem.times
+    model = build(massive.mechanism, problem.start.q[0], problem.start.qd[0], dt)
     drivers = model.tree.driver_signs(mech)
     joints = [model.joints[name] for name, _ in drivers]
     for joint in joints:
         joint.setActuatorType(dart.dynamics.ActuatorType.VELOCITY)
     start = np.array([float(d.law.at_time(0.0)[0]) for d in mech.drivers])
     signs = np.array([sign for _, sign in drivers])
-    bodies, points, inputs, rates, gaps = empty_states(mech, SAMPLES, ERRORS)
-    for n in range(SAMPLES * per):
-        target = np.array([float(d.law.at_time((n + 1) * dt)[0]) for d in mech.drivers])
-        for k, joint in enumerate(joints):
-            joint.setCommand(0, float((signs[k] * (target[k] - start[k]) - joint.getPosition(0)) / dt))
-        model.world.step()
-        if (n + 1) % per:
-            continue
-        j = (n + 1) // per - 1
+    bodies, points, inputs, rates, gaps = empty_states(mech, samples, QUANTITIES)
+
+    def record(j: int) -> str:
         states = _states(model)
         if not all(np.isfinite(s[0]).all() and math.isfinite(s[1]) for s in states.values()):
-            row["status"] = f"went non-finite at t = {(n + 1) * dt:.6g} s"
-            break
+            return f"went non-finite at t = {times[j]:.6g} s"
         for name, (origin, phi, velocity, omega) in states.items():
             bodies[name]["position"][j], bodies[name]["angle"][j] = origin, phi
             bodies[name]["velocity"][j], bodies[name]["omega"][j] = velocity, omega
@@ -112,60 +143,23 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
             inputs[j, k] = start[k] + signs[k] * float(joint.getPosition(0))
             rates[j, k] = signs[k] * float(joint.getVelocity(0))
         gaps[j] = loop_gap(states, model.tree.cuts)
-    row["cpu_seconds"] = time.process_time() - begin
-    if row["status"] != "ok":
-        return row, None
-    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+        return problem.came_apart(float(times[j]), float(gaps[j]))
+
+    failure, reached = "", 0
+    for n in range(samples * per):
+        if failure:
+            break
+        target = np.array([float(d.law.at_time((n + 1) * dt)[0]) for d in mech.drivers])
+        for k, joint in enumerate(joints):
+            joint.setCommand(0, float((signs[k] * (target[k] - start[k]) - joint.getPosition(0)) / dt))
+        model.world.step()
+        if not (n + 1) % per:
+            j = (n + 1) // per - 1
+            failure = record(j)
+            reached = j + (0 if failure.startswith("went non-finite") else 1)
+    settings = {"integrator": INTEGRATOR, "timestep": dt, "series": rung.series.key, "steps_per_sample": per}
     notes = (
-        f"DART driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as DART realised them "
+        f"DART driven dynamics, {INTEGRATOR}, dt = {dt:.4g} s; inputs as DART realised them "
         "(input accelerations: the motion laws'; DART's are not compared)."
     )
-    trajectory = driven_trajectory(
-        MODE, kinematics, window, (bodies, points, inputs, rates, gaps), None, settings, notes
-    )
-    return row, trajectory
-
-
-def fitted_steps(steps, interval: float) -> tuple[int, ...]:
-    """The steps per sample of a ladder whose samples are ``interval`` (s) apart: ``steps``
-    halved together while the finest step is below :data:`SMALLEST_STEP` and the
-    coarsest takes 6 or more."""
-    steps = tuple(int(n) for n in steps)
-    while steps[0] * SMALLEST_STEP > interval and steps[-1] >= 6:
-        steps = tuple(n // 2 for n in steps)
-    return steps
-
-
-def run_dynamic(
-    kinematics: Kinematics, branch: str | None = None, steps=STEPS_PER_SAMPLE, refine: int = 0
-) -> ModeResult:
-    """Simulate the driven mechanism in DART at :data:`STEPS_PER_SAMPLE` steps per sample
-    (:func:`fitted_steps`) and compare each run with the native solution; ``refine`` k > 0
-    runs only the finest 2^k steps per sample (:meth:`xcheck.engines.Engine.run`).
-
-    Returns
-    -------
-    ModeResult
-        As :func:`~xcheck.engines._driven.driven_result` makes it.
-
-    Raises
-    ------
-    NotApplicable
-        What :func:`.model.build` cannot hold.
-    """
-    import dartpy  # noqa: F401 - imported before the first run's clock starts
-
-    mech = kinematics.mechanism
-    massive = Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
-    try:
-        window, q0, qd0 = driven_start(kinematics, branch)
-        tree_frames(mech, q0, "DART")
-        steps = fitted_steps(steps, window.duration / SAMPLES)
-        if refine:
-            steps = refined_steps(steps[0], refine)
-        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        if isinstance(error, NotApplicable):
-            raise
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    return driven_result(MODE, kinematics, runs, ERRORS, branch)
+    return driven_run(MODE, mech, times, (bodies, points, inputs, rates, gaps), reached, failure, settings, notes)

@@ -16,7 +16,7 @@ stiffness it applies by the step; measured, the cause inside Drake not
 traced), and the lag left is a truncation of order 2 (far below the loops'
 opening on the four-bars; on an open chain, whose positions at the realised
 inputs are exact, it is the one error: 2.3e-7 rad at the finest step on
-two-body-arm; see :func:`run_dynamic`).
+two-body-arm; see :func:`run_dynamic_once`).
 
 The drivers prescribe the motion, so masses only weigh the solver: a body
 without mass data gets 1 kg and m size^2 / 12 about its frame origin
@@ -25,38 +25,46 @@ positions and velocities; its accelerations (the velocity change over a step)
 are not compared. What the free mode cannot hold (a pin-in-slot, a loop cut
 at a prismatic joint, ...) is :class:`~xcheck.engines.NotApplicable` here too.
 
-Measured: see :func:`run_dynamic`; the gain sweep: ``benchmarks/drake_pd_gain.py``.
+Measured: see :func:`run_dynamic_once`; the gain sweep: ``benchmarks/drake_pd_gain.py``.
 """
 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
-from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
-from xcheck.engines._frames import loop_gap, world_point
+from xcheck.engines._contract import with_unit_mass
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
 from xcheck.kinematics import Kinematics
+from xcheck.ladder import DRIVEN_SAMPLES, DrivenProblem, Run, Rung, Series, came_apart
 from xcheck.model import GROUND
-from xcheck.results import ModeResult, Trajectory
+from xcheck.motion import SimulationWindow
 from xcheck.topology import spanning_tree
 
 from .model import DrakeModel, apply_loads, build, drake, refuse, set_state
 
-__all__ = ["MODE", "STIFFNESS", "STEPS_PER_SAMPLE", "SAMPLES", "ERRORS", "gains", "simulate", "run_dynamic"]
+__all__ = [
+    "MODE",
+    "STIFFNESS",
+    "STEPS_PER_SAMPLE",
+    "gains",
+    "simulate",
+    "dynamic_series",
+    "prepare_dynamic",
+    "run_dynamic_once",
+]
 
 MODE = "drake-dynamic"
+INTEGRATOR = "discrete SAP, implicit PD"
 #: Kp dt^2 / M: the PD gain against the driven joint's inertia and the step
 STIFFNESS = 1e6
-#: time steps per sample of the ladder, finest first
-STEPS_PER_SAMPLE = (100, 50, 25)
-#: samples compared per run
-SAMPLES = 40
+#: time steps per compared sample of the ladder's coarsest run, and its runs (doubling the steps)
+STEPS_PER_SAMPLE = 25
+RUNGS = 3
 
-#: the compared quantities (:func:`~xcheck.engines._driven.driven_result`'s ``errors``)
-ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel"}
+#: the body quantities Drake gives (:func:`xcheck.engines._frames.empty_states`)
+ERRORS = ("position", "angle", "velocity", "omega")
 
 
 def gains(kinematics: Kinematics, dt: float, stiffness: float = STIFFNESS, damping: float = 1.0) -> dict:
@@ -107,22 +115,22 @@ def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
 def simulate(
     kinematics: Kinematics,
     massive: Kinematics,
-    window,
+    window: SimulationWindow,
     q0: np.ndarray,
     qd0: np.ndarray,
     per: int,
+    samples: int = DRIVEN_SAMPLES,
     pd: dict | None = None,
-) -> tuple[dict, Trajectory | None]:
-    """One run of :data:`SAMPLES` x ``per`` steps over the window: (row, Trajectory
-    or None). ``pd``: the gains per driven joint (:func:`gains` at the run's step
-    without it)."""
+) -> Run:
+    """One run of ``samples`` x ``per`` steps over the window from the state (q0, qd0),
+    sampled every ``per`` steps (:class:`~xcheck.ladder.Run`, its failure where it went
+    non-finite or came apart). ``pd``: the gains per driven joint (:func:`gains` at the
+    run's step without it)."""
     mech = kinematics.mechanism
-    dt = window.duration / (SAMPLES * per)
+    dt = window.duration / samples / per  # the ladder's step (DrivenProblem.rung)
     pd = gains(massive, dt) if pd is None else pd
-    row = {"setting": "default", "integrator": "discrete SAP, implicit PD", "timestep": dt, "status": "ok"}
     moving = [b.name for b in mech.moving_bodies]
-    bodies, points, inputs, rates, gaps = empty_states(mech, SAMPLES, ERRORS)
-    begin = time.process_time()
+    bodies, points, inputs, rates, gaps = empty_states(mech, samples, ERRORS)
     model = build(massive, dt, pd)
     set_state(model, massive, q0, qd0)
     from pydrake.systems.analysis import Simulator
@@ -139,23 +147,12 @@ def simulate(
     plant.get_actuation_input_port().FixValue(model.context, np.zeros(len(order)))
     timed = any(load.law is not None for load in mech.loads)
     apply_loads(model, 0.0)
-    for n in range(SAMPLES * per):
-        t_next = (n + 1) * dt
-        # Drake's discrete update at t = n dt samples its inputs there and takes the state to
-        # (n + 1) dt; SAP's PD acts on that end state, so its target is the law there
-        laws = [mech.drivers[k].law.at_time(t_next) for k in order]
-        desired = np.concatenate([signs * [float(v[0]) for v in laws], signs * [float(v[1]) for v in laws]])
-        port.FixValue(model.context, desired)
-        if timed:
-            apply_loads(model, n * dt)
-        simulator.AdvanceTo((n + 0.5) * dt)
-        if (n + 1) % per:
-            continue
-        j = (n + 1) // per - 1
+    times = window.times(samples + 1)[1:]
+
+    def record(j: int) -> str:
         frames = model.frames()
         if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
-            row["status"] = f"went non-finite at t = {t_next:.6g} s"
-            break
+            return f"went non-finite at t = {times[j]:.6g} s"
         for name in moving:
             origin, phi, velocity, omega = frames[name]
             bodies[name]["position"][j] = origin
@@ -171,39 +168,56 @@ def simulate(
             value, rate = _coordinate(model, child)
             inputs[j, k], rates[j, k] = sign * value, sign * rate
         gaps[j] = loop_gap(frames, model.cuts)
-    row["cpu_seconds"] = time.process_time() - begin
-    if row["status"] != "ok":
-        return row, None
-    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+        return came_apart(float(times[j]), gaps[j], mech.size)
+
+    failure, reached = "", 0
+    for n in range(samples * per):
+        if failure:
+            break
+        t_next = (n + 1) * dt
+        # Drake's discrete update at t = n dt samples its inputs there and takes the state to
+        # (n + 1) dt; SAP's PD acts on that end state, so its target is the law there
+        laws = [mech.drivers[k].law.at_time(t_next) for k in order]
+        desired = np.concatenate([signs * [float(v[0]) for v in laws], signs * [float(v[1]) for v in laws]])
+        port.FixValue(model.context, desired)
+        if timed:
+            apply_loads(model, n * dt)
+        simulator.AdvanceTo((n + 0.5) * dt)
+        if not (n + 1) % per:
+            j = (n + 1) // per - 1
+            failure = record(j)
+            reached = j + (0 if failure.startswith("went non-finite") else 1)
+    settings = {"integrator": INTEGRATOR, "timestep": dt, "series": "default", "steps_per_sample": per}
     notes = (
-        f"Drake driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as Drake realised them "
+        f"Drake driven dynamics, {INTEGRATOR}, dt = {dt:.4g} s; inputs as Drake realised them "
         "(input accelerations: the motion laws'; Drake's are not compared)."
     )
-    filled = (bodies, points, inputs, rates, gaps)
-    trajectory = driven_trajectory(MODE, kinematics, window, filled, None, settings, notes)
-    return row, trajectory
+    states = (bodies, points, inputs, rates, gaps)
+    return driven_run(MODE, mech, times, states, reached, failure, settings, notes)
 
 
-def run_dynamic(
-    kinematics: Kinematics, branch: str | None = None, steps=STEPS_PER_SAMPLE, refine: int = 0
-) -> ModeResult:
-    """Simulate the driven mechanism in Drake at :data:`STEPS_PER_SAMPLE` and compare
-    each run with the native solution; ``refine`` k > 0 runs only ``steps[0]`` 2^k
-    steps per sample (:meth:`xcheck.engines.Engine.run`).
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: the default plant at :data:`STEPS_PER_SAMPLE` steps per sample, doubling."""
+    return (Series("default", INTEGRATOR, timestep=problem.interval / STEPS_PER_SAMPLE, rungs=RUNGS),)
 
-    Returns
-    -------
-    ModeResult
-        ``trajectories``: the runs that went through, the finest first; ``summary``:
-        per run setting, timestep (s), status, cpu_seconds, the largest errors
-        (position m, angle rad; velocity, omega relative to the native magnitude),
-        input_error (the PD's lag behind the law, SI) and loop_gap (m); ``study``:
-        :func:`~xcheck.results.convergence_study` of the position error.
+
+def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
+    """The mechanism with unit masses where it has none (:func:`xcheck.engines.with_unit_mass`),
+    pydrake imported before the first run's clock starts.
 
     Raises
     ------
     NotApplicable
         What :func:`.model.build` cannot hold (:func:`.model.refuse`).
+    """
+    mech = problem.kinematics.mechanism
+    refuse(mech, spanning_tree(mech))
+    drake()
+    return Kinematics(with_unit_mass(mech))
+
+
+def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`).
 
     Notes
     -----
@@ -234,17 +248,6 @@ def run_dynamic(
     the positions unchanged (fourbar lag 2.7e-9 .. 1.7e-10 rad). The models
     with a pin-in-slot (task-2-2, -3, -5, -6) are not applicable.
     """
-    mech = kinematics.mechanism
-    if refine:
-        steps = refined_steps(steps[0], refine)
-    massive = Kinematics(with_unit_mass(mech))
-    refuse(mech, spanning_tree(mech))
-    drake()  # pydrake imported before the first run's clock starts
-    try:
-        window, q0, qd0 = driven_start(kinematics, branch)
-        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
-    except NotApplicable:
-        raise
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    return driven_result(MODE, kinematics, runs, ERRORS, branch)
+    start = problem.start
+    per = rung.counts[0]
+    return simulate(problem.kinematics, massive, problem.window, start.q[0], start.qd[0], per, problem.samples)

@@ -51,7 +51,7 @@ from __future__ import annotations
 import math
 
 from xcheck.engines._frames import FrameRecorder
-from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
+from xcheck.ladder import FREE_STEPS, FreeProblem, Run, Rung, Series, conservative
 from xcheck.topology import spanning_tree
 
 from .model import apply_loads, build, drake, energy, refuse, set_state
@@ -59,7 +59,7 @@ from .model import apply_loads, build, drake, energy, refuse, set_state
 __all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
 
 MODE = "drake-free"
-FREE_SERIES = (Series("default", "discrete SAP"), Series("best", "discrete SAP, steps / 4", scale=0.25))
+FREE_SERIES = (Series("default", "discrete SAP"), Series("best", "discrete SAP, steps / 4", timestep=FREE_STEPS[0] / 4))
 
 
 def prepare_free(problem: FreeProblem) -> None:

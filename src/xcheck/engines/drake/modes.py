@@ -1,9 +1,10 @@
 """Drake's modes, as the engine contract calls them: ``drake-free`` (the series
-and one run of :mod:`.free`) and :func:`.dynamic.run_dynamic` (``drake-dynamic``)."""
+and one run of :mod:`.free`) and ``drake-dynamic`` (the series and one run of
+:mod:`.dynamic`)."""
 
 from __future__ import annotations
 
-from .dynamic import run_dynamic
+from .dynamic import dynamic_series, prepare_dynamic, run_dynamic_once
 from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "run_dynamic"]
+__all__ = ["FREE_SERIES", "prepare_free", "run_free_once", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]

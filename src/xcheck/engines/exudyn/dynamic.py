@@ -16,52 +16,67 @@ constraint here: :class:`~xcheck.engines.NotApplicable`.
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, ladder
-from xcheck.kinematics import Kinematics, Status, rotate
-from xcheck.ladder import Series
+from xcheck.kinematics import rotate
+from xcheck.ladder import DrivenProblem, Run, Rung, Series
 from xcheck.model import GROUND, Mechanism
-from xcheck.motion import simulation_window
-from xcheck.results import ModeResult, Trajectory
+from xcheck.results import Trajectory
 
-from .model import Setting, build_system, solver_settings
+from .model import Setting, build_system, joint_gaps, matched, solver_settings
 
-__all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
+__all__ = ["MODE", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
 MODE = "exudyn-dynamic"
-#: the compared series (Newton to 1e-10: positions exact to it) and Exudyn's defaults
-SETTINGS = tuple(
-    Series(name, setting.integrator, setting)
-    for name, setting in (("best", Setting(0.9, newton_tolerance=1e-10)), ("default", Setting(0.9)))
-)
-#: time steps per sample of the ladder, finest first
-STEPS_PER_SAMPLE = (100, 50, 25)
-#: samples compared per run
-SAMPLES = 40
-
-_ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel", "acceleration": "rel", "alpha": "rel"}
 
 
 def _perp(v: np.ndarray) -> np.ndarray:
     return np.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
-def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, series: Series, per: int):
-    """One run: (row, Trajectory or None)."""
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: Newton to 1e-10 (positions exact to it) at 25, 50 and 100 steps per
+    sample, compared; Exudyn's defaults at the finest."""
+    interval = problem.interval
+    return tuple(
+        Series(name, setting.integrator, setting, timestep=interval / per, rungs=rungs)
+        for name, setting, per, rungs in (
+            ("best", Setting(0.9, newton_tolerance=1e-10), 25, 3),
+            ("default", Setting(0.9), 100, 1),
+        )
+    )
+
+
+def prepare_dynamic(problem: DrivenProblem) -> Mechanism:
+    """The mechanism with unit masses where it has none.
+
+    Raises
+    ------
+    NotApplicable
+        A slide driver, or a driver on a joint that is not a revolute.
+    """
+    mech = problem.kinematics.mechanism
+    for driver in mech.drivers:
+        if driver.quantity != "angle":  # a revolute's
+            raise NotApplicable(
+                f"driver {driver.name}: a slide has no coordinate constraint in Exudyn (only joint angles are driven)"
+            )
+    return with_unit_mass(mech)
+
+
+def run_dynamic_once(mech: Mechanism, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`)."""
     import exudyn as exu
     import exudyn.itemInterface as ei
 
-    duration = window.duration
-    dt = duration / (SAMPLES * per)
+    window, series = problem.window, rung.series
+    duration, dt, per = window.duration, rung.timestep, rung.counts[0]
     setting: Setting = series.options
-    row = {"setting": series.setting, "integrator": series.integrator, "timestep": dt, "status": "ok"}
-    begin = time.process_time()
-    model = build_system(mech, q0, qd0)
+    failure = ""
+    model = build_system(mech, problem.start.q[0], problem.start.qd[0])
     mbs = model.mbs
     ground = mbs.AddNode(ei.NodePointGround(visualization=ei.VNodePointGround(show=False)))
     fixed = mbs.AddMarker(ei.MarkerNodeCoordinate(nodeNumber=ground, coordinate=0))
@@ -107,30 +122,28 @@ def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, series: 
     printing, config.printToConsole = config.printToConsole, False
     try:
         solve: Any = exu.SolveDynamic  # its stubs lack showHints
-        if not solve(
-            mbs, solver_settings(setting, dt, duration, duration / SAMPLES), showHints=False, showCausingItems=False
-        ):
-            row["status"] = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
+        every = problem.interval
+        if not solve(mbs, solver_settings(setting, dt, duration, every), showHints=False, showCausingItems=False):
+            failure = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
     except Exception:  # noqa: BLE001 - a solver that gives up is a row
-        row["status"] = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
+        failure = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
     finally:
         config.printToConsole = printing
-    row["cpu_seconds"] = time.process_time() - begin
-    if row["status"] != "ok":
-        return row, None
-    times = window.times(SAMPLES + 1)[1:]
     data = {name: [mbs.GetSensorStoredData(s) for s in found] for name, found in sensors.items()}
-    stored = next(iter(data.values()))[0][:, 0]
-    rows = [int(np.argmin(np.abs(stored - t))) for t in times]
-    if np.max(np.abs(stored[rows] - times)) > 1e-9 * duration:
-        row["status"] = "Exudyn's samples are not at the window's sample times"
-        return row, None
+    rows = matched(next(iter(data.values()))[0], problem.times, 1e-9 * max(duration, 1.0))
     state = {name: [d[rows, 1:4] for d in found] for name, found in data.items()}
     for name in state:
         state[name][0] = state[name][0] + model.reference[name][None, :]
-    if not all(np.isfinite(x).all() for found in state.values() for x in found):
-        row["status"] = "went non-finite"
-        return row, None
+    finite = np.ones(len(rows), dtype=bool)
+    for found in state.values():
+        for x in found:
+            finite &= np.isfinite(x).all(axis=1)
+    if not finite.all():
+        failure = failure or f"went non-finite at t = {problem.times[int(np.argmin(finite))]:.6g} s"
+        state = {name: [x[: int(np.argmin(finite))] for x in found] for name, found in state.items()}
+    times = problem.times[: len(next(iter(state.values()))[0])]
+    if not len(times):
+        return Run(None, failure or "no sample reached")
     bodies, points = {}, {}
     for body in mech.moving_bodies:
         (c, v, a) = state[body.name]
@@ -155,6 +168,11 @@ def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, series: 
                 "acceleration": acceleration + alpha[:, None] * _perp(reach) - (w * w)[:, None] * reach,
             }
     named = {label: points[(owner, label)] for label, owner in mech.point_owners.items() if owner != GROUND}
+    gaps = joint_gaps(
+        mech,
+        {key: value["position"] for key, value in points.items()},
+        {name: states["angle"] for name, states in bodies.items()},
+    )
 
     def relative(a: str, b: str, k: int, key: str) -> np.ndarray:
         value = bodies[b][key] if b != GROUND else np.zeros(len(times))
@@ -178,51 +196,7 @@ def _simulate(kinematics: Kinematics, mech: Mechanism, window, q0, qd0, series: 
             "steps_per_sample": per,
             "newton_tolerance": setting.newton_tolerance,
         },
-        diagnostics={"input_error": inputs - window.inputs(kinematics, times)[0]},
+        diagnostics={"constraint_violation": gaps},
         notes=f"Exudyn driven dynamics, {setting.integrator}, dt = {dt:.4g} s; inputs as Exudyn realised them.",
     )
-    return row, trajectory
-
-
-def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int = 0) -> ModeResult:
-    """Simulate the driven mechanism in Exudyn at :data:`SETTINGS` x
-    :data:`STEPS_PER_SAMPLE` and compare each run with the native solution;
-    ``refine`` k > 0 runs only the first setting at 2^k times its finest step
-    count (:meth:`xcheck.engines.Engine.run`).
-
-    Returns
-    -------
-    ModeResult
-        ``trajectories``: the runs that went through, the finest of the first
-        setting first; ``summary``: per run setting, timestep (s), status,
-        cpu_seconds and the largest errors (position m, angle rad; velocity,
-        omega, acceleration, alpha relative to the native magnitude);
-        ``study``: :func:`~xcheck.results.convergence_study` of the position error.
-
-    Raises
-    ------
-    NotApplicable
-        A slide driver, or a driver on a joint that is not a revolute.
-    """
-    mech = kinematics.mechanism
-    for driver in mech.drivers:
-        if driver.quantity != "angle":  # a revolute's
-            raise NotApplicable(
-                f"driver {driver.name}: a slide has no coordinate constraint in Exudyn (only joint angles are driven)"
-            )
-    try:
-        window = simulation_window(kinematics, branch)
-        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
-        start = kinematics.solve(q, qd, qdd, branch=branch)
-        if start.status[0] > Status.NEAR_SINGULAR:
-            raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        massive = with_unit_mass(mech)
-        runs = [
-            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
-            for setting, per in ladder(SETTINGS, STEPS_PER_SAMPLE, refine)
-        ]
-    except NotApplicable:
-        raise
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    return driven_result(MODE, kinematics, runs, _ERRORS, branch)
+    return Run(trajectory, failure)

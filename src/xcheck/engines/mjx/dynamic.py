@@ -1,7 +1,7 @@
 """MJX in driven dynamics (mode ``mjx-dynamic``): the MuJoCo
 engine's MJCF file with its position and velocity servos, stepped on MJX's JAX
-back end in float64 by MuJoCo's own driven mode
-(:func:`xcheck.engines.mujoco.modes.run_dynamic`) with :class:`Simulator` in
+back end in float64 by MuJoCo's own driven run
+(:func:`xcheck.engines.mujoco.modes.run_dynamic_once`) with :class:`Simulator` in
 place of MuJoCo's C loop, and compared with MuJoCo (C) at the same settings.
 
 One setting: MuJoCo's tight one (:data:`xcheck.engines.mujoco.dynamic.TIGHT`:
@@ -11,7 +11,7 @@ MuJoCo's own, Euler: a second compilation). The rollout (:func:`rollout`) is
 one ``jax.jit`` compilation per mechanism: the time step, solref, solimp and
 tolerance are data, and so are the controls (the drivers' laws at each step's
 start, zero-order hold, as MuJoCo's C loop feeds them), indexed per step from
-an array padded to the finest step's length; a ``jax.lax.scan`` over the
+an array padded to the ladder's longest run; a ``jax.lax.scan`` over the
 samples runs each sample's steps in a ``jax.lax.fori_loop`` whose bounds are
 data. Each step is :func:`xcheck.engines.mjx._rk4.step`: MJX's RK4 with one
 forward pass in the graph instead of five (``mjx.step``'s four and one for
@@ -32,30 +32,29 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, replace
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from xcheck.engines import NotApplicable
-from xcheck.engines._driven import refined_timesteps
 from xcheck.engines.mujoco import modes as mujoco_modes
 from xcheck.engines.mujoco.dynamic import Run, Setting, simulate
 from xcheck.engines.mujoco.mjcf import Layout
-from xcheck.kinematics import Kinematics
+from xcheck.errors import NotApplicable
+from xcheck.ladder import DrivenProblem, Rung, Series
+from xcheck.ladder import Run as LadderRun
 from xcheck.model import Mechanism
-from xcheck.results import ModeResult
+from xcheck.results import differences
 
 from . import _rk4
 from .free import MAX_VALUE, _difference, load_mjx, mjx_model
 
-__all__ = ["DYNAMIC_MODE", "SOLVER", "TIMESTEPS", "Simulator", "rollout", "run_dynamic"]
+__all__ = ["DYNAMIC_MODE", "SOLVER", "Simulator", "rollout", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
 DYNAMIC_MODE = "mjx-dynamic"
 #: MJX's solver (MuJoCo's default; MJX has Newton and CG, not PGS).
 SOLVER = "Newton"
-#: MuJoCo's tight ladder, s.
-TIMESTEPS = (1e-3, 5e-4, 2.5e-4, 1.25e-4)
 
 
 def rollout(m, parameters: dict, qpos0, qvel0, ctrl, bounds):
@@ -115,24 +114,25 @@ def rollout(m, parameters: dict, qpos0, qvel0, ctrl, bounds):
 class Simulator:
     """MJX in place of :func:`xcheck.engines.mujoco.dynamic.simulate` (same call, same
     :class:`~xcheck.engines.mujoco.dynamic.Run`), compiling :func:`rollout` once for
-    every run of a ladder.
+    the runs of a ladder (and once more for a refinement's longer run).
 
     Parameters
     ----------
-    finest : float
-        The ladder's smallest time step (s): the controls are padded to its
-        number of steps, so every step of the ladder has the same shapes.
+    steps : int
+        The ladder's longest run, steps: the controls are padded to it, so every
+        run of the ladder has the same shapes.
 
     Attributes
     ----------
     compile_seconds : float
-        CPU s of the one compilation (NaN before the first run).
+        CPU s of the last compilation (NaN before the first run).
     """
 
-    def __init__(self, finest: float):
-        self.finest = finest
+    def __init__(self, steps: int) -> None:
+        self.steps = steps
         self.compile_seconds = math.nan
-        self._compiled: tuple[Any, Any] | None = None  # (mjx.Model, the compiled rollout)
+        #: the compiled rollouts by the controls' length
+        self._compiled: dict[int, tuple[Any, Any]] = {}
 
     def __call__(
         self,
@@ -141,10 +141,10 @@ class Simulator:
         layout: Layout,
         setting: Setting,
         timestep: float,
-        duration: float,
+        per: int,
+        samples: int,
         qpos0: np.ndarray,
         qvel0: np.ndarray,
-        samples: int,
     ) -> Run:
         """One run, as :func:`xcheck.engines.mujoco.dynamic.simulate`; ``Run.columns``:
         compile_seconds (shared by the ladder), cpu_seconds (the run alone) and
@@ -161,10 +161,9 @@ class Simulator:
         jax, _, _ = load_mjx()
         settings = setting.apply(model, timestep)
         settings["solver"] = SOLVER
-        steps = int(np.floor(duration / timestep + 1e-9))
-        length = max(int(np.floor(duration / self.finest + 1e-9)), steps) + 1
-        sample_steps = np.unique(np.round(np.linspace(0, steps, samples)).astype(int))
-        bounds = np.concatenate([sample_steps, np.full(samples - len(sample_steps), steps)]).astype(np.int64)
+        steps = per * samples
+        length = max(self.steps, steps) + 1  # the controls padded: one compilation serves a ladder's runs
+        bounds = (per * np.arange(samples + 1)).astype(np.int64)
         step_times = np.arange(steps + 1) * timestep
         laws = [d.law.at_time(step_times) for d in mechanism.drivers]
         ctrl = np.zeros((length, model.nu))
@@ -178,7 +177,7 @@ class Simulator:
             "solimp": np.asarray(model.eq_solimp[0] if model.neq else [0.9, 0.95, 0.001, 0.5, 2.0], dtype=float),
         }
         arguments = (parameters, np.asarray(qpos0, float), np.asarray(qvel0, float), ctrl, bounds)
-        if self._compiled is None:
+        if length not in self._compiled:
             if not _rk4.applies(model):
                 raise NotApplicable(
                     "xcheck steps MJX by RK4 with one forward pass, for hinge and slide joints without "
@@ -189,19 +188,19 @@ class Simulator:
             except NotImplementedError as error:
                 raise NotApplicable(f"MJX does not implement {error}") from error
             begin = time.process_time()
-            self._compiled = (m, jax.jit(rollout).lower(m, *arguments).compile())
+            self._compiled[length] = (m, jax.jit(rollout).lower(m, *arguments).compile())
             self.compile_seconds = time.process_time() - begin
-        m, compiled = self._compiled
+        m, compiled = self._compiled[length]
         begin = time.process_time()
-        qpos, qvel, qacc = (np.asarray(a) for a in jax.block_until_ready(compiled(m, *arguments)))
+        qpos, qvel, qacc = (np.asarray(a)[1:] for a in jax.block_until_ready(compiled(m, *arguments)))
         cpu = time.process_time() - begin
-        n = len(sample_steps)
-        qpos, qvel, qacc = qpos[:n], qvel[:n], qacc[:n]
+        sample_steps = bounds[1:]  # t = 0 is not compared
         bad = ~(np.all(np.isfinite(qpos), axis=1) & np.all(np.isfinite(qvel), axis=1))
         bad |= np.any(np.abs(qpos) > MAX_VALUE, axis=1) | np.any(np.abs(qvel) > MAX_VALUE, axis=1)
-        s = int(np.argmax(bad)) if bad.any() else n
-        failure = f"non-finite state, or beyond 1e10, at t = {step_times[sample_steps[s]]:.6g} s" if s < n else ""
+        s = int(np.argmax(bad)) if bad.any() else samples
+        failure = f"went non-finite, or beyond 1e10, at t = {step_times[sample_steps[s]]:.6g} s" if bad.any() else ""
         law = np.stack([law[0][sample_steps] for law in laws], axis=1)
+        duration = steps * timestep
         columns = {
             "compile_seconds": self.compile_seconds,
             "cpu_seconds": cpu,
@@ -212,73 +211,50 @@ class Simulator:
         )
 
 
-def run_dynamic(
-    kinematics: Kinematics,
-    branch: str | None = None,
-    samples: int = 101,
-    timesteps=TIMESTEPS,
-    duration: float | None = None,
-    compare: bool = True,
-    refine: int = 0,
-) -> ModeResult:
-    """MJX simulating the mechanism with its inputs driven by the file's servos:
-    MuJoCo's driven mode (:func:`xcheck.engines.mujoco.modes.run_dynamic`) with
-    its tight setting (RK4, Newton) only, each run on MJX.
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """MuJoCo's tight series alone (RK4, stiff loops; its default setting is MuJoCo's
+    own, Euler: a second compilation), with MJX's solver."""
+    return (mujoco_modes.dynamic_series(problem)[0],)
 
-    Parameters
-    ----------
-    kinematics : Kinematics
-    branch : str, optional
-    samples : int
-        States sampled per run, evenly in time.
-    timesteps : sequence of float
-        The ladder's time steps, s (MuJoCo's tight ladder).
-    duration : float, optional
-        Simulated time (s); default the simulation window.
-    compare : bool
-        Also run MuJoCo (C) over the same ladder and setting; adds the columns
-        ``mujoco_position_error`` (m), ``mujoco_cpu_per_simulated_second`` (s)
-        and ``mujoco_difference`` (m, the largest distance between a named
-        point of the two runs at the same sample).
-    refine : int
-        k > 0: only the smallest time step / 2^k
-        (:meth:`xcheck.engines.Engine.run`).
 
-    Returns
-    -------
-    ModeResult
-        As :func:`xcheck.engines.mujoco.modes.run_dynamic`; ``summary`` also
-        has solver, compile_seconds (CPU s, once per mechanism), cpu_seconds
-        and cpu_per_simulated_second (the run alone), and the MuJoCo columns.
-    """
-    if refine:
-        timesteps = refined_timesteps(min(timesteps), refine)
-    simulator = Simulator(min(timesteps) if timesteps else 1.0)
-    options: dict[str, Any] = dict(
-        branch=branch, samples=samples, default_timesteps=(), tight_timesteps=timesteps, duration=duration
-    )
-    result = mujoco_modes.run_dynamic(kinematics, **options, simulator=simulator, mode=DYNAMIC_MODE, title="MJX")
-    summary = result.summary
-    if summary is None or summary.empty:
-        return result
-    summary.insert(list(summary.columns).index("integrator") + 1, "solver", SOLVER)
-    if not compare:
-        return result
-    reference = mujoco_modes.run_dynamic(kinematics, **options, simulator=_timed)
-    theirs = reference.summary.set_index("timestep") if reference.summary is not None else None
-    ours, mine = (  # each run's trajectory, not the oracle's accelerations at the compared run's states
-        {t.settings["timestep"]: t for t in r.trajectories if t.settings["accelerations"] == "qacc"}
-        for r in (result, reference)
-    )
-    for column in ("mujoco_position_error", "mujoco_cpu_per_simulated_second", "mujoco_difference"):
-        summary[column] = math.nan
-    for i, timestep in summary.timestep.items():
-        if theirs is not None and timestep in theirs.index:
-            summary.loc[i, "mujoco_position_error"] = theirs.loc[timestep, "position_error"]
-            summary.loc[i, "mujoco_cpu_per_simulated_second"] = theirs.loc[timestep, "cpu_per_simulated_second"]
-        if timestep in ours and timestep in mine:
-            summary.loc[i, "mujoco_difference"] = _difference(ours[timestep], mine[timestep])
-    return result
+@dataclass
+class MjxDriven:
+    """What every MJX driven run shares: the MuJoCo engine's prepared model with MJX
+    as its simulator, and, where it runs beside it, MuJoCo (C)'s."""
+
+    mjx: mujoco_modes.MujocoDriven
+    mujoco: mujoco_modes.MujocoDriven | None
+
+
+def prepare_dynamic(problem: DrivenProblem, compare: bool = True) -> MjxDriven:
+    """The MuJoCo engine's driven model (:func:`xcheck.engines.mujoco.modes.prepare_dynamic`)
+    stepped by a :class:`Simulator`; with ``compare``, MuJoCo (C)'s beside it: the
+    columns ``mujoco_position_error`` (m), ``mujoco_cpu_per_simulated_second`` (s) and
+    ``mujoco_difference`` (m, the largest distance between a named point of the two
+    runs at the same sample)."""
+    load_mjx()
+    longest = max(problem.rung(s, s.rungs - 1).counts[0] * problem.samples for s in dynamic_series(problem))
+    mjx = mujoco_modes.prepare_dynamic(problem, simulator=Simulator(longest), mode=DYNAMIC_MODE, title="MJX")
+    return MjxDriven(mjx, replace(mjx, simulator=_timed, mode="mujoco-dynamic", title="MuJoCo") if compare else None)
+
+
+def run_dynamic_once(prepared: MjxDriven, problem: DrivenProblem, rung: Rung) -> LadderRun:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`): MuJoCo's
+    driven run on MJX, and MuJoCo (C)'s at the same rung where it runs beside it."""
+    run = mujoco_modes.run_dynamic_once(prepared.mjx, problem, rung)
+    run.columns["solver"] = SOLVER
+    if prepared.mujoco is None:
+        return run
+    theirs = mujoco_modes.run_dynamic_once(prepared.mujoco, problem, rung)
+    run.columns["mujoco_position_error"] = math.nan
+    run.columns["mujoco_cpu_per_simulated_second"] = theirs.columns.get("cpu_per_simulated_second", math.nan)
+    run.columns["mujoco_difference"] = math.nan
+    if theirs.trajectory is not None and not theirs.failure:
+        table = differences(problem.kinematics, theirs.trajectory, problem.branch)
+        run.columns["mujoco_position_error"] = mujoco_modes.relative_error(table, "position", absolute=True)
+        if run.trajectory is not None and not run.failure:
+            run.columns["mujoco_difference"] = _difference(run.trajectory, theirs.trajectory)
+    return run
 
 
 def _timed(model: mujoco.MjModel, *args) -> Run:
@@ -286,5 +262,6 @@ def _timed(model: mujoco.MjModel, *args) -> Run:
     simulated second as the column ``cpu_per_simulated_second``."""
     begin = time.process_time()
     run = simulate(model, *args)
-    run.columns["cpu_per_simulated_second"] = (time.process_time() - begin) / max(float(args[4]), 1e-300)
+    duration = float(args[3]) * float(args[4]) * float(args[5])  # timestep x per x samples
+    run.columns["cpu_per_simulated_second"] = (time.process_time() - begin) / max(duration, 1e-300)
     return run

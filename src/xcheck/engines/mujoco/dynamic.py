@@ -109,12 +109,13 @@ def simulate(
     layout: Layout,
     setting: Setting,
     timestep: float,
-    duration: float,
+    per: int,
+    samples: int,
     qpos0: np.ndarray,
     qvel0: np.ndarray,
-    samples: int,
 ) -> Run:
-    """Integrate from (qpos0, qvel0) at t = 0 for ``duration`` s, sampling ``samples`` states.
+    """Integrate from (qpos0, qvel0) at t = 0 for ``samples`` x ``per`` steps of
+    ``timestep`` s, sampling the state every ``per`` steps (not at t = 0).
 
     Each step, the controls are the drivers' law values and rates at the
     step's start time (zero-order hold): position servo ctrl = q(t), velocity
@@ -124,8 +125,8 @@ def simulate(
     """
     settings = setting.apply(model, timestep)
     data = mujoco.MjData(model)
-    steps = int(np.floor(duration / timestep + 1e-9))
-    sample_steps = np.unique(np.round(np.linspace(0, steps, samples)).astype(int))
+    steps = per * samples
+    sample_steps = per * np.arange(1, samples + 1)
     k = len(mechanism.drivers)
     position_ids = [model.actuator(f"{d.name}.position").id for d in mechanism.drivers]
     velocity_ids = [model.actuator(f"{d.name}.velocity").id for d in mechanism.drivers]
@@ -137,8 +138,7 @@ def simulate(
         ctrl[:, velocity_ids[j]] = laws[j][1]
 
     data.qpos[:], data.qvel[:] = qpos0, qvel0
-    n = len(sample_steps)
-    qpos, qvel, qacc = (np.full((n, model.nv), np.nan) for _ in range(3))
+    qpos, qvel, qacc = (np.full((samples, model.nv), np.nan) for _ in range(3))
     failure, s = "", 0
     warnings: list[str] = []
     previous = mujoco.get_mju_user_warning()
@@ -147,11 +147,11 @@ def simulate(
     try:
         for step in range(steps + 1):
             data.ctrl[:] = ctrl[step]
-            if step == sample_steps[s]:
+            if s < samples and step == sample_steps[s]:
                 mujoco.mj_forward(model, data)
                 qpos[s], qvel[s], qacc[s] = data.qpos, data.qvel, data.qacc
                 if not (np.all(np.isfinite(qpos[s])) and np.all(np.isfinite(qvel[s]))):
-                    failure = f"non-finite state at t = {step_times[step]:.6g} s"
+                    failure = f"went non-finite at t = {step_times[step]:.6g} s"
                     break
                 s += 1
                 if step == steps:

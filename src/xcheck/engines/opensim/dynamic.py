@@ -25,31 +25,31 @@ import math
 
 import numpy as np
 
-from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, driven_start, driven_trajectory, empty_states, refined_steps
-from xcheck.engines._frames import loop_gap
+from xcheck.engines._contract import with_unit_mass
+from xcheck.engines._frames import driven_run, empty_states, loop_gap
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
-from xcheck.results import ModeResult, Trajectory
+from xcheck.ladder import DrivenProblem, Run, Rung, Series
 
 from .model import OpenSimModel, build, opensim
 
-__all__ = ["ERRORS", "MODE", "SAMPLES", "STEPS_PER_SAMPLE", "run_dynamic", "simulate"]
+__all__ = [
+    "INTEGRATOR",
+    "MODE",
+    "STEPS_PER_SAMPLE",
+    "dynamic_series",
+    "law_function",
+    "prepare_dynamic",
+    "run_dynamic_once",
+]
 
 MODE = "opensim-dynamic"
-#: time steps per sample of the ladder, finest first
-STEPS_PER_SAMPLE = (16, 8, 4)
-#: samples compared per run
-SAMPLES = 40
-#: the compared quantities (:func:`~xcheck.engines._driven.driven_result`'s ``errors``)
-ERRORS = {
-    "position": "abs",
-    "angle": "abs",
-    "velocity": "rel",
-    "omega": "rel",
-    "acceleration": "rel",
-    "alpha": "rel",
-}
+INTEGRATOR = "Runge-Kutta-Merson, fixed step, prescribed drivers"
+#: time steps per compared sample of the ladder's coarsest run, and its runs (doubling the steps)
+STEPS_PER_SAMPLE = 4
+RUNGS = 3
+#: the body quantities OpenSim's runs give (:func:`xcheck.engines._frames.empty_states`)
+QUANTITIES = ("position", "angle", "velocity", "omega", "acceleration", "alpha")
 
 
 def law_function(law, sign: float):
@@ -70,16 +70,33 @@ def _vec2(v) -> np.ndarray:
     return np.array([v.get(0), v.get(1)])
 
 
-def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: int) -> tuple[dict, Trajectory | None]:
-    """One run of :data:`SAMPLES` x ``per`` fixed Merson steps over the window: (row, Trajectory or None)."""
-    import time
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: fixed Merson steps, :data:`STEPS_PER_SAMPLE` per sample, doubling."""
+    return (Series("default", INTEGRATOR, timestep=problem.interval / STEPS_PER_SAMPLE, rungs=RUNGS),)
 
+
+def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
+    """The mechanism with unit masses where it has none and without springs and loads
+    (the drivers prescribe the motion).
+
+    Raises
+    ------
+    NotApplicable
+        What :func:`xcheck.engines._tree.tree_frames` and :func:`.model.build` cannot hold.
+    """
+    opensim()
+    mech = problem.kinematics.mechanism
+    tree_frames(mech, problem.start.q[0], "OpenSim")
+    return Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
+
+
+def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`): fixed Merson
+    steps of ``rung.timestep`` with the drivers prescribed, the states at the compared times."""
     osim = opensim()
-    mech = kinematics.mechanism
-    dt = window.duration / (SAMPLES * per)
-    row = {"setting": "default", "integrator": "Runge-Kutta-Merson, fixed step, prescribed drivers", "timestep": dt}
-    row["status"] = "ok"
-    begin = time.process_time()
+    mech = problem.kinematics.mechanism
+    dt, per, samples, times = rung.timestep, rung.counts[0], problem.samples, problem.times
+    q0, qd0 = problem.start.q[0], problem.start.qd[0]
     signs = tree_frames(mech, q0, "OpenSim").driver_signs(mech)
     functions = {name: law_function(d.law, sign) for (name, sign), d in zip(signs, mech.drivers)}
     om: OpenSimModel = build(massive.mechanism, q0, qd0, prescribed=functions)
@@ -93,25 +110,25 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
     state = om.state
     state.setTime(0.0)
     manager.initialize(state)
-    quantities = dict.fromkeys(ERRORS)
-    bodies, points, inputs, rates, gaps = empty_states(mech, SAMPLES, quantities)
+    bodies, points, inputs, rates, gaps = empty_states(mech, samples, QUANTITIES)
     for states in (*bodies.values(), *points.values()):  # accelerations are vectors too
-        states["acceleration"] = np.full((SAMPLES, 2), np.nan)
+        states["acceleration"] = np.full((samples, 2), np.nan)
     accelerations = np.full_like(inputs, np.nan)
     start = np.array([float(d.law.at_time(0.0)[0]) for d in mech.drivers])
     owners = mech.point_owners
     origin = osim.Vec3(0.0, 0.0, 0.0)
-    for j in range(SAMPLES):
-        t = (j + 1) * per * dt
+    failure, reached = "", 0
+    for j in range(samples):
+        t = float(times[j])
         try:
             state = manager.integrate(t)
         except RuntimeError as error:  # Simbody gave up: the run stops here
-            row["status"] = " ".join(str(error).split())[:200]
+            failure = " ".join(str(error).split())[:200]
             break
         model.realizeAcceleration(state)
         frames = om.frames(state)
         if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
-            row["status"] = f"went non-finite at t = {t:.6g} s"
+            failure = f"went non-finite at t = {t:.6g} s"
             break
         for name, body in om.bodies.items():
             states = bodies[name]
@@ -133,46 +150,14 @@ def simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, per: 
             rates[j, k] = sign * coordinate.getSpeedValue(state)
             accelerations[j, k] = sign * coordinate.getAccelerationValue(state)
         gaps[j] = loop_gap(frames, om.tree.cuts)
-    row["cpu_seconds"] = time.process_time() - begin
-    if row["status"] != "ok":
-        return row, None
-    settings = {"integrator": row["integrator"], "timestep": dt, "series": "default", "steps_per_sample": per}
+        reached = j + 1
+        failure = problem.came_apart(t, float(gaps[j]))
+        if failure:
+            break
+    settings = {"integrator": INTEGRATOR, "timestep": dt, "series": rung.series.key, "steps_per_sample": per}
     notes = (
-        f"OpenSim driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs, rates and accelerations "
+        f"OpenSim driven dynamics, {INTEGRATOR}, dt = {dt:.4g} s; inputs, rates and accelerations "
         "as OpenSim realised them."
     )
     filled = (bodies, points, inputs, rates, gaps)
-    trajectory = driven_trajectory(MODE, kinematics, window, filled, accelerations, settings, notes)
-    return row, trajectory
-
-
-def run_dynamic(
-    kinematics: Kinematics, branch: str | None = None, steps=STEPS_PER_SAMPLE, refine: int = 0
-) -> ModeResult:
-    """Simulate the driven mechanism in OpenSim at :data:`STEPS_PER_SAMPLE` fixed Merson steps
-    per sample and compare each run with the native solution; ``refine`` k > 0 runs only the
-    finest 2^k steps per sample (:meth:`xcheck.engines.Engine.run`).
-
-    Returns
-    -------
-    ModeResult
-        As :func:`~xcheck.engines._driven.driven_result` makes it.
-
-    Raises
-    ------
-    NotApplicable
-        What :func:`.model.build` cannot hold.
-    """
-    mech = kinematics.mechanism
-    if refine:
-        steps = refined_steps(steps[0], refine)
-    massive = Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
-    try:
-        window, q0, qd0 = driven_start(kinematics, branch)
-        tree_frames(mech, q0, "OpenSim")
-        runs = [simulate(kinematics, massive, window, q0, qd0, per) for per in steps]
-    except NotApplicable:
-        raise
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    return driven_result(MODE, kinematics, runs, ERRORS, branch)
+    return driven_run(MODE, mech, times, filled, reached, failure, settings, notes, accelerations)

@@ -19,31 +19,19 @@ damped. Nothing overwrites q or v: the engine integrates its own equations.
 from __future__ import annotations
 
 import math
-import time
+from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 import pinocchio as pin
 
-from xcheck.engines._driven import refined_steps
-from xcheck.errors import NotApplicable
-from xcheck.kinematics import Kinematics
-from xcheck.ladder import convergence_study, observed_order
-from xcheck.motion import simulation_window
-from xcheck.results import ModeResult, differences
+from xcheck.ladder import DrivenProblem, Run, Rung, Series
 
 from .model import PinocchioMechanism, build_model, joint_coordinates, tree_spec
-from .oracle import Oracle, one_line, run_trajectory
+from .oracle import Oracle, run_trajectory
 
-__all__ = ["run_dynamic", "INTEGRATORS"]
+__all__ = ["Setting", "INTEGRATORS", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
 MODE = "pinocchio-dynamic"
-#: integrator name -> (scheme, Baumgarte correction on?)
-INTEGRATORS = {
-    "rk4": ("rk4", False),
-    "semi-implicit-euler": ("euler", False),
-    "semi-implicit-euler-baumgarte": ("euler", True),
-}
 #: PD tracking of the inputs: natural frequency in cycles per window.
 TRACKING_CYCLES = 10.0
 #: Baumgarte gains Kp = (BAUMGARTE / dt)^2, Kd = 2 BAUMGARTE / dt: a critically
@@ -58,11 +46,29 @@ BAUMGARTE = 0.5
 PROXIMAL_MU = 1e-8
 PROXIMAL_ACCURACY = 1e-14
 PROXIMAL_MAX_ITER = 50
-#: A trajectory whose loops open wider than this fraction of the mechanism's
-#: size, or whose state is not finite, is stopped and reported as failed.
-LOOP_OPENING_LIMIT = 0.1
-#: Errors at or below this times the size are round-off: no order is reported.
-ROUND_OFF = 1e-13
+
+
+@dataclass(frozen=True)
+class Setting:
+    """How a run integrates ``constraintDynamics``: ``scheme`` ("rk4" or "euler",
+    semi-implicit), with Baumgarte correction (gains Kp = (baumgarte / dt)^2,
+    Kd = 2 baumgarte / dt) or without (``baumgarte`` None), at proximal ``mu``."""
+
+    scheme: str
+    baumgarte: float | None = None
+    mu: float = PROXIMAL_MU
+
+    def gains(self, dt: float) -> tuple[float, float] | None:
+        """Baumgarte's (Kp 1/s^2, Kd 1/s) at the step ``dt`` (s), or None without correction."""
+        return None if self.baumgarte is None else ((self.baumgarte / dt) ** 2, 2.0 * self.baumgarte / dt)
+
+
+#: integrator name -> its setting (the driven ladder's series)
+INTEGRATORS = {
+    "rk4": Setting("rk4"),
+    "semi-implicit-euler": Setting("euler"),
+    "semi-implicit-euler-baumgarte": Setting("euler", BAUMGARTE),
+}
 
 
 def tracking_gains(window: float) -> tuple[float, float]:
@@ -74,7 +80,7 @@ def tracking_gains(window: float) -> tuple[float, float]:
 class _Driven:
     """The dynamics q'' = f(t, q, v) of one mechanism with its inputs driven."""
 
-    def __init__(self, pm: PinocchioMechanism, laws, window: float, baumgarte: tuple[float, float] | None):
+    def __init__(self, pm: PinocchioMechanism, laws, window: float, baumgarte: tuple[float, float] | None, mu: float):
         self.pm, self.model, self.laws = pm, pm.model, laws
         self.data = pm.model.createData()
         self.cms = [pin.RigidConstraintModel(cm) for cm in pm.constraints]  # copies: gains are per run
@@ -83,7 +89,7 @@ class _Driven:
                 cm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(*baumgarte))
         self.cds = [cm.createData() for cm in self.cms]
         pin.initConstraintDynamics(self.model, self.data, self.cms, self.cds)
-        self.settings = pin.ProximalSettings(PROXIMAL_ACCURACY, PROXIMAL_MU, PROXIMAL_MAX_ITER)
+        self.settings = pin.ProximalSettings(PROXIMAL_ACCURACY, mu, PROXIMAL_MAX_ITER)
         self.selector = pm.input_selector()
         self.kp, self.kd = tracking_gains(window)
         self.evaluations = 0
@@ -118,9 +124,10 @@ class _Driven:
 
 
 def _integrate(
-    driven: _Driven, scheme: str, q0, v0, duration: float, steps: int, every: int, size: float, oracle: Oracle
+    driven: _Driven, scheme: str, q0, v0, duration: float, steps: int, every: int, came_apart, oracle: Oracle
 ):
-    """March ``steps`` steps over ``duration``; record every ``every`` steps.
+    """March ``steps`` steps over ``duration``; record every ``every`` steps
+    (``came_apart(t, gap)``: "" or why the run stops where its loops open by ``gap`` m).
 
     Returns
     -------
@@ -157,53 +164,80 @@ def _integrate(
             q = q + dt * v
         if (i + 1) % every == 0:
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                return rows, f"diverged at t = {(i + 1) * dt:.4g} s (state not finite)"
-            opening = float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0))
-            if opening > LOOP_OPENING_LIMIT * size:
-                return rows, (
-                    f"failed at t = {(i + 1) * dt:.4g} s: the loops opened by {opening:.3g} m, "
-                    f"more than {LOOP_OPENING_LIMIT:.0%} of the size"
-                )
+                return rows, f"went non-finite at t = {(i + 1) * dt:.6g} s"
             record(i + 1)
-    return rows, None
+            failure = came_apart((i + 1) * dt, float(np.max(np.abs(oracle.loop_residual(q)), initial=0.0)))
+            if failure:
+                return rows, failure
+    return rows, ""
 
 
-def _worst(table: pd.DataFrame, quantities, column: str) -> float:
-    """Largest ``column`` of a differences table over the given quantities."""
-    return float(table[table.quantity.isin(list(quantities))][column].max())
+@dataclass
+class PinocchioDriven:
+    """What every driven run shares: the model, its oracle, the start (q0, v0) and
+    the bodies with default mass properties."""
+
+    pm: PinocchioMechanism
+    oracle: Oracle
+    q0: np.ndarray
+    v0: np.ndarray
+    defaults: list[str]
 
 
-def _order(errors: list[float], dts: list[float], floor: float) -> list[float]:
-    """:func:`~xcheck.results.observed_order` of each run against the one before,
-    NaN for the first run and where either error is not above ``floor`` (round-off)."""
-    return [math.nan] + [
-        observed_order(errors[i - 1], errors[i], dts[i - 1], dts[i], floor) for i in range(1, len(errors))
-    ]
+#: the ladder's series (keys of :data:`INTEGRATORS`), RK4 compared
+SERIES = ("rk4", "semi-implicit-euler", "semi-implicit-euler-baumgarte")
+#: the coarsest run's steps over the window, and the runs (doubling the steps)
+STEPS, RUNGS = 200, 3
 
 
-def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, baumgarte, branch, defaults):
-    """One simulation: (summary row, Trajectory or None if it failed)."""
-    scheme, corrected = INTEGRATORS[integrator]
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: RK4 (compared), semi-implicit Euler without and with Baumgarte
+    correction, each at 200, 400 and 800 steps over the window."""
+    timestep = problem.window.duration / STEPS
+    return tuple(Series(name, name, INTEGRATORS[name], timestep=timestep, rungs=RUNGS) for name in SERIES)
+
+
+def prepare_dynamic(problem: DrivenProblem) -> PinocchioDriven:
+    """The model and the native state at t = 0 in it.
+
+    Raises
+    ------
+    ValueError
+        If the native configuration at t = 0 does not close Pinocchio's loops.
+    """
+    kinematics = problem.kinematics
+    mech = kinematics.mechanism
+    pm = build_model(tree_spec(mech))
+    oracle = Oracle(pm)
+    inputs, rates, _ = problem.window.inputs(kinematics, np.zeros(1))
+    q0, _, _, converged = oracle.project(joint_coordinates(pm, problem.start.q[0]), inputs[0], kinematics.system.size)
+    if not converged:
+        raise ValueError("the native configuration at t = 0 does not close Pinocchio's loops")
+    return PinocchioDriven(pm, oracle, q0, oracle.rates(q0, rates[0]), [b.name for b in pm.spec.bodies if b.default])
+
+
+def run_dynamic_once(prepared: PinocchioDriven, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`)."""
+    pm, oracle, defaults = prepared.pm, prepared.oracle, prepared.defaults
+    window = problem.window
+    integrator = rung.series.setting
+    setting: Setting = rung.series.options
+    scheme = setting.scheme
+    if scheme not in ("rk4", "euler"):
+        raise ValueError(f"expected the scheme rk4 or euler, found {scheme!r}")
     laws = [d.law for d in pm.mechanism.drivers]
-    size = kinematics.system.size
-    dt = window.duration / steps
-    gains = ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt) if corrected else None
-    start = time.perf_counter()
-    driven = None
-    try:
-        driven = _Driven(pm, laws, window.duration, gains)
-        rows, failure = _integrate(driven, scheme, q0, v0, window.duration, steps, steps // (samples - 1), size, oracle)
-    except Exception as error:  # noqa: BLE001 - one run failing leaves the others
-        rows, failure = [], one_line(error)
-    run = {
-        "integrator": integrator,
-        "dt": dt,
-        "steps": steps,
-        "status": failure or "ok",
-        "seconds": time.perf_counter() - start,
-    }
-    if failure is not None:
-        return run, None
+    per = rung.counts[0]
+    steps = per * problem.samples
+    dt = rung.timestep
+    gains = setting.gains(dt)
+    driven = _Driven(pm, laws, window.duration, gains, setting.mu)
+    rows, failure = _integrate(
+        driven, scheme, prepared.q0, prepared.v0, window.duration, steps, per, problem.came_apart, oracle
+    )
+    rows = rows[1:]  # t = 0 is not compared
+    columns = {"evaluations": driven.evaluations, "proximal_iterations_max": driven.proximal_iterations}
+    if not rows:
+        return Run(None, failure, columns=columns)
     kp, kd = tracking_gains(window.duration)
     settings = {
         "integrator": integrator,
@@ -215,7 +249,7 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
         "window": window.reason,
         "baumgarte_kp": gains[0] if gains else 0.0,
         "baumgarte_kd": gains[1] if gains else 0.0,
-        "proximal_mu": PROXIMAL_MU,
+        "proximal_mu": setting.mu,
         "proximal_accuracy": PROXIMAL_ACCURACY,
         "tracking_kp": kp,
         "tracking_kd": kd,
@@ -223,7 +257,7 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
         "default_mass_properties": defaults,
     }
     notes = (
-        f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {PROXIMAL_MU:g}), "
+        f"Pinocchio constraintDynamics (CONTACT_3D loop closures, proximal mu {setting.mu:g}), "
         f"{integrator} at dt = {dt:.4g} s over {window.duration:.6g} s ({window.reason}). "
         "Inputs driven by a computed torque on the input joints: the torque that makes the input "
         "acceleration the motion law's plus a critically damped PD correction "
@@ -245,131 +279,4 @@ def _run(kinematics, pm, oracle, integrator, steps, samples, window, q0, v0, bau
             else ""
         )
     )
-    trajectory = run_trajectory(pm, oracle, rows, MODE, settings, notes)
-    assert trajectory.times is not None and driven is not None  # a run that did not fail
-    table = differences(kinematics, trajectory, branch)
-    law_inputs = np.array([[float(law.at_time(t)[0]) for law in laws] for t in trajectory.times])
-    run.update(
-        {
-            "position_error_m": _worst(table, ["position"], "max_abs"),
-            "angle_error_rad": _worst(table, ["angle"], "max_abs"),
-            "velocity_rel": _worst(table, ["velocity", "omega"], "max_rel"),
-            "acceleration_rel": _worst(table, ["acceleration", "alpha"], "max_rel"),
-            "constraint_violation_m": float(np.max(trajectory.diagnostics["constraint_violation"])),
-            "input_error": float(np.max(np.abs(trajectory.inputs - law_inputs))),
-            "evaluations": driven.evaluations,
-            "proximal_iterations_max": driven.proximal_iterations,
-        }
-    )
-    return run, trajectory
-
-
-def run_dynamic(
-    kinematics: Kinematics,
-    steps=(200, 400, 800),
-    samples: int = 51,
-    branch: str | None = None,
-    integrators=tuple(INTEGRATORS),
-    baumgarte: float = BAUMGARTE,
-    refine: int = 0,
-) -> ModeResult:
-    """Simulate the mechanism with its inputs driven over the simulation window.
-
-    Parameters
-    ----------
-    kinematics : Kinematics
-    steps : sequence of int
-        Time steps per window (dt = window / steps); each a multiple of
-        ``samples - 1``.
-    samples : int
-        Recorded states per run, evenly spaced in time.
-    branch : str, optional
-    integrators : sequence of str
-        Keys of :data:`INTEGRATORS`.
-    baumgarte : float
-        Baumgarte gains per step (see :data:`BAUMGARTE`).
-    refine : int
-        k > 0: only RK4 (or the first integrator) at the largest step count
-        times 2^k (:meth:`xcheck.engines.Engine.run`).
-
-    Returns
-    -------
-    ModeResult
-        Trajectories: RK4 at the finest step first (the one the comparison
-        uses; without RK4, the first integrator at its finest step), then the
-        other runs. ``summary``: one row per run with the largest position
-        error (m), velocity and acceleration errors (``max_rel`` of
-        :func:`~xcheck.results.differences`), loop opening (m), input tracking
-        error, observed
-        orders and run time. Runs that failed (loops opened wide, state not
-        finite) have their reason in ``status`` and no trajectory; the mode
-        fails only when the comparison run does.
-    """
-    mech = kinematics.mechanism
-    if refine:
-        integrators = ("rk4",) if "rk4" in integrators else tuple(integrators)[:1]
-        steps = refined_steps(max(int(n) for n in steps), refine)
-    try:
-        steps = sorted(int(n) for n in steps)
-        if samples < 2 or any(n % (samples - 1) for n in steps):
-            raise ValueError(f"expected step counts that are multiples of samples - 1 = {samples - 1}, found {steps}")
-        unknown = [name for name in integrators if name not in INTEGRATORS]
-        if unknown:
-            raise ValueError(f"expected integrators among {', '.join(INTEGRATORS)}, found {unknown[0]!r}")
-        window = simulation_window(kinematics, branch)
-        pm = build_model(tree_spec(mech))
-        oracle = Oracle(pm)
-        size = kinematics.system.size
-        c0 = np.array([[float(d.law.at_time(0.0)[i]) for d in mech.drivers] for i in range(2)])
-        native = kinematics.solve(c0[0][None], c0[1][None], branch=branch)
-        if not native.status[0] <= 1:
-            raise ValueError(f"the mechanism does not assemble at the inputs at t = 0 ({c0[0].tolist()})")
-        q0, _, _, converged = oracle.project(joint_coordinates(pm, native.q[0]), c0[0], size)
-        if not converged:
-            raise ValueError("the native configuration at t = 0 does not close Pinocchio's loops")
-        v0 = oracle.rates(q0, c0[1])
-    except NotApplicable:
-        raise  # what Pinocchio cannot hold: the mode does not apply
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, one_line(error))
-
-    defaults = [b.name for b in pm.spec.bodies if b.default]
-    runs = [
-        _run(kinematics, pm, oracle, integrator, n, samples, window, q0, v0, baumgarte, branch, defaults)
-        for integrator in integrators
-        for n in steps
-    ]
-    summary = pd.DataFrame([run for run, _ in runs])
-    for column, order in (
-        ("position_error_m", "order_position"),
-        ("constraint_violation_m", "order_drift"),
-        ("input_error", "order_input"),
-    ):
-        if column not in summary:
-            summary[column] = math.nan
-        summary[order] = math.nan
-        for integrator in integrators:
-            rows = summary.integrator == integrator
-            summary.loc[rows, order] = _order(
-                list(summary.loc[rows, column]), list(summary.loc[rows, "dt"]), ROUND_OFF * size
-            )
-    lead = "rk4" if "rk4" in integrators else integrators[0]
-    first = next(i for i, (run, _) in enumerate(runs) if run["integrator"] == lead and run["steps"] == steps[-1])
-    ordered = [runs[first]] + [r for i, r in enumerate(runs) if i != first]
-    if ordered[0][1] is not None:
-        ordered[0][1].settings["role"] = "comparison"
-        ordered[0][1].notes += " This run is the one the comparison uses (the most accurate setting)."
-    trajectories = [t for _, t in ordered if t is not None]
-    comparison, _ = runs[first]
-    study = convergence_study(summary.integrator, summary.dt, summary.position_error_m, summary.status)
-    if comparison["status"] != "ok" or not trajectories:
-        return ModeResult(
-            MODE,
-            mech.name,
-            False,
-            f"{comparison['integrator']} at {comparison['steps']} steps: {comparison['status']}",
-            trajectories,
-            summary,
-            study,
-        )
-    return ModeResult(MODE, mech.name, True, "", trajectories, summary, study)
+    return Run(run_trajectory(pm, oracle, rows, MODE, settings, notes), failure, columns=columns)

@@ -36,11 +36,11 @@ import pinocchio as pin
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
 
-from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER
+from .dynamic import BAUMGARTE, PROXIMAL_ACCURACY, PROXIMAL_MAX_ITER, Setting
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
 from .oracle import LWA, Oracle, run_trajectory
 
-__all__ = ["FREE_SERIES", "FREE_MU", "FreeSetting", "prepare_free", "run_free_once"]
+__all__ = ["FREE_SERIES", "FREE_MU", "prepare_free", "run_free_once"]
 
 MODE = "pinocchio-free"
 #: Proximal mu of constraintDynamics in free motion (a planar loop's z row is
@@ -49,21 +49,10 @@ MODE = "pinocchio-free"
 FREE_MU = 1e-12
 
 
-@dataclass(frozen=True)
-class FreeSetting:
-    """A free run's integrator: ``scheme`` ("rk4" or "euler", semi-implicit), with
-    Baumgarte correction (gains Kp = (baumgarte / dt)^2, Kd = 2 baumgarte / dt) or
-    without (``baumgarte`` None), and the proximal ``mu`` of constraintDynamics."""
-
-    scheme: str
-    baumgarte: float | None = None
-    mu: float = FREE_MU
-
-
 FREE_SERIES = (
-    Series("rk4", "rk4", FreeSetting("rk4")),
-    Series("rk4-baumgarte", "rk4", FreeSetting("rk4", BAUMGARTE)),
-    Series("semi-implicit-euler-baumgarte", "euler", FreeSetting("euler", BAUMGARTE)),
+    Series("rk4", "rk4", Setting("rk4", mu=FREE_MU)),
+    Series("rk4-baumgarte", "rk4", Setting("rk4", BAUMGARTE, FREE_MU)),
+    Series("semi-implicit-euler-baumgarte", "euler", Setting("euler", BAUMGARTE, FREE_MU)),
 )
 
 
@@ -315,11 +304,11 @@ def _integrate(free: _Free, scheme: str, prepared: PinocchioFree, problem: FreeP
 
 def run_free_once(prepared: PinocchioFree, problem: FreeProblem, rung: Rung) -> Run:
     """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
-    setting: FreeSetting = rung.series.options
-    scheme, baumgarte, mu = setting.scheme, setting.baumgarte, setting.mu
+    setting: Setting = rung.series.options
+    scheme, mu = setting.scheme, setting.mu
     dt = rung.timestep
     mech = problem.kinematics.mechanism
-    gains = None if baumgarte is None else ((baumgarte / dt) ** 2, 2.0 * baumgarte / dt)
+    gains = setting.gains(dt)
     free = _Free(prepared.pm, mu, gains, problem.start[0])
     rows, failure, energy = _integrate(free, scheme, prepared, problem, rung)
     columns = {

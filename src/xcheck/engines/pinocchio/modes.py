@@ -7,7 +7,7 @@ Modes
     previous sample, velocities from the constraint Jacobian with the inputs'
     rates imposed, accelerations from the drift (frame classical accelerations
     at zero joint acceleration). Exact to round-off when the model is right.
-``pinocchio-dynamic`` (:func:`run_dynamic`)
+``pinocchio-dynamic`` (the series and one run of :mod:`.dynamic`)
     ``constraintDynamics`` with the inputs driven by a computed torque, integrated
     with RK4 and with semi-implicit Euler (with and without Baumgarte
     correction) at several time steps.
@@ -33,7 +33,7 @@ from xcheck.kinematics import Kinematics
 from xcheck.motion import law_states, sweep_span
 from xcheck.results import ModeResult, Trajectory, differences
 
-from .dynamic import run_dynamic  # noqa: F401 - the mode "pinocchio-dynamic" lives here
+from .dynamic import dynamic_series, prepare_dynamic, run_dynamic_once  # noqa: F401 - "pinocchio-dynamic"
 from .free import FREE_SERIES, prepare_free, run_free_once  # noqa: F401 - the mode "pinocchio-free"
 from .inverse import inverse_forces
 from .model import PinocchioMechanism, build_model, joint_coordinates, point_frame, tree_spec
@@ -42,7 +42,9 @@ from .urdf import export_texts
 
 __all__ = [
     "run_kinematic",
-    "run_dynamic",
+    "dynamic_series",
+    "prepare_dynamic",
+    "run_dynamic_once",
     "FREE_SERIES",
     "prepare_free",
     "run_free_once",

@@ -14,46 +14,32 @@ finite difference would be xcheck's answer, not PyBullet's): accelerations are
 not compared. What the free mode cannot hold (a pin-in-slot, a loop cut at a
 prismatic joint) is :class:`~xcheck.engines.NotApplicable` here too.
 
-Measured: see :data:`SETTINGS`.
+Its series: :func:`dynamic_series`.
 """
 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
-from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._driven import driven_result, empty_states, ladder
-from xcheck.engines._frames import loop_gap, world_point
+from xcheck.engines._contract import with_unit_mass
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
 from xcheck.joints import LineJoint
-from xcheck.kinematics import Kinematics, Status, rotate
-from xcheck.ladder import Series
+from xcheck.kinematics import Kinematics, rotate
+from xcheck.ladder import DrivenProblem, Run, Rung, Series
 from xcheck.model import GROUND
-from xcheck.motion import simulation_window
-from xcheck.results import ModeResult, Trajectory
 from xcheck.topology import spanning_tree
 
 from .model import Multibody, Setting, build, p, set_state, velocity
 
-__all__ = ["MODE", "SETTINGS", "STEPS_PER_SAMPLE", "run_dynamic"]
+__all__ = ["MODE", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
 MODE = "pybullet-dynamic"
-#: the compared series: residual threshold 0 (the solver iterates its 50 sweeps; the
-#: free mode's "best") first, then PyBullet's defaults
-SETTINGS = (
-    Series("best", Setting(50, 0.0).integrator, Setting(50, 0.0)),
-    Series("default", Setting(50).integrator, Setting(50)),
-)
-#: time steps per sample of the ladder, finest first
-STEPS_PER_SAMPLE = (100, 50, 25)
-#: samples compared per run
-SAMPLES = 40
 #: the motor's force bound, N or N m: no bound a mechanism of the files reaches
 MOTOR_FORCE = 1e12
-
-_ERRORS = {"position": "abs", "angle": "abs", "velocity": "rel", "omega": "rel"}
+#: the body quantities PyBullet gives
+QUANTITIES = ("position", "angle", "velocity", "omega")
 
 
 def _sign(mb: Multibody, kinematics: Kinematics) -> dict[str, tuple[int, float]]:
@@ -100,50 +86,58 @@ def _inputs(kinematics: Kinematics, frames) -> tuple[np.ndarray, np.ndarray]:
     return np.array(values), np.array(rates)
 
 
-def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, series: Series, per: int):
-    """One run: (row, Trajectory or None)."""
+def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
+    """The ladder: residual threshold 0 (the solver iterates its 50 sweeps; the free
+    mode's "best") at 25, 50 and 100 steps per sample, compared; PyBullet's defaults at
+    the finest."""
+    interval = problem.interval
+    return tuple(
+        Series(name, setting.integrator, setting, timestep=interval / per, rungs=rungs)
+        for name, setting, per, rungs in (("best", Setting(50, 0.0), 25, 3), ("default", Setting(50), 100, 1))
+    )
+
+
+def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
+    """The mechanism with unit masses where it has none, built once to refuse what the
+    multibody cannot hold.
+
+    Raises
+    ------
+    NotApplicable
+        What :func:`.model.build` cannot hold.
+    """
+    massive = Kinematics(with_unit_mass(problem.kinematics.mechanism))
+    client = p.connect(p.DIRECT)
+    try:
+        build(massive, client)
+    finally:
+        p.disconnect(client)
+    return massive
+
+
+def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) -> Run:
+    """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`): the
+    motors held on the laws' value and rate at each step's end."""
+    kinematics = problem.kinematics
     mech = kinematics.mechanism
-    duration = window.duration
-    dt = duration / (SAMPLES * per)
-    setting: Setting = series.options
-    row = {
-        "setting": series.setting,
-        "integrator": series.integrator,
-        "timestep": dt,
-        "status": "ok",
-    }
+    setting: Setting = rung.series.options
+    dt, per, samples = rung.timestep, rung.counts[0], problem.samples
+    times = problem.times
     moving = [b.name for b in mech.moving_bodies]
-    bodies, points, inputs, rates, gaps = empty_states(mech, SAMPLES, _ERRORS)
-    begin = time.process_time()
+    bodies, points, inputs, rates, gaps = empty_states(mech, samples, QUANTITIES)
     client = p.connect(p.DIRECT)
     try:
         mb = build(massive, client)
         setting.apply(client, dt)
         p.setGravity(float(mech.gravity[0]), float(mech.gravity[1]), 0.0, physicsClientId=client)
-        set_state(mb, massive, q0, qd0)
+        set_state(mb, massive, problem.start.q[0], problem.start.qd[0])
         motors = _sign(mb, kinematics)
         laws = [(motors[d.name], d.law) for d in mech.drivers]
-        for n in range(SAMPLES * per):
-            t_next = (n + 1) * dt
-            for (link, sign), law in laws:
-                value, rate, _ = (float(v) for v in law.at_time(t_next))
-                p.setJointMotorControl2(
-                    mb.uid,
-                    link,
-                    p.POSITION_CONTROL,
-                    targetPosition=sign * value,
-                    targetVelocity=sign * rate,
-                    force=MOTOR_FORCE,
-                    physicsClientId=client,
-                )
-            p.stepSimulation(physicsClientId=client)
-            if (n + 1) % per:
-                continue
-            j = (n + 1) // per - 1
+
+        def record(j: int) -> str:
             frames = mb.frames()
             if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
-                row["status"] = f"went non-finite at t = {t_next:.6g} s"
-                break
+                return f"went non-finite at t = {times[j]:.6g} s"
             for name in moving:
                 origin, phi, v_com, omega, com = frames[name]
                 arm = origin - com
@@ -158,69 +152,39 @@ def _simulate(kinematics: Kinematics, massive: Kinematics, window, q0, qd0, seri
                 points[label]["velocity"][j] = velocity(frames, owner, local)
             inputs[j], rates[j] = _inputs(kinematics, frames)
             gaps[j] = loop_gap(frames, mb.cuts)
+            return problem.came_apart(float(times[j]), float(gaps[j]))
+
+        failure, reached = "", 0
+        for n in range(samples * per):
+            if failure:
+                break
+            t_next = (n + 1) * dt
+            for (link, sign), law in laws:
+                value, rate, _ = (float(v) for v in law.at_time(t_next))
+                p.setJointMotorControl2(
+                    mb.uid,
+                    link,
+                    p.POSITION_CONTROL,
+                    targetPosition=sign * value,
+                    targetVelocity=sign * rate,
+                    force=MOTOR_FORCE,
+                    physicsClientId=client,
+                )
+            p.stepSimulation(physicsClientId=client)
+            if not (n + 1) % per:
+                j = (n + 1) // per - 1
+                failure = record(j)
+                reached = j + (0 if failure.startswith("went non-finite") else 1)
     finally:
         p.disconnect(client)
-    row["cpu_seconds"] = time.process_time() - begin
-    if row["status"] != "ok":
-        return row, None
-    times = window.times(SAMPLES + 1)[1:]
-    accelerations = np.stack([d.law.at_time(times)[2] for d in mech.drivers], axis=1)
-    trajectory = Trajectory(
-        MODE,
-        inputs,
-        rates,
-        accelerations,
-        bodies,
-        points,
-        times,
-        {"integrator": row["integrator"], "timestep": dt, "series": series.key, "steps_per_sample": per},
-        diagnostics={"input_error": inputs - window.inputs(kinematics, times)[0], "constraint_violation": gaps},
-        notes=f"PyBullet driven dynamics, {row['integrator']}, dt = {dt:.4g} s; inputs as PyBullet realised them "
-        "(input accelerations: the motion laws'; PyBullet gives no accelerations).",
+    settings = {
+        "integrator": rung.series.integrator,
+        "timestep": dt,
+        "series": rung.series.key,
+        "steps_per_sample": per,
+    }
+    notes = (
+        f"PyBullet driven dynamics, {rung.series.integrator}, dt = {dt:.4g} s; inputs as PyBullet realised "
+        "them (input accelerations: the motion laws'; PyBullet gives no accelerations)."
     )
-    return row, trajectory
-
-
-def run_dynamic(kinematics: Kinematics, branch: str | None = None, refine: int = 0) -> ModeResult:
-    """Simulate the driven mechanism in PyBullet at :data:`SETTINGS` x
-    :data:`STEPS_PER_SAMPLE` and compare each run with the native solution;
-    ``refine`` k > 0 runs only the first setting at 2^k times its finest step
-    count (:meth:`xcheck.engines.Engine.run`).
-
-    Returns
-    -------
-    ModeResult
-        ``trajectories``: the runs that went through, the finest of the first
-        setting first; ``summary``: per run setting, timestep (s), status,
-        cpu_seconds, the largest errors (position m, angle rad; velocity, omega
-        relative to the native magnitude), input_error (the motor's lag behind the
-        law, SI) and loop_gap (m); ``study``: :func:`~xcheck.results.convergence_study`
-        of the position error.
-
-    Raises
-    ------
-    NotApplicable
-        What :func:`.free.build` cannot hold.
-    """
-    mech = kinematics.mechanism
-    massive = Kinematics(with_unit_mass(mech))
-    client = p.connect(p.DIRECT)
-    try:
-        build(massive, client)  # refuses what it cannot hold before any run
-    finally:
-        p.disconnect(client)
-    try:
-        window = simulation_window(kinematics, branch)
-        q, qd, qdd = window.inputs(kinematics, np.zeros(1))
-        start = kinematics.solve(q, qd, qdd, branch=branch)
-        if start.status[0] > Status.NEAR_SINGULAR:
-            raise ValueError("the native solver does not assemble the mechanism at t = 0")
-        runs = [
-            _simulate(kinematics, massive, window, start.q[0], start.qd[0], setting, per)
-            for setting, per in ladder(SETTINGS, STEPS_PER_SAMPLE, refine)
-        ]
-    except NotApplicable:
-        raise
-    except Exception as error:  # noqa: BLE001 - a failed mode is data, reported in one line
-        return ModeResult(MODE, mech.name, False, f"{MODE}: {type(error).__name__}: {error}".splitlines()[0])
-    return driven_result(MODE, kinematics, runs, _ERRORS, branch)
+    return driven_run(MODE, mech, times, (bodies, points, inputs, rates, gaps), reached, failure, settings, notes)

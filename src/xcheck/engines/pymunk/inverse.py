@@ -31,9 +31,9 @@ import numpy as np
 import pymunk as pm
 
 from xcheck.dynamics import Forces
-from xcheck.engines._driven import branch_gap_status
 from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import Kinematics
+from xcheck.ladder import off_branch
 
 from .scene import build_scene, native_window
 
@@ -156,9 +156,7 @@ def inverse_forces(
     forces = np.array([(recorded[int(n)][2] + recorded[int(n) + 1][2]) / (2.0 * dt) for n in sample_steps])
     gaps = np.array([recorded[int(n)][3] for n in sample_steps])
     points = {label: np.array([recorded[int(n)][4][i] for n in sample_steps]) for i, (_, label) in enumerate(owners)}
-    left = branch_gap_status(
-        kinematics, kinematics.solve(inputs, rates, branch=branch), points, sample_steps * dt, "pymunk"
-    )
+    left = off_branch(kinematics, kinematics.solve(inputs, rates, branch=branch), points, sample_steps * dt)
     if left:  # its forces would be the other branch's, not an error in them
         raise ValueError(f"the pymunk scene {left}")
     joints: dict = {j.name: {} for j in mech.joints}
