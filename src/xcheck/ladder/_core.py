@@ -9,6 +9,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ..errors import NotApplicable, XcheckError
 from ..results import Trajectory
 
@@ -243,6 +245,48 @@ def run_rungs(call: Callable[[Rung], Run], rungs: Sequence[Rung]) -> list[Run]:
             run.cpu_seconds = time.process_time() - begin
         runs.append(run)
     return runs
+
+
+def ladder_row(rung: Rung, run: Run, measured: dict, titles: str) -> dict:
+    """A run's row before it is judged, the same for every ladder: what names the run
+    (setting, series, integrator, timestep in s, steps), its status (the run's
+    failure, else "ok"), the ``measured`` columns as given (NaN until judged) and
+    ``titles``, the findings that apply (its ``finding`` column)."""
+    series = rung.series
+    return {
+        "setting": series.setting,
+        "series": series.key,
+        "integrator": series.integrator,
+        "timestep": rung.timestep,
+        "steps": int(sum(rung.counts)),
+        "status": run.failure or "ok",
+        **measured,
+        "finding": titles,
+    }
+
+
+def reached(row: dict, run: Run, expected: int, nothing: str) -> np.ndarray | None:
+    """The times (s) of the samples ``run`` reached, to be judged; None where it reached
+    none (its ``row``'s status then says ``nothing``, where the run stated no failure,
+    and takes the run's own columns). A run that stopped short of the ``expected``
+    samples without a stated failure has the time it stopped as its status."""
+    trajectory = run.trajectory
+    if trajectory is None or trajectory.times is None or not len(trajectory.times):
+        if row["status"] == "ok":
+            row["status"] = nothing
+        row.update(run.columns)
+        return None
+    times = np.asarray(trajectory.times, dtype=float)
+    if len(times) < expected and row["status"] == "ok":
+        row["status"] = f"stopped at t = {times[-1]:.6g} s"
+    return times
+
+
+def loop_drift(trajectory: Trajectory) -> float:
+    """The widest the loops opened over a run (its ``constraint_violation``
+    diagnostic), in the mechanism's length unit; NaN where the engine gives none."""
+    gaps = trajectory.diagnostics.get("constraint_violation")
+    return float(np.max(gaps)) if gaps is not None and len(gaps) else math.nan
 
 
 def conservative(mechanism: Mechanism) -> bool:

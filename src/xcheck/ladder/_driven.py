@@ -13,7 +13,20 @@ import numpy as np
 
 from ..errors import NotApplicable
 from ..results import BODY_QUANTITIES, ModeResult, Trajectory
-from ._core import APART, Finding, Run, Rung, Series, came_apart, finding_titles, one_line, run_rungs
+from ._core import (
+    APART,
+    Finding,
+    Run,
+    Rung,
+    Series,
+    came_apart,
+    finding_titles,
+    ladder_row,
+    loop_drift,
+    one_line,
+    reached,
+    run_rungs,
+)
 from ._study import ladder_result
 
 if TYPE_CHECKING:
@@ -143,31 +156,19 @@ def _driven_row(problem: DrivenProblem, rung: Rung, run: Run, titles: str) -> tu
     from ..results import differences, native_at
 
     kinematics, branch = problem.kinematics, problem.branch
-    series = rung.series
-    row: dict = {
-        "setting": series.setting,
-        "series": series.key,
-        "integrator": series.integrator,
-        "timestep": rung.timestep,
-        "steps": int(sum(rung.counts)),
-        "status": run.failure or "ok",
+    measured = {
         **{column: math.nan for column in _ERRORS},
         "order": math.nan,
         "loop_drift": math.nan,
         "input_error": math.nan,
         "simulated": 0.0,
         "cpu_seconds": run.cpu_seconds,
-        "finding": titles,
     }
+    row = ladder_row(rung, run, measured, titles)
+    times = reached(row, run, len(problem.times), "no sample reached")
     trajectory = run.trajectory
-    if trajectory is None or trajectory.times is None or not len(trajectory.times):
-        if row["status"] == "ok":
-            row["status"] = "no sample reached"
-        row.update(run.columns)
+    if times is None or trajectory is None:
         return row, None
-    times = np.asarray(trajectory.times, dtype=float)
-    if len(times) < len(problem.times) and row["status"] == "ok":
-        row["status"] = f"stopped at t = {times[-1]:.6g} s"
     row["simulated"] = float(times[-1])
     native = native_at(kinematics, trajectory, branch)
     good = native.status <= Status.NEAR_SINGULAR
@@ -182,9 +183,7 @@ def _driven_row(problem: DrivenProblem, rung: Rung, run: Run, titles: str) -> tu
         errors = [_worst(table, quantity, kind) for quantity in quantities]
         if any(math.isfinite(e) for e in errors):
             row[column] = max(e for e in errors if math.isfinite(e))
-    diagnostics = trajectory.diagnostics
-    if "constraint_violation" in diagnostics and len(diagnostics["constraint_violation"]):
-        row["loop_drift"] = float(np.max(diagnostics["constraint_violation"]))
+    row["loop_drift"] = loop_drift(trajectory)
     if trajectory.inputs.size:
         law = problem.window.inputs(kinematics, times)[0]
         row["input_error"] = float(np.max(np.abs(np.asarray(trajectory.inputs) - law)))

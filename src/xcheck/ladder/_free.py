@@ -21,7 +21,10 @@ from ._core import (
     came_apart,
     conservative,
     finding_titles,
+    ladder_row,
+    loop_drift,
     one_line,
+    reached,
     run_rungs,
 )
 from ._study import ladder_result
@@ -234,14 +237,7 @@ def out_of_phase(reference: FreeReference, trajectory: Trajectory, limit: float)
 def _free_row(problem: FreeProblem, rung: Rung, run: Run, titles: str) -> tuple[dict, Trajectory | None]:
     """A free run judged: (its row, its trajectory where it counts, else None)."""
     mech = problem.kinematics.mechanism
-    series = rung.series
-    row: dict = {
-        "setting": series.setting,
-        "series": series.key,
-        "integrator": series.integrator,
-        "timestep": rung.timestep,
-        "steps": int(sum(rung.counts)),
-        "status": run.failure or "ok",
+    measured = {
         "phase": "",
         "position_error": math.nan,
         "final_error": math.nan,
@@ -252,25 +248,20 @@ def _free_row(problem: FreeProblem, rung: Rung, run: Run, titles: str) -> tuple[
         "simulated": 0.0,
         "cpu_seconds": run.cpu_seconds,
         "cpu_per_simulated_second": math.nan,
-        "finding": titles,
     }
+    row = ladder_row(rung, run, measured, titles)
+    times = reached(row, run, len(problem.index), "no output reached")
     trajectory = run.trajectory
-    if trajectory is None or trajectory.times is None or not len(trajectory.times):
-        if row["status"] == "ok":
-            row["status"] = "no output reached"
-        row.update(run.columns)
+    if times is None or trajectory is None:
         return row, None
-    if len(trajectory.times) < len(problem.index) and row["status"] == "ok":
-        row["status"] = f"stopped at t = {float(trajectory.times[-1]):.6g} s"
-    simulated = float(trajectory.times[-1] - trajectory.times[0])
+    simulated = float(times[-1] - times[0])
     row["simulated"] = simulated
     if simulated > 0.0:
         row["cpu_per_simulated_second"] = run.cpu_seconds / simulated
     errors = free_errors(problem.reference, trajectory)
     row.update({key: errors[key] for key in ("position_error", "final_error", "angle_error")})
+    row["loop_drift"] = loop_drift(trajectory)
     diagnostics = trajectory.diagnostics
-    if "constraint_violation" in diagnostics and len(diagnostics["constraint_violation"]):
-        row["loop_drift"] = float(np.max(diagnostics["constraint_violation"]))
     if diagnostics.get("energy") is not None and conservative(mech):
         energy = np.asarray(diagnostics["energy"], dtype=float)
         row["energy_drift"] = float(np.max(np.abs(energy - energy[0])))
