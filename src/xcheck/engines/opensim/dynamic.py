@@ -27,11 +27,10 @@ import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
 from xcheck.engines._frames import driven_run, empty_states, loop_gap
-from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
 
-from .model import OpenSimModel, build, opensim
+from .model import OpenSimModel, build, opensim, opensim_tree
 
 __all__ = [
     "INTEGRATOR",
@@ -82,11 +81,11 @@ def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
     Raises
     ------
     NotApplicable
-        What :func:`xcheck.engines._tree.tree_frames` and :func:`.model.build` cannot hold.
+        What :func:`.model.opensim_tree` and :func:`.model.build` cannot hold.
     """
     opensim()
     mech = problem.kinematics.mechanism
-    tree_frames(mech, problem.start.q[0], "OpenSim")
+    opensim_tree(mech, problem.start.q[0])
     return Kinematics(dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=()))
 
 
@@ -97,7 +96,7 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
     mech = problem.kinematics.mechanism
     dt, per, samples, times = rung.timestep, rung.counts[0], problem.samples, problem.times
     q0, qd0 = problem.start.q[0], problem.start.qd[0]
-    signs = tree_frames(mech, q0, "OpenSim").driver_signs(mech)
+    signs = opensim_tree(mech, q0).driver_signs(mech)
     functions = {name: law_function(d.law, sign) for (name, sign), d in zip(signs, mech.drivers)}
     om: OpenSimModel = build(massive.mechanism, q0, qd0, prescribed=functions)
     model = om.model

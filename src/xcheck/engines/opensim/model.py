@@ -12,7 +12,7 @@ the model's; a linear spring without damping is a ``PointToPointSpring``.
 Each tree joint is converted by the converter of its type. Not converted
 (:class:`~xcheck.engines.NotApplicable`): pin-in-slot joints and loops cut at a
 prismatic joint (:func:`~xcheck.engines._tree.tree_frames`), dampers,
-rotational springs and loads (not built here); gear pairs in the driven mode.
+rotational springs and loads (not built here).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from xcheck.engines._tree import TreeFrames, tree_frames
 from xcheck.joints import Prismatic, Revolute, converter
 from xcheck.model import GROUND, Mechanism
 
-__all__ = ["OpenSimModel", "build", "opensim", "refuse"]
+__all__ = ["OpenSimModel", "build", "opensim", "opensim_tree", "refuse"]
 
 #: each tree joint type's OpenSim joint class (from the module): a turn about the frames' z, a slide along their x
 _JOINTS: dict[type, Callable[[Any], Any]] = {
@@ -65,6 +65,12 @@ def refuse(mech: Mechanism) -> None:
         raise NotApplicable(
             f"spring {damped[0].name!r} has damping: OpenSim's PointToPointSpring has none (not built here)"
         )
+
+
+def opensim_tree(mech: Mechanism, q: np.ndarray) -> TreeFrames:
+    """The mechanism's tree as OpenSim's model holds it (:func:`~xcheck.engines._tree.tree_frames`,
+    its gear pairs coupled), zeroed at native body coordinates ``q``."""
+    return tree_frames(mech, q, "OpenSim", couplings=True)
 
 
 def component_name(name: str, index: int) -> str:
@@ -128,7 +134,7 @@ def build(
     osim = opensim()
     require_mass_data(mech)
     refuse(mech)
-    tree = tree_frames(mech, q, "OpenSim", couplings=True)
+    tree = opensim_tree(mech, q)
     model = osim.Model()
     model.setName(component_name(mech.name, 0))
     gravity = np.asarray(mech.gravity, dtype=float)
