@@ -179,6 +179,18 @@ class Rung:
     counts: tuple[int, ...] = ()
     misfit: str = ""
 
+    @property
+    def settings(self) -> dict:
+        """What every run's trajectory states of its settings: setting, integrator,
+        timestep (s) and series (:attr:`Series.key`, what makes the runs of one ladder)."""
+        series = self.series
+        return {
+            "setting": series.setting,
+            "integrator": series.integrator,
+            "timestep": self.timestep,
+            "series": series.key,
+        }
+
 
 @dataclass
 class Run:

@@ -57,11 +57,6 @@ def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
         for _ in range(count):
             model.world.step()
         failure = record(j)
-    settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
-    }
+    settings = rung.settings
     notes = f"DART free motion, {rung.series.integrator}, dt = {dt:g} s."
     return Run(recorder.trajectory(MODE, settings, notes), failure)

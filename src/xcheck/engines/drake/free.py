@@ -110,11 +110,6 @@ def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
             simulator.AdvanceTo((n - 0.5) * dt)
         done = n
         failure = record(j)
-    settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
-    }
+    settings = rung.settings
     notes = f"Drake free motion, {rung.series.integrator}, dt = {dt:g} s."
     return Run(recorder.trajectory(MODE, settings, notes), failure)

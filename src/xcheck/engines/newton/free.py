@@ -88,11 +88,6 @@ def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
             state, next_state = next_state, state
         frames = built.frames(state, frames)
         failure = recorder.record(frames, j)
-    settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
-    }
+    settings = rung.settings
     notes = f"Newton free motion, {rung.series.integrator}, dt = {dt:g} s."
     return Run(recorder.trajectory(MODE, settings, notes), failure)

@@ -115,10 +115,7 @@ def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
             break
         failure = record(j, state)
     settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
+        **rung.settings,
         "accuracy": math.nan if setting.fixed else accuracy(dt),
     }
     notes = f"OpenSim free motion, {rung.series.integrator}, dt = {dt:g} s."

@@ -93,10 +93,7 @@ def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
     finally:
         p.disconnect(client)
     settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
+        **rung.settings,
         "iterations": setting.iterations,
         "residual": setting.residual,
         "erp": setting.erp,

@@ -67,10 +67,7 @@ def run_free_once(start, problem: FreeProblem, rung: Rung) -> Run:
             n += 1
         failure = recorder.record(frames(), j)
     settings = {
-        "setting": rung.series.setting,
-        "integrator": rung.series.integrator,
-        "timestep": dt,
-        "series": rung.series.key,
+        **rung.settings,
         "iterations": setting.iterations,
         "error_bias": setting.error_bias,
     }
