@@ -11,7 +11,9 @@ here the native solution is the reference every mode is compared with.
 from __future__ import annotations
 
 import json
+import re
 
+import numpy as np
 import pytest
 from conftest import DATA, invoke
 
@@ -49,6 +51,24 @@ def test_a_planet_inside_a_fixed_ring_in_pymunk_and_exudyn():
     assert verdicts == dict.fromkeys(("native", "pymunk-dynamic", "exudyn-dynamic"), "pass")
     assert summary["energy"]["passed"] and summary["energy"]["scale"] > 1e-3, summary["energy"]
     assert summary["verdict"] == "pass"
+
+
+def test_pymunk_on_the_fixed_sun_train_within_the_round_off_of_its_angles():
+    """The planet turns through up to 19 rad: pymunk's full error correction puts
+    its angle's round-off into its angular velocity over the time step, and the
+    central difference of those into its acceleration over the step squared
+    (measured exactly a unit in the last place of the angle over 2 dt^2). Its
+    angular acceleration is judged above that floor, eps x 19 / (rate x dt)^2,
+    not the fixed 1e-9 (it failed there, its error growing as dt fell)."""
+    pytest.importorskip("pymunk")
+    summary = run("planetary-fixed-sun", "native,pymunk-dynamic")
+    pymunk = summary["engines"]["pymunk-dynamic"]
+    assert pymunk["verdict"] == "pass", pymunk
+    alpha = pymunk["convergence"]["alpha"]
+    floor = float(np.finfo(float).eps) * 6 * np.pi / (summary["scale_floors"]["rate"] * alpha["step"]) ** 2
+    stated = float(re.search(r"noise floor of ([0-9.e+-]+)\)", alpha["basis"]).group(1))
+    assert stated == pytest.approx(floor, rel=1e-3) and 1e-9 < stated < 1e-7, alpha["basis"]
+    assert pymunk["relative"]["alpha"] <= pymunk["tolerance"]["alpha"]
 
 
 def test_a_geared_fivebar_in_pybullet():

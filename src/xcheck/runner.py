@@ -478,6 +478,19 @@ def _step_and_series(trajectory: Trajectory) -> tuple[float, str]:
     return float(settings.get("timestep", math.nan)), str(settings.get("series", ""))
 
 
+def _coordinate_extent(trajectory: Trajectory, size: float) -> float:
+    """The largest coordinate of a trajectory: its bodies' angles (rad) and its
+    bodies' and points' positions (of the ``size``, m), in absolute value; 0 where
+    it has none."""
+    parts = [np.abs(np.asarray(b["angle"], float)).ravel() for b in trajectory.bodies.values() if "angle" in b]
+    parts += [
+        np.abs(np.asarray(x["position"], float)).ravel() / size
+        for x in (*trajectory.bodies.values(), *trajectory.points.values())
+        if "position" in x
+    ]
+    return float(np.nanmax(np.concatenate(parts), initial=0.0)) if parts else 0.0
+
+
 def _convergence_verdict(
     kinematics: Kinematics,
     mode: str,
@@ -512,6 +525,7 @@ def _convergence_verdict(
         coarse_step = _step_and_series(coarse)[0]
         table = _categorise(kinematics, differences(kinematics, coarse, branch=branch, floors=floors), tolerance)
         coarse_errors = dict(zip(table.category, table.relative))
+    extent = _coordinate_extent(compared, floors["size"])
     categories = categories.copy()
     for column in ("expected_order", "observed_order", "coarse_error", "coarse_step", "step", "estimate"):
         categories[column] = math.nan
@@ -523,7 +537,7 @@ def _convergence_verdict(
             continue
         fine = float(row.relative)
         coarse_error = float(coarse_errors.get(row.category, math.nan))
-        round_off = convergence_round_off(row.category)
+        round_off = convergence_round_off(row.category, step, extent, floors["rate"])
         limit = convergence_limit(coarse_error, coarse_step, step, order, round_off)
         estimate = coarse_error * (step / coarse_step) ** order if math.isfinite(coarse_error) else math.nan
         observed = observed_order(coarse_error, fine, coarse_step, step)

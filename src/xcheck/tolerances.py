@@ -170,14 +170,28 @@ CONVERGENCE_NOTE = (
 )
 
 
-def convergence_round_off(category: str) -> float:
-    """Errors at or below an engine's round-off bound per category (the bound
-    its own kinematics must meet, :data:`ROUND_OFF`: 1e-10 of the size or rad,
-    1e-9 relative for rates) show no order: there the error is the engine's
-    solver noise, not truncation; differenced over +-h it even grows as h
-    falls (pymunk's accelerations on an all-sliding wedge: 4.4e-11 at h = 2.5
-    ms, 5.3e-10 at 1.25 ms)."""
-    return ROUND_OFF.limit(category)
+def convergence_round_off(category: str, step: float = math.inf, extent: float = 0.0, rate: float = 1.0) -> float:
+    """The noise floor below which a dynamic mode's error in ``category``
+    shows no order: there the error is the engine's round-off, not truncation.
+
+    At least the bound an engine's own kinematics must meet (:data:`ROUND_OFF`:
+    1e-10 of the size or rad, 1e-9 relative for rates). A run that holds its
+    constraints on positions at every time step ``step`` (s) carries its
+    coordinates' round-off, eps x ``extent`` (the largest coordinate, rad or of
+    the size), into its velocities over the step and into its accelerations
+    over the step squared: relative to the rate scale ``rate`` (1/s), eps
+    extent / (rate step) and eps extent / (rate step)^2, which grow as the step
+    falls (pymunk's planet on tests/data/planetary-fixed-sun.toml, full error
+    correction: its angular velocity off by a unit in the last place of its
+    angle over the step, its acceleration, differenced over +-step, by exactly
+    that over 2 step^2, 1.0e-7 .. 8.2e-7 rad/s^2 for angles of 2 .. 32 rad at
+    4.6e-5 s).
+    """
+    fixed = ROUND_OFF.limit(category)
+    power = {"velocity": 1, "omega": 1, "acceleration": 2, "alpha": 2}.get(category, 0)
+    if not power or not (step > 0.0 and rate > 0.0):
+        return fixed
+    return max(fixed, float(np.finfo(float).eps) * extent / (rate * step) ** power)
 
 
 #: a free-motion mode: a benchmark against the native reference, no verdict
