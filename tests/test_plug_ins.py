@@ -238,6 +238,20 @@ def test_a_real_ctrl_c_while_a_plug_in_hangs_still_stops_xcheck(tmp_path):
     assert run.returncode == 130 and "Traceback" not in stderr
 
 
+def test_a_ctrl_c_the_kernel_hands_to_the_plug_ins_thread_still_stops_xcheck_at_once(tmp_path):
+    """A process-wide SIGINT may be delivered to any thread; the plug-in's thread
+    taking it (here it sends it to itself) must not leave the main thread waiting
+    out the import's timeout (300 s) before it stops."""
+    site = _site(tmp_path)
+    kill = "signal.pthread_kill(threading.get_ident(), signal.SIGINT)"
+    body = f"import signal, threading, time\n{kill}\ntime.sleep(600)\n"
+    install_plug_in(site, "xcheck_plug_taken", body, "[xcheck.engines]\ntaken = xcheck_plug_taken:X\n")
+    start = time.monotonic()
+    result = _xcheck(site, "engines", timeout=60.0, **{_registry.TIMEOUT_ENV: "300"})
+    assert time.monotonic() - start < 30
+    assert result.returncode == 130 and "Traceback" not in result.stderr
+
+
 def test_naming_a_plug_in_that_could_not_load_says_why(tmp_path):
     site = _site(tmp_path, "exit3")
     result = _xcheck(site, "run", str(MODELS / "fourbar.toml"), "--engines", "exit3", "--no-report")

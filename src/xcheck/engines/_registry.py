@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import time
 from pathlib import Path
 
 from ._contract import KINDS, Engine, Mode
@@ -156,7 +157,11 @@ def _load_plug_in(point, timeout: float) -> Engine:
 
     worker = threading.Thread(target=load, name=f"xcheck plug-in {point.name}", daemon=True)
     worker.start()
-    worker.join(timeout)
+    # joined in short slices: the kernel may hand a Ctrl-C to the plug-in's thread,
+    # and the main thread, blocked in one long join, would not raise it until the timeout
+    deadline = time.monotonic() + timeout
+    while worker.is_alive() and time.monotonic() < deadline:
+        worker.join(min(0.05, max(0.0, deadline - time.monotonic())))
     if worker.is_alive():
         _interrupt(worker)
         raise _NotLoaded(f"its import did not finish within {timeout:g} s (${TIMEOUT_ENV} sets the limit)")
