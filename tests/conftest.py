@@ -126,6 +126,16 @@ def kinematics():
     return get
 
 
+def ctrl_c_as_at_a_terminal() -> None:
+    """A ``preexec_fn`` for a child the test will interrupt: SIGINT's default
+    action, as a shell gives a foreground job. A child inherits an ignored
+    SIGINT (a test run started in the background by a non-interactive shell),
+    and Python then installs no KeyboardInterrupt handler at all."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def invoke(*args: str, cwd: Path = ROOT, unset: tuple[str, ...] = ("XCHECK_MODELS", "XCHECK_COMPARISONS")):
     """Run the command line in this process (typer's CliRunner), from ``cwd``
     and without the environment variables ``unset``, as a

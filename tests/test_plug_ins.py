@@ -18,7 +18,7 @@ import uuid
 from importlib import metadata
 
 import pytest
-from conftest import MODELS, ROOT, install_plug_in
+from conftest import MODELS, ROOT, ctrl_c_as_at_a_terminal, install_plug_in
 
 from xcheck.engines import _registry
 
@@ -111,7 +111,12 @@ def _xcheck(site, *args, timeout: float = 120.0, **env):
         **env,
     }
     return subprocess.run(
-        [sys.executable, "-m", "xcheck", *args], env=environment, capture_output=True, text=True, timeout=timeout
+        [sys.executable, "-m", "xcheck", *args],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        preexec_fn=ctrl_c_as_at_a_terminal,
     )
 
 
@@ -220,7 +225,12 @@ def test_a_real_ctrl_c_while_a_plug_in_hangs_still_stops_xcheck(tmp_path):
         _registry.TIMEOUT_ENV: "300",
     }
     run = subprocess.Popen(
-        [sys.executable, "-m", "xcheck", "engines"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [sys.executable, "-m", "xcheck", "engines"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=ctrl_c_as_at_a_terminal,
     )
     try:
         deadline = time.monotonic() + 60

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import MODELS, invoke
+from conftest import MODELS, ctrl_c_as_at_a_terminal, invoke
 
 SMALL = ("fourbar", "slider-crank", "two-body-arm")
 
@@ -272,6 +272,7 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     run = subprocess.Popen(
         command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True,  # its own process group, as a shell gives a foreground job
+        preexec_fn=ctrl_c_as_at_a_terminal,
     )  # fmt: skip
     try:
         deadline = time.monotonic() + 300
