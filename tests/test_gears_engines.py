@@ -67,7 +67,7 @@ def test_pymunk_on_the_fixed_sun_train_within_the_round_off_of_its_angles():
     alpha = pymunk["convergence"]["alpha"]
     floor = float(np.finfo(float).eps) * 6 * np.pi / (summary["scale_floors"]["rate"] * alpha["step"]) ** 2
     stated = float(re.search(r"noise floor of ([0-9.e+-]+)\)", alpha["basis"]).group(1))
-    assert stated == pytest.approx(floor, rel=1e-3) and 1e-9 < stated < 1e-7, alpha["basis"]
+    assert stated == pytest.approx(floor, rel=5e-3) and 1e-9 < stated < 1e-7, alpha["basis"]  # shown to 3 digits
     assert pymunk["relative"]["alpha"] <= pymunk["tolerance"]["alpha"]
 
 

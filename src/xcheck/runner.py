@@ -549,7 +549,7 @@ def _convergence_verdict(
         if by_order or (coarse is not None and fine > round_off):
             basis = (
                 f"observed order {observed:.3g} (expected {order:g}; accepted: the error falls at least at "
-                f"order {order - ORDER_MARGIN:g} above a noise floor of {round_off:g}) " + ladder
+                f"order {order - ORDER_MARGIN:g} above a noise floor of {round_off:.3g}) " + ladder
             )
         elif fine <= round_off:
             basis = f"within the engine's round-off bound ({fine:.2g} <= {round_off:g}), where no order shows" + (
