@@ -45,7 +45,10 @@ def reduced_theta(k: float, times: np.ndarray) -> np.ndarray:
     return np.array([float(solution(mp.mpf(float(t)))[0]) for t in times])
 
 
-def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
+def _released(name: str, goal: str):
+    """The benchmark's mechanism released (its CPU printed with the goal): the
+    kinematics, the start, the free-motion spec, the size (m) and the cranks'
+    angle columns."""
     begin = time.process_time()
     kin = Kinematics(load_mechanism(ROOT / "models" / "benchmarks" / f"{name}.toml"))
     kin.assemble()
@@ -56,6 +59,11 @@ def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
     size = kin.system.size
     cranks = [3 * i + 2 for i, body in enumerate(kin.mechanism.moving_bodies) if body.name.startswith("crank")]
     print(f"{name}: {kin.system.n} coordinates, {spec.duration:g} s; release {release:.2f} CPU s; goal: {goal}")
+    return kin, start, spec, size, cranks
+
+
+def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
+    kin, start, spec, size, cranks = _released(name, goal)
     for tolerance in tolerances:
         tolerance = spec.tolerance if tolerance is None else tolerance
         begin = time.process_time()
@@ -78,16 +86,7 @@ def runs(name: str, k: float, tolerances: list[float], goal: str) -> None:
     from xcheck.dynamics._adaptive import simulate_adaptive
     from xcheck.dynamics._reference import difference
 
-    begin = time.process_time()
-    kin = Kinematics(load_mechanism(ROOT / "models" / "benchmarks" / f"{name}.toml"))
-    kin.assemble()
-    start = release_state(kin)
-    release = time.process_time() - begin
-    spec = kin.mechanism.free_motion
-    assert spec is not None
-    size = kin.system.size
-    cranks = [3 * i + 2 for i, body in enumerate(kin.mechanism.moving_bodies) if body.name.startswith("crank")]
-    print(f"{name}: {kin.system.n} coordinates, {spec.duration:g} s; release {release:.2f} CPU s; goal: {goal}")
+    kin, start, spec, size, cranks = _released(name, goal)
     previous, theta = None, None
     for tolerance in tolerances:
         begin = time.process_time()

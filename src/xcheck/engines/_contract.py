@@ -352,8 +352,7 @@ class Engine:
             What the engine cannot represent; any other exception fails the mode
             as a whole, its message the reason.
         """
-        module = importlib.import_module(self.implementation) if self.implementation else None
-        function = getattr(module, "prepare_dynamic", None)
+        function = self._optional_function("prepare_dynamic")
         return None if function is None else function(problem)
 
     def run_dynamic_once(self, mode: str, prepared: Any, problem: DrivenProblem, rung: Rung) -> Run:
@@ -427,8 +426,7 @@ class Engine:
             What the engine cannot represent; any other exception fails the mode
             as a whole, its message the reason.
         """
-        module = importlib.import_module(self.implementation) if self.implementation else None
-        function = getattr(module, "prepare_free", None)
+        function = self._optional_function("prepare_free")
         return None if function is None else function(problem)
 
     def run_free_once(self, mode: str, prepared: Any, problem: FreeProblem, rung: Rung) -> Run:
@@ -453,6 +451,11 @@ class Engine:
     def export_files(self, kinematics: Kinematics) -> dict[str, str]:
         """The engine's model files of a mechanism: ``{file name: text}``."""
         return self._function("export_files")(kinematics)
+
+    def _optional_function(self, name: str):
+        """A function of :attr:`implementation` (imported now), or None where it has none."""
+        module = importlib.import_module(self.implementation) if self.implementation else None
+        return getattr(module, name, None)
 
     def _function(self, name: str):
         """A function (or constant) of :attr:`implementation` (imported now)."""
