@@ -217,7 +217,7 @@ def drive_warnings(kinematics: Kinematics, branch: str | None = None) -> list[st
     the law reaches), so its results stand; what the file says would move the
     mechanism into a limit position, where a real one locks or breaks.
     """
-    from .output import range_text  # the display of a range, in the file's units
+    from .ranges import range_text  # the display of a range, in the file's units
 
     mech = kinematics.mechanism
     lines = []

@@ -14,6 +14,7 @@ from rich.text import Text
 
 from .kinematics import InputRange, Kinematics, Solution, Status
 from .precision import shown
+from .ranges import range_text
 
 __all__ = [
     "mode_trust",
@@ -26,7 +27,6 @@ __all__ = [
     "print_run_totals",
     "solution_json",
     "print_solution",
-    "range_text",
     "wide_console",
     "textbook_json",
     "print_textbook",
@@ -190,14 +190,6 @@ def solution_json(solution: Solution, labels: list[str] | None = None, forces=No
     }
 
 
-def _inward(value: float, up: bool, digits: int = 6) -> float:
-    """``value`` rounded to ``digits`` significant digits towards the inside of a range."""
-    if value == 0.0 or not math.isfinite(value):
-        return value
-    step = 10.0 ** (math.floor(math.log10(abs(value))) - digits + 1)
-    return (math.ceil(value / step) if up else math.floor(value / step)) * step
-
-
 def range_json(kin: Kinematics, rng: InputRange) -> dict:
     """A driver's feasible range for JSON: SI bounds (rad or m; null where a
     crank turns round or a slide met no limit within its search span) and the
@@ -212,25 +204,6 @@ def range_json(kin: Kinematics, rng: InputRange) -> dict:
         "full_turn": rng.full_turn and driver.quantity == "angle",
         "text": range_text(kin, rng),
     }
-
-
-def range_text(kin: Kinematics, rng: InputRange) -> str:
-    """A driver's feasible range in display units, e.g. ``crank: -129.022 … 129.022 deg``
-    (the ends rounded inwards, so every value shown is feasible)."""
-    units = kin.mechanism.units
-    driver = next(d for d in kin.mechanism.drivers if d.name == rng.driver)
-    if driver.quantity == "angle":
-        scale, unit = units.angle_factor, units.angle
-    else:
-        scale, unit = units.length_factor, units.length
-    if rng.full_turn and driver.quantity == "angle":
-        return f"{rng.driver}: full turn"
-    if rng.full_turn:  # a slide that met no limit position within its search span
-        ref = float(kin.reference_inputs()[[d.name for d in kin.mechanism.drivers].index(rng.driver)])
-        return f"{rng.driver}: no limit within {(ref - rng.span) / scale:.6g} … {(ref + rng.span) / scale:.6g} {unit}"
-    low = "-inf" if rng.low is None else f"{_inward(rng.low / scale, up=True):.6g}"
-    high = "+inf" if rng.high is None else f"{_inward(rng.high / scale, up=False):.6g}"
-    return f"{rng.driver}: {low} … {high} {unit}"
 
 
 def _fmt(value: float, digits: int = 6) -> str:

@@ -299,7 +299,7 @@ def check_ranges(kinematics: Kinematics, asked: Asked, branch: str | None = None
     InputError or ModelError
         The latter for a file's instant (naming ``instants[i].DRIVER``).
     """
-    from .output import range_text  # the display of a range, in the file's units
+    from .ranges import range_text  # the display of a range, in the file's units
 
     mech = kinematics.mechanism
     if len(mech.drivers) != 1:

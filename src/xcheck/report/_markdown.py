@@ -11,8 +11,8 @@ import numpy as np
 
 from .. import engines
 from ..kinematics import Status
-from ..output import range_text
 from ..precision import shown
+from ..ranges import range_text
 from ..runner import (
     CATEGORIES,
     RunResult,
