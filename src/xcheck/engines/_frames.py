@@ -14,7 +14,15 @@ from xcheck.ladder import FreeProblem, Run
 from xcheck.model import GROUND
 from xcheck.results import Trajectory
 
-__all__ = ["FrameRecorder", "driven_run", "empty_states", "loop_gap", "world_point"]
+__all__ = [
+    "FrameRecorder",
+    "driven_run",
+    "empty_states",
+    "loop_gap",
+    "native_point_state",
+    "point_velocity",
+    "world_point",
+]
 
 
 def world_point(frames, body: str, point: np.ndarray) -> np.ndarray:
@@ -27,6 +35,33 @@ def world_point(frames, body: str, point: np.ndarray) -> np.ndarray:
         return point
     origin, phi = frames[body][:2]
     return origin + rotate(phi, point)
+
+
+def point_velocity(frames, body: str, point: np.ndarray) -> np.ndarray:
+    """The velocity (2,), m/s, of a point fixed in ``body`` (local coordinates (2,), m):
+    v_origin + omega x (r - origin), ``frames`` mapping each moving body's name to its
+    origin, angle, origin velocity and rate as an engine reports them; the ground's
+    points stand still."""
+    if body == GROUND:
+        return np.zeros(2)
+    origin, _, velocity, omega = frames[body]
+    arm = world_point(frames, body, point) - origin
+    return velocity + omega * np.array([-arm[1], arm[0]])
+
+
+def native_point_state(
+    index, q: np.ndarray, qd: np.ndarray, body: str, point: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(position (2,), velocity (2,), angle, rate) of a point fixed in ``body`` (local
+    coordinates (2,), m; the body's origin without one) at native body coordinates ``q``
+    and rates ``qd`` (x, y, phi per moving body; ``index`` maps a body's name to the
+    position of its x); the ground's points stand still."""
+    if body == GROUND:
+        return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
+    k = index[body]
+    phi, omega = float(q[k + 2]), float(qd[k + 2])
+    arm = np.zeros(2) if point is None else rotate(phi, point)
+    return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
 
 
 def loop_gap(frames, cuts) -> float:

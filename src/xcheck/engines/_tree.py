@@ -16,12 +16,14 @@ the converter of its type (:func:`xcheck.joints.converter`).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from xcheck.engines._frames import native_point_state
 from xcheck.errors import NotApplicable
 from xcheck.joints import GearPair, Joint, Prismatic, Revolute, converter
 from xcheck.kinematics import rotate
@@ -101,14 +103,7 @@ class TreeFrames:
         and rates ``qd`` (x, y, phi per moving body in ``moving_bodies`` order)."""
         index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
 
-        def state(name: str, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
-            """(position (2,), velocity (2,), angle, rate) of a body point."""
-            if name == GROUND:
-                return point, np.zeros(2), 0.0, 0.0
-            k = index[name]
-            phi, omega = float(q[k + 2]), float(qd[k + 2])
-            arm = rotate(phi, point)
-            return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
+        state = functools.partial(native_point_state, index, q, qd)
 
         out = {}
         for joint in self.joints:

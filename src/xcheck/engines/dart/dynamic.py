@@ -27,11 +27,10 @@ import math
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, world_point
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
-from xcheck.model import GROUND
 
 from .model import DartModel, build
 
@@ -66,15 +65,6 @@ def _states(model: DartModel) -> dict[str, tuple]:
         omega = float(np.asarray(node.getAngularVelocity())[2])
         out[name] = (*frames[name], velocity, omega)
     return out
-
-
-def _velocity(states, name: str, point: np.ndarray) -> np.ndarray:
-    """Velocity of a body point, m/s: v_origin + w x (r - origin)."""
-    if name == GROUND:
-        return np.zeros(2)
-    origin, _, velocity, omega = states[name]
-    arm = world_point(states, name, point) - origin
-    return velocity + omega * np.array([-arm[1], arm[0]])
 
 
 def fitted_steps(steps, interval: float) -> tuple[int, ...]:
@@ -138,7 +128,7 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
             owner = mech.point_owners[label]
             local = np.asarray(mech.body(owner).points[label], dtype=float)
             points[label]["position"][j] = world_point(states, owner, local)
-            points[label]["velocity"][j] = _velocity(states, owner, local)
+            points[label]["velocity"][j] = point_velocity(states, owner, local)
         for k, joint in enumerate(joints):
             inputs[j, k] = start[k] + signs[k] * float(joint.getPosition(0))
             rates[j, k] = signs[k] * float(joint.getVelocity(0))

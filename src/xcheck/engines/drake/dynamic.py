@@ -35,10 +35,9 @@ import math
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, world_point
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DRIVEN_SAMPLES, DrivenProblem, Run, Rung, Series, came_apart
-from xcheck.model import GROUND
 from xcheck.motion import SimulationWindow
 from xcheck.topology import spanning_tree
 
@@ -103,15 +102,6 @@ def _coordinate(model: DrakeModel, child: str) -> tuple[float, float]:
     return float(joint.get_translation(context)), float(joint.get_translation_rate(context))
 
 
-def _velocity(frames, name: str, point: np.ndarray) -> np.ndarray:
-    """Velocity of a body point, m/s: v_origin + w x (r - origin)."""
-    if name == GROUND:
-        return np.zeros(2)
-    origin, _, velocity, omega = frames[name]
-    arm = world_point(frames, name, point) - origin
-    return velocity + omega * np.array([-arm[1], arm[0]])
-
-
 def simulate(
     kinematics: Kinematics,
     massive: Kinematics,
@@ -163,7 +153,7 @@ def simulate(
             owner = mech.point_owners[label]
             local = np.asarray(mech.body(owner).points[label], dtype=float)
             points[label]["position"][j] = world_point(frames, owner, local)
-            points[label]["velocity"][j] = _velocity(frames, owner, local)
+            points[label]["velocity"][j] = point_velocity(frames, owner, local)
         for k, (child, sign) in enumerate(drivers):
             value, rate = _coordinate(model, child)
             inputs[j, k], rates[j, k] = sign * value, sign * rate

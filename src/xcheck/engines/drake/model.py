@@ -37,6 +37,7 @@ which runs.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -45,9 +46,9 @@ import numpy as np
 
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import NotApplicable
-from xcheck.engines._frames import world_point
+from xcheck.engines._frames import native_point_state, world_point
 from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
-from xcheck.kinematics import Kinematics, rotate
+from xcheck.kinematics import Kinematics
 from xcheck.model import GROUND, Mechanism
 from xcheck.topology import Topology, spanning_tree
 
@@ -343,14 +344,7 @@ def set_state(model: DrakeModel, kinematics: Kinematics, q: np.ndarray, qd: np.n
     mech = kinematics.mechanism
     index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
 
-    def state(name: str, point=None):
-        """(position (2,), velocity (2,), angle, rate) of a body point (its origin without one)."""
-        if name == GROUND:
-            return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
-        k = index[name]
-        phi, omega = float(q[k + 2]), float(qd[k + 2])
-        arm = np.zeros(2) if point is None else rotate(phi, point)
-        return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
+    state = functools.partial(native_point_state, index, q, qd)
 
     context = model.context
     for name, joint in model.joints.items():

@@ -30,6 +30,7 @@ positions are taken from the centre of mass ([0]) and the joint angles.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 import os
@@ -41,7 +42,7 @@ import numpy as np
 
 from xcheck.dynamics._forces import require_mass_data
 from xcheck.engines._contract import positive_inertia
-from xcheck.engines._frames import world_point
+from xcheck.engines._frames import native_point_state, world_point
 from xcheck.joints import GearPair, LineJoint, PinInSlot, Prismatic, Revolute, converter
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.model import GROUND, Mechanism
@@ -370,14 +371,7 @@ def set_state(mb: Multibody, kinematics: Kinematics, q: np.ndarray, qd: np.ndarr
     mech = kinematics.mechanism
     index = {b.name: 3 * i for i, b in enumerate(mech.moving_bodies)}
 
-    def state(name: str, point=None):
-        """(position (2,), velocity (2,), angle, rate) of a body point (its origin without one)."""
-        if name == GROUND:
-            return (np.zeros(2) if point is None else point), np.zeros(2), 0.0, 0.0
-        k = index[name]
-        phi, omega = float(q[k + 2]), float(qd[k + 2])
-        arm = np.zeros(2) if point is None else rotate(phi, point)
-        return q[k : k + 2] + arm, qd[k : k + 2] + omega * np.array([-arm[1], arm[0]]), phi, omega
+    state = functools.partial(native_point_state, index, q, qd)
 
     def points(body: str, label: str) -> np.ndarray:
         return mech.body(body).points[label]
