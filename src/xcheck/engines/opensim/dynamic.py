@@ -100,15 +100,8 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
     functions = {name: law_function(d.law, sign) for (name, sign), d in zip(signs, mech.drivers)}
     om: OpenSimModel = build(massive.mechanism, q0, qd0, prescribed=functions)
     model = om.model
-    manager = osim.Manager(model)
-    manager.setIntegratorMethod(osim.Manager.IntegratorMethod_RungeKuttaMerson)
-    manager.setIntegratorFixedStepSize(dt)
-    manager.setRecordStatesTrajectory(False)
-    manager.setWriteToStorage(False)
-    manager.setPerformAnalyses(False)
+    manager = om.started_manager("RungeKuttaMerson", fixed_step=dt)
     state = om.state
-    state.setTime(0.0)
-    manager.initialize(state)
     bodies, points, inputs, rates, gaps = empty_states(mech, samples, QUANTITIES)
     for states in (*bodies.values(), *points.values()):  # accelerations are vectors too
         states["acceleration"] = np.full((samples, 2), np.nan)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from xcheck.engines._frames import FrameRecorder
 from xcheck.ladder import FreeProblem, Run, Rung, Series, conservative
 
-from .model import build, opensim
+from .model import build
 
 __all__ = ["FREE_SERIES", "FreeSetting", "prepare_free", "run_free_once"]
 
@@ -75,24 +75,16 @@ def accuracy(timestep: float) -> float:
 
 def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:
     """One run of the ladder (:meth:`xcheck.engines.Engine.run_free_once`)."""
-    osim = opensim()
     setting: FreeSetting = rung.series.options
     mech = problem.kinematics.mechanism
     dt = rung.timestep
     om = build(mech, *problem.start)
     model = om.model
-    manager = osim.Manager(model)
-    manager.setIntegratorMethod(getattr(osim.Manager, f"IntegratorMethod_{setting.method}"))
     if setting.fixed:
-        manager.setIntegratorFixedStepSize(dt)
+        manager = om.started_manager(setting.method, fixed_step=dt)
     else:
-        manager.setIntegratorAccuracy(accuracy(dt))
-    manager.setRecordStatesTrajectory(False)
-    manager.setWriteToStorage(False)
-    manager.setPerformAnalyses(False)
+        manager = om.started_manager(setting.method, accuracy=accuracy(dt))
     state = om.state
-    state.setTime(0.0)
-    manager.initialize(state)
     known = conservative(mech) and not mech.loads
     recorder = FrameRecorder(problem, om.tree.cuts)
 

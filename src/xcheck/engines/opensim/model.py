@@ -105,6 +105,25 @@ class OpenSimModel:
     bodies: dict[str, Any]
     coordinates: dict[str, Any]
 
+    def started_manager(self, method: str, *, fixed_step: float | None = None, accuracy: float = 0.0):
+        """An OpenSim ``Manager`` of this model integrating with ``method`` (the suffix of
+        ``IntegratorMethod_``, e.g. "RungeKuttaMerson") at steps of ``fixed_step`` (s) or, without
+        one, to ``accuracy``; it records, writes and analyses nothing, and starts from
+        :attr:`state` at t = 0."""
+        osim = opensim()
+        manager = osim.Manager(self.model)
+        manager.setIntegratorMethod(getattr(osim.Manager, f"IntegratorMethod_{method}"))
+        if fixed_step is not None:
+            manager.setIntegratorFixedStepSize(fixed_step)
+        else:
+            manager.setIntegratorAccuracy(accuracy)
+        manager.setRecordStatesTrajectory(False)
+        manager.setWriteToStorage(False)
+        manager.setPerformAnalyses(False)
+        self.state.setTime(0.0)
+        manager.initialize(self.state)
+        return manager
+
     def frames(self, state) -> dict[str, tuple]:
         """Per moving body: origin (2,) m and angle rad (continuous from the build state), at ``state``
         realised to position."""
