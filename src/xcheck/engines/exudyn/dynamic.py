@@ -9,7 +9,8 @@ The drivers prescribe the motion (the mechanism has as many degrees of freedom
 as drivers), so masses only weigh the Newton iterations: a body without mass
 data gets 1 kg and m size^2 / 12 about its frame origin. Positions come from
 Exudyn's index-3 constraints (exact to Newton's tolerance), velocities and
-accelerations from the integrator. A slide driver (the slide of a prismatic
+accelerations from the integrator (the accelerations carry the coordinates'
+round-off over the step squared: the engine's stated finding). A slide driver (the slide of a prismatic
 joint or pin-in-slot, nonlinear in the node coordinates) has no coordinate
 constraint here: :class:`~xcheck.engines.NotApplicable`.
 """
