@@ -245,3 +245,22 @@ def test_batch_and_one_by_one_agree(kinematics):
         single = kin.solve(c[i : i + 1], [1.0], [0.5])
         np.testing.assert_allclose(single.q[0], batch.q[i], atol=1e-13)
         np.testing.assert_allclose(single.qdd[0], batch.qdd[i], rtol=1e-11, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "law",
+    [
+        dict(kind="constant-rate", start=0.3, rate=-2.0),
+        dict(kind="constant-acceleration", start=0.3, rate=2.0, acceleration=-1.5),
+        dict(kind="harmonic", centre=0.1, amplitude=0.7, frequency=1.3, phase=0.2),
+    ],
+)
+def test_a_law_at_one_number_of_time_is_its_value_as_an_array_bit_for_bit(law):
+    """An engine's step loop asks a motion law at one time (a float, computed without
+    arrays): the same values, signed zeros included, as at that time as an array."""
+    from xcheck.model import MotionLaw
+
+    motion = MotionLaw(**law)
+    for t in [*np.linspace(-3.0, 3.0, 601), 0.0, -0.0, 2]:
+        one, array = motion.at_time(float(t)), motion.at_time(np.array(t, dtype=float))
+        assert [(float(v), math.copysign(1.0, v)) for v in one] == [(float(v), math.copysign(1.0, v)) for v in array]

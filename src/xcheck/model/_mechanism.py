@@ -102,9 +102,14 @@ class MotionLaw:
 
         Returns
         -------
-        q, qd, qdd : ndarray, shape of ``t``
+        q, qd, qdd : ndarray, shape of ``t`` (floats for a number ``t``)
         """
-        t = np.asarray(t, dtype=float)
+        # a number (an engine's step loop asks at every step) is computed as floats: the same
+        # operations in the same order as on an array, so the same values, without NumPy's overhead
+        if not isinstance(t, (float, int)):
+            t = np.asarray(t, dtype=float)
+        else:
+            t = float(t)
         if self.kind == "harmonic":
             w = 2.0 * math.pi * self.frequency
             arg = w * t + self.phase
