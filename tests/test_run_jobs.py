@@ -338,3 +338,25 @@ def test_a_task_that_kills_its_worker_fails_alone():
     with process_pool(2) as pool:
         results = collect(submit(pool, calls), lambda key, why: why, None, calls, 2)
     assert results == {"dies": WORKER_DIED, "sleeps": None, "sums": 3}
+
+
+def test_a_kept_pool_is_handed_out_again_then_shut():
+    """Within workers_kept, the pool of a run's modes stays open for its report's
+    figures (no second start of workers), a call for more workers gets a pool of
+    its own, and every pool is shut at the end; outside, each call gets a new one."""
+    from xcheck._parallel import process_pool, workers_kept
+
+    with workers_kept():
+        with process_pool(2) as modes:
+            pass
+        assert not modes.closed
+        with process_pool(1) as figures:
+            assert figures is modes
+        wider = process_pool(3)
+        assert wider is not modes and process_pool(2) is wider  # the newest kept pool is handed out
+        wider.shutdown()
+        assert process_pool(1) is not wider  # a pool shut down is never handed out again
+    assert modes.closed and wider.closed
+    with process_pool(1) as alone, process_pool(1) as other:
+        assert other is not alone
+    assert alone.closed and other.closed

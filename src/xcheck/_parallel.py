@@ -9,19 +9,33 @@ registered them; those from entry points load in every worker.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import copyreg
+import logging
 import multiprocessing
 import multiprocessing.connection
 import os
 import signal
+import sys
 import threading
 import types
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, as_completed, wait
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
-__all__ = ["process_pool", "picklable_mechanisms", "known_to_workers", "submit", "collect", "WORKER_DIED"]
+__all__ = [
+    "process_pool",
+    "workers_kept",
+    "picklable_mechanisms",
+    "known_to_workers",
+    "submit",
+    "collect",
+    "exit_at_once",
+    "nothing_left_running",
+    "WORKER_DIED",
+]
 
 Key = TypeVar("Key", bound=Hashable)
 
@@ -50,19 +64,68 @@ def _read_only(items: dict) -> types.MappingProxyType:
 
 
 class Pool(ProcessPoolExecutor):
-    """A :class:`~concurrent.futures.ProcessPoolExecutor` that counts its workers
-    that started (``started.value``: those that ran the initializer)."""
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` that knows whether a worker
+    started (``started.value`` 1: one ran the initializer), and that stays open
+    at the end of its ``with`` block while it is kept (:func:`workers_kept`)."""
 
     def __init__(self, jobs: int, context, broken: dict[str, str]):
-        self.started = context.Value("i", 0)
+        # shared memory without a lock: a named semaphore would outlive a process that ends at once
+        self.started = context.RawValue("i", 0)
+        self.jobs = jobs
+        self.kept = False
+        self.closed = False
         super().__init__(
             max_workers=jobs, mp_context=context, initializer=_start_worker, initargs=(broken, self.started)
         )
 
+    def __exit__(self, kind, value, traceback):
+        if self.kept and kind is None:
+            return False
+        return super().__exit__(kind, value, traceback)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self.closed = True
+        super().shutdown(wait, cancel_futures=cancel_futures)
+
+    def usable(self, jobs: int) -> bool:
+        """Whether it is open, none of its workers died, and it has ``jobs`` workers or more."""
+        return not self.closed and not getattr(self, "_broken", False) and self.jobs >= jobs
+
+
+#: the pools :func:`process_pool` keeps for the next call, innermost :func:`workers_kept` last
+_kept: list[list[Pool]] = []
+
+
+@contextlib.contextmanager
+def workers_kept() -> Iterator[None]:
+    """Within it, the pool :func:`process_pool` starts stays open at the end of its
+    ``with`` block and is handed out again to the next call for no more workers,
+    their start and imports done (the modes of a run, then its report's figures);
+    it is shut down at the end."""
+    _kept.append([])
+    try:
+        yield
+    finally:
+        for pool in _kept.pop():
+            pool.shutdown(cancel_futures=True)
+
 
 def process_pool(jobs: int) -> Pool:
     """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both
-    ways, and that end with the process that started them."""
+    ways, and that end with the process that started them: the pool kept open
+    (:func:`workers_kept`) where it has as many workers or more."""
+    kept = _kept[-1] if _kept else None
+    if kept and kept[-1].usable(jobs):
+        return kept[-1]
+    pool = _new_pool(jobs)
+    if kept is not None:
+        pool.kept = True
+        kept.append(pool)
+    return pool
+
+
+def _new_pool(jobs: int) -> Pool:
+    """A pool of ``jobs`` spawned worker processes of its own (:func:`process_pool`)."""
     from . import engines
 
     picklable_mechanisms()
@@ -73,7 +136,7 @@ def process_pool(jobs: int) -> Pool:
 def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     """The pool's initializer: mechanisms picklable, plug-ins the parent could
     not load (``broken``: name -> reason) left alone, Ctrl-C, a watch on the
-    parent, and the pool's count of started workers (``started``) raised.
+    parent, and the pool's flag of a started worker (``started``) set.
 
     Ctrl-C reaches the whole foreground process group: the parent ends the run
     (exit code 130), and a worker is ended by the signal's default action, at
@@ -81,7 +144,9 @@ def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     wherever it was. A worker waits for its next task on a pipe whose writing end
     it holds itself, so when the parent is killed (SIGKILL, or a crash) it would
     wait forever, a Python process with NumPy, pandas and xcheck loaded; instead
-    it exits. Its BLAS runs on one thread (:func:`_one_blas_thread`)."""
+    it exits. Its BLAS runs on one thread (:func:`_one_blas_thread`). When the
+    pool shuts it down, it ends without the interpreter's teardown
+    (:func:`exit_at_once`): the pool waits for its workers to end."""
     from .engines._registry import skip_entry_points
 
     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -92,8 +157,36 @@ def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     if parent is not None:
         threading.Thread(target=_exit_with, args=(parent.sentinel,), daemon=True).start()
     if started is not None:
-        with started.get_lock():
-            started.value += 1
+        started.value = 1
+    # runs after the exit handlers of what the tasks import (last in, first out), before the rest
+    atexit.register(_exit_when_done)
+
+
+def _exit_when_done() -> None:
+    """A worker's end (at exit): :func:`exit_at_once` where nothing of it still runs."""
+    if nothing_left_running():
+        exit_at_once(0)
+
+
+def nothing_left_running() -> bool:
+    """Whether this process has no child process and no thread but daemons left
+    (what :func:`exit_at_once` would otherwise cut short)."""
+    threads = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
+    return not threads and not multiprocessing.active_children()
+
+
+def exit_at_once(code: int = 0) -> NoReturn:
+    """End this process with exit code ``code``, its output and loggers flushed,
+    without the interpreter's teardown: the destructors of every loaded module
+    and engine library, which with the engines loaded take longer than many of
+    their runs. Only once everything the process writes is written."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe or stream: nothing more can reach it
+            pass
+    logging.shutdown()
+    os._exit(code)
 
 
 #: the limits set in a worker process (kept: they hold while this object does)
@@ -187,7 +280,7 @@ def _each_alone(keys: list, calls: dict, failed: Callable, done: Callable | None
     while pending or running:
         while pending and len(running) < max(1, jobs):
             key = pending.pop(0)
-            pool = process_pool(1)
+            pool = _new_pool(1)  # a worker of its own, never a kept one
             function, arguments = calls[key]
             running[pool.submit(function, *arguments)] = (key, pool)
         finished, _ = wait(running, return_when=FIRST_COMPLETED)

@@ -240,7 +240,10 @@ def run_models(
     ``done()`` of each mechanism a worker finished.
     """
     if min(jobs, len(names)) <= 1:
-        outcomes = [run_model(name, settings, step, jobs if len(names) == 1 else 1) for name in names]
+        from ._parallel import workers_kept
+
+        with workers_kept():  # one mechanism: the workers of its modes draw its report's figures
+            outcomes = [run_model(name, settings, step, jobs if len(names) == 1 else 1) for name in names]
     else:
         outcomes = _run_in_pool(names, settings, jobs, done or (lambda: None))
     batch = RunBatch()
