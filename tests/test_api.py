@@ -38,6 +38,20 @@ def test_select_modes_takes_groups_and_sequences():
         xcheck.select_modes("nosuch")
 
 
+def test_an_engine_with_free_motion_only_is_named_where_it_runs():
+    class FreeOnly(xcheck.engines.Engine):
+        name = "freeonly"
+        modes = (xcheck.engines.Mode("freeonly-free", "free", xcheck.tolerances.FREE_MOTION),)
+
+    xcheck.engines.register(FreeOnly)
+    try:
+        with pytest.raises(xcheck.InputError) as raised:
+            xcheck.select_modes("dart,freeonly")
+    finally:
+        xcheck.engines.unregister("freeonly")
+    assert "found 'freeonly', whose modes are freeonly-free (free): run them with xcheck simulate" in str(raised.value)
+
+
 def test_run_is_the_run_without_printing():
     run = api.run("fourbar", engines="formulations", samples=21, models=MODELS)
     assert run.passed

@@ -104,15 +104,6 @@ def test_what_the_model_cannot_hold_is_not_applicable(released_fourbar):
         run_free("opensim-free", slot, reference)
 
 
-def test_run_names_an_engine_with_free_motion_only_and_where_it_runs():
-    from conftest import invoke
-
-    done = invoke("run", "fourbar", "--engines", "opensim,newton", "--no-report")
-    assert done.returncode == 2 and "Traceback" not in done.stderr
-    line = " ".join(done.stderr.split())
-    assert "found 'newton', whose modes are newton-free (free): run them with xcheck simulate" in line
-
-
 @pytest.mark.parametrize("name", ["fourbar", "slider-crank"])
 def test_driven_dynamics_converge_at_fourth_order_in_every_quantity(kinematics, name):
     """opensim-dynamic: the drivers prescribed by their laws, Merson at 16, 8, 4 steps a

@@ -15,13 +15,11 @@ machine (a minute or more, cached after in warp's kernel cache).
 
 from __future__ import annotations
 
-import warnings
-
 from xcheck.engines._frames import FrameRecorder
 from xcheck.engines._tree import gravity_only, tree_frames
 from xcheck.ladder import FreeProblem, Run, Rung, Series
 
-from .model import build, newton
+from .model import build, newton, solver
 
 __all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
 
@@ -46,23 +44,6 @@ def prepare_free(problem: FreeProblem) -> None:
     gravity_only(mech, "Newton")
     tree_frames(mech, problem.start[0], "Newton")
     newton()
-
-
-def solver(name: str, model):
-    """Newton's solver of a series on ``model``."""
-    module, _ = newton()
-    solvers = module.solvers
-    if name == "mujoco":
-        with warnings.catch_warnings():  # mujoco-warp runs on xcheck's MuJoCo, newer than Newton's pin
-            warnings.filterwarnings("ignore", message="MuJoCo dependency version mismatch")
-            return solvers.SolverMuJoCo(model, use_mujoco_cpu=True, disable_contacts=True)
-    if name == "xpbd":
-        return solvers.SolverXPBD(model)
-    if name == "featherstone":
-        return solvers.SolverFeatherstone(model)
-    if name == "semi-implicit":
-        return solvers.SolverSemiImplicit(model)
-    raise ValueError(f"expected a Newton solver of {MODE}, found {name!r}")
 
 
 def run_free_once(_, problem: FreeProblem, rung: Rung) -> Run:

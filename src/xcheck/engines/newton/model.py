@@ -18,6 +18,7 @@ springs, dampers and loads (not built here).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -30,7 +31,7 @@ from xcheck.engines._tree import TreeFrames, gravity_only, tree_frames
 from xcheck.joints import Prismatic, Revolute, converter
 from xcheck.model import GROUND, Mechanism
 
-__all__ = ["NewtonModel", "build", "newton"]
+__all__ = ["NewtonModel", "build", "newton", "solver"]
 
 
 def newton():
@@ -55,6 +56,8 @@ class NewtonModel:
     tree : TreeFrames
     links : dict of str to int
         Moving body -> its link index.
+    joints : dict of str to int
+        Tree joint -> its Newton joint index.
     start : dict of str to float
         Moving body -> its angle at the build state, rad.
     rates : ndarray
@@ -64,6 +67,7 @@ class NewtonModel:
     model: Any
     tree: TreeFrames
     links: dict[str, int]
+    joints: dict[str, int]
     start: dict[str, float]
     rates: np.ndarray
 
@@ -110,9 +114,11 @@ def _depth_first(tree: TreeFrames) -> list:
     return out
 
 
-def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
+def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray, kinematic: frozenset[str] = frozenset()) -> NewtonModel:
     """The mechanism as a Newton model at native body coordinates ``q`` and rates ``qd``
-    (x, y, phi per moving body; m, rad, m/s, rad/s), all joint coordinates 0 there.
+    (x, y, phi per moving body; m, rad, m/s, rad/s), all joint coordinates 0 there,
+    the bodies named in ``kinematic`` Newton's kinematic bodies (their motion set by
+    the caller; Newton allows only bodies hung from the ground).
 
     Raises
     ------
@@ -138,6 +144,7 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
             mass=float(body.mass),
             com=wp.vec3(float(com[0]), float(com[1]), 0.0),
             inertia=wp.mat33(inertia, 0.0, 0.0, 0.0, inertia, 0.0, 0.0, 0.0, inertia),
+            is_kinematic=body.name in kinematic,
             label=body.name,
         )
 
@@ -189,4 +196,22 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> NewtonModel:
     for k, value in enumerate(loop_rates):
         rates[dof_starts[len(joints) + k]] = value
     start = {name: angle(name) for name in links}
-    return NewtonModel(model, tree, links, start, rates)
+    indices = {frames.name: j for frames, j in zip(_depth_first(tree), joints)}
+    return NewtonModel(model, tree, links, indices, start, rates)
+
+
+def solver(name: str, model):
+    """Newton's solver of a series on ``model``."""
+    module, _ = newton()
+    solvers = module.solvers
+    if name == "mujoco":
+        with warnings.catch_warnings():  # mujoco-warp runs on xcheck's MuJoCo, newer than Newton's pin
+            warnings.filterwarnings("ignore", message="MuJoCo dependency version mismatch")
+            return solvers.SolverMuJoCo(model, use_mujoco_cpu=True, disable_contacts=True)
+    if name == "xpbd":
+        return solvers.SolverXPBD(model)
+    if name == "featherstone":
+        return solvers.SolverFeatherstone(model)
+    if name == "semi-implicit":
+        return solvers.SolverSemiImplicit(model)
+    raise ValueError(f"expected a Newton solver (mujoco, xpbd, featherstone, semi-implicit), found {name!r}")

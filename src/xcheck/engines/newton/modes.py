@@ -1,7 +1,9 @@
-"""Newton's modes, as the engine contract calls them: the free ladder of :mod:`.free` (``newton-free``)."""
+"""Newton's modes, as the engine contract calls them: ``newton-free`` (the series and one
+run of :mod:`.free`) and ``newton-dynamic`` (the series and one run of :mod:`.dynamic`)."""
 
 from __future__ import annotations
 
+from .dynamic import dynamic_series, prepare_dynamic, run_dynamic_once
 from .free import FREE_SERIES, prepare_free, run_free_once
 
-__all__ = ["FREE_SERIES", "prepare_free", "run_free_once"]
+__all__ = ["FREE_SERIES", "dynamic_series", "prepare_dynamic", "prepare_free", "run_dynamic_once", "run_free_once"]
