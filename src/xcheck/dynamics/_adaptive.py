@@ -39,7 +39,13 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from ._free import PROJECTION_CUTOFF, SINGULAR_THRESHOLD
+from ._free import (
+    BANDED_LEAST_SQUARES_BELOW,
+    LEAST_SQUARES_BELOW,
+    PROJECTION_CUTOFF,
+    PROJECTION_ITERATIONS,
+    SINGULAR_THRESHOLD,
+)
 from ._free_compiled import (
     _acceleration,
     _banded_measure,
@@ -60,12 +66,15 @@ CROSSING_AT = 0.4667
 CROSSING_ALLOWANCE = 1e6
 #: golden-section steps locating a singular pass within its step (0.618^30: 5e-7 of it)
 PASS_SEARCH = 30
+#: the work of a singularity measure (and of a projection's solve, which measures too), in
+#: evaluations of the accelerations (measured: 2.3 on iftomm-a02-n40's banded path, 1.5 on A02)
+MEASURE_COST = 3.0
 
 # status codes of the compiled integration
 OK, NON_FINITE, OVER_BUDGET, STEP_UNDERFLOW = 0, 1, 2, 3
 _MESSAGES = {
     NON_FINITE: "the state went non-finite",
-    OVER_BUDGET: "its budget of evaluations was spent",
+    OVER_BUDGET: "its work budget was spent",
     STEP_UNDERFLOW: "the step fell below 1e-12 of the duration",
 }
 
@@ -91,6 +100,8 @@ class AdaptiveRun:
     accepted, rejected, evaluations, crossings : int
         Steps accepted and rejected, accelerations evaluated, steps planned across
         a singular position.
+    cost : int
+        The run's work in evaluations of the accelerations (see :func:`integrate_adaptive`).
     failure : str
         "" or why the run stopped, with the time; N is then the outputs reached.
     """
@@ -106,6 +117,7 @@ class AdaptiveRun:
     rejected: int
     evaluations: int
     crossings: int
+    cost: int
     failure: str
 
 
@@ -120,7 +132,11 @@ def integrate_adaptive(
     trace: np.ndarray | None = None,
 ) -> AdaptiveRun:
     """Integrate from (q0, qd0) (projected first) to ``outputs`` x ``output_step`` (s) at the
-    local ``tolerance`` (dimensionless) with at most ``budget`` evaluations.
+    local ``tolerance`` (dimensionless) within a work of ``budget`` evaluations of the
+    accelerations, in which every solve counts at its cost: a plain evaluation 1, a
+    projection a solve for each of its Newton iterations and one for the velocities, a
+    singularity measure 3, and a solve through a dense least-squares fallback (near a
+    singular position) :func:`_least_squares_cost` (all measured: see docs/benchmarks.md).
 
     ``packed`` is :class:`._free_compiled.Packed`. ``trace`` (K, 4), if given, gets each
     attempted step's start (s), length (s), error norm and the singularity measure there.
@@ -152,6 +168,7 @@ def integrate_adaptive(
         int(counts[1]),
         int(counts[2]),
         int(counts[3]),
+        int(counts[4]),
         failure,
     )
 
@@ -187,6 +204,7 @@ def simulate_adaptive(kinematics, start, duration: float, output_step: float, to
             "rejected": run.rejected,
             "evaluations": run.evaluations,
             "crossings": run.crossings,
+            "cost": run.cost,
         },
     )
 
@@ -317,17 +335,32 @@ def _least(model, structure, scratch, buffers, along_dense, high, q, qd, qdd, F,
 @njit(cache=True)
 def _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, reach, F, y):
     """Where, within ``reach`` (s), the state's second-order Taylor path passes closest to a
-    singular position: the time ahead (s), or inf where the measure does not fall there
-    or stays above the threshold."""
+    singular position: (the time ahead (s), or inf where the measure does not fall there or
+    stays above the threshold; the measures taken)."""
     sigma = _measure(model, structure, scratch, buffers, q)
     small = 1e-4 * reach
     slope = (_measure_at(model, structure, scratch, buffers, False, small, q, qd, qdd, F, y) - sigma) / small
     if not (slope < 0.0 and sigma < -2.0 * slope * reach):  # rising, or out of reach at its present rate
-        return math.inf
+        return math.inf, 2
     where, least = _least(model, structure, scratch, buffers, False, reach, q, qd, qdd, F, y)
     if least >= SINGULAR_THRESHOLD or where >= 0.999 * reach:
-        return math.inf
-    return where
+        return math.inf, 4 + PASS_SEARCH
+    return where, 4 + PASS_SEARCH
+
+
+@njit(cache=True)
+def _least_squares_cost(rows, n):
+    """The work of a solve through the dense least-squares fallback (an SVD of the rows x rows
+    J M^-1 J^T), in evaluations of the accelerations: 3 + rows^3 / (200 (30 + n)) (measured:
+    2.9 on A02, 14 rows of 15 coordinates; 243 on iftomm-a02-n40, 242 rows of 243)."""
+    return 3.0 + rows**3 / (200.0 * (30.0 + n))
+
+
+@njit(cache=True)
+def _solve_cost(measure, below, heavy):
+    """The work of a solve after a measure of ``measure``: 1 (a plain solve), or ``heavy``
+    (the least-squares fallback) at or below ``below`` (NaN too)."""
+    return 1.0 if measure > below else heavy
 
 
 @njit(cache=True)
@@ -355,7 +388,10 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
     scratch = (np.zeros((side, side)), np.empty((side, side)))
     q_out, qd_out, qdd_out = np.empty((outputs + 1, n)), np.empty((outputs + 1, n)), np.empty((outputs + 1, n))
     residual, energy, work = np.zeros(outputs + 1), np.empty(outputs + 1), np.zeros(outputs + 1)
-    counts = np.zeros(4, dtype=np.int64)  # accepted, rejected, evaluations, planned crossings
+    counts = np.zeros(5)  # accepted, rejected, evaluations, planned crossings, work (see integrate_adaptive)
+    heavy = _least_squares_cost(rows, n)
+    below = BANDED_LEAST_SQUARES_BELOW if structure[5][0] > 0 else LEAST_SQUARES_BELOW
+    projection = 1 + PROJECTION_ITERATIONS  # the most solves a projection takes
     found, passes = np.empty(16), 0
     K = np.zeros((_EXTENDED, dim))
     F = np.zeros((_POWER, dim))
@@ -365,6 +401,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
     y[:n], y[n : 2 * n] = q, qd
     qdd = _rates(model, structure, scratch, buffers, measure, y, 0.0, K[0])
     counts[2] += 1
+    counts[4] += projection * max(MEASURE_COST, _solve_cost(measure, below, heavy)) + _solve_cost(measure, below, heavy)
     if not np.all(np.isfinite(K[0])):
         return q_out, qd_out, qdd_out, residual, energy, work, found[:0], counts, NON_FINITE, 0, 0.0
     q_out[0], qd_out[0], qdd_out[0], energy[0] = q, qd, qdd, _energy_of(model, q, qd)
@@ -384,6 +421,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
     stage[:] = y + h * K[0]
     _rates(model, structure, scratch, buffers, measure, stage, h, K[1])
     counts[2] += 1
+    counts[4] += _solve_cost(measure, below, heavy)
     d2 = 0.0
     for i in range(n):
         d2 += ((K[1, i] - K[0, i]) * d[i] / tolerance) ** 2
@@ -395,7 +433,8 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
         h1 = max(1e-6, h * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1.0 / 8.0)
         h = min(100.0 * h, h1, duration)
     # the next planned crossing of a singular position (s; inf: none), and the steps tried across it
-    planned = _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, 1.5 * h, F, y)
+    planned, measures = _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, 1.5 * h, F, y)
+    counts[4] += measures * MEASURE_COST
     proposed = h  # the error control's step, before a plan cut it
     h, crossing = _plan(h, planned)
     worst = 0.0  # the largest error norm of a step accepted across a singular position
@@ -403,7 +442,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
     t = 0.0
     rejected_last = False
     while t < duration:
-        if counts[2] >= budget:
+        if counts[4] >= budget:
             return q_out, qd_out, qdd_out, residual, energy, work, found[:passes], counts, OVER_BUDGET, written, t
         if h < 1e-12 * duration:
             return q_out, qd_out, qdd_out, residual, energy, work, found[:passes], counts, STEP_UNDERFLOW, written, t
@@ -418,8 +457,9 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
             y_new += (h * B[j]) * K[j]
         _rates(model, structure, scratch, buffers, measure, y_new, t + h, K[_STAGES])
         counts[2] += _STAGES
+        counts[4] += _STAGES * _solve_cost(measure, below, heavy)
         error = _error_norm(K, h, E3, E5, y, y_new, d, tolerance, floor)
-        attempt = counts[0] + counts[1]
+        attempt = int(counts[0] + counts[1])
         if attempt < len(trace):
             trace[attempt, 0], trace[attempt, 1], trace[attempt, 2], trace[attempt, 3] = t, h, error, measure
         # a shorter step across a singular position would only land its stages closer to it
@@ -438,6 +478,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
         if crossing or (written <= outputs and written * output_step < t_new - 1e-12 * duration):
             _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F)
             counts[2] += 3
+            counts[4] += 3 * _solve_cost(measure, below, heavy)
         while written <= outputs and written * output_step <= t_new + 1e-12 * duration:
             target = written * output_step
             if written == outputs or abs(target - t_new) <= 1e-12 * duration:
@@ -449,9 +490,12 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
             qdd_out[written] = _acceleration(model, structure, scratch, buffers, measure, qo, qdo, target)
             residual[written], energy[written], work[written] = before, _energy_of(model, qo, qdo), state[2 * n]
             counts[2] += 1
+            counts[4] += projection * max(MEASURE_COST, _solve_cost(measure, below, heavy))
+            counts[4] += _solve_cost(measure, below, heavy)
             written += 1
         if crossing:
             where, least = _least(model, structure, scratch, buffers, True, 1.0, q, qd, qdd, F, y)
+            counts[4] += (2 + PASS_SEARCH) * MEASURE_COST
             if least < SINGULAR_THRESHOLD:
                 if passes == len(found):
                     found = np.concatenate((found, np.empty(len(found))))
@@ -459,12 +503,14 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
                 passes += 1
         # accept: the end, projected, starts the next step
         q, qd, _, measure = _project(model, structure, scratch, buffers, y_new[:n].copy(), y_new[n : 2 * n].copy())
+        counts[4] += projection * max(MEASURE_COST, _solve_cost(measure, below, heavy))
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
             return q_out, qd_out, qdd_out, residual, energy, work, found[:passes], counts, NON_FINITE, written, t
         t = t_new
         y[:n], y[n : 2 * n], y[2 * n] = q, qd, y_new[2 * n]
         qdd = _rates(model, structure, scratch, buffers, measure, y, t, K[0])
         counts[2] += 1
+        counts[4] += _solve_cost(measure, below, heavy)
         # the next step: the error control's, or where a plan cut this one (to land a crossing
         # well inside a step), the one it proposed before
         factor = 10.0 if error == 0.0 else min(10.0, 0.9 * error ** (-1.0 / 8.0))
@@ -475,6 +521,8 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
         if crossing or planned <= t:
             planned = math.inf
         if planned == math.inf:
-            planned = t + _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, 1.5 * proposed, F, y)
+            ahead, measures = _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, 1.5 * proposed, F, y)
+            planned = t + ahead
+            counts[4] += measures * MEASURE_COST
         h, crossing = _plan(proposed, planned - t)
     return q_out, qd_out, qdd_out, residual, energy, work, found[:passes], counts, OK, written, t

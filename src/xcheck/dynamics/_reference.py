@@ -49,7 +49,9 @@ __all__ = [
 #: Roache's factor of safety on an error extrapolated from an observed rate (three or more runs)
 SAFETY = 1.25
 #: the work one method's ladder may do, in evaluations of the accelerations times
-#: :func:`work_units` (16 to 31 s of CPU; RK4 counts five evaluations a step)
+#: :func:`work_units`: RK4 counts five evaluations a step (16 to 31 s of CPU); DOP853 counts its
+#: projections, singularity measures and least-squares solves at their cost in evaluations
+#: (7 to 10 s of CPU, near singular positions too)
 WORK_BUDGET = 1e8
 #: the most values an output array may hold (outputs times coordinates: 160 MB each)
 MAX_OUTPUT_VALUES = 2e7
@@ -160,7 +162,7 @@ def run_ladder(
         if progress is not None:
             progress(f"native: {method.name} at {setting:.4g}")
         motion = method.run(setting, (budget - spent) / units)
-        spent += float(motion.statistics.get("evaluations", cost / units)) * units
+        spent += float(motion.statistics.get("cost", motion.statistics.get("evaluations", cost / units))) * units
         steps = (
             int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
             if len(motion.times)
