@@ -68,3 +68,22 @@ def test_a_run_that_goes_non_finite_is_the_ladders_entry_and_the_ladder_goes_on(
     reference = free.free_reference(kin, free.release_state(kin), 1.0, 0.5, tolerance=1e-7, first_step=0.004)
     assert [entry["status"] for entry in reference.ladder] == ["the state went non-finite at t = 0.5 s"] + ["ok"] * 3
     assert reference.converged and reference.motion.step == 0.0005
+
+
+def test_a_dop853_runs_budget_counts_its_projections_and_least_squares_solves():
+    """A02 over 2 s, two singular passes: the run's work counts each step's projection (and
+    the dense least-squares solves near the passes) beside its evaluations, so a budget of its
+    evaluations alone stops it, with its reason."""
+    from xcheck.dynamics._adaptive import integrate_adaptive
+    from xcheck.dynamics._free import PROJECTION_ITERATIONS, _Dynamics, release_state
+    from xcheck.dynamics._free_compiled import Packed
+
+    kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02.toml"))
+    start, packed = release_state(kin), Packed(_Dynamics(kin))
+    run = integrate_adaptive(packed, start.q, start.qd, 200, 0.01, 1e-10, 10**6)
+    assert not run.failure and len(run.passes) == 2 and run.crossings >= 2
+    projections = run.accepted + 201  # after every step and at every output
+    assert run.cost >= run.evaluations + 3 * (1 + PROJECTION_ITERATIONS) * projections, (run.cost, run.evaluations)
+    short = integrate_adaptive(packed, start.q, start.qd, 200, 0.01, 1e-10, run.evaluations)
+    assert short.failure.startswith("its work budget was spent at t = "), short.failure
+    assert short.cost >= run.evaluations and len(short.q) < 201

@@ -27,6 +27,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .. import arguments
 from ..errors import InputError
@@ -161,7 +162,11 @@ def run_ladder(
             break
         if progress is not None:
             progress(f"native: {method.name} at {setting:.4g}")
-        motion = method.run(setting, (budget - spent) / units)
+        # one BLAS thread: the solves are small (at most a few hundred rows), and threads that
+        # wait for each other on a busy machine cost many times the work the budget counts
+        # (iftomm-a02-n40's SVDs near a singular position: 32 ms of CPU with two threads, 6 with one)
+        with threadpool_limits(limits=1, user_api="blas"):
+            motion = method.run(setting, (budget - spent) / units)
         spent += float(motion.statistics.get("cost", motion.statistics.get("evaluations", cost / units))) * units
         steps = (
             int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
@@ -204,6 +209,8 @@ def run_ladder(
             break
     else:
         stop = f"the finest setting ({settings[-1]:.4g}) was reached"
+        if ladder and ladder[-1]["status"] != "ok":
+            stop += f", where the run stopped: {ladder[-1]['status']}"
     if best is None:
         reasons = _reasons(ladder) or stop
         if last is None:
