@@ -360,3 +360,12 @@ def test_a_kept_pool_is_handed_out_again_then_shut():
     with process_pool(1) as alone, process_pool(1) as other:
         assert other is not alone
     assert alone.closed and other.closed
+
+
+def test_workers_start_early_only_for_a_kept_pool():
+    """Workers started ahead of a run's modes belong to the pool they will serve: outside
+    workers_kept there is none, and nothing is started."""
+    from xcheck._parallel import start_workers
+
+    with pytest.raises(RuntimeError, match="within workers_kept"):
+        start_workers(2)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import copyreg
+import importlib
 import logging
 import multiprocessing
 import multiprocessing.connection
@@ -28,6 +29,7 @@ from typing import Any, NoReturn, TypeVar
 __all__ = [
     "process_pool",
     "workers_kept",
+    "start_workers",
     "picklable_mechanisms",
     "known_to_workers",
     "submit",
@@ -108,6 +110,21 @@ def workers_kept() -> Iterator[None]:
     finally:
         for pool in _kept.pop():
             pool.shutdown(cancel_futures=True)
+
+
+def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",)) -> None:
+    """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
+    importing ``modules`` while this process goes on: the first tasks find them ready."""
+    if not _kept:
+        raise RuntimeError("start_workers: expected to be called within workers_kept()")
+    pool = process_pool(jobs)
+    for _ in range(jobs):
+        pool.submit(_import_all, modules)
+
+
+def _import_all(modules: tuple[str, ...]) -> None:
+    for module in modules:
+        importlib.import_module(module)
 
 
 def process_pool(jobs: int) -> Pool:

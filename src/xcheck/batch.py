@@ -240,9 +240,13 @@ def run_models(
     ``done()`` of each mechanism a worker finished.
     """
     if min(jobs, len(names)) <= 1:
-        from ._parallel import workers_kept
+        from ._parallel import start_workers, workers_kept
+        from .runner import worth_workers
 
         with workers_kept():  # one mechanism: the workers of its modes draw its report's figures
+            if len(names) == 1 and worth_workers(settings.modes, jobs) and not _all_cached(names[0], settings):
+                # they start while this process loads the mechanism and solves it
+                start_workers(min(jobs, sum(mode != "native" for mode in settings.modes)))
             outcomes = [run_model(name, settings, step, jobs if len(names) == 1 else 1) for name in names]
     else:
         outcomes = _run_in_pool(names, settings, jobs, done or (lambda: None))

@@ -823,8 +823,7 @@ def run_mechanism(
                 cached[mode] = cached_outcome
     runnable = [mode for mode in modes if mode not in reasons and mode not in cached]
     arguments = (kinematics, native, samples, branch, floors)
-    costs = [engines.mode(mode).cost for mode in runnable]
-    if jobs > 1 and len(runnable) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING:
+    if worth_workers(runnable, jobs):
         for mode in modes:
             if progress is not None and mode not in runnable:
                 progress(mode)
@@ -850,6 +849,14 @@ def run_mechanism(
             outcomes[mode] = ran[mode]
     run.seconds = time.perf_counter() - start
     return run
+
+
+def worth_workers(modes, jobs: int) -> bool:
+    """Whether running ``modes`` in ``jobs`` worker processes could save time: two or more
+    of them, whose summed :attr:`~xcheck.engines.Mode.cost` less the costliest exceeds
+    :data:`PARALLEL_SAVING`."""
+    costs = [engines.mode(mode).cost for mode in modes if mode != "native" and mode in all_modes()]
+    return jobs > 1 and len(costs) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING
 
 
 def _run_or_not_applicable(mode: str, kinematics: Kinematics, native: Solution, samples, branch, floors):
