@@ -146,10 +146,10 @@ _IMAGES = (
     ("forces.png", "forces_plot", "forces"),
     ("motion.gif", "motion_gif", "gif"),
 )
-#: the figures a worker draws when there is one, while this process draws the others:
-#: on fourbar the GIF 1.2 s, quantities 0.6 and drawing 0.3 after the worker's start
-#: (about 1.2 s: xcheck, pandas, matplotlib), against convergence 1.6, differences
-#: 1.3 and forces 0.4 here
+#: the figures one worker draws, as one task, where the run has workers, while this process
+#: draws the others: on fourbar the GIF 0.56 CPU s, quantities 0.30 and drawing 0.12 there
+#: (and matplotlib's import, about 0.3), against convergence 0.74, differences 0.44 and
+#: forces 0.29 here
 _WORKER_SHARE = ("motion_gif", "quantities", "drawing")
 
 
@@ -164,6 +164,11 @@ def _figure(function: str, run: RunResult, identity: str | None = None) -> bytes
 
         keep_figure(identity, function, data)
     return data
+
+
+def _drawn(functions: list[str], run: RunResult, identity: str | None) -> dict[str, bytes | None]:
+    """:func:`_figure` of each of ``functions``, by function (how a worker draws its share)."""
+    return {function: _figure(function, run, identity) for function in functions}
 
 
 def _known_here_only(run: RunResult) -> bool:
@@ -210,9 +215,11 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
             from .._parallel import process_pool
 
             with process_pool(1) as pool:
-                away = {f: pool.submit(_figure, f, run, identity) for _, f, _ in missing if f in _WORKER_SHARE}
+                away = [f for _, f, _ in missing if f in _WORKER_SHARE]
+                # one task: one worker imports matplotlib and receives the run, whatever the pool's size
+                there = pool.submit(_drawn, away, run, identity)
                 drawn.update({f: _figure(f, run, identity) for _, f, _ in missing if f not in away})
-                drawn.update({f: future.result() for f, future in away.items()})
+                drawn.update(there.result())
         else:
             drawn.update({f: _figure(f, run, identity) for _, f, _ in missing})
         images = _keep_figures(directory / name, staging, evidence, {key: file for file, _, key in wanted})
