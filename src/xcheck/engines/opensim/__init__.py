@@ -6,7 +6,7 @@ in free motion by Simbody's integrators with projection onto the constraints
 from __future__ import annotations
 
 from xcheck.engines._contract import Engine, Finding, Mode
-from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, Tolerance
+from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, ROUND_OFF, Tolerance
 
 __all__ = ["OpenSim"]
 
@@ -66,6 +66,9 @@ class OpenSim(Engine):
     install = "pip install xcheck[opensim]"
     modes = (
         Mode(
+            "opensim-kinematic", "kinematic", ROUND_OFF, style=dict(color="tab:olive", lw=0, marker="x", ms=5), cost=2.6
+        ),
+        Mode(
             "opensim-dynamic",
             "dynamic",
             _DYNAMIC,
@@ -80,11 +83,15 @@ class OpenSim(Engine):
         "Revolute and prismatic joints: an OpenSim Model of PinJoint and SliderJoint (xcheck's body frames as "
         "OpenSim's bodies, every coordinate 0 at the start) with each loop cut at a revolute closed by a "
         "PointConstraint (Simbody's ball constraint; its z row is redundant and accepted); gravity and linear "
-        "springs without damping (PointToPointSpring). Driven: each driven coordinate prescribed by its law "
-        "(PolynomialFunction, Sine), integrated by fixed-step Runge-Kutta-Merson; springs and loads left out "
-        "there (they change the drivers' efforts, not the motion). Free motion: integrated by Simbody "
-        "through OpenSim's Manager, which projects the state onto the constraints after each step: "
-        "Runge-Kutta-Merson and explicit Euler at fixed steps, and Runge-Kutta-Merson with its error control "
-        "(accuracy 1e-5 at a 1 ms step, divided by 16 at each halving). Not converted (not applicable): "
+        "springs without damping (PointToPointSpring). Kinematic oracle: at each input the driven coordinates "
+        "prescribed by the quadratic in time with the input's value, rate and acceleration, the model assembled "
+        "by OpenSim's assembler from the neighbouring input's coordinates, its loops cut as PointOnLineConstraints "
+        "(the planar pin's two rows: with a PointConstraint's redundant row the assembler leaves the loops open), "
+        "its speeds projected by Simbody and its accelerations realised. Driven: each driven coordinate "
+        "prescribed by its law (PolynomialFunction, Sine), integrated by fixed-step Runge-Kutta-Merson; "
+        "springs and loads left out there (they change the drivers' efforts, not the motion). Free motion: "
+        "integrated by Simbody through OpenSim's Manager, which projects the state onto the constraints after "
+        "each step: Runge-Kutta-Merson and explicit Euler at fixed steps, and Runge-Kutta-Merson with its error "
+        "control (accuracy 1e-5 at a 1 ms step, divided by 16 at each halving). Not converted (not applicable): "
         "pin-in-slot joints, loops cut at a prismatic joint, dampers, rotational springs and loads (free)."
     )

@@ -38,7 +38,9 @@ __all__ = [
     "STEPS_PER_SAMPLE",
     "dynamic_series",
     "law_function",
+    "polynomial",
     "prepare_dynamic",
+    "record_state",
     "run_dynamic_once",
 ]
 
@@ -51,6 +53,15 @@ RUNGS = 3
 QUANTITIES = ("position", "angle", "velocity", "omega", "acceleration", "alpha")
 
 
+def polynomial(coefficients) -> object:
+    """The OpenSim ``PolynomialFunction`` of time with ``coefficients``, highest power first."""
+    osim = opensim()
+    vector = osim.Vector(len(coefficients), 0.0)
+    for k, value in enumerate(coefficients):
+        vector.set(k, float(value))
+    return osim.PolynomialFunction(vector)
+
+
 def law_function(law, sign: float):
     """The OpenSim function of time of ``sign`` (law(t) - law(0)), rad or m."""
     osim = opensim()
@@ -59,14 +70,36 @@ def law_function(law, sign: float):
         omega = 2.0 * math.pi * law.frequency
         return osim.Sine(sign * law.amplitude, omega, law.phase, sign * (law.centre - start))
     acceleration = law.acceleration if law.kind == "constant-acceleration" else 0.0
-    coefficients = osim.Vector(3, 0.0)
-    for k, value in enumerate((0.5 * acceleration, law.rate, law.start - start)):
-        coefficients.set(k, sign * float(value))
-    return osim.PolynomialFunction(coefficients)
+    return polynomial([sign * value for value in (0.5 * acceleration, law.rate, law.start - start)])
 
 
 def _vec2(v) -> np.ndarray:
     return np.array([v.get(0), v.get(1)])
+
+
+def record_state(om: OpenSimModel, mech, state, frames: dict[str, tuple], arrays: tuple[dict, dict], j: int) -> None:
+    """Sample ``j`` of the body and point arrays (:func:`xcheck.engines._frames.empty_states`'s,
+    accelerations as vectors) from OpenSim's ``state`` realised to acceleration, ``frames``
+    its :meth:`~.model.OpenSimModel.frames`: positions, velocities and accelerations are
+    OpenSim's (``findStation{Location,Velocity,Acceleration}InGround``)."""
+    osim = opensim()
+    bodies, points = arrays
+    origin = osim.Vec3(0.0, 0.0, 0.0)
+    for name, body in om.bodies.items():
+        states = bodies[name]
+        states["position"][j], states["angle"][j] = frames[name]
+        states["velocity"][j] = _vec2(body.findStationVelocityInGround(state, origin))
+        states["omega"][j] = body.getAngularVelocityInGround(state).get(2)
+        states["acceleration"][j] = _vec2(body.findStationAccelerationInGround(state, origin))
+        states["alpha"][j] = body.getAngularAccelerationInGround(state).get(2)
+    owners = mech.point_owners
+    for label, states in points.items():
+        body = om.bodies[owners[label]]
+        local = mech.body(owners[label]).points[label]
+        station = osim.Vec3(float(local[0]), float(local[1]), 0.0)
+        states["position"][j] = _vec2(body.findStationLocationInGround(state, station))
+        states["velocity"][j] = _vec2(body.findStationVelocityInGround(state, station))
+        states["acceleration"][j] = _vec2(body.findStationAccelerationInGround(state, station))
 
 
 def dynamic_series(problem: DrivenProblem) -> tuple[Series, ...]:
@@ -92,7 +125,6 @@ def prepare_dynamic(problem: DrivenProblem) -> Kinematics:
 def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) -> Run:
     """One run of the ladder (:meth:`xcheck.engines.Engine.run_dynamic_once`): fixed Merson
     steps of ``rung.timestep`` with the drivers prescribed, the states at the compared times."""
-    osim = opensim()
     mech = problem.kinematics.mechanism
     dt, per, samples, times = rung.timestep, rung.counts[0], problem.samples, problem.times
     q0, qd0 = problem.start.q[0], problem.start.qd[0]
@@ -107,8 +139,6 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
         states["acceleration"] = np.full((samples, 2), np.nan)
     accelerations = np.full_like(inputs, np.nan)
     start = np.array([float(d.law.at_time(0.0)[0]) for d in mech.drivers])
-    owners = mech.point_owners
-    origin = osim.Vec3(0.0, 0.0, 0.0)
     failure, reached = "", 0
     for j in range(samples):
         t = float(times[j])
@@ -122,20 +152,7 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
         if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
             failure = f"went non-finite at t = {t:.6g} s"
             break
-        for name, body in om.bodies.items():
-            states = bodies[name]
-            states["position"][j], states["angle"][j] = frames[name]
-            states["velocity"][j] = _vec2(body.findStationVelocityInGround(state, origin))
-            states["omega"][j] = body.getAngularVelocityInGround(state).get(2)
-            states["acceleration"][j] = _vec2(body.findStationAccelerationInGround(state, origin))
-            states["alpha"][j] = body.getAngularAccelerationInGround(state).get(2)
-        for label, states in points.items():
-            body = om.bodies[owners[label]]
-            local = mech.body(owners[label]).points[label]
-            station = osim.Vec3(float(local[0]), float(local[1]), 0.0)
-            states["position"][j] = _vec2(body.findStationLocationInGround(state, station))
-            states["velocity"][j] = _vec2(body.findStationVelocityInGround(state, station))
-            states["acceleration"][j] = _vec2(body.findStationAccelerationInGround(state, station))
+        record_state(om, mech, state, frames, (bodies, points), j)
         for k, (name, sign) in enumerate(signs):
             coordinate = om.coordinates[name]
             inputs[j, k] = start[k] + sign * coordinate.getValue(state)

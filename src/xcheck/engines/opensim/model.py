@@ -136,12 +136,18 @@ class OpenSimModel:
 
 
 def build(
-    mech: Mechanism, q: np.ndarray, qd: np.ndarray | None = None, prescribed: dict[str, Any] | None = None
+    mech: Mechanism,
+    q: np.ndarray,
+    qd: np.ndarray | None = None,
+    prescribed: dict[str, Any] | None = None,
+    planar_cuts: bool = False,
 ) -> OpenSimModel:
     """The mechanism as an OpenSim model assembled at native body coordinates ``q``
     (x, y, phi per moving body; m, rad), its coordinates' default speeds the rates of
     ``qd`` (zero without); ``prescribed``: tree joint name -> an OpenSim ``Function`` of
-    time that prescribes its coordinate (0 at the build state).
+    time that prescribes its coordinate (0 at the build state). With ``planar_cuts``
+    each loop cut is a ``PointOnLineConstraint`` (the point on the line along z through
+    the other: the two rows of a planar pin, none redundant) instead of a ``PointConstraint``.
 
     Raises
     ------
@@ -202,7 +208,11 @@ def build(
             coordinate.setPrescribedFunction(prescribed[joint.name])
         coordinates[joint.name] = coordinate
     for k, (body_a, point_a, body_b, point_b) in enumerate(tree.cuts):
-        constraint = osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b))
+        if planar_cuts:
+            along_z = osim.Vec3(0.0, 0.0, 1.0)
+            constraint = osim.PointOnLineConstraint(frame(body_a), along_z, vec3(point_a), frame(body_b), vec3(point_b))
+        else:
+            constraint = osim.PointConstraint(frame(body_a), vec3(point_a), frame(body_b), vec3(point_b))
         constraint.setName(f"loop{k}")
         model.addConstraint(constraint)
     for coupling in tree.couplings:  # a gear pair: the dependent coordinate a linear function of the other
