@@ -18,6 +18,7 @@ __all__ = [
     "FrameRecorder",
     "driven_run",
     "empty_states",
+    "record_moving_states",
     "loop_gap",
     "native_point_state",
     "point_velocity",
@@ -171,6 +172,24 @@ def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.nd
     }
     inputs = np.full((samples, len(mechanism.drivers)), np.nan)
     return bodies, points, inputs, np.full_like(inputs, np.nan), np.zeros(samples)
+
+
+def record_moving_states(mechanism, states: dict[str, tuple], arrays: tuple[dict, dict], j: int) -> bool:
+    """Sample ``j`` of the body and point arrays of :func:`empty_states` (position, angle,
+    velocity, omega) from an engine's ``states``: per moving body its origin (2,) m, angle
+    rad, origin velocity (2,) m/s and rate rad/s. False, nothing stored, where one is not finite."""
+    if not all(np.isfinite(s[0]).all() and math.isfinite(s[1]) for s in states.values()):
+        return False
+    bodies, points = arrays
+    for name, (origin, phi, velocity, omega) in states.items():
+        bodies[name]["position"][j], bodies[name]["angle"][j] = origin, phi
+        bodies[name]["velocity"][j], bodies[name]["omega"][j] = velocity, omega
+    for label in points:
+        owner = mechanism.point_owners[label]
+        local = np.asarray(mechanism.body(owner).points[label], dtype=float)
+        points[label]["position"][j] = world_point(states, owner, local)
+        points[label]["velocity"][j] = point_velocity(states, owner, local)
+    return True
 
 
 def driven_run(

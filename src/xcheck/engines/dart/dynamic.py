@@ -22,12 +22,11 @@ Measured: see :data:`xcheck.engines.dart.Dart`'s tolerance basis and its tests.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
@@ -119,16 +118,8 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
 
     def record(j: int) -> str:
         states = _states(model)
-        if not all(np.isfinite(s[0]).all() and math.isfinite(s[1]) for s in states.values()):
+        if not record_moving_states(mech, states, (bodies, points), j):
             return f"went non-finite at t = {times[j]:.6g} s"
-        for name, (origin, phi, velocity, omega) in states.items():
-            bodies[name]["position"][j], bodies[name]["angle"][j] = origin, phi
-            bodies[name]["velocity"][j], bodies[name]["omega"][j] = velocity, omega
-        for label in points:
-            owner = mech.point_owners[label]
-            local = np.asarray(mech.body(owner).points[label], dtype=float)
-            points[label]["position"][j] = world_point(states, owner, local)
-            points[label]["velocity"][j] = point_velocity(states, owner, local)
         for k, joint in enumerate(joints):
             inputs[j, k] = start[k] + signs[k] * float(joint.getPosition(0))
             rates[j, k] = signs[k] * float(joint.getVelocity(0))

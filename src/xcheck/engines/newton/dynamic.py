@@ -26,12 +26,11 @@ The series, each at Newton's defaults on the CPU (warp, float32), are those of
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states, world_point
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
@@ -147,17 +146,9 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
     def record(j: int) -> str:
         nonlocal previous
         states = _states(built, mech, state, previous)
-        if not all(np.isfinite(s[0]).all() and math.isfinite(s[1]) for s in states.values()):
+        if not record_moving_states(mech, states, (bodies, points), j):
             return f"went non-finite at t = {times[j]:.6g} s"
         previous = {name: s[:2] for name, s in states.items()}
-        for name, (origin, phi, velocity, omega) in states.items():
-            bodies[name]["position"][j], bodies[name]["angle"][j] = origin, phi
-            bodies[name]["velocity"][j], bodies[name]["omega"][j] = velocity, omega
-        for label in points:
-            owner = mech.point_owners[label]
-            local = np.asarray(mech.body(owner).points[label], dtype=float)
-            points[label]["position"][j] = world_point(states, owner, local)
-            points[label]["velocity"][j] = point_velocity(states, owner, local)
         module.eval_ik(model, state, read_q, read_qd)
         inputs[j] = start + signs * read_q.numpy()[q_index]
         rates[j] = signs * read_qd.numpy()[qd_index]

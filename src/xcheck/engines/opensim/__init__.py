@@ -53,9 +53,24 @@ _REFUSED_COMPONENT = Finding(
     reproducer="reproducers/opensim_refused_component.py",
 )
 
+#: Worked around (the kinematic oracle cuts its loops as PointOnLineConstraints); stated for its reproducer.
+_REDUNDANT_ROW = Finding(
+    "OpenSim's assembler leaves a loop closed by a PointConstraint open when a coordinate is prescribed",
+    "A planar four-bar closed by a PointConstraint (its z row redundant), its crank's coordinate prescribed "
+    "as 45 deg + t: Model.assemble at t = 0.1, 0.3, 0.5, 1.0 s returns without an error and leaves the loop "
+    "open by 9.9e-3, 2.3e-2, 2.8e-2, 5.7e-2 m; closed by a PointOnLineConstraint along z (the same two planar "
+    "rows) it closes to 1e-11 m (opensim 4.6). Silently wrong: xcheck's kinematic oracle cuts its loops as "
+    "PointOnLineConstraints",
+    ("position", "angle"),
+    kinds=(),
+    closed_loops=True,
+    reproducer="reproducers/opensim_assembler_redundant_row.py",
+)
+
 
 class OpenSim(Engine):
-    """OpenSim (Simbody): free motion with error-controlled or fixed-step integration and
+    """OpenSim (Simbody): a kinematic oracle through its assembler, driven dynamics with the
+    drivers prescribed, and free motion with error-controlled or fixed-step integration and
     projection onto the constraints."""
 
     name = "opensim"
@@ -77,7 +92,7 @@ class OpenSim(Engine):
         ),
         Mode("opensim-free", "free", FREE_MOTION, style=dict(color="tab:olive", lw=1, ls="-")),
     )
-    findings = (_SINGULAR_PASS, _REFUSED_COMPONENT)
+    findings = (_SINGULAR_PASS, _REFUSED_COMPONENT, _REDUNDANT_ROW)
     color = "tab:olive"
     notes = (
         "Revolute and prismatic joints: an OpenSim Model of PinJoint and SliderJoint (xcheck's body frames as "
