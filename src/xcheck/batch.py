@@ -244,7 +244,7 @@ def run_models(
         from .runner import worth_workers
 
         with workers_kept():  # one mechanism: the workers of its modes draw its report's figures
-            if len(names) == 1 and worth_workers(settings.modes, jobs) and not _all_cached(names[0], settings):
+            if len(names) == 1 and worth_workers(settings.modes, jobs) and _all_cached(names[0], settings) is False:
                 # they start while this process loads the mechanism and solves it
                 start_workers(min(jobs, sum(mode != "native" for mode in settings.modes)))
             outcomes = [run_model(name, settings, step, jobs if len(names) == 1 else 1) for name in names]
@@ -300,19 +300,17 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     return [outcomes[i] for i in range(len(names))]
 
 
-def _all_cached(model: str, settings: RunSettings) -> bool:
+def _all_cached(model: str, settings: RunSettings) -> bool | None:
     """Whether the results cache holds every mode's results of ``model``
-    (:func:`xcheck.result_cache.holds`); False for a file that does not load."""
+    (:func:`xcheck.result_cache.holds`; False with the cache off); None for a
+    file that does not load (its run says why)."""
     from .result_cache import holds
 
-    if not settings.use_cache:
-        return False
     try:
-        return holds(
-            load_mechanism(model_path(model, settings.directory)), settings.modes, settings.samples, settings.branch
-        )
+        mechanism = load_mechanism(model_path(model, settings.directory))
+        return settings.use_cache and holds(mechanism, settings.modes, settings.samples, settings.branch)
     except (XcheckError, OSError):
-        return False
+        return None
 
 
 # -- simulate -------------------------------------------------------------------------
