@@ -48,6 +48,12 @@ def _projections(model, structure, scratch, buffers, q, qd, count):
 
 
 @njit
+def _fill(model, buffers, q):
+    compiled._mass_of(model, q, buffers[0])
+    compiled._jacobian_of(model, q, buffers[1])
+
+
+@njit
 def _solves(mass, jac, load, gap, measure, scale_rows, d, mass_scale, structure, scratch, count):
     total = 0.0
     for _ in range(count):
@@ -72,17 +78,16 @@ def main() -> None:
     start = release_state(kin)
     packed = compiled.Packed(_Dynamics(kin))
     model, structure = packed.arrays(), packed.structure()
-    n, rows = len(start.q), len(model[23])
+    n, rows = len(start.q), len(model[20])
     buffers = (np.zeros((n, n)), np.zeros((rows, n)), np.empty(rows), np.empty(rows), np.empty(n))
     side = rows if structure[5][0] > 0 else 0
     scratch = (np.zeros((side, side)), np.empty((side, side)))
     q, qd = np.asarray(start.q, dtype=float).copy(), np.asarray(start.qd, dtype=float).copy()
     off = q + 1e-7 * kin.mechanism.size  # off the constraints: the projection corrects the positions too
-    compiled._mass(q, model[0], model[1], model[2], buffers[0])
-    compiled._jacobian(q, *model[3:7], *model[7:13], buffers[1])
+    _fill(model, buffers, q)
     zero_load, zero_gap = np.zeros(n), np.zeros(rows)
     solve = (buffers[0], buffers[1], zero_load, zero_gap)
-    scales = (model[23], model[24], model[25], structure, scratch)
+    scales = (model[20], model[21], model[22], structure, scratch)
     print(f"{path.name}: n = {n} coordinates, {rows} constraint rows; µs per call, in a numba loop")
     state = (model, structure, scratch, buffers)
     parts = [

@@ -47,14 +47,18 @@ from ._free import (
     SINGULAR_THRESHOLD,
 )
 from ._free_compiled import (
+    NO,
+    YES,
     _acceleration,
     _banded_measure,
     _energy_of,
+    _internal,
     _jacobian_of,
     _mass_of,
     _power_of,
     _project,
     _solve,
+    run_compiled,
 )
 
 __all__ = ["AdaptiveRun", "integrate_adaptive", "simulate_adaptive", "CROSSING_AT", "CROSSING_ALLOWANCE"]
@@ -142,7 +146,8 @@ def integrate_adaptive(
     attempted step's start (s), length (s), error norm and the singularity measure there.
     """
     trace = np.zeros((0, 4)) if trace is None else trace
-    result = _integrate(
+    result = run_compiled(
+        _integrate,
         packed.arrays(),
         packed.structure(),
         np.ascontiguousarray(q0, dtype=float),
@@ -212,7 +217,7 @@ def simulate_adaptive(kinematics, start, duration: float, output_step: float, to
 # -- the compiled parts -----------------------------------------------------------
 
 
-@njit(cache=True)
+@_internal
 def _stage(A, s, h, y, K, out):
     """The state at stage ``s`` of the step: y + h sum_j A[s, j] K[j], into ``out``."""
     out[:] = y
@@ -221,7 +226,7 @@ def _stage(A, s, h, y, K, out):
             out += (h * A[s, j]) * K[j]
 
 
-@njit(cache=True)
+@_internal
 def _rates(model, structure, scratch, buffers, measure, y, t, out):
     """dy/dt of y = (q, qd, work) at time t (s) into ``out``; q'' returned."""
     n = (len(y) - 1) // 2
@@ -233,7 +238,7 @@ def _rates(model, structure, scratch, buffers, measure, y, t, out):
     return qdd
 
 
-@njit(cache=True)
+@_internal
 def _error_norm(K, h, E3, E5, y0, y1, d, tolerance, floor):
     """DOP853's error norm of the step (scipy's), positions against ``tolerance`` (scaled by
     ``d``), velocities against ``tolerance`` x the largest scaled speed (at least ``floor``)."""
@@ -255,7 +260,7 @@ def _error_norm(K, h, E3, E5, y0, y1, d, tolerance, floor):
     return abs(h) * err5 / math.sqrt((err5 + 0.01 * err3) * 2 * n)
 
 
-@njit(cache=True)
+@_internal
 def _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F):
     """The dense output's coefficients of the step (its three extra stages first) into ``F``."""
     stage = np.empty(len(y))
@@ -272,7 +277,7 @@ def _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new,
             F[3 + r] += (h * D[r, s]) * K[s]
 
 
-@njit(cache=True)
+@_internal
 def _dense_at(F, y_old, x):
     """The dense output at x in [0, 1] of the step (scipy's Dop853DenseOutput)."""
     y = np.zeros(len(y_old))
@@ -285,7 +290,7 @@ def _dense_at(F, y_old, x):
     return y + y_old
 
 
-@njit(cache=True)
+@_internal
 def _measure(model, structure, scratch, buffers, q):
     """The singularity measure of the constraint Jacobian at q (``_Dynamics.project``'s; on the
     banded path without its least-squares fallback, a dense SVD, where the factor fails)."""
@@ -295,12 +300,12 @@ def _measure(model, structure, scratch, buffers, q):
     if structure[5][0] > 0:
         return _banded_measure(m_buf, j_buf, model[20], model[21], model[22], structure, scratch)
     return _solve(
-        m_buf, j_buf, np.zeros(len(q)), np.zeros(j_buf.shape[0]), True, PROJECTION_CUTOFF, 0.0, model[20],
+        m_buf, j_buf, np.zeros(len(q)), np.zeros(j_buf.shape[0]), YES, PROJECTION_CUTOFF, 0.0, model[20],
         model[21], model[22], structure, scratch,
     )[1]  # fmt: skip
 
 
-@njit(cache=True)
+@_internal
 def _measure_at(model, structure, scratch, buffers, along_dense, x, q, qd, qdd, F, y):
     """The measure at ``x`` along the Taylor path q + x qd + x^2 qdd / 2 (x in s), or
     along the step's dense output F from y (``along_dense``, x in [0, 1])."""
@@ -311,7 +316,7 @@ def _measure_at(model, structure, scratch, buffers, along_dense, x, q, qd, qdd, 
     return _measure(model, structure, scratch, buffers, point)
 
 
-@njit(cache=True)
+@_internal
 def _least(model, structure, scratch, buffers, along_dense, high, q, qd, qdd, F, y):
     """(x, measure) of the least measure on [0, high] along the path of :func:`_measure_at`,
     by golden-section search (the measure is unimodal there: a V at a crossing)."""
@@ -332,23 +337,23 @@ def _least(model, structure, scratch, buffers, along_dense, high, q, qd, qdd, F,
     return (a, fa) if fa <= fb else (b, fb)
 
 
-@njit(cache=True)
+@_internal
 def _crossing_ahead(model, structure, scratch, buffers, q, qd, qdd, reach, F, y):
     """Where, within ``reach`` (s), the state's second-order Taylor path passes closest to a
     singular position: (the time ahead (s), or inf where the measure does not fall there or
     stays above the threshold; the measures taken)."""
     sigma = _measure(model, structure, scratch, buffers, q)
     small = 1e-4 * reach
-    slope = (_measure_at(model, structure, scratch, buffers, False, small, q, qd, qdd, F, y) - sigma) / small
+    slope = (_measure_at(model, structure, scratch, buffers, NO, small, q, qd, qdd, F, y) - sigma) / small
     if not (slope < 0.0 and sigma < -2.0 * slope * reach):  # rising, or out of reach at its present rate
         return math.inf, 2
-    where, least = _least(model, structure, scratch, buffers, False, reach, q, qd, qdd, F, y)
+    where, least = _least(model, structure, scratch, buffers, NO, reach, q, qd, qdd, F, y)
     if least >= SINGULAR_THRESHOLD or where >= 0.999 * reach:
         return math.inf, 4 + PASS_SEARCH
     return where, 4 + PASS_SEARCH
 
 
-@njit(cache=True)
+@_internal
 def _least_squares_cost(rows, n):
     """The work of a solve through the dense least-squares fallback (an SVD of the rows x rows
     J M^-1 J^T), in evaluations of the accelerations: 3 + rows^3 / (200 (30 + n)) (measured:
@@ -356,14 +361,14 @@ def _least_squares_cost(rows, n):
     return 3.0 + rows**3 / (200.0 * (30.0 + n))
 
 
-@njit(cache=True)
+@_internal
 def _solve_cost(measure, below, heavy):
     """The work of a solve after a measure of ``measure``: 1 (a plain solve), or ``heavy``
     (the least-squares fallback) at or below ``below`` (NaN too)."""
     return 1.0 if measure > below else heavy
 
 
-@njit(cache=True)
+@_internal
 def _plan(h, ahead):
     """The next step, ``h`` as the error control proposes it, cut where a singular position
     lies ``ahead`` (s): so that it lies CROSSING_AT of the way through a step of about ``h``
@@ -494,7 +499,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
             counts[4] += _solve_cost(measure, below, heavy)
             written += 1
         if crossing:
-            where, least = _least(model, structure, scratch, buffers, True, 1.0, q, qd, qdd, F, y)
+            where, least = _least(model, structure, scratch, buffers, YES, 1.0, q, qd, qdd, F, y)
             counts[4] += (2 + PASS_SEARCH) * MEASURE_COST
             if least < SINGULAR_THRESHOLD:
                 if passes == len(found):

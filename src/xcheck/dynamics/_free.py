@@ -777,13 +777,13 @@ def _simulate_compiled(
     dyn: _Dynamics, start: FreeState, outputs: int, output_step: float, per_output: int, h: float, begin: float
 ) -> FreeMotion:
     """:func:`simulate_free` through the compiled integrator."""
-    from ._free_compiled import Packed, integrate
+    from ._free_compiled import Packed, integrate, run_compiled
 
     q0 = np.ascontiguousarray(start.q, dtype=float)
     qd0 = np.ascontiguousarray(start.qd, dtype=float)
     packed = Packed(dyn)
-    q, qd, qdd, residual, energy, work, passes, failed = integrate(
-        packed.arrays(), packed.structure(), q0, qd0, h, per_output, outputs, output_step
+    q, qd, qdd, residual, energy, work, passes, failed = run_compiled(
+        integrate, packed.arrays(), packed.structure(), q0, qd0, h, per_output, outputs, output_step
     )
     times = np.arange(outputs + 1) * output_step
     if failed >= 0:

@@ -18,10 +18,12 @@ metres; angle rows, 1 row, radians or metres), their equations those of
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
+from ..fileio import directory_lock
 from ..joints import _equations as eq
 from ..joints._terms import ANGLES, GEOMETRY
 from ._free import (
@@ -35,12 +37,22 @@ from ._free import (
     SINGULAR_THRESHOLD,
 )
 
-__all__ = ["Packed", "integrate"]
+__all__ = ["Packed", "integrate", "run_compiled"]
 
 #: bodies a constraint row may involve (a gear pair's two gears and their carrier)
 SLOTS = 3
 
+#: the equations' functions are inlined where they are called (numba IR): compiled as
+#: functions of their own, each would be compiled and linked once more for every caller
 _inline = njit(cache=True, inline="always")
+#: a function called only from compiled code: no wrapper for calls from Python (the only
+#: entry points, :func:`integrate` and ``_adaptive._integrate``, keep theirs), which saves
+#: compiling one per function (numba's type stubs do not list these options)
+_internal = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)  # type: ignore[call-overload]
+#: flags for the compiled functions' boolean arguments: numba types a literal ``True`` or
+#: ``False`` as a type of its own and compiles the function it is passed to (with all it
+#: calls) once for each, where a NumPy bool is one type for both
+YES, NO = np.bool_(True), np.bool_(False)
 _turn = _inline(eq.turn)
 _coincidence_residual = _inline(eq.coincidence_residual)
 _coincidence_jacobian = _inline(eq.coincidence_jacobian)
@@ -50,6 +62,19 @@ _projection_residual = _inline(eq.projection_residual)
 _projection_jacobian = _inline(eq.projection_jacobian)
 _projection_gamma = _inline(eq.projection_gamma)
 _angles_residual = _inline(eq.angles_residual)
+
+
+def run_compiled(function, *args):
+    """``function(*args)`` (a numba dispatcher of this package), compiled for the
+    arguments' types first, or loaded from numba's cache, by one process at a time:
+    processes started together (a test run's workers, a parallel run's) wait for the
+    first to compile, then load what it cached, rather than each compiling the same
+    code again."""
+    types = tuple(function.typeof_pyval(value) for value in args)
+    if types not in function.overloads:
+        with directory_lock(Path(__file__).parent):
+            function.compile(types)
+    return function(*args)
 
 
 class Packed:
@@ -185,7 +210,7 @@ class Packed:
 # -- the pieces, at one state -------------------------------------------------
 
 
-@njit(cache=True)
+@_internal
 def _frame(q, body):
     """(x, y, cos phi, sin phi) of a body (the ground: 0, 0, 1, 0)."""
     if body < 0:
@@ -194,13 +219,13 @@ def _frame(q, body):
     return q[3 * body], q[3 * body + 1], math.cos(phi), math.sin(phi)
 
 
-@njit(cache=True)
+@_internal
 def _angle(q, body):
     """phi of a body (the ground: 0)."""
     return q[3 * body + 2] if body >= 0 else 0.0
 
 
-@njit(cache=True)
+@_internal
 def _rate(qd, body):
     """(xd, yd, omega) of a body (the ground: zeros)."""
     if body < 0:
@@ -208,7 +233,7 @@ def _rate(qd, body):
     return qd[3 * body], qd[3 * body + 1], qd[3 * body + 2]
 
 
-@njit(cache=True)
+@_internal
 def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, out):
     row = 0
     for t in range(len(c_a)):
@@ -235,7 +260,7 @@ def _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, o
         row += 1
 
 
-@njit(cache=True)
+@_internal
 def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
     """Phi_q into ``out`` (m, n): only its structural entries, the same at every
     call, are written; the rest of ``out`` must be zero (:func:`integrate`'s buffer
@@ -282,7 +307,7 @@ def _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
         row += 1
 
 
-@njit(cache=True)
+@_internal
 def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
     row = 0
     for t in range(len(c_a)):
@@ -311,7 +336,7 @@ def _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out):
         row += 1
 
 
-@njit(cache=True)
+@_internal
 def _mass(q, mass, inertia, com, out):
     """M(q) into ``out`` (n, n): only its 3 x 3 diagonal blocks are written; the
     rest of ``out`` must be zero (:func:`integrate`'s buffer is)."""
@@ -327,7 +352,7 @@ def _mass(q, mass, inertia, com, out):
         out[k + 2, k + 2] = inertia[i] + m * (com[i, 0] * com[i, 0] + com[i, 1] * com[i, 1])
 
 
-@njit(cache=True)
+@_internal
 def _point(q, qd, body, s0, s1):
     """(x, y, vx, vy, arm x, arm y) of a point fixed in a body (or the ground)."""
     x, y, c, s = _frame(q, body)
@@ -338,7 +363,7 @@ def _point(q, qd, body, s0, s1):
     return x + ax, y + ay, xd - w * ay, yd + w * ax, ax, ay
 
 
-@njit(cache=True)
+@_internal
 def _spring(q, qd, s_body, s_point, i):
     """(length, rate, unit x, unit y, first end's arm x, y, second end's arm x, y)."""
     px, py, vpx, vpy, apx, apy = _point(q, qd, s_body[i, 0], s_point[i, 0, 0], s_point[i, 0, 1])
@@ -349,7 +374,7 @@ def _spring(q, qd, s_body, s_point, i):
     return length, ux * (vrx - vpx) + uy * (vry - vpy), ux, uy, apx, apy, arx, ary
 
 
-@njit(cache=True)
+@_internal
 def _twist(q, qd, r_body, r_law, i):
     """(phi_b - phi_a - rest, its rate) of rotational spring i, rad and rad/s."""
     a, b = r_body[i, 0], r_body[i, 1]
@@ -358,7 +383,7 @@ def _twist(q, qd, r_body, r_law, i):
     return angle, rate
 
 
-@njit(cache=True)
+@_internal
 def _law_factor(l_law, j, t):
     """Load j's time-law factor at t (s): 1 (constant), offset + sin(2 pi f t + phase)
     (harmonic) or min(t / duration, 1) (ramp); see ``model.LoadLaw``."""
@@ -370,7 +395,7 @@ def _law_factor(l_law, j, t):
     return 1.0
 
 
-@njit(cache=True)
+@_internal
 def _forces(
     q, qd, t, mass, com, gravity, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law, out
 ):
@@ -412,7 +437,7 @@ def _forces(
             out[3 * r_body[j, 0] + 2] -= torque
 
 
-@njit(cache=True)
+@_internal
 def _power(q, qd, t, l_body, l_point, l_force, l_torque, l_law, s_body, s_point, s_law, r_body, r_law):
     total = 0.0
     for j in range(len(l_body)):
@@ -428,7 +453,7 @@ def _power(q, qd, t, l_body, l_point, l_force, l_torque, l_law, s_body, s_point,
     return total
 
 
-@njit(cache=True)
+@_internal
 def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law):
     kinetic, potential = 0.0, 0.0
     for i in range(len(mass)):
@@ -449,7 +474,7 @@ def _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, 
     return kinetic + potential
 
 
-@njit(cache=True)
+@_internal
 def _cholesky(matrix, lower):
     """Write the lower Cholesky factor of the symmetric ``matrix`` (n, n) into
     ``lower``; False where it is not positive definite."""
@@ -471,7 +496,7 @@ def _cholesky(matrix, lower):
     return True
 
 
-@njit(cache=True)
+@_internal
 def _cholesky_solve(lower, x):
     """Overwrite the columns of ``x`` (n, k) with the solutions of L L^T X = x."""
     n, k = x.shape
@@ -488,7 +513,7 @@ def _cholesky_solve(lower, x):
             x[i, c] = total / lower[i, i]
 
 
-@njit(cache=True)
+@_internal
 def _least_squares(matrix, rhs, cutoff):
     """(the minimum-norm least-squares solution of matrix x = rhs, singular values
     at most ``cutoff`` x the largest dropped, as LAPACK's gelsd; the singular values)."""
@@ -510,7 +535,7 @@ def _least_squares(matrix, rhs, cutoff):
     return x, singular
 
 
-@njit(cache=True)
+@_internal
 def _constrained(
     mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, row_columns, row_width
 ):
@@ -585,7 +610,7 @@ def _constrained(
     return x, singularity
 
 
-@njit(cache=True)
+@_internal
 def _augmented_measure(smallest, largest):
     """As ``_free.augmented_measure``."""
     if not largest > 0.0:
@@ -594,7 +619,7 @@ def _augmented_measure(smallest, largest):
     return math.sqrt((smallest / (1.0 + smallest)) / (largest / (1.0 + largest)))
 
 
-@njit(cache=True)
+@_internal
 def _band_cholesky(matrix, lower, band):
     """The lower Cholesky factor of the symmetric ``matrix`` (m, m) of half-bandwidth
     ``band`` into ``lower`` (only its band is written); False where it is not positive definite."""
@@ -616,7 +641,7 @@ def _band_cholesky(matrix, lower, band):
     return True
 
 
-@njit(cache=True)
+@_internal
 def _band_solve(lower, band, x):
     """Overwrite ``x`` (m,) with the solution of L L^T y = x, L banded."""
     m = len(x)
@@ -632,7 +657,7 @@ def _band_solve(lower, band, x):
         x[i] = total / lower[i, i]
 
 
-@njit(cache=True)
+@_internal
 def _band_times(matrix, band, x):
     """matrix @ x for a banded (m, m) matrix."""
     m = len(x)
@@ -643,7 +668,7 @@ def _band_times(matrix, band, x):
     return out
 
 
-@njit(cache=True)
+@_internal
 def _band_measure(schur, lower, band, start):
     """As ``_free._iterated_measure``, on the banded ``schur`` and its factor."""
     v = start / math.sqrt(np.dot(start, start))
@@ -657,7 +682,7 @@ def _band_measure(schur, lower, band, start):
     return _augmented_measure(np.dot(v, _band_times(schur, band, v)), np.dot(w, _band_times(schur, band, w)))
 
 
-@njit(cache=True)
+@_internal
 def _banded_schur(mass, jac, load, gap, scale_rows, d, mass_scale, structure, work):
     """J M^-1 J^T (scaled) assembled in the rows' banded order into ``work[0]``, for
     :func:`_constrained_banded`: (M^-1 load (n,), M^-1 applied to each row's scaled J on
@@ -726,7 +751,7 @@ def _banded_schur(mass, jac, load, gap, scale_rows, d, mass_scale, structure, wo
     return free, solved, rhs
 
 
-@njit(cache=True)
+@_internal
 def _constrained_banded(
     mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work
 ):
@@ -765,7 +790,7 @@ def _constrained_banded(
     return x, singularity
 
 
-@njit(cache=True)
+@_internal
 def _banded_measure(mass, jac, scale_rows, d, mass_scale, structure, work):
     """The singularity measure of :func:`_constrained_banded` alone (0 where J M^-1 J^T has no
     Cholesky factor), never through its least-squares fallback."""
@@ -777,7 +802,7 @@ def _banded_measure(mass, jac, scale_rows, d, mass_scale, structure, work):
     return _band_measure(schur, lower, band, structure[6])
 
 
-@njit(cache=True)
+@_internal
 def _solve(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, mass_scale, structure, work):
     """``_constrained_banded`` where the structure says banded, else ``_constrained``."""
     if structure[5][0] > 0:
@@ -789,7 +814,7 @@ def _solve(mass, jac, load, gap, measure, cutoff, last_measure, scale_rows, d, m
     )
 
 
-@njit(cache=True)
+@_internal
 def _times(matrix, vector):
     """matrix @ vector, (m, n) by (n,)."""
     out = np.zeros(matrix.shape[0])
@@ -799,7 +824,7 @@ def _times(matrix, vector):
     return out
 
 
-@njit(cache=True)
+@_internal
 def _rows_times(jac, vector, structure):
     """jac @ vector, (m, n) by (n,); on the banded path through each row's (at most three) bodies."""
     if structure[5][0] == 0:
@@ -815,7 +840,7 @@ def _rows_times(jac, vector, structure):
     return out
 
 
-@njit(cache=True)
+@_internal
 def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
     """q'' by Gauss's principle (``_Dynamics.acceleration``)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, gravity,
@@ -830,11 +855,11 @@ def _acceleration(model, structure, work, buffers, last_measure, q, qd, t):
     )  # fmt: skip
     _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, g_buf)
     return _solve(
-        m_buf, j_buf, f_buf, g_buf, False, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale, structure, work
+        m_buf, j_buf, f_buf, g_buf, NO, RANK_CUTOFF, last_measure, scale_rows, d, mass_scale, structure, work
     )[0]
 
 
-@njit(cache=True)
+@_internal
 def _residual_metres(model, buffers, q):
     """The largest loop-closure violation, m (angles times the size)."""
     (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, _,
@@ -847,7 +872,7 @@ def _residual_metres(model, buffers, q):
     return largest
 
 
-@njit(cache=True)
+@_internal
 def _project(model, structure, work, buffers, q, qd):
     """(q, qd) moved onto the constraints (``_Dynamics.project``): (q, qd, violation before, measure)."""
     (mass, inertia, com, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, _,
@@ -863,7 +888,7 @@ def _project(model, structure, work, buffers, q, qd):
         _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, j_buf)
         _residual(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, o_offset, r_buf)
         step = _solve(
-            m_buf, j_buf, zero, -r_buf, True, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
+            m_buf, j_buf, zero, -r_buf, YES, PROJECTION_CUTOFF, 0.0, scale_rows, d, mass_scale, structure, work
         )[0]
         q = q + step
         gap = _residual_metres(model, buffers, q)
@@ -874,7 +899,7 @@ def _project(model, structure, work, buffers, q, qd):
         j_buf,
         zero,
         -_rows_times(j_buf, qd, structure),
-        True,
+        YES,
         PROJECTION_CUTOFF,
         0.0,
         scale_rows,
@@ -886,7 +911,7 @@ def _project(model, structure, work, buffers, q, qd):
     return q, qd + correction, before, singular
 
 
-@njit(cache=True)
+@_internal
 def _jacobian_of(model, q, out):
     """Phi_q at q into ``out`` (m, n; its non-structural entries must be zero)."""
     (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, _, _,
@@ -894,7 +919,7 @@ def _jacobian_of(model, q, out):
     _jacobian(q, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out)
 
 
-@njit(cache=True)
+@_internal
 def _gamma_of(model, q, qd, out):
     """gamma = Phi_q q'' at (q, qd) into ``out`` (m,)."""
     (_, _, _, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, _, _,
@@ -902,13 +927,13 @@ def _gamma_of(model, q, qd, out):
     _gamma(q, qd, c_a, c_sa, c_b, c_sb, o_kind, o_bodies, o_geometry, out)
 
 
-@njit(cache=True)
+@_internal
 def _mass_of(model, q, out):
     """M(q) into ``out`` (n, n; only its 3 x 3 diagonal blocks are written)."""
     _mass(q, model[0], model[1], model[2], out)
 
 
-@njit(cache=True)
+@_internal
 def _forces_of(model, q, qd, t, out):
     """Q at time t (s) into ``out`` (n,): gravity, loads, springs, dampers and M's velocity terms."""
     (mass, _, com, _, _, _, _, _, _, _, _, gravity,
@@ -920,7 +945,7 @@ def _forces_of(model, q, qd, t, out):
     )  # fmt: skip
 
 
-@njit(cache=True)
+@_internal
 def _energy_of(model, q, qd):
     """T + V, J."""
     (mass, inertia, com, _, _, _, _, _, _, _, _, gravity,
@@ -928,7 +953,7 @@ def _energy_of(model, q, qd):
     return _energy(q, qd, mass, inertia, com, gravity, s_body, s_point, s_law, r_body, r_law)
 
 
-@njit(cache=True)
+@_internal
 def _power_of(model, q, qd, t):
     """Power of the loads at t (s) and of the dampers, W."""
     (_, _, _, _, _, _, _, _, _, _, _, _,
