@@ -1,8 +1,8 @@
 """Newton in free motion (newton-free, on request) against the native reference: each
 solver that takes a loop joint, on the free four-bar (tests/data/free-fourbar-released.toml);
 and in driven dynamics (newton-dynamic, on request), the crank a kinematic body, on the
-bundled four-bar. Its solvers' warp kernels compile on first use (1 to 3 minutes each,
-cached after in warp's kernel cache): each ladder runs once per session, at two steps.
+bundled four-bar. Its solvers' warp kernels compile on first use (about 40 CPU s for the
+four, cached after in warp's kernel cache): each ladder runs once per session, at two steps.
 
 Measured with newton 1.8.0 (warp 1.19, mujoco-warp 3.17 on MuJoCo 4.0) at dt = 1, 0.5,
 0.25 ms over 1 s: SolverMuJoCo 5.0e-2, 5.5e-2, 5.7e-2 m (not converging: MuJoCo's
@@ -15,6 +15,7 @@ the branch at 0.13 s.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import pytest
 from conftest import run_dynamic, run_free
@@ -99,3 +100,22 @@ def test_a_driver_between_moving_bodies_is_not_applicable(kinematics):
         driven_bodies(arm.mechanism, DrivenProblem.of(arm).start.q[0])
     fourbar = kinematics("fourbar")
     assert driven_bodies(fourbar.mechanism, DrivenProblem.of(fourbar).start.q[0]) == {"crank"}
+
+
+def test_a_point_mass_keeps_the_least_inertia_every_engine_gets():
+    """IFToMM A01's bob (inertia 0 in its file): Newton would raise the least inertia,
+    1e-12 m size^2, to about 1e-6 kg m^2 with a warning."""
+    import numpy as np
+
+    import xcheck
+    from xcheck.engines._contract import positive_inertia
+    from xcheck.engines.newton.model import build
+
+    kin = xcheck.load("iftomm-a01").kinematics
+    q = kin.assemble()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        built = build(kin.mechanism, q, np.zeros_like(q))
+    bob = kin.mechanism.moving_bodies[0]
+    least = positive_inertia(float(bob.mass), 0.0, kin.mechanism.size)
+    assert np.allclose(np.diag(built.model.body_inertia.numpy()[0]), least, rtol=1e-6)

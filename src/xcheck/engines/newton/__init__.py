@@ -39,8 +39,8 @@ _MUJOCO_ANCHORS = Finding(
 
 
 _ON_REQUEST = (
-    "its solvers' warp kernels compile for 1 to 3 minutes each on a machine that has not run them "
-    "(cached after), more than a default run is allowed"
+    "its solvers' warp kernels compile the first time they run on a machine (about 40 CPU s for the four, "
+    "cached after), more than a default run is allowed"
 )
 _DYNAMIC = Tolerance(
     CONVERGES,

@@ -33,6 +33,11 @@ from xcheck.model import GROUND, Mechanism
 
 __all__ = ["NewtonModel", "build", "newton", "solver"]
 
+#: Newton's floor on a moment of inertia (kg m^2), below any :func:`positive_inertia` gives a
+#: point mass of a mechanism of millimetres or more; Newton's own (1e-10) would replace
+#: a point mass's 1e-12 m size^2 by about 1e-6 kg m^2 (with a warning)
+POINT_MASS_FLOOR = 1e-30
+
 
 def newton():
     """The ``newton`` and ``warp`` modules (imported when a mode runs), warp's messages below
@@ -134,6 +139,8 @@ def build(mech: Mechanism, q: np.ndarray, qd: np.ndarray, kinematic: frozenset[s
     tree = tree_frames(mech, q, "Newton")
     gravity = np.asarray(mech.gravity, dtype=float)
     builder = module.ModelBuilder(up_axis=module.Axis.Y, gravity=(float(gravity[0]), float(gravity[1]), 0.0))
+    # a point mass's least inertia (positive_inertia) kept as it is: Newton would raise it to about 1e-6 kg m^2
+    builder.inertia_absolute_tolerance = POINT_MASS_FLOOR
     size = mech.size
     links: dict[str, int] = {}
     for body in mech.moving_bodies:
