@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
+from .._numba import run_compiled
 from ._free import (
     BANDED_LEAST_SQUARES_BELOW,
     LEAST_SQUARES_BELOW,
@@ -58,7 +59,6 @@ from ._free_compiled import (
     _power_of,
     _project,
     _solve,
-    run_compiled,
 )
 
 __all__ = ["AdaptiveRun", "integrate_adaptive", "simulate_adaptive", "CROSSING_AT", "CROSSING_ALLOWANCE"]

@@ -777,7 +777,8 @@ def _simulate_compiled(
     dyn: _Dynamics, start: FreeState, outputs: int, output_step: float, per_output: int, h: float, begin: float
 ) -> FreeMotion:
     """:func:`simulate_free` through the compiled integrator."""
-    from ._free_compiled import Packed, integrate, run_compiled
+    from .._numba import run_compiled
+    from ._free_compiled import Packed, integrate
 
     q0 = np.ascontiguousarray(start.q, dtype=float)
     qd0 = np.ascontiguousarray(start.qd, dtype=float)

@@ -18,12 +18,10 @@ metres; angle rows, 1 row, radians or metres), their equations those of
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from ..fileio import directory_lock
 from ..joints import _equations as eq
 from ..joints._terms import ANGLES, GEOMETRY
 from ._free import (
@@ -37,7 +35,7 @@ from ._free import (
     SINGULAR_THRESHOLD,
 )
 
-__all__ = ["Packed", "integrate", "run_compiled"]
+__all__ = ["Packed", "integrate"]
 
 #: bodies a constraint row may involve (a gear pair's two gears and their carrier)
 SLOTS = 3
@@ -62,19 +60,6 @@ _projection_residual = _inline(eq.projection_residual)
 _projection_jacobian = _inline(eq.projection_jacobian)
 _projection_gamma = _inline(eq.projection_gamma)
 _angles_residual = _inline(eq.angles_residual)
-
-
-def run_compiled(function, *args):
-    """``function(*args)`` (a numba dispatcher of this package), compiled for the
-    arguments' types first, or loaded from numba's cache, by one process at a time:
-    processes started together (a test run's workers, a parallel run's) wait for the
-    first to compile, then load what it cached, rather than each compiling the same
-    code again."""
-    types = tuple(function.typeof_pyval(value) for value in args)
-    if types not in function.overloads:
-        with directory_lock(Path(__file__).parent):
-            function.compile(types)
-    return function(*args)
 
 
 class Packed:

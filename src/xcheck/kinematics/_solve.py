@@ -759,6 +759,7 @@ class Kinematics:
         Working memory besides the results: O(n^2) scratch and 5 bytes a
         sample (which samples are attempted, the branch's determinant sign).
         """
+        from .._numba import run_compiled
         from . import _compiled
 
         fast: Any = _compiled  # numba's dispatchers carry no signatures for mypy
@@ -782,7 +783,8 @@ class Kinematics:
         if atlas is not None:
             c_atlas, q_atlas, period = atlas
             tangents, signs = self._atlas_tangents_and_signs(name, atlas)
-            inside = fast.predict_atlas(
+            inside = run_compiled(
+                fast.predict_atlas,
                 c,
                 c_atlas,
                 q_atlas,
@@ -806,22 +808,21 @@ class Kinematics:
                 q[idx] = qd[idx] = prediction[1]
                 base_sign[idx] = prediction[4]
         structure = packed.structure()  # dense or banded Phi_q
-        fast.newton_rounds(
-            q, c, attempt, *terms, *structure, packed.metres, STOP_TOLERANCE * system.size, 30, residual, iterations
-        )
+        metres, stop = packed.metres, STOP_TOLERANCE * system.size
+        run_compiled(fast.newton_rounds, q, c, attempt, *terms, *structure, metres, stop, 30, residual, iterations)
         assembled = np.empty(n_samples, dtype=bool)
-        fast.assembled(q, residual, attempt, CONVERGED_TOLERANCE * system.size, ANGLE_ROUNDOFF * system.size, assembled)
+        tolerances = (CONVERGED_TOLERANCE * system.size, ANGLE_ROUNDOFF * system.size)
+        run_compiled(fast.assembled, q, residual, attempt, *tolerances, assembled)
         converged = np.flatnonzero(assembled)
         for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
             chunk = converged[start : start + POLISH_CHUNK]
-            fast.correct(q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms, *structure)
+            run_compiled(fast.correct, q, chunk, long_double_residual(system, q[chunk], c[chunk]), *terms, *structure)
         kernel_terms = (*terms[:3], *terms[4:])  # no angle offsets
         rest = (packed.jacobian_scale, packed.row_scale, packed.coordinate_scale, *kernel_terms, *structure)
         limits = (system.n_kinematic, NEAR_SINGULAR, SINGULAR, status, singularity)
-        fast.check_and_finish(
-            q, qd, qdd, cd, cdd, attempt, assembled, MAX_CORRECTION, base_sign,
-            *rest, *limits
-        )  # fmt: skip
+        run_compiled(
+            fast.check_and_finish, q, qd, qdd, cd, cdd, attempt, assembled, MAX_CORRECTION, base_sign, *rest, *limits
+        )
         # the few rejected in the batch: walk to them from their anchor
         failed = np.flatnonzero(attempt & (status >= Status.NOT_CONVERGED))
         if failed.size:
@@ -837,7 +838,7 @@ class Kinematics:
                     q[i], status[i] = polish(system, q_new[None], c[i][None])[0], Status.OK
                     residual[i] = system.residual_metres(system.residual(q_new[None], c[i][None]))[0]
                     reached.append(i)
-            fast.finish(q, qd, qdd, cd, cdd, np.array(reached, dtype=np.intp), *rest, *limits)
+            run_compiled(fast.finish, q, qd, qdd, cd, cdd, np.array(reached, dtype=np.intp), *rest, *limits)
         return Solution(self, name, c, cd, cdd, q, qd, qdd, status, residual, singularity, iterations)
 
     def _predictions(self, branch: str, c: np.ndarray, waypoint_spacing: float):

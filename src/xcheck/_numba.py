@@ -1,0 +1,24 @@
+"""Calling xcheck's numba-compiled kernels: compiled by one process at a time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .fileio import directory_lock
+
+__all__ = ["run_compiled"]
+
+
+def run_compiled(function, *args):
+    """``function(*args)`` (a numba dispatcher of xcheck), compiled for the arguments'
+    types first, or loaded from numba's cache, by one process at a time: processes
+    started together (a test run's workers, a parallel run's) wait for the first to
+    compile, then load what it cached, rather than each compiling the same code again.
+    Anything else (a plain function standing in for a kernel) is called as it is."""
+    if not hasattr(function, "overloads"):
+        return function(*args)
+    types = tuple(function.typeof_pyval(value) for value in args)
+    if types not in function.overloads:
+        with directory_lock(Path(__file__).parent):
+            function.compile(types)
+    return function(*args)

@@ -1,0 +1,39 @@
+"""xcheck._numba.run_compiled: a kernel compiled for its arguments' types, by one
+process at a time (a lock on xcheck's package folder), then called."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+from numba import njit
+
+import xcheck
+from xcheck._numba import run_compiled
+from xcheck.fileio import directory_lock
+
+
+def test_a_kernel_is_compiled_once_for_its_arguments_then_called():
+    @njit
+    def scaled(x, flag):
+        return 2.0 * x if flag else x
+
+    assert run_compiled(scaled, 1.5, True) == 3.0
+    assert run_compiled(scaled, 2.5, False) == 2.5
+    assert len(scaled.overloads) == 1  # the same types: compiled once
+    assert run_compiled(lambda x: x + 1, 1) == 2  # a plain function standing in for a kernel
+
+
+def test_a_kernel_waits_while_another_process_compiles():
+    @njit
+    def square(x):
+        return x * x
+
+    results: list[float] = []
+    with directory_lock(Path(xcheck.__file__).parent):  # as another process compiling
+        caller = threading.Thread(target=lambda: results.append(run_compiled(square, 3.0)))
+        caller.start()
+        caller.join(timeout=0.5)
+        assert caller.is_alive() and not results and not square.overloads
+    caller.join(timeout=60)
+    assert results == [9.0]
