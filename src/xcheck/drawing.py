@@ -106,18 +106,23 @@ def _joint_labels(mech: Mechanism) -> dict[str, list[str]]:
     return used
 
 
+def _nearest_points(points: np.ndarray, segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """For each of ``points`` (k, 2), the nearest point of each segment, (k, n, 2)."""
+    a = np.array([segment[0] for segment in segments], dtype=float).reshape(-1, 2)
+    ab = np.array([segment[1] for segment in segments], dtype=float).reshape(-1, 2) - a
+    length2 = ab[:, 0] * ab[:, 0] + ab[:, 1] * ab[:, 1]
+    gap = np.asarray(points, dtype=float)[:, None, :] - a
+    along = gap[..., 0] * ab[:, 0] + gap[..., 1] * ab[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(length2 > 0.0, np.clip(along / np.where(length2 > 0.0, length2, 1.0), 0.0, 1.0), 0.0)
+    return a + t[..., None] * ab
+
+
 def _nearest_on_segments(p: np.ndarray, segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """The point of a set of segments nearest p, (2,)."""
-    best, best_d = None, math.inf
-    for a, b in segments:
-        ab = b - a
-        t = 0.0 if not ab.any() else float(np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0))
-        q = a + t * ab
-        d = float(np.hypot(*(p - q)))
-        if d < best_d:
-            best, best_d = q, d
-    assert best is not None
-    return best
+    assert segments
+    q = _nearest_points(np.asarray(p)[None, :], segments)[0]
+    return q[int(np.argmin(np.hypot(*(p - q).T)))]  # the first of equals
 
 
 def _hull_order(points: np.ndarray) -> np.ndarray:
@@ -165,23 +170,25 @@ def _plate(points: np.ndarray, size: float) -> np.ndarray | None:
 
 
 #: the directions a label may take from its point, in order of preference when as clear
-_LABEL_DIRECTIONS = [np.array([math.cos(a), math.sin(a)]) for a in np.radians([45, 135, 315, 225, 90, 0, 270, 180])]
+_LABEL_DIRECTIONS = np.array([[math.cos(a), math.sin(a)] for a in np.radians([45, 135, 315, 225, 90, 0, 270, 180])])
 
 
 def _clear_label(ax, text: str, p: np.ndarray, segments, taken: list[np.ndarray], gap: float, style: dict) -> None:
     """Write ``text`` beside point ``p`` (drawing units) on the side farthest
     from the drawn links (``segments``) and the labels already placed
     (``taken``, which this one joins), ``gap`` away from the point."""
-
-    def clearance(direction: np.ndarray) -> float:
-        spot = p + 1.6 * gap * direction
-        near = [float(np.hypot(*(spot - _nearest_on_segments(spot, [(a, b)])))) for a, b in segments]
-        near += [float(np.hypot(*(spot - q))) for q in taken]
-        return min(near, default=math.inf)
-
-    best = max(_LABEL_DIRECTIONS, key=clearance)  # the first of equals: max keeps the earliest
+    spots = p + 1.6 * gap * _LABEL_DIRECTIONS  # where each direction's label would stand, (8, 2)
+    clearance = np.full(len(spots), math.inf)
+    if len(segments):
+        gaps = spots[:, None, :] - _nearest_points(spots, segments)
+        clearance = np.fmin(clearance, np.hypot(gaps[..., 0], gaps[..., 1]).min(axis=1))
+    if taken:
+        gaps = spots[:, None, :] - np.array(taken)
+        clearance = np.fmin(clearance, np.hypot(gaps[..., 0], gaps[..., 1]).min(axis=1))
+    clearest = int(np.argmax(clearance))  # the first of equals
+    best = _LABEL_DIRECTIONS[clearest]
     spot = p + gap * best
-    taken.append(p + 1.6 * gap * best)
+    taken.append(spots[clearest])
     ax.annotate(
         text,
         p,

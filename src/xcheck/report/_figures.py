@@ -72,6 +72,14 @@ def _margins(figure, left: float, right: float, bottom: float, top: float, wspac
     )
 
 
+def _log_panel_title(ax, text: str) -> None:
+    """A panel's title on axes with a log y scale, at the axes' top: where
+    matplotlib would place it, without measuring every tick label of the panel
+    at each draw to find that place (a log axis has no offset text, and these
+    panels no ticks on top)."""
+    ax.set_title(text, fontsize=9, y=1.0)
+
+
 def _input_axis(run: RunResult, values: np.ndarray) -> tuple[np.ndarray, str]:
     """The first driver's values in display units, and the axis label."""
     mech = run.mechanism
@@ -422,7 +430,7 @@ def error_figure(run: RunResult):
             ax.set_ylabel(f"{category} difference / tolerance")
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3, which="both")
-        axes[0, 1].set_title(title, fontsize=9)
+        _log_panel_title(axes[0, 1], title)
     return _with_legend_and_title(
         figure,
         grid,
@@ -544,7 +552,7 @@ def convergence_figure(run: RunResult):
         else:
             _reference_slopes(ax)
         _step_ticks(ax)
-        ax.set_title(mode, fontsize=9)
+        _log_panel_title(ax, mode)
         ax.set_xlabel("time step [s]")
         ax.set_ylabel("largest position error [m]")
         ax.grid(alpha=0.3, which="both")
