@@ -22,6 +22,7 @@ springs and loads are left out.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -29,18 +30,78 @@ from xcheck.engines._contract import with_unit_mass
 from xcheck.engines._frames import empty_states, loop_gap
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import one_line
+from xcheck.model import Mechanism
 from xcheck.results import ModeResult, Trajectory, differences
 
 from .dynamic import polynomial, record_state
 from .model import build, opensim, opensim_tree
 
-__all__ = ["MODE", "run_kinematic"]
+__all__ = ["MODE", "assembled_states", "run_kinematic"]
 
 MODE = "opensim-kinematic"
 #: the body quantities of the oracle (:func:`xcheck.engines._frames.empty_states`)
 QUANTITIES = ("position", "angle", "velocity", "omega", "acceleration", "alpha")
 #: the widest a loop may stay open after assembly, of the mechanism's size
 CLOSED = 1e-9
+
+
+def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states: tuple, walks: tuple) -> Iterator:
+    """OpenSim's states at given inputs, each assembled from its neighbour's coordinates.
+
+    Parameters
+    ----------
+    mech : Mechanism
+        With mass data on every moving body.
+    q_ref : ndarray
+        Native body coordinates where the model is built (every coordinate 0 there), the
+        drivers at ``ref``.
+    states : (inputs, rates, accelerations), each ndarray (N, k)
+    walks : sequence of sequences of int
+        The samples in the order they are assembled: each walk from the first walk's
+        first sample's coordinates (the first from the build state's), each sample from
+        the one before.
+
+    Yields
+    ------
+    (j, OpenSimModel, state, frames)
+        The sample, its model and state realised to acceleration (valid until the next),
+        and :meth:`~.model.OpenSimModel.frames`.
+
+    Raises
+    ------
+    RuntimeError
+        Where the assembler fails, or leaves a loop open by more than :data:`CLOSED` of the size.
+    """
+    signs = opensim_tree(mech, q_ref).driver_signs(mech)
+    inputs, rates, accelerations = states
+    start_guess: dict[str, float] = {}
+    for walk in walks:
+        guess = dict(start_guess)
+        for step, j in enumerate(walk):
+            functions = {  # value, rate and acceleration at t = 0, from the build state's value
+                name: polynomial([sign * accelerations[j, k] / 2, sign * rates[j, k], sign * (inputs[j, k] - ref[k])])
+                for k, (name, sign) in enumerate(signs)
+            }
+            om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
+            model, state = om.model, om.state
+            for name, value in guess.items():
+                if not om.coordinates[name].isPrescribed(state):
+                    om.coordinates[name].setValue(state, value, False)
+            state.setTime(0.0)
+            model.updateAssemblyConditions(state)
+            model.assemble(state)
+            manager = om.started_manager("RungeKuttaMerson", fixed_step=1.0)  # its state lives in it
+            state = manager.getState()
+            model.realizeAcceleration(state)
+            frames = om.frames(state)
+            gap = loop_gap(frames, om.tree.cuts)
+            if not gap <= CLOSED * mech.size:
+                where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[j]))
+                raise RuntimeError(f"OpenSim's assembler left a loop {gap:.3g} m open at {where}")
+            yield j, om, state, frames
+            guess = {name: c.getValue(state) for name, c in om.coordinates.items()}
+            if walk is walks[0] and step == 0:
+                start_guess = guess
 
 
 def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None = None) -> ModeResult:
@@ -71,9 +132,6 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
     osim = opensim()
     mech = kinematics.mechanism
     q_ref = kinematics.assemble(branch)
-    tree = opensim_tree(mech, q_ref)
-    signs = tree.driver_signs(mech)
-    massive = dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=())
     ref = kinematics.reference_inputs()
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     n = len(inputs)
@@ -81,39 +139,13 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
     for states in (*bodies.values(), *points.values()):  # accelerations are vectors too
         states["acceleration"] = np.full((n, 2), np.nan)
     first = int(np.argmin(np.abs(inputs[:, 0] - ref[0])))
-    walks = (range(first, n), range(first - 1, -1, -1))
-    widest = CLOSED * mech.size
-    start_guess: dict[str, float] = {}
+    massive = dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=())
     try:
-        for walk in walks:
-            guess = dict(start_guess)
-            for j in walk:
-                functions = {
-                    name: polynomial(
-                        [sign * 0.5 * accelerations[j, k], sign * rates[j, k], sign * (inputs[j, k] - ref[k])]
-                    )
-                    for k, (name, sign) in enumerate(signs)
-                }
-                om = build(massive, q_ref, prescribed=functions, planar_cuts=True)
-                model, state = om.model, om.state
-                for name, value in guess.items():
-                    if not om.coordinates[name].isPrescribed(state):
-                        om.coordinates[name].setValue(state, value, False)
-                state.setTime(0.0)
-                model.updateAssemblyConditions(state)
-                model.assemble(state)
-                manager = om.started_manager("RungeKuttaMerson", fixed_step=1.0)  # its state lives in it
-                state = manager.getState()
-                model.realizeAcceleration(state)
-                frames = om.frames(state)
-                gaps[j] = loop_gap(frames, om.tree.cuts)
-                if not gaps[j] <= widest:
-                    where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[j]))
-                    raise RuntimeError(f"OpenSim's assembler left a loop {gaps[j]:.3g} m open at {where}")
-                record_state(om, mech, state, frames, (bodies, points), j)
-                guess = {name: c.getValue(state) for name, c in om.coordinates.items()}
-                if j == first:
-                    start_guess = guess
+        for j, om, state, frames in assembled_states(
+            massive, q_ref, ref, (inputs, rates, accelerations), (range(first, n), range(first - 1, -1, -1))
+        ):
+            gaps[j] = loop_gap(frames, om.tree.cuts)
+            record_state(om, mech, state, frames, (bodies, points), j)
     except RuntimeError as error:  # OpenSim's exceptions are RuntimeErrors: the mode failed, as data
         return ModeResult(MODE, mech.name, False, one_line(error))
     trajectory = Trajectory(

@@ -1,0 +1,99 @@
+"""OpenSim's inverse dynamics of a prescribed motion: joint reactions and driver
+efforts from Simbody's constrained acceleration solve.
+
+At each native state the drivers are prescribed (the quadratic in time with the
+state's input values, rates and accelerations) and OpenSim's assembler, speed
+projection and accelerations give the state (:func:`.kinematic.assembled_states`,
+from the previous state's coordinates). Then, all OpenSim's own:
+
+* a tree joint's reaction is ``Joint.calcReactionOnChildExpressedInGround``'s
+  force on its child (the opposite where the child is the joint's first body);
+* a driven revolute's effort is that reaction's moment about z, the torque
+  the prescribed motion takes (signed as the driver's coordinate);
+* a loop cut's reaction is from its ``PointOnLineConstraint``'s record values:
+  per constrained body the force and moment it exerts on the constraint, the
+  opposite of what the constraint applies to it.
+
+Not converted (:class:`~xcheck.engines.NotApplicable`): prismatic joints and gear
+pairs (their normal forces, moments and tooth forces are not read out), and what
+the OpenSim model cannot hold (:func:`.model.refuse`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from xcheck.dynamics import Forces, determined_states, require_mass_data
+from xcheck.engines._contract import NotApplicable
+from xcheck.joints import Revolute
+from xcheck.kinematics import Kinematics
+from xcheck.topology import spanning_tree
+
+from .kinematic import assembled_states
+from .model import opensim_tree, refuse
+
+__all__ = ["inverse_forces"]
+
+
+def inverse_forces(
+    kinematics: Kinematics, branch: str | None = None, samples: int | None = None, solution=None
+) -> Forces:
+    """Reactions and efforts from OpenSim over the native states ``solution``
+    (default: :func:`~xcheck.dynamics.window_states` with ``samples`` states).
+
+    Raises
+    ------
+    NotApplicable
+        Where a joint is not a revolute, or the model cannot hold the mechanism's forces.
+    ValueError
+        If a state is not determined, or OpenSim's assembler does not close the loops there.
+    """
+    mech = kinematics.mechanism
+    require_mass_data(mech)
+    refuse(mech)
+    other = next((j for j in mech.joints if not isinstance(j, Revolute)), None)
+    if other is not None:
+        raise NotApplicable(
+            f"joint {other.name!r} is a {other.kind} joint: xcheck reads OpenSim's reactions of revolutes only"
+        )
+    solution = determined_states(kinematics, branch, samples, solution)
+    inputs, rates, accelerations = solution.inputs, solution.input_rates, solution.input_accelerations
+    n = len(inputs)
+    q_ref = solution.q[0]
+    tree = opensim_tree(mech, q_ref)
+    cuts = spanning_tree(mech).cuts  # as the model's constraints loop0, loop1, ... close them
+    joints = {j.name: {"reaction": np.zeros((n, 2))} for j in mech.joints}
+    drivers = {d.name: {"effort": np.zeros(n)} for d in mech.drivers}
+    signs = dict(tree.driver_signs(mech))
+    try:
+        for i, om, state, _ in assembled_states(mech, q_ref, inputs[0], (inputs, rates, accelerations), (range(n),)):
+            model = om.model
+            joint_set, constraint_set = model.getJointSet(), model.getConstraintSet()
+            for k, frames in enumerate(tree.joints):
+                spatial = joint_set.get(k).calcReactionOnChildExpressedInGround(state)
+                moment, force = spatial.get(0), spatial.get(1)
+                on_b = 1.0 if frames.child == mech.joint(frames.name).body_b else -1.0
+                joints[frames.name]["reaction"][i] = on_b * np.array([force.get(0), force.get(1)])
+                for driver in mech.drivers:
+                    if driver.joint == frames.name:
+                        drivers[driver.name]["effort"][i] = signs[frames.name] * moment.get(2)
+            for k, joint in enumerate(cuts):  # the constraints in the order of the tree's cuts
+                record = constraint_set.get(f"loop{k}").getRecordValues(state)
+                # the first body's entry: the force it exerts on the constraint, which passes it to body_b
+                joints[joint.name]["reaction"][i] = [record.get(0), record.get(1)]
+    except RuntimeError as error:
+        raise ValueError(" ".join(str(error).split())) from None
+    return Forces(
+        "opensim",
+        inputs,
+        rates,
+        accelerations,
+        joints,
+        drivers,
+        settings={"samples": n, "cuts": "PointOnLineConstraint"},
+        notes=(
+            "OpenSim: each state assembled with the drivers prescribed, speeds projected, accelerations realised; "
+            "tree joints' reactions from Joint.calcReactionOnChildExpressedInGround (a driven revolute's effort "
+            "its moment about z), loop cuts' from their PointOnLineConstraints' record values."
+        ),
+    )
