@@ -12,7 +12,11 @@
   single runs at local tolerances 1e-10 to 1e-14, each within the ladder's whole budget;
   goal: converged to 1e-9 of its size in at most 60 CPU s.
 
-Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40]``
+- passes: where A02's round-off comes from: single DOP853 runs from the exact state (the
+  reduction's, in 30 digits) 0.2 s before a singular pass to 0.2 s after it, and over a stretch
+  without one, at local tolerances 1e-11 to 1e-15: their errors in position and velocity at the end.
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40] [passes]``
 """
 
 from __future__ import annotations
@@ -37,14 +41,53 @@ ROOT = Path(__file__).resolve().parents[1]
 G = 9.81
 
 
+def _reduction(k: float):
+    """The cranks' angle and rate of a double four-bar chain on its parallelogram branch as
+    functions of time (mpmath's Taylor series method at 30 digits)."""
+    mp.mp.dps = 30
+    rate = mp.mpf(k) * mp.mpf("9.81")
+    return mp.odefun(lambda t, y: [y[1], -rate * mp.cos(y[0])], 0, [mp.pi / 2, mp.mpf(-1)])
+
+
 def reduced_theta(k: float, times: np.ndarray) -> np.ndarray:
     """The cranks' angle of a double four-bar chain on its parallelogram branch (rad, (N,)):
     theta'' = -k g cos(theta) from theta = 90 deg at -1 rad/s, by mpmath's Taylor series
     method at 30 digits (float64's DOP853 at rtol 1e-13 is 1.7e-11 rad off at 5 s on A02)."""
-    mp.mp.dps = 30
-    rate = mp.mpf(k) * mp.mpf("9.81")
-    solution = mp.odefun(lambda t, y: [y[1], -rate * mp.cos(y[0])], 0, [mp.pi / 2, mp.mpf(-1)])
+    solution = _reduction(k)
     return np.array([float(solution(mp.mpf(float(t)))[0]) for t in times])
+
+
+def passes() -> None:
+    """A02's error across single singular passes and over a stretch without one."""
+    from xcheck.dynamics._adaptive import integrate_adaptive
+    from xcheck.dynamics._free import _Dynamics
+    from xcheck.dynamics._free_compiled import Packed
+
+    kin, _, _, size, _ = _released("iftomm-a02", "where the round-off comes from")
+    packed, solution = Packed(_Dynamics(kin)), _reduction(3.5 / 3.0)
+
+    def exact(t: float) -> tuple[np.ndarray, np.ndarray]:  # three cranks, then two couplers
+        theta, w = solution(mp.mpf(t))
+        c, s = float(mp.cos(theta)), float(mp.sin(theta))
+        q = [[i + c / 2, s / 2, float(theta)] for i in range(3)] + [[i + 0.5 + c, s, 0.0] for i in range(2)]
+        qd = [[-s * float(w) / 2, c * float(w) / 2, float(w)]] * 3 + [[-s * float(w), c * float(w), 0.0]] * 2
+        return np.ravel(q), np.ravel(qd)
+
+    def off(a: np.ndarray, b: np.ndarray) -> float:  # angles times the size
+        delta = np.abs(a - b)
+        delta[2::3] *= size
+        return float(delta.max())
+
+    for begin, end, what in [(0.5, 0.9, "across the pass at 0.714 s"), (1.6, 2.0, "no pass"),
+                             (2.45, 2.85, "across the pass at 2.657 s")]:  # fmt: skip
+        q0, qd0 = exact(begin)
+        q1, qd1 = exact(end)
+        for tolerance in [1e-11, 1e-12, 1e-13, 1e-14, 1e-15]:
+            run = integrate_adaptive(packed, q0, qd0, 40, (end - begin) / 40, tolerance, 10**6)
+            print(
+                f"  {begin:g}-{end:g} s, {what}, at {tolerance:g}: {run.accepted} steps, {run.failure or 'ok'}; "
+                f"off by {off(run.q[-1], q1):.2g} m, {off(run.qd[-1], qd1):.2g} m/s"
+            )
 
 
 def _released(name: str, goal: str):
@@ -118,3 +161,5 @@ if __name__ == "__main__":
         goal = "converged to 1e-9 of the size in <= 60 CPU s"
         run("iftomm-a02-n40", k, [None], goal)
         runs("iftomm-a02-n40", k, [1e-10, 1e-11, 1e-12, 1e-13, 1e-14], goal)
+    if "passes" in sys.argv[1:]:
+        passes()
