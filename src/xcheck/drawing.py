@@ -200,12 +200,22 @@ def _clear_label(ax, text: str, p: np.ndarray, segments, taken: list[np.ndarray]
     )
 
 
+def _add_patch(ax, patch: patches.Patch) -> None:
+    """Add a patch to the axes; where its view is fixed (autoscaling off both
+    ways, as on the frames of an animation), without growing its data limits,
+    which nothing then reads and which cost a third of drawing a pose."""
+    if ax.get_autoscalex_on() or ax.get_autoscaley_on():
+        ax.add_patch(patch)
+    else:
+        ax.add_artist(patch)
+
+
 def _hatched_strip(ax, start: np.ndarray, end: np.ndarray, side: np.ndarray, depth: float, z: float) -> None:
     """Ground hatching: a line from start to end with a hatched strip of
     ``depth`` on the side ``side`` (unit vector)."""
     ax.plot([start[0], end[0]], [start[1], end[1]], color="black", lw=1.2, zorder=z)
     corners = np.array([start, end, end + depth * side, start + depth * side])
-    ax.add_patch(patches.Polygon(corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z))
+    _add_patch(ax, patches.Polygon(corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z))
 
 
 def _block(
@@ -217,8 +227,9 @@ def _block(
     corners = np.array(
         [centre + sx * 0.5 * length * u + sy * 0.5 * height * n for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
     )
-    ax.add_patch(
-        patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z)
+    _add_patch(
+        ax,
+        patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z),
     )
 
 
@@ -298,7 +309,8 @@ def draw_pose(
                 ax.plot([a[0], b[0]], [a[1], b[1]], color=colors[joint.body_a], lw=1.4, alpha=alpha, zorder=2)
             for cap, turn in ((start, 1.0), (end, -1.0)):
                 angle = math.degrees(math.atan2(d[1], d[0])) + 90.0 * turn
-                ax.add_patch(
+                _add_patch(
+                    ax,
                     patches.Arc(
                         w(cap),
                         3.2 * pin_r,
@@ -309,7 +321,7 @@ def draw_pose(
                         lw=1.4,
                         alpha=alpha,
                         zorder=2,
-                    )
+                    ),
                 )
             stubs[joint.body_a].append((start, end))
         else:  # a rod fixed in body_a along which body_b's block slides
@@ -331,13 +343,13 @@ def draw_pose(
         corners = _plate(np.array(nodes + loose), size) if loose else None
         if corners is not None:
             ring = corners
-            ax.add_patch(patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            _add_patch(ax, patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
             segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
         elif len(nodes) == 2:
             segments[body.name].append((nodes[0], nodes[1]))
         elif len(nodes) >= 3:
             ring = np.array(nodes)[_hull_order(np.array(nodes))]
-            ax.add_patch(patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            _add_patch(ax, patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
             segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
         for label in body.points:
             if label in used[body.name]:
@@ -362,7 +374,7 @@ def draw_pose(
             ):
                 c, tick = pose.point(gear, at), pose.direction(gear, np.array([1.0, 0.0]))
                 style = dict(color=colors[gear], alpha=alpha, zorder=2.5)
-                ax.add_patch(patches.Circle(w(c), radius / scale, fill=False, ls="-.", lw=1.3, **style))
+                _add_patch(ax, patches.Circle(w(c), radius / scale, fill=False, ls="-.", lw=1.3, **style))
                 end = w(c + radius * tick)
                 ax.plot([w(c)[0], end[0]], [w(c)[1], end[1]], lw=1.0, **style)
                 segments.setdefault(gear, []).append((c, c + radius * tick))
@@ -382,7 +394,7 @@ def draw_pose(
                 p = w(pose.point(gname, label))
                 h = 3.2 * pin_r
                 tri = np.array([p, p + [-0.8 * h, -1.4 * h], p + [0.8 * h, -1.4 * h]])
-                ax.add_patch(patches.Polygon(tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1))
+                _add_patch(ax, patches.Polygon(tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1))
                 symbols += [(tri[k], tri[(k + 1) % 3]) for k in range(3)] + [
                     (p + [-1.3 * h, -2.0 * h], p + [1.3 * h, -2.0 * h])
                 ]
@@ -395,7 +407,7 @@ def draw_pose(
             p = w(pose.point(joint.body_b, joint.point))
         else:
             continue
-        ax.add_patch(patches.Circle(p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5))
+        _add_patch(ax, patches.Circle(p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5))
     # points and their labels, each on the side of its point clearest of the links and the other labels
     drawn = [(w(a), w(b)) for body in mech.moving_bodies for a, b in segments[body.name] + stubs[body.name]]
     drawn += symbols
@@ -431,7 +443,7 @@ def draw_pose(
                 lw=1.5,
                 zorder=8,
             )
-            ax.add_patch(arrow)
+            _add_patch(ax, arrow)
             _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
         else:
             assert isinstance(joint, LineJoint)
@@ -440,8 +452,9 @@ def draw_pose(
             n = np.array([-d[1], d[0]])
             a = w(p + 0.9 * block_h * n - 0.5 * block_l * d)
             b = w(p + 0.9 * block_h * n + 0.9 * block_l * d)
-            ax.add_patch(
-                patches.FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8)
+            _add_patch(
+                ax,
+                patches.FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8),
             )
             _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
 
