@@ -94,3 +94,20 @@ def test_ground_is_hatched_points_labelled_and_the_input_has_an_arrow():
     assert set(mech.mechanism.point_owners) <= texts
     arrows = [p for p in ax.patches if isinstance(p, patches.FancyArrowPatch)]
     assert len(arrows) == 1 and "crank" in texts
+
+
+def test_a_label_takes_the_side_clearest_of_the_links_and_the_labels_placed():
+    from matplotlib.figure import Figure
+
+    from xcheck.drawing import _clear_label
+
+    ax = Figure().add_subplot()
+    taken: list = []
+    _clear_label(ax, "A", np.zeros(2), [], taken, 1.0, {})  # nothing near: the first side, up and right
+    _clear_label(ax, "B", np.zeros(2), [], taken, 1.0, {})  # A's place taken: the side farthest from it
+    link = [(np.array([-10.0, 50.0]), np.array([10.0, 50.0]))]  # through C, level: above it (before below)
+    _clear_label(ax, "C", np.array([0.0, 50.0]), link, taken, 1.0, {})
+    sides = {t.get_text(): (t.get_ha(), t.get_va()) for t in ax.texts}
+    assert sides == {"A": ("left", "bottom"), "B": ("right", "top"), "C": ("center", "bottom")}
+    assert np.allclose(ax.texts[0].xyann, [np.sqrt(0.5), np.sqrt(0.5)])
+    assert len(taken) == 3
