@@ -413,12 +413,13 @@ def test_compare_forces_lists_every_engine():
     """compare_forces (what the comparison runner calls) gives one result per
     engine, Newton-Euler first, each with its differences table."""
     results = compare_forces(_kin("fourbar-dynamics"), options={"pymunk": {"steps_per_sample": 25}})
-    assert [r.engine for r in results] == ["newton-euler", "mujoco", "pinocchio", "pymunk"]
+    engines = ["newton-euler", "mujoco", "pinocchio", "pymunk", "opensim"]
+    assert [r.engine for r in results] == engines
     assert all(r.ok and not r.table.empty for r in results)
     summary = force_summary(results + [engine_forces(_kin("fourbar-dynamics"), "bullet")])
-    assert list(summary.engine) == ["newton-euler", "mujoco", "pinocchio", "pymunk", "bullet"]
-    assert summary.ok.tolist() == [True, True, True, True, False]
-    assert summary.reason.iloc[-1].startswith("expected an engine (newton-euler, mujoco, pinocchio, pymunk)")
+    assert list(summary.engine) == [*engines, "bullet"]
+    assert summary.ok.tolist() == [True] * len(engines) + [False]
+    assert summary.reason.iloc[-1].startswith(f"expected an engine ({', '.join(engines)})")
     assert summary.max_rel.iloc[:3].max() < 1e-12 and summary.quantity.iloc[3].startswith("|")
 
 

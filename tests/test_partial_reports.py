@@ -136,3 +136,19 @@ def test_a_rerun_on_another_day_leaves_the_evidence_as_it_was(tmp_path, monkeypa
     assert _cli(*FOURBAR, "--engines", "formulations", "--out", out).exit_code == 0
     dates = {mode: part["produced"]["date"] for mode, part in json.loads(evidence.read_bytes())["modes"].items()}
     assert dates["formulation-I"] == "2099-12-31" and dates["formulation-II"] != "2099-12-31"
+
+
+def test_a_partial_runs_rows_keep_the_whole_runs_order():
+    """A source or mode the run did not rerun stays where the whole run put it,
+    not after those it reran (a partial run of the kinematic modes reran OpenSim's
+    reactions but not pymunk's, which come before them)."""
+    made = _evidence.produced("xcheck run fourbar")
+    parts = {name: {"row": [name], "produced": made} for name in ("newton-euler", "mujoco", "pymunk", "opensim")}
+    previous = _evidence.Evidence("run", "fourbar", modes=dict(parts), sources=dict(parts))
+    fresh_parts = {name: parts[name] for name in ("newton-euler", "opensim")}
+    fresh = _evidence.Evidence("run", "fourbar", modes=dict(fresh_parts), sources=dict(fresh_parts))
+    merged = _evidence.merge(fresh, previous)
+    assert list(merged.sources) == list(merged.modes) == ["newton-euler", "mujoco", "pymunk", "opensim"]
+    assert merged.carried == {"mujoco", "pymunk"}
+    alone = _evidence.merge(_evidence.Evidence("run", "fourbar", sources={"pymunk": parts["pymunk"]}), previous)
+    assert list(alone.sources) == ["newton-euler", "mujoco", "pymunk", "opensim"]

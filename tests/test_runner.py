@@ -87,8 +87,9 @@ def test_json_summary_shape(whole_run):
     # make up for it (measured 2.5e-3 of the largest acceleration at 0.125 ms, the bound 1.5e-2):
     # every mode passes (its rows still name the finding: test_engine_mjx)
     assert doc["verdict"] == "pass"
-    assert set(doc["engines"]) == set(ALL_MODES) and "mjx-dynamic" in doc["engines"] and doc["left_out"] == {}
-    assert set(doc["cache"]["from_cache"]) >= set(ALL_MODES) - {"native"} and doc["cache"]["recomputed"] == {}
+    assert set(doc["engines"]) | set(doc["not_applicable"]) == set(ALL_MODES) and doc["left_out"] == {}
+    assert "mjx-dynamic" in doc["engines"] and set(doc["not_applicable"]) <= {"newton-dynamic"}  # Newton: not installed
+    assert set(doc["cache"]["from_cache"]) >= set(doc["engines"]) - {"native"} and doc["cache"]["recomputed"] == {}
     for mode, entry in doc["engines"].items():
         assert entry["pass"] and entry["reason"] is None and entry["verdict"] == "pass" and entry["finding"] is None
         for category in ("position", "velocity", "acceleration"):
@@ -207,7 +208,7 @@ def test_forces_and_energy_in_the_json_summary():
     result = _cli("run", "fourbar-dynamics", "--json", "--no-report", "--samples", "21", "--engines", "kinematic")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert set(doc["forces"]) == {"newton-euler", "mujoco", "pinocchio"}
+    assert set(doc["forces"]) == {"newton-euler", "mujoco", "pinocchio", "opensim"}
     for source, entry in doc["forces"].items():
         # 1e-12, or the round-off at the states' conditioning times the length ratio
         # (runner.force_tolerance on fourbar-dynamics: 10 eps kappa^2 ratio = 3.1e-12 for

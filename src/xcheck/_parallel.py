@@ -24,6 +24,7 @@ import types
 from collections.abc import Callable, Hashable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, as_completed, wait
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
     "known_to_workers",
     "submit",
     "collect",
+    "run_as_command",
     "exit_at_once",
     "nothing_left_running",
     "WORKER_DIED",
@@ -190,6 +192,28 @@ def nothing_left_running() -> bool:
     (what :func:`exit_at_once` would otherwise cut short)."""
     threads = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
     return not threads and not multiprocessing.active_children()
+
+
+def run_as_command(app: Callable[[], object]) -> None:
+    """Run the command-line ``app``. Where this process is the ``xcheck`` command
+    (its script, ``python -m xcheck``), not a program that calls it, it ends at
+    once when the command is done and nothing of it still runs (:func:`exit_at_once`)."""
+    try:
+        app()
+    except SystemExit as end:
+        if _the_command() and (end.code is None or isinstance(end.code, int)) and nothing_left_running():
+            exit_at_once(end.code or 0)
+        raise
+
+
+def _the_command() -> bool:
+    """Whether this process is the ``xcheck`` command: its main module is the
+    console script or this package's ``__main__``."""
+    top = sys.modules.get("__main__")
+    spec = getattr(top, "__spec__", None)
+    if spec is not None:
+        return spec.name == f"{__package__}.__main__"
+    return Path(getattr(top, "__file__", None) or "").stem == "xcheck"
 
 
 def exit_at_once(code: int = 0) -> NoReturn:

@@ -4,7 +4,6 @@ it (:mod:`xcheck.states`, :mod:`xcheck.batch`, :mod:`xcheck.api`) and prints."""
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Annotated, Optional
@@ -676,8 +675,7 @@ def fuzz_command(
             progress.update(task, completed=done, total=total)
 
         rows = campaign.fuzz(out, count, seed, chosen, modes, samples, workers, scheduler, progress=step)
-    rows = rows[rows.seed == seed]
-    rows = rows[rows["index"] < count]
+    rows = rows[(rows.seed == seed) & (rows["index"] < count)]
     command = f"xcheck fuzz --count {count} --seed {seed} --kinds {','.join(chosen)}" + (
         f" --engines {engines}" if engines else ""
     )
@@ -692,28 +690,10 @@ escape_help_markup(app)
 
 
 def main() -> None:
-    """Console-script entry point. Where this process is the ``xcheck`` command
-    (its script, ``python -m xcheck``), not a program that calls this function,
-    it ends at once when the command is done and nothing of it still runs
-    (:func:`xcheck._parallel.exit_at_once`)."""
-    from ._parallel import exit_at_once, nothing_left_running
+    """Console-script entry point (:func:`xcheck._parallel.run_as_command`)."""
+    from ._parallel import run_as_command
 
-    try:
-        app()
-    except SystemExit as end:
-        if _the_command() and (end.code is None or isinstance(end.code, int)) and nothing_left_running():
-            exit_at_once(end.code or 0)
-        raise
-
-
-def _the_command() -> bool:
-    """Whether this process is the ``xcheck`` command: its main module is the
-    console script or this package's ``__main__``."""
-    top = sys.modules.get("__main__")
-    spec = getattr(top, "__spec__", None)
-    if spec is not None:
-        return spec.name == f"{__package__}.__main__"
-    return Path(getattr(top, "__file__", None) or "").stem == "xcheck"
+    run_as_command(app)
 
 
 if __name__ == "__main__":  # pragma: no cover

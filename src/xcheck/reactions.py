@@ -11,6 +11,7 @@ the simulation window (:func:`xcheck.dynamics.window_states`) and tabulates
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -113,12 +114,15 @@ def compare_forces(
     return [engine_forces(kinematics, engine, branch, **options.get(engine, {})) for engine in engines]
 
 
-def force_summary(results: list[ForceResult]) -> pd.DataFrame:
+def force_summary(results: list[ForceResult], round_off: Mapping[str, float] | None = None) -> pd.DataFrame:
     """One row per result of :func:`compare_forces`: ``engine``, ``ok``,
     ``reason``, the worst ``max_rel`` with its ``name`` and ``quantity`` (NaN
     and empty for a failed engine), ``max_abs`` there (SI, ``unit``), the
     physical ``floor`` of that unit's scale (:func:`force_floors`),
-    ``states``, ``seconds`` and ``applies``."""
+    ``states``, ``seconds`` and ``applies``. Where every quantity of a source
+    lies below its ``round_off`` (engine -> relative bound), which is worst is
+    noise: the row is then its largest quantity (the largest ``scale``), so that
+    it reads the same on any machine."""
     import pandas as pd
 
     rows = []
@@ -138,7 +142,11 @@ def force_summary(results: list[ForceResult]) -> pd.DataFrame:
             "applies": r.applies,
         }
         if r.ok and r.table is not None and not r.table.empty:
-            worst = r.table.iloc[int(np.nanargmax(r.table["max_rel"].to_numpy()))]
+            relative = r.table["max_rel"].to_numpy()
+            at = int(np.nanargmax(relative))
+            if round_off is not None and relative[at] < round_off.get(r.engine, 0.0):
+                at = int(np.argmax(r.table["scale"].to_numpy()))
+            worst = r.table.iloc[at]
             row.update(
                 max_rel=float(worst["max_rel"]),
                 name=worst["name"],

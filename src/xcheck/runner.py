@@ -940,10 +940,11 @@ def _compute_forces(run: RunResult, sources: list[str], branch: str | None) -> N
     run.native_forces = inverse_dynamics(states)
     condition = condition_number(states)
     run.forces = compare_forces(kinematics, sources, branch)
-    table = force_summary(run.forces)
     ratio = length_ratio(kinematics.mechanism)
+    round_off = {source: force_round_off(source, condition, ratio) for source in sources}
+    table = force_summary(run.forces, round_off)
     table["tolerance"] = [force_tolerance(source, condition, ratio) for source in table.engine]
-    table["round_off"] = [force_round_off(source, condition, ratio) for source in table.engine]
+    table["round_off"] = [round_off[source] for source in table.engine]
     table["passed"] = table.ok & (table.max_rel <= table.tolerance)
     table["basis"], table["refinements"], table["refinement_failure"] = "", 0, ""
     for i in table.index[table.ok & ~table.passed]:
@@ -974,8 +975,9 @@ def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | 
     order = None if source == "newton-euler" else engines.engine(source).force_order
     if order is None:
         return
-    bound = float(table.tolerance.to_numpy(dtype=float)[table.index.get_loc(row)])
-    errors, seen = [float(table.max_rel.to_numpy(dtype=float)[table.index.get_loc(row)])], []
+    position = table.index.get_loc(row)
+    bound = float(table.tolerance.to_numpy(dtype=float)[position])
+    errors, seen = [float(table.max_rel.to_numpy(dtype=float)[position])], []
     for refine in range(1, REFINEMENTS + 1):
         finer = engine_forces(run.kinematics, source, branch, refine=refine)
         if not finer.ok:
@@ -985,7 +987,7 @@ def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | 
             )
             table.at[row, "refinement_failure"] = finer.reason
             return
-        summary = force_summary([finer]).iloc[0]
+        summary = force_summary([finer], {source: float(table.round_off.to_numpy(dtype=float)[position])}).iloc[0]
         errors.append(float(summary.max_rel))
         limit = errors[-2] * 0.5 ** (order - ORDER_MARGIN)
         observed = observed_order(errors[-2], errors[-1], 2.0, 1.0)

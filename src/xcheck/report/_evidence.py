@@ -112,17 +112,13 @@ def merge(fresh: Evidence, previous: Evidence | None) -> Evidence:
     that reproduces ``previous``'s keeps its provenance (:func:`_restamped`)."""
     if previous is None:
         return fresh
-    modes = {key: _restamped(part, previous.modes.get(key)) for key, part in fresh.modes.items()}
-    sources = {key: _restamped(part, previous.sources.get(key)) for key, part in fresh.sources.items()}
-    carried = set()
-    for key, part in previous.modes.items():
-        if key not in modes:
-            modes[key] = part
-            carried.add(key)
-    for key, part in previous.sources.items():
-        if key not in sources:
-            sources[key] = part
-            carried.add(key)
+    modes = _carried_in_place(
+        {key: _restamped(part, previous.modes.get(key)) for key, part in fresh.modes.items()}, previous.modes
+    )
+    sources = _carried_in_place(
+        {key: _restamped(part, previous.sources.get(key)) for key, part in fresh.sources.items()}, previous.sources
+    )
+    carried = (previous.modes.keys() - fresh.modes.keys()) | (previous.sources.keys() - fresh.sources.keys())
     figures = {key: _restamped(part, previous.figures.get(key)) for key, part in fresh.figures.items()}
     kept = set()
     for file, figure in previous.figures.items():
@@ -130,6 +126,22 @@ def merge(fresh: Evidence, previous: Evidence | None) -> Evidence:
             figures[file] = figure
             kept.add(file)
     return Evidence(fresh.kind, fresh.mechanism, modes, sources, figures, carried, kept)
+
+
+def _carried_in_place(fresh: dict[str, dict], previous: dict[str, dict]) -> dict[str, dict]:
+    """``fresh`` with the parts of ``previous`` it lacks, each placed after the
+    part it followed in ``previous`` (first where none did): the rows of a
+    partial run read in the order of a whole one, whichever modes it reran."""
+    merged = list(fresh.items())
+    placed = set(fresh)
+    before = None
+    for key, part in previous.items():
+        if key not in placed:
+            at = 0 if before is None else next(i for i, (k, _) in enumerate(merged) if k == before) + 1
+            merged.insert(at, (key, part))
+            placed.add(key)
+        before = key
+    return dict(merged)
 
 
 def _restamped(part: dict, earlier: dict | None) -> dict:
