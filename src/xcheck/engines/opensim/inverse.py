@@ -12,7 +12,9 @@ from the previous state's coordinates). Then, all OpenSim's own:
   the prescribed motion takes (signed as the driver's coordinate);
 * a loop cut's reaction is from its ``PointOnLineConstraint``'s record values:
   per constrained body the force and moment it exerts on the constraint, the
-  opposite of what the constraint applies to it.
+  opposite of what the constraint applies to it, expressed in the frame of the
+  two bodies' nearest common ancestor in the tree (Simbody's constraint
+  ancestor), turned into the ground frame.
 
 Not converted (:class:`~xcheck.engines.NotApplicable`): prismatic joints and gear
 pairs (their normal forces, moments and tooth forces are not read out), and what
@@ -27,10 +29,11 @@ from xcheck.dynamics import Forces, determined_states, require_mass_data
 from xcheck.engines._contract import NotApplicable
 from xcheck.joints import Revolute
 from xcheck.kinematics import Kinematics
+from xcheck.model import GROUND
 from xcheck.topology import spanning_tree
 
 from .kinematic import assembled_states
-from .model import opensim_tree, refuse
+from .model import component_name, opensim_tree, refuse
 
 __all__ = ["inverse_forces"]
 
@@ -65,6 +68,8 @@ def inverse_forces(
     joints = {j.name: {"reaction": np.zeros((n, 2))} for j in mech.joints}
     drivers = {d.name: {"effort": np.zeros(n)} for d in mech.drivers}
     signs = dict(tree.driver_signs(mech))
+    ancestors = [_common_ancestor(tree, joint.body_a, joint.body_b) for joint in cuts]
+    names = {b.name: component_name(b.name, k) for k, b in enumerate(mech.moving_bodies)}
     try:
         for i, om, state, _ in assembled_states(mech, q_ref, inputs[0], (inputs, rates, accelerations), (range(n),)):
             model = om.model
@@ -80,7 +85,11 @@ def inverse_forces(
             for k, joint in enumerate(cuts):  # the constraints in the order of the tree's cuts
                 record = constraint_set.get(f"loop{k}").getRecordValues(state)
                 # the first body's entry: the force it exerts on the constraint, which passes it to body_b
-                joints[joint.name]["reaction"][i] = [record.get(0), record.get(1)]
+                force = np.array([record.get(0), record.get(1)])
+                if ancestors[k] != GROUND:
+                    turn = model.getBodySet().get(names[ancestors[k]]).getTransformInGround(state).R()
+                    force = np.array([[turn.get(0, 0), turn.get(0, 1)], [turn.get(1, 0), turn.get(1, 1)]]) @ force
+                joints[joint.name]["reaction"][i] = force
     except RuntimeError as error:
         raise ValueError(" ".join(str(error).split())) from None
     return Forces(
@@ -97,3 +106,18 @@ def inverse_forces(
             "its moment about z), loop cuts' from their PointOnLineConstraints' record values."
         ),
     )
+
+
+def _common_ancestor(tree, body_a: str, body_b: str) -> str:
+    """The nearest body of the tree (``tree.joints``: parents first) that both
+    ``body_a`` and ``body_b`` hang from, either of them included; ground at the root."""
+    parents = {frames.child: frames.parent for frames in tree.joints}
+
+    def line(body: str) -> list[str]:
+        chain = [body]
+        while chain[-1] in parents:
+            chain.append(parents[chain[-1]])
+        return chain
+
+    above_b = set(line(body_b))
+    return next((body for body in line(body_a) if body in above_b), GROUND)
