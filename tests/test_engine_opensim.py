@@ -145,6 +145,21 @@ def test_the_assembler_is_a_kinematic_oracle_to_round_off(kinematics, name):
     assert result.trajectories[0].diagnostics["constraint_violation"].max() <= 1e-12
 
 
+def test_the_oracle_walks_a_long_step_on_its_branch():
+    """Nine samples of the two-input five-bar, 34 degrees apart: from one sample's
+    coordinates the assembler landed on the other branch two samples from the end
+    (l2 and l3 swapped: 0.25 of the size off); walked in steps of the continuation's
+    longest, it stays on the native branch at round-off."""
+    from xcheck.engines.opensim.kinematic import run_kinematic
+    from xcheck.tolerances import ROUND_OFF
+
+    result = run_kinematic(Kinematics(load_mechanism(DATA / "fivebar.toml")), samples=9)
+    assert result.ok
+    worst = result.summary.groupby("quantity")["max_abs"].max()
+    for quantity in ("position", "angle", "velocity", "acceleration"):
+        assert worst[quantity] <= 1e-3 * ROUND_OFF.limit(quantity), (quantity, worst[quantity])
+
+
 def test_the_oracle_says_where_the_assembler_leaves_a_loop_open(kinematics, monkeypatch):
     """With the loops cut as PointConstraints (three rows, one redundant) the assembler
     leaves the four-bar's loop open (measured 0.08 to 0.18 m): the mode fails, saying where."""

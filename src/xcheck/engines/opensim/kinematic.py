@@ -13,7 +13,10 @@ prescribed, the assembler has more equations than free coordinates and leaves th
 loops open (on the bundled four-bar by 0.08 to 0.18 m). The sweep starts at the
 native assembly at the reference inputs and walks up, then down, each sample from
 its neighbour's coordinates (``updateAssemblyConditions``: without it the
-assembler's goals stay the build state's, and it lands on the other branch). The
+assembler's goals stay the build state's, and it lands on the other branch),
+through intermediate assemblies where the inputs move by more than the
+continuation's longest step (:data:`xcheck.engines._continuation.MAX_STEP`):
+from 34 degrees away a five-bar's assembler lands on its other branch. The
 drivers prescribe the motion, so masses and forces only weigh Simbody's
 acceleration solve: a body without mass data gets 1 kg and m size^2 / 12, and
 springs and loads are left out.
@@ -22,10 +25,12 @@ springs and loads are left out.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterator
 
 import numpy as np
 
+from xcheck.engines._continuation import MAX_STEP
 from xcheck.engines._contract import with_unit_mass
 from xcheck.engines._frames import empty_states, loop_gap
 from xcheck.kinematics import Kinematics
@@ -74,24 +79,20 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
     """
     signs = opensim_tree(mech, q_ref).driver_signs(mech)
     inputs, rates, accelerations = states
+    scale = np.array([mech.size if d.quantity == "slide" else 1.0 for d in mech.drivers])
     start_guess: dict[str, float] = {}
+    start = np.asarray(ref, dtype=float)
     for walk in walks:
-        guess = dict(start_guess)
+        guess, last = dict(start_guess), start
         for step, j in enumerate(walk):
-            functions = {  # value, rate and acceleration at t = 0, from the build state's value
-                name: polynomial([sign * accelerations[j, k] / 2, sign * rates[j, k], sign * (inputs[j, k] - ref[k])])
-                for k, (name, sign) in enumerate(signs)
-            }
-            om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
-            model, state = om.model, om.state
-            for name, value in guess.items():
-                if not om.coordinates[name].isPrescribed(state):
-                    om.coordinates[name].setValue(state, value, False)
-            state.setTime(0.0)
-            model.updateAssemblyConditions(state)
-            model.assemble(state)
-            manager = om.started_manager("RungeKuttaMerson", fixed_step=1.0)  # its state lives in it
-            state = manager.getState()
+            # a longer step than MAX_STEP from the last assembly: walked in steps, each from the one before
+            parts = math.ceil(float(np.max(np.abs(inputs[j] - last) / scale)) / MAX_STEP)
+            for fraction in np.arange(1, parts) / parts:
+                between = last + fraction * (inputs[j] - last)
+                om, manager = _assembled(mech, q_ref, ref, signs, (between, 0 * between, 0 * between), guess)
+                guess = {name: c.getValue(manager.getState()) for name, c in om.coordinates.items()}
+            om, manager = _assembled(mech, q_ref, ref, signs, (inputs[j], rates[j], accelerations[j]), guess)
+            model, state = om.model, manager.getState()  # the state lives in the manager
             model.realizeAcceleration(state)
             frames = om.frames(state)
             gap = loop_gap(frames, om.tree.cuts)
@@ -99,9 +100,30 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
                 where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[j]))
                 raise RuntimeError(f"OpenSim's assembler left a loop {gap:.3g} m open at {where}")
             yield j, om, state, frames
-            guess = {name: c.getValue(state) for name, c in om.coordinates.items()}
+            guess, last = {name: c.getValue(state) for name, c in om.coordinates.items()}, inputs[j]
             if walk is walks[0] and step == 0:
-                start_guess = guess
+                start_guess, start = guess, last
+
+
+def _assembled(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, signs, at: tuple, guess: dict):
+    """The model of :func:`.model.build` with the drivers prescribed at ``at``
+    (values, rates, accelerations at t = 0, each ndarray (k,)), assembled from the
+    free coordinates' values ``guess`` (name -> value), speeds projected; returns
+    (model, the started manager that holds its state)."""
+    values, rates, accelerations = at
+    functions = {  # value, rate and acceleration at t = 0, from the build state's value
+        name: polynomial([sign * accelerations[k] / 2, sign * rates[k], sign * (values[k] - ref[k])])
+        for k, (name, sign) in enumerate(signs)
+    }
+    om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
+    model, state = om.model, om.state
+    for name, value in guess.items():
+        if not om.coordinates[name].isPrescribed(state):
+            om.coordinates[name].setValue(state, value, False)
+    state.setTime(0.0)
+    model.updateAssemblyConditions(state)
+    model.assemble(state)
+    return om, om.started_manager("RungeKuttaMerson", fixed_step=1.0)
 
 
 def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None = None) -> ModeResult:
