@@ -6,6 +6,7 @@ OpenSim)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from xcheck.results import Trajectory
 __all__ = [
     "FrameRecorder",
     "driven_run",
+    "stepped_samples",
     "empty_states",
     "record_moving_states",
     "loop_gap",
@@ -190,6 +192,25 @@ def record_moving_states(mechanism, states: dict[str, tuple], arrays: tuple[dict
         points[label]["position"][j] = world_point(states, owner, local)
         points[label]["velocity"][j] = point_velocity(states, owner, local)
     return True
+
+
+def stepped_samples(
+    samples: int, per: int, step: Callable[[int], None], record: Callable[[int], str]
+) -> tuple[str, int]:
+    """Take ``samples * per`` engine steps, ``step(n)`` the n-th (0-based), and after
+    every ``per``-th record sample j = (n + 1) // per - 1 (``record(j)``: "" or why the
+    run stops there; "went non-finite ..." where the sample's states were not stored).
+    Returns (why it stopped or "", the samples stored), as :func:`driven_run` takes them."""
+    failure, reached = "", 0
+    for n in range(samples * per):
+        if failure:
+            break
+        step(n)
+        if not (n + 1) % per:
+            j = (n + 1) // per - 1
+            failure = record(j)
+            reached = j + (0 if failure.startswith("went non-finite") else 1)
+    return failure, reached
 
 
 def driven_run(

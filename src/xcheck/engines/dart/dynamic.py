@@ -26,7 +26,7 @@ import dataclasses
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states, stepped_samples
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
@@ -126,18 +126,13 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
         gaps[j] = loop_gap(states, model.tree.cuts)
         return problem.came_apart(float(times[j]), float(gaps[j]))
 
-    failure, reached = "", 0
-    for n in range(samples * per):
-        if failure:
-            break
+    def step(n: int) -> None:
         target = np.array([float(d.law.at_time((n + 1) * dt)[0]) for d in mech.drivers])
         for k, joint in enumerate(joints):
             joint.setCommand(0, float((signs[k] * (target[k] - start[k]) - joint.getPosition(0)) / dt))
         model.world.step()
-        if not (n + 1) % per:
-            j = (n + 1) // per - 1
-            failure = record(j)
-            reached = j + (0 if failure.startswith("went non-finite") else 1)
+
+    failure, reached = stepped_samples(samples, per, step, record)
     settings = {"integrator": INTEGRATOR, "timestep": dt, "series": rung.series.key, "steps_per_sample": per}
     notes = (
         f"DART driven dynamics, {INTEGRATOR}, dt = {dt:.4g} s; inputs as DART realised them "

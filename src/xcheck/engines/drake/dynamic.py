@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, stepped_samples, world_point
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DRIVEN_SAMPLES, DrivenProblem, Run, Rung, Series, came_apart
 from xcheck.motion import SimulationWindow
@@ -160,10 +160,7 @@ def simulate(
         gaps[j] = loop_gap(frames, model.cuts)
         return came_apart(float(times[j]), gaps[j], mech.size)
 
-    failure, reached = "", 0
-    for n in range(samples * per):
-        if failure:
-            break
+    def step(n: int) -> None:
         t_next = (n + 1) * dt
         # Drake's discrete update at t = n dt samples its inputs there and takes the state to
         # (n + 1) dt; SAP's PD acts on that end state, so its target is the law there
@@ -173,10 +170,8 @@ def simulate(
         if timed:
             apply_loads(model, n * dt)
         simulator.AdvanceTo((n + 0.5) * dt)
-        if not (n + 1) % per:
-            j = (n + 1) // per - 1
-            failure = record(j)
-            reached = j + (0 if failure.startswith("went non-finite") else 1)
+
+    failure, reached = stepped_samples(samples, per, step, record)
     settings = {"integrator": INTEGRATOR, "timestep": dt, "series": "default", "steps_per_sample": per}
     notes = (
         f"Drake driven dynamics, {INTEGRATOR}, dt = {dt:.4g} s; inputs as Drake realised them "

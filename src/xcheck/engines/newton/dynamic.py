@@ -30,7 +30,14 @@ import dataclasses
 import numpy as np
 
 from xcheck.engines._contract import NotApplicable, with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states, world_point
+from xcheck.engines._frames import (
+    driven_run,
+    empty_states,
+    loop_gap,
+    record_moving_states,
+    stepped_samples,
+    world_point,
+)
 from xcheck.engines._tree import tree_frames
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
@@ -155,10 +162,8 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
         gaps[j] = loop_gap(states, built.tree.cuts)
         return problem.came_apart(float(times[j]), float(gaps[j]))
 
-    failure, reached = "", 0
-    for n in range(samples * per):
-        if failure:
-            break
+    def step(n: int) -> None:
+        nonlocal state, next_state
         laws = [d.law.at_time((n + 1) * dt) for d in mech.drivers]
         q, qd = state.joint_q.numpy(), state.joint_qd.numpy()
         q[q_index] = signs * (np.array([float(law[0]) for law in laws]) - start)
@@ -169,10 +174,8 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
         state.clear_forces()
         stepper.step(state, next_state, control, None, dt)
         state, next_state = next_state, state
-        if not (n + 1) % per:
-            j = (n + 1) // per - 1
-            failure = record(j)
-            reached = j + (0 if failure.startswith("went non-finite") else 1)
+
+    failure, reached = stepped_samples(samples, per, step, record)
     integrator = rung.series.integrator
     settings = {"integrator": integrator, "timestep": dt, "series": rung.series.key, "steps_per_sample": per}
     notes = (

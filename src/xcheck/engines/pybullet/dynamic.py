@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, stepped_samples, world_point
 from xcheck.joints import LineJoint
 from xcheck.kinematics import Kinematics, rotate
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
@@ -154,10 +154,7 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
             gaps[j] = loop_gap(frames, mb.cuts)
             return problem.came_apart(float(times[j]), float(gaps[j]))
 
-        failure, reached = "", 0
-        for n in range(samples * per):
-            if failure:
-                break
+        def step(n: int) -> None:
             t_next = (n + 1) * dt
             for (link, sign), law in laws:
                 value, rate, _ = (float(v) for v in law.at_time(t_next))
@@ -171,10 +168,8 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
                     physicsClientId=client,
                 )
             p.stepSimulation(physicsClientId=client)
-            if not (n + 1) % per:
-                j = (n + 1) // per - 1
-                failure = record(j)
-                reached = j + (0 if failure.startswith("went non-finite") else 1)
+
+        failure, reached = stepped_samples(samples, per, step, record)
     finally:
         p.disconnect(client)
     settings = {
