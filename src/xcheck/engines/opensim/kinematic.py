@@ -82,6 +82,7 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
     scale = np.array([mech.size if d.quantity == "slide" else 1.0 for d in mech.drivers])
     start_guess: dict[str, float] = {}
     start = np.asarray(ref, dtype=float)
+    om = None  # one model, its drivers prescribed anew at each assembly
     for walk in walks:
         guess, last = dict(start_guess), start
         for step, j in enumerate(walk):
@@ -89,9 +90,9 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
             parts = math.ceil(float(np.max(np.abs(inputs[j] - last) / scale)) / MAX_STEP)
             for fraction in np.arange(1, parts) / parts:
                 between = last + fraction * (inputs[j] - last)
-                om, manager = _assembled(mech, q_ref, ref, signs, (between, 0 * between, 0 * between), guess)
+                om, manager = _assembled(mech, q_ref, ref, signs, (between, 0 * between, 0 * between), guess, om)
                 guess = {name: c.getValue(manager.getState()) for name, c in om.coordinates.items()}
-            om, manager = _assembled(mech, q_ref, ref, signs, (inputs[j], rates[j], accelerations[j]), guess)
+            om, manager = _assembled(mech, q_ref, ref, signs, (inputs[j], rates[j], accelerations[j]), guess, om)
             model, state = om.model, manager.getState()  # the state lives in the manager
             model.realizeAcceleration(state)
             frames = om.frames(state)
@@ -105,17 +106,21 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
                 start_guess, start = guess, last
 
 
-def _assembled(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, signs, at: tuple, guess: dict):
+def _assembled(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, signs, at: tuple, guess: dict, om=None):
     """The model of :func:`.model.build` with the drivers prescribed at ``at``
     (values, rates, accelerations at t = 0, each ndarray (k,)), assembled from the
     free coordinates' values ``guess`` (name -> value), speeds projected; returns
-    (model, the started manager that holds its state)."""
+    (model, the started manager that holds its state). ``om``: a model of an earlier
+    call, prescribed anew (:meth:`.model.OpenSimModel.prescribe`) instead of built."""
     values, rates, accelerations = at
     functions = {  # value, rate and acceleration at t = 0, from the build state's value
         name: polynomial([sign * accelerations[k] / 2, sign * rates[k], sign * (values[k] - ref[k])])
         for k, (name, sign) in enumerate(signs)
     }
-    om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
+    if om is None:
+        om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
+    else:
+        om.prescribe(functions)
     model, state = om.model, om.state
     for name, value in guess.items():
         if not om.coordinates[name].isPrescribed(state):

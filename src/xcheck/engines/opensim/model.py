@@ -105,6 +105,15 @@ class OpenSimModel:
     bodies: dict[str, Any]
     coordinates: dict[str, Any]
 
+    def prescribe(self, functions: dict[str, Any]) -> None:
+        """Prescribe the coordinates of ``functions`` (tree joint name -> an OpenSim
+        ``Function`` of time) by new functions and initialise the model again:
+        :attr:`state` is its new build state. The same model as :func:`build` with
+        these functions gives, in half its time (the bodies and joints are kept)."""
+        for name, function in functions.items():
+            self.coordinates[name].setPrescribedFunction(function)
+        self.state = self.model.initSystem()
+
     def started_manager(self, method: str, *, fixed_step: float | None = None, accuracy: float = 0.0):
         """An OpenSim ``Manager`` of this model integrating with ``method`` (the suffix of
         ``IntegratorMethod_``, e.g. "RungeKuttaMerson") at steps of ``fixed_step`` (s) or, without
