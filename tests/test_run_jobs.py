@@ -301,10 +301,13 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
 
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
     """`xcheck simulate --jobs`: the free modes in worker processes give the JSON
-    of a serial run but for its timings (the pool forced on, whatever the
-    reference took: PARALLEL_REFERENCE 0)."""
-    from xcheck import load, simulation
+    of a serial run but for its timings, and the reference's figures, drawn
+    while the workers ran the modes, are those of the serial run (the pool
+    forced on, whatever the modes cost: PARALLEL_SAVING 0)."""
+    from xcheck import load, runner
     from xcheck.output import simulation_json
+    from xcheck.report import reference_figures as figures_of
+    from xcheck.simulation import simulate_all
 
     timings = {"seconds", "cpu_seconds", "cpu_per_simulated_second"}
 
@@ -315,15 +318,20 @@ def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
             return [without_timings(v) for v in value]
         return value
 
-    monkeypatch.setattr(simulation, "PARALLEL_REFERENCE", 0.0)
+    monkeypatch.setattr(runner, "PARALLEL_SAVING", 0.0)
     kinematics = load(MODELS / "benchmarks" / "iftomm-a01.toml").kinematics
     modes = ["mujoco-free", "pinocchio-free", "pymunk-free"]
-    documents = []
+    documents, figures = [], []
     for jobs in (1, 2):
-        result = simulation.simulate_all(kinematics, modes, duration=0.3, jobs=jobs)
+        drawn: dict = {}
+        result = simulate_all(
+            kinematics, modes, duration=0.3, jobs=jobs, meanwhile=lambda r: drawn.update(figures_of(r))
+        )
         assert list(result.outcomes) == modes and all(result.outcomes[m].ok for m in modes)
         documents.append(without_timings(simulation_json(result.reference, result)))
+        figures.append(drawn)
     assert documents[1] == documents[0]
+    assert figures[1] == figures[0] and set(figures[0]) == {"drawing", "energy"}
 
 
 def test_a_task_that_kills_its_worker_fails_alone():

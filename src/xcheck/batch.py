@@ -333,25 +333,42 @@ def simulate_model(
     ``command``, the line that reproduces it) and the index. Returns (the result, the
     report's path or None, a line saying why the report could not be written, or None):
     the results stand either way."""
+    from . import engines
+    from ._parallel import known_to_workers, start_workers, workers_kept
     from .dynamics._reference import free_duration
+    from .runner import worth_workers
     from .simulation import simulate_all
 
     kin = Kinematics(load_mechanism(path))
-    free_duration(kin, duration, "--duration")  # a duration off the output steps is one line before any work
-    kin.assemble(branch)
-    target = reports_dir(path, out)
-    if report:  # what is in the report's way is said before the work, not after
-        from .report import claim_index, claim_report, leaves_out
+    seconds = free_duration(kin, duration, "--duration")  # one line before any work where it is off the outputs
+    with workers_kept():
+        away = [mode for mode in modes if known_to_workers(mode) and not engines.engine_of(mode).available()]
+        if worth_workers(away, jobs, seconds):  # they start while this process solves the reference
+            start_workers(min(jobs, len(away)), ("xcheck.simulation",))
+        kin.assemble(branch)
+        target = reports_dir(path, out)
+        if report:  # what is in the report's way is said before the work, not after
+            from .report import claim_index, claim_report, leaves_out
 
-        claim_report(target, kin.mechanism.name, partial=leaves_out(modes, ("free",)))
-        claim_index(target)
-    result = simulate_all(kin, modes, duration, branch, progress=progress, jobs=jobs, check=check)
+            claim_report(target, kin.mechanism.name, partial=leaves_out(modes, ("free",)))
+            claim_index(target)
+        drawn: dict[str, bytes] = {}
+
+        def meanwhile(partial) -> None:  # the reference's figures while the workers run the modes
+            if report:
+                from .report import reference_figures
+
+                drawn.update(reference_figures(partial))
+
+        result = simulate_all(
+            kin, modes, duration, branch, progress=progress, jobs=jobs, check=check, meanwhile=meanwhile
+        )
     if not report:
         return result, None, None
     from .report import update_index, write_simulation_report
 
     try:  # a report that cannot be written is one line; the results still stand
-        written, entry = write_simulation_report(result, target, command)
+        written, entry = write_simulation_report(result, target, command, drawn)
         update_index(target, [entry], indexed_names(path))
     except XcheckError as err:
         return result, None, str(err)

@@ -851,12 +851,20 @@ def run_mechanism(
     return run
 
 
-def worth_workers(modes, jobs: int) -> bool:
+def worth_workers(modes, jobs: int, scale: float = 1.0) -> bool:
     """Whether running ``modes`` in ``jobs`` worker processes could save time: two or more
-    of them, whose summed :attr:`~xcheck.engines.Mode.cost` less the costliest exceeds
+    of them, whose summed :attr:`~xcheck.engines.Mode.cost` times ``scale`` (a free mode's
+    cost is per simulated second: ``scale`` the duration, s) less the costliest exceeds
     :data:`PARALLEL_SAVING`."""
-    costs = [engines.mode(mode).cost for mode in modes if mode != "native" and mode in all_modes()]
+    known = {mode.name: mode.cost for mode in engines.modes()}
+    costs = [known[mode] * scale for mode in modes if mode in known]
     return jobs > 1 and len(costs) > 1 and sum(costs) - max(costs) > PARALLEL_SAVING
+
+
+def costliest_first(modes) -> list[str]:
+    """``modes`` by falling :attr:`~xcheck.engines.Mode.cost` (the order of equal ones kept):
+    the order a pool starts them in, so that the longest does not start last."""
+    return sorted(modes, key=lambda mode: -engines.mode(mode).cost)
 
 
 def _run_or_not_applicable(mode: str, kinematics: Kinematics, native: Solution, samples, branch, floors):
@@ -882,7 +890,7 @@ def _run_modes_in_parallel(
 
     branch = arguments[3]  # (kinematics, native, samples, branch, floors)
     here = [mode for mode in runnable if not known_to_workers(mode)]
-    away = sorted((mode for mode in runnable if mode not in here), key=lambda mode: -engines.mode(mode).cost)
+    away = costliest_first(mode for mode in runnable if mode not in here)
     calls = {mode: (_run_or_not_applicable, (mode, *arguments)) for mode in away}
     with process_pool(max(1, min(jobs, len(away)))) as pool:
         futures = submit(pool, calls)

@@ -10,10 +10,12 @@ A mode that fails is a result with its reason; the others still run.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import engines
 from .dynamics._free import FreeReference, simulate
+from .dynamics._reference import free_duration
 from .engines import NotApplicable
 from .kinematics import Kinematics
 from .ladder import one_line
@@ -53,10 +55,6 @@ def free_modes() -> tuple[str, ...]:
     return tuple(m.name for m in engines.modes(("free",)))
 
 
-#: the native reference's wall time (s) from which the free modes go to worker processes
-PARALLEL_REFERENCE = 1.0
-
-
 def simulate_all(
     kinematics: Kinematics,
     modes=None,
@@ -65,6 +63,7 @@ def simulate_all(
     progress=None,
     jobs: int = 1,
     check: bool = False,
+    meanwhile: Callable[[SimulationResult], object] | None = None,
 ) -> SimulationResult:
     """The native reference of the mechanism's free motion and each free mode against it.
 
@@ -78,29 +77,31 @@ def simulate_all(
     progress : callable, optional
         Called with a line saying what runs now (with ``jobs`` > 1: each mode as it finishes).
     jobs : int
-        Modes run at once, each in a worker process started afresh (1: one after
-        another in this process), where the reference took at least
-        :data:`PARALLEL_REFERENCE`; the modes of engines registered at run time
-        run here. The results are those of a serial run.
+        Modes run at once, each in a worker process started afresh, the costliest
+        first (1: one after another in this process), where that could save time
+        (:func:`xcheck.runner.worth_workers`: their costs per simulated second
+        times the duration); the modes of engines registered at run time run
+        here. The results are those of a serial run.
     check : bool
         Check the reference by the second native method (``reference.check``).
+    meanwhile : callable, optional
+        Called with the result, its reference computed and no mode yet, while the
+        worker processes run the modes (before the modes where they run here):
+        work of this process that needs the reference alone, such as its figures.
     """
+    from .runner import costliest_first, default_modes, left_out, worth_workers
+
     start = time.perf_counter()
     reference = simulate(kinematics, branch, duration, progress=progress, check=check)
     result = SimulationResult(kinematics, reference, seconds={"native": time.perf_counter() - start})
-    from .runner import default_modes, left_out
-
     chosen = list(default_modes(("free",))[1:] if modes is None else modes)
     result.left_out = left_out(chosen, ("free",))
     missing = {mode: engines.engine_of(mode).available() for mode in chosen}
     runnable = [mode for mode in chosen if not missing[mode]]
     from ._parallel import collect, known_to_workers, process_pool, submit
 
-    # a short or simple motion (its reference under PARALLEL_REFERENCE s) has short ladders too:
-    # a worker's start (about 1 s of CPU) would cost more than it saves
-    alone = jobs <= 1 or result.seconds["native"] < PARALLEL_REFERENCE
-    away = [] if alone else [m for m in runnable if known_to_workers(m)]
-    if len(away) < 2:  # one mode gains nothing from a worker
+    away = [m for m in runnable if known_to_workers(m)]
+    if not worth_workers(away, jobs, free_duration(kinematics, duration)):
         away = []
     here = [m for m in runnable if m not in away]
     ran: dict = {}
@@ -110,9 +111,14 @@ def simulate_all(
         def failed(mode: str, why: str):  # its time: until the pool said so
             return ModeResult(mode, kinematics.mechanism.name, False, why), time.perf_counter() - begin
 
-        calls = {mode: (_run_free, (mode, kinematics, reference, branch)) for mode in away}
+        calls = {mode: (_run_free, (mode, kinematics, reference, branch)) for mode in costliest_first(away)}
         with process_pool(min(jobs, len(away))) as pool:
-            ran.update(collect(submit(pool, calls), failed, progress, calls, jobs))
+            futures = submit(pool, calls)
+            if meanwhile is not None:
+                meanwhile(result)
+            ran.update(collect(futures, failed, progress, calls, jobs))
+    elif meanwhile is not None:
+        meanwhile(result)
     for mode in here:
         if progress is not None:
             progress(mode)

@@ -149,10 +149,12 @@ class Mode:
         the campaign (MJX's driven mode: a compilation for every mechanism).
     cost : float
         Its CPU seconds on the bundled four-bar, as measured (``xcheck run
-        fourbar --json``, its ``timings``; default 1, a typical mode): used only
-        to schedule a run with ``--jobs``, which starts the costliest first, so
+        fourbar --json``, its ``timings``; default 1, a typical mode); a free
+        mode's per simulated second of the IFToMM pendulum (``xcheck simulate
+        iftomm-a01 --json``, its ladder's CPU over the 10 s): used only to
+        schedule a run with ``--jobs``, which starts the costliest first, so
         that the longest does not start last, and sends modes to worker
-        processes only where they could save time (:data:`xcheck.runner.PARALLEL_SAVING`).
+        processes only where they could save time (:func:`xcheck.runner.worth_workers`).
     """
 
     name: str

@@ -53,6 +53,7 @@ from ._markdown import index_markdown, mode_parts, passed, report_markdown, sour
 __all__ = [
     "write_report",
     "write_simulation_report",
+    "reference_figures",
     "claim_report",
     "claim_index",
     "leaves_out",
@@ -319,10 +320,13 @@ def _replace_report(directory: Path, name: str, evidence: Evidence, render) -> P
     return directory / f"{name}.md"
 
 
-def write_simulation_report(result, directory: str | Path, command: str) -> tuple[Path, dict]:
+def write_simulation_report(
+    result, directory: str | Path, command: str, drawn: dict[str, bytes] | None = None
+) -> tuple[Path, dict]:
     """Write reports/NAME.md and reports/NAME/ (figures and evidence) for a
     free-motion run (:class:`xcheck.simulation.SimulationResult`), keeping the
-    parts of the free modes it did not run as :func:`write_report` does.
+    parts of the free modes it did not run as :func:`write_report` does;
+    ``drawn``: figures already drawn, by key (:func:`reference_figures`).
     Returns the Markdown's path and its line of the index."""
     from . import _simulation
 
@@ -336,20 +340,22 @@ def write_simulation_report(result, directory: str | Path, command: str) -> tupl
         figures={f"{key}.png": {"modes": m, "produced": made} for key, m in _simulation.figure_modes(result).items()},
     )
 
+    made_figures = dict(drawn or {})
     with _writing(directory, name, leaves_out([*result.outcomes, *result.not_applicable], ("free",))):
         evidence = _merged(fresh, directory / name)
 
         def render(staging: Path) -> str:
             keys = {key: f"{key}.png" for key in _simulation.figure_modes(result)}
             images = _keep_figures(directory / name, staging, evidence, keys)
-            drawn = _simulation.figures(result)
+            missing = [key for key, file in keys.items() if file not in evidence.kept and key not in made_figures]
+            made_figures.update(_simulation.figures(result, missing))
             for key, file in keys.items():
                 if file in evidence.kept:
                     continue
-                if key not in drawn:
+                if key not in made_figures:
                     evidence.figures.pop(file, None)
                     continue
-                (staging / file).write_bytes(drawn[key])
+                (staging / file).write_bytes(made_figures[key])
                 images[key] = f"{name}/{file}"
             return _simulation.markdown(result, evidence, images, command)
 
@@ -365,6 +371,15 @@ def write_simulation_report(result, directory: str | Path, command: str) -> tupl
         "command": command,
     }
     return path, entry
+
+
+def reference_figures(result) -> dict[str, bytes]:
+    """The figures of a free-motion report that show the native reference alone, by key:
+    drawn from a :class:`xcheck.simulation.SimulationResult` whose modes need not have
+    run yet (for :func:`write_simulation_report`'s ``drawn``)."""
+    from . import _simulation
+
+    return _simulation.figures(result, _simulation.REFERENCE_FIGURES)
 
 
 #: the index's data beside its Markdown: the entries README.md is built from

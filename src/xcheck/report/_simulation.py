@@ -27,7 +27,7 @@ from . import _figures  # noqa: E402
 from ._evidence import Evidence  # noqa: E402
 from ._markdown import _g, _image, _provenance, _table, left_out_markdown  # noqa: E402
 
-__all__ = ["figures", "figure_modes", "mode_parts", "markdown"]
+__all__ = ["REFERENCE_FIGURES", "figures", "figure_modes", "mode_parts", "markdown"]
 
 
 def _png(figure, **options) -> bytes:
@@ -39,13 +39,26 @@ def _passes(ax, result: SimulationResult) -> None:
         ax.axvline(t, color="0.8", lw=0.8, zorder=0)
 
 
-def figures(result: SimulationResult) -> dict[str, bytes]:
-    """The report's PNG figures by key (see the module's docstring)."""
-    motion = result.reference.motion
-    solution = motion.solution()
-    mech = result.kinematics.mechanism
-    out = {}
+#: the figures that show the native reference alone: they can be drawn while the free modes run
+REFERENCE_FIGURES = ("drawing", "energy")
 
+
+def figures(result: SimulationResult, keys=None) -> dict[str, bytes]:
+    """The report's PNG figures by key (see the module's docstring): those of ``keys``
+    (default: all), but a mode's figure where no mode has what it shows."""
+    drawers = {"drawing": _drawing, "energy": _energy, "errors": _errors, "work-precision": _work_precision}
+    out = {}
+    for key in drawers if keys is None else keys:
+        figure = drawers[key](result)
+        if figure is not None:
+            out[key] = figure
+    return out
+
+
+def _drawing(result: SimulationResult) -> bytes:
+    """The mechanism at release and the paths of its points."""
+    solution = result.reference.motion.solution()
+    mech = result.kinematics.mechanism
     figure, ax = plt.subplots(figsize=(5.5, 4.5))
     for label, owner in mech.point_owners.items():
         if owner != mech.ground.name:
@@ -58,8 +71,12 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
     ax.set_ylabel("y [m]")
     ax.set_title(f"{mech.name}: at release and the paths of its points", fontsize=9)
     ax.grid(alpha=0.3)
-    out["drawing"] = _png(figure)
+    return _png(figure)
 
+
+def _energy(result: SimulationResult) -> bytes:
+    """The reference's energy balance and loop closure against time."""
+    motion = result.reference.motion
     figure, (ax_energy, ax_loop) = plt.subplots(1, 2, figsize=(10, 3.6))
     ax_energy.semilogy(motion.times, np.maximum(np.abs(motion.energy_error), 1e-18), lw=1)
     ax_energy.set_ylabel("|E(t) - E(0) - W(t)| [J]")
@@ -69,72 +86,89 @@ def figures(result: SimulationResult) -> dict[str, bytes]:
         ax.set_xlabel("t [s]")
         ax.grid(alpha=0.3, which="both")
         _passes(ax, result)
-    figure.suptitle(f"{mech.name}: the native reference (grey lines: singular positions passed)", fontsize=10)
+    figure.suptitle(
+        f"{result.kinematics.mechanism.name}: the native reference (grey lines: singular positions passed)",
+        fontsize=10,
+    )
     figure.tight_layout()
-    out["energy"] = _png(figure)
+    return _png(figure)
 
+
+def _errors(result: SimulationResult) -> bytes | None:
+    """Each free mode's best run: position error against time (None where no mode ran)."""
     runs = [(m, o) for m, o in result.outcomes.items() if o.ok and o.trajectories]
-    if runs:
-        figure, ax = plt.subplots(figsize=(7, 4))
-        for mode, outcome in runs:
-            best = outcome.trajectories[0]
-            native = motion.solution()
-            index = np.searchsorted(motion.times, np.asarray(best.times) - 1e-9)
-            gap = np.zeros(len(index))
-            for label, states in best.points.items():
-                delta = np.asarray(states["position"]) - native.point(label)["position"][index]
-                gap = np.maximum(gap, np.hypot(delta[:, 0], delta[:, 1]))
-            style = dict(engines.mode(mode).style)
-            ax.semilogy(
-                best.times, np.maximum(gap, 1e-18), label=f"{mode} ({_setting(best)})", color=style.get("color"), lw=1
-            )
-        _passes(ax, result)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("largest point position error [m]")
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
-        ax.set_title(f"{mech.name}: each engine's most accurate run against the reference", fontsize=9)
-        figure.tight_layout()
-        out["errors"] = _png(figure)
-
-        figure, ax = plt.subplots(figsize=(10.5, 4.5))
-        for mode, outcome in result.outcomes.items():
-            summary = outcome.summary
-            if summary is None or summary.empty or "cpu_seconds" not in summary:
-                continue
-            color = engines.mode(mode).style.get("color")
-            keys = [k for k in ("setting", "integrator") if k in summary]
-            for series, part in summary.groupby(keys, sort=False) if keys else [("", summary)]:
-                part = part[part["status"] == "ok"]
-                if part.empty:
-                    continue
-                name = " ".join(str(s) for s in (series if isinstance(series, tuple) else (series,)))
-                ax.loglog(
-                    part["cpu_seconds"],
-                    part["position_error"],
-                    "o-",
-                    ms=4,
-                    lw=1,
-                    color=color,
-                    label=f"{mode}: {name}",
-                    alpha=0.8,
-                )
-        ax.loglog(
-            [result.reference.motion.seconds],
-            [max(result.reference.estimate.max(), 1e-18)],
-            "k*",
-            ms=10,
-            label="native reference (its stated error)",
+    if not runs:
+        return None
+    motion = result.reference.motion
+    native = motion.solution()
+    figure, ax = plt.subplots(figsize=(7, 4))
+    for mode, outcome in runs:
+        best = outcome.trajectories[0]
+        index = np.searchsorted(motion.times, np.asarray(best.times) - 1e-9)
+        gap = np.zeros(len(index))
+        for label, states in best.points.items():
+            delta = np.asarray(states["position"]) - native.point(label)["position"][index]
+            gap = np.maximum(gap, np.hypot(delta[:, 0], delta[:, 1]))
+        style = dict(engines.mode(mode).style)
+        ax.semilogy(
+            best.times, np.maximum(gap, 1e-18), label=f"{mode} ({_setting(best)})", color=style.get("color"), lw=1
         )
-        ax.set_xlabel("CPU time [s]")
-        ax.set_ylabel("largest point position error [m]")
-        ax.grid(alpha=0.3, which="both")
-        # beside the axes: with seven engines' settings a legend inside hides their points
-        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
-        ax.set_title(f"{mech.name}: work-precision (one line per engine and setting, step falling)", fontsize=9)
-        figure.tight_layout()
-        out["work-precision"] = _png(figure, bbox_inches="tight", pad_inches=0.1)  # the legend beside the axes
-    return out
+    _passes(ax, result)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("largest point position error [m]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    ax.set_title(
+        f"{result.kinematics.mechanism.name}: each engine's most accurate run against the reference", fontsize=9
+    )
+    figure.tight_layout()
+    return _png(figure)
+
+
+def _work_precision(result: SimulationResult) -> bytes | None:
+    """Error against CPU time, one line per engine and setting (None where no mode ran)."""
+    if not any(o.ok and o.trajectories for o in result.outcomes.values()):
+        return None
+    figure, ax = plt.subplots(figsize=(10.5, 4.5))
+    for mode, outcome in result.outcomes.items():
+        summary = outcome.summary
+        if summary is None or summary.empty or "cpu_seconds" not in summary:
+            continue
+        color = engines.mode(mode).style.get("color")
+        keys = [k for k in ("setting", "integrator") if k in summary]
+        for series, part in summary.groupby(keys, sort=False) if keys else [("", summary)]:
+            part = part[part["status"] == "ok"]
+            if part.empty:
+                continue
+            name = " ".join(str(s) for s in (series if isinstance(series, tuple) else (series,)))
+            ax.loglog(
+                part["cpu_seconds"],
+                part["position_error"],
+                "o-",
+                ms=4,
+                lw=1,
+                color=color,
+                label=f"{mode}: {name}",
+                alpha=0.8,
+            )
+    ax.loglog(
+        [result.reference.motion.seconds],
+        [max(result.reference.estimate.max(), 1e-18)],
+        "k*",
+        ms=10,
+        label="native reference (its stated error)",
+    )
+    ax.set_xlabel("CPU time [s]")
+    ax.set_ylabel("largest point position error [m]")
+    ax.grid(alpha=0.3, which="both")
+    # beside the axes: with seven engines' settings a legend inside hides their points
+    ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    ax.set_title(
+        f"{result.kinematics.mechanism.name}: work-precision (one line per engine and setting, step falling)",
+        fontsize=9,
+    )
+    figure.tight_layout()
+    return _png(figure, bbox_inches="tight", pad_inches=0.1)  # the legend beside the axes
 
 
 def _setting(trajectory) -> str:

@@ -53,7 +53,7 @@ class Dart(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:brown", lw=1, ls="-"),
         ),
-        Mode("dart-free", "free", FREE_MOTION, style=dict(color="tab:brown", lw=1, ls="-")),
+        Mode("dart-free", "free", FREE_MOTION, style=dict(color="tab:brown", lw=1, ls="-"), cost=0.02),
     )
     findings = (_SMALL_STEPS,)
     color = "tab:brown"

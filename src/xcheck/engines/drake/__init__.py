@@ -74,7 +74,7 @@ class Drake(Engine):
             style=dict(color="tab:pink", lw=1, ls="--"),
             cost=2.5,
         ),
-        Mode("drake-free", "free", FREE_MOTION, style=dict(color="tab:pink", lw=1, ls="--")),
+        Mode("drake-free", "free", FREE_MOTION, style=dict(color="tab:pink", lw=1, ls="--"), cost=0.16),
     )
     export_format, export_directory = "sdf", "sdf"
     findings = (_BALL_TO_WORLD,)

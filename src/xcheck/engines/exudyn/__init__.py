@@ -59,7 +59,7 @@ class Exudyn(Engine):
             style=dict(color="tab:purple", lw=1, ls="--"),
             cost=3.0,
         ),
-        Mode("exudyn-free", "free", FREE_MOTION, style=dict(color="tab:purple", lw=1, ls="--")),
+        Mode("exudyn-free", "free", FREE_MOTION, style=dict(color="tab:purple", lw=1, ls="--"), cost=0.12),
     )
     findings = (_ACCELERATION_ROUND_OFF,)
     export_format, export_directory = "exudyn", "exudyn"

@@ -53,7 +53,7 @@ class MuJoCo(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:blue", lw=1, ls="--"),
         ),
-        Mode("mujoco-free", "free", _FREE, style=dict(color="tab:blue", lw=1, ls=":")),
+        Mode("mujoco-free", "free", _FREE, style=dict(color="tab:blue", lw=1, ls=":"), cost=0.12),
     )
     force_tolerance = 1e-12
     force_basis = "mj_inverse at the native states: round-off (measured at most 1.7e-13)"

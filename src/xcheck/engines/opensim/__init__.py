@@ -111,7 +111,7 @@ class OpenSim(Engine):
             orders={"position": 4.0, "angle": 4.0, "velocity": 4.0, "omega": 4.0, "acceleration": 4.0, "alpha": 4.0},
             style=dict(color="tab:olive", lw=1, ls="-"),
         ),
-        Mode("opensim-free", "free", FREE_MOTION, style=dict(color="tab:olive", lw=1, ls="-")),
+        Mode("opensim-free", "free", FREE_MOTION, style=dict(color="tab:olive", lw=1, ls="-"), cost=0.23),
     )
     force_tolerance = 1e-12
     force_basis = (

@@ -38,7 +38,7 @@ class PyBullet(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": None, "alpha": None},
             style=dict(color="tab:brown", lw=1, ls="--"),
         ),
-        Mode("pybullet-free", "free", FREE_MOTION, style=dict(color="tab:brown", lw=1, ls="--")),
+        Mode("pybullet-free", "free", FREE_MOTION, style=dict(color="tab:brown", lw=1, ls="--"), cost=0.03),
     )
     color = "tab:brown"
     notes = (

@@ -37,7 +37,7 @@ class Pymunk(Engine):
             orders={"position": 2.0, "angle": 2.0, "velocity": 1.0, "omega": 1.0, "acceleration": 1.0, "alpha": 1.0},
             style=dict(color="tab:green", lw=1, ls="-."),
         ),
-        Mode("pymunk-free", "free", FREE_MOTION, style=dict(color="tab:green", lw=1, ls="-.")),
+        Mode("pymunk-free", "free", FREE_MOTION, style=dict(color="tab:green", lw=1, ls="-."), cost=0.02),
     )
     force_tolerance = 7e-2
     force_order = 1.0
