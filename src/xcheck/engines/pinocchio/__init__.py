@@ -65,7 +65,7 @@ class Pinocchio(Engine):
             style=dict(color="tab:orange", lw=1, ls=":"),
             cost=1.8,
         ),
-        Mode("pinocchio-free", "free", FREE_TOLERANCE, style=dict(color="tab:orange", lw=1, ls="-."), cost=0.39),
+        Mode("pinocchio-free", "free", FREE_TOLERANCE, style=dict(color="tab:orange", lw=1, ls="-."), cost=0.29),
     )
     force_tolerance = 1e-12
     force_basis = "the multipliers of the loop closures at the native states: round-off (measured at most 1.7e-13)"

@@ -110,6 +110,8 @@ class _Free:
         self._angles: dict[int, float] = {}
         self.evaluations = 0
         self.proximal_iterations = 0
+        # no load nor spring: one zero force serves every evaluation (Pinocchio does not write to it)
+        self._unforced = None if self.loads or self.springs or self.twists else np.zeros(self.model.nv)
 
     def applied(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Generalised force of the loads at time t (s) and of the springs (nv,), N or N m."""
@@ -196,6 +198,19 @@ class _Free:
         self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
         return a
 
+    def derivative(self, state: np.ndarray, t: float) -> np.ndarray:
+        """(v, q'') (2 nv,) of the state (q, v) (2 nv,) at time t (s): what an explicit
+        Runge-Kutta method steps (q and v one array: half the array operations)."""
+        n = self.model.nv
+        q, v = state[:n], state[n:]
+        self.evaluations += 1
+        out = np.empty(2 * n)
+        out[:n] = v
+        tau = self.applied(q, v, t) if self._unforced is None else self._unforced
+        out[n:] = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cms, self.cds, self.settings)
+        self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
+        return out
+
 
 def _start(kinematics: Kinematics, pm: PinocchioMechanism, oracle: Oracle, problem: FreeProblem):
     """Pinocchio's (q0, v0) of the reference's initial native state.
@@ -266,7 +281,10 @@ def _integrate(free: _Free, scheme: str, prepared: PinocchioFree, problem: FreeP
         Energy at the outputs reached, J.
     """
     dt = rung.timestep
+    half, sixth = dt / 2, dt / 6
+    n = prepared.q0.size
     q, v = prepared.q0.copy(), prepared.v0.copy()
+    state = np.concatenate((q, v))  # RK4's (q, v)
     rows, energy = [], []
 
     def record(t):
@@ -278,23 +296,23 @@ def _integrate(free: _Free, scheme: str, prepared: PinocchioFree, problem: FreeP
     for count in rung.counts:
         for _ in range(count):
             now = step * dt
-            if scheme == "rk4":
-                k1v = free.acceleration(q, v, now)
-                k2v = free.acceleration(q + dt / 2 * v, v + dt / 2 * k1v, now + dt / 2)
-                k2q = v + dt / 2 * k1v
-                k3v = free.acceleration(q + dt / 2 * k2q, v + dt / 2 * k2v, now + dt / 2)
-                k3q = v + dt / 2 * k2v
-                k4v = free.acceleration(q + dt * k3q, v + dt * k3v, now + dt)
-                k4q = v + dt * k3v
-                q = q + dt / 6 * (v + 2 * k2q + 2 * k3q + k4q)
-                v = v + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+            if scheme == "rk4":  # on (q, v) as one array: each operation that of q and of v
+                k1 = free.derivative(state, now)
+                k2 = free.derivative(state + half * k1, now + half)
+                k3 = free.derivative(state + half * k2, now + half)
+                k4 = free.derivative(state + dt * k3, now + dt)
+                state = state + sixth * (k1 + 2 * k2 + 2 * k3 + k4)
+                finite = np.isfinite(state).all()
             else:  # semi-implicit Euler: velocity first, then position with the new velocity
                 v = v + dt * free.acceleration(q, v, now)
                 q = q + dt * v
+                finite = np.isfinite(q).all() and np.isfinite(v).all()
             step += 1
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            if not finite:
                 return rows, f"went non-finite at t = {step * dt:.6g} s", energy
         t = step * dt
+        if scheme == "rk4":
+            q, v = state[:n].copy(), state[n:].copy()
         record(t)
         failure = problem.came_apart(t, float(np.max(np.abs(prepared.oracle.loop_residual(q)), initial=0.0)))
         if failure:
