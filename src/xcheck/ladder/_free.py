@@ -137,7 +137,7 @@ class FreeProblem:
     def came_apart(self, t: float, gap: float) -> str:
         """ "" or the failure of a run whose loops are ``gap`` (m) open at ``t`` (s)
         (:func:`~xcheck.ladder.came_apart`)."""
-        return came_apart(t, gap, self.kinematics.mechanism.size)
+        return came_apart(t, gap, self.kinematics.system.size)  # the mechanism's, computed once
 
 
 def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, float]:
@@ -187,9 +187,10 @@ def _point_gaps(trajectory: Trajectory, native, index: np.ndarray) -> np.ndarray
     return position
 
 
-def path_distance(reference: FreeReference, trajectory: Trajectory) -> np.ndarray:
-    """How far each sample is from the reference's path, m (N,): the least, over
-    every reference output, of the largest named-point distance.
+def path_distance(reference: FreeReference, trajectory: Trajectory, samples=None) -> np.ndarray:
+    """How far each sample (or each of ``samples``, indices) is from the reference's
+    path, m (N,): the least, over every reference output, of the largest named-point
+    distance.
 
     A run out of phase with the reference but on its branch stays near its path
     (within the points' travel between outputs); one that left the branch does not.
@@ -198,6 +199,8 @@ def path_distance(reference: FreeReference, trajectory: Trajectory) -> np.ndarra
     labels = list(trajectory.points)
     path = np.stack([native.point(label)["position"] for label in labels], axis=1)  # (M, P, 2)
     states = np.stack([trajectory.points[label]["position"] for label in labels], axis=1)  # (N, P, 2)
+    if samples is not None:
+        states = states[samples]
     out = np.empty(len(states))
     for i, state in enumerate(states):
         gap = path - state[None]
@@ -208,16 +211,25 @@ def path_distance(reference: FreeReference, trajectory: Trajectory) -> np.ndarra
 def left_branch(reference: FreeReference, trajectory: Trajectory, limit: float) -> str:
     """ "" if every sample of ``trajectory`` lies within ``limit`` (m) of the reference's
     path (:func:`path_distance`: a run out of phase on the branch stays near it), else
-    the status of a run that left the branch: when, and how far it was then."""
-    away = path_distance(reference, trajectory)
+    the status of a run that left the branch: when, and how far it was then.
+
+    Only the samples farther than ``limit`` from the reference at their own time are
+    measured against the whole path: that distance bounds the path's from above."""
+    candidates = None
+    if trajectory.times is not None:
+        index = np.searchsorted(reference.motion.times, np.asarray(trajectory.times) - TIME_MATCH)
+        candidates = np.flatnonzero(_point_gaps(trajectory, reference.motion.solution(), index) > limit)
+        if not candidates.size:
+            return ""
+    away = path_distance(reference, trajectory, candidates)
     off = np.flatnonzero(away > limit)
     if not off.size:
         return ""
-    first = int(off[0])
-    times = trajectory.times if trajectory.times is not None else np.arange(len(away), dtype=float)
+    first = int(off[0] if candidates is None else candidates[off[0]])
+    times = trajectory.times if trajectory.times is not None else np.arange(first + 1, dtype=float)
     return (
-        f"left the branch at t ≈ {float(times[first]):.4g} s: {away[first]:.3g} m from every configuration "
-        "the reference passes through"
+        f"left the branch at t ≈ {float(times[first]):.4g} s: {float(away[off[0]]):.3g} m from every "
+        "configuration the reference passes through"
     )
 
 
