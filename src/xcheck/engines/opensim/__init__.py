@@ -67,7 +67,8 @@ _REDUNDANT_ROW = Finding(
     reproducer="reproducers/opensim_assembler_redundant_row.py",
 )
 
-#: Flags the accelerations of the kinematic oracle, whose drivers are prescribed motions.
+#: Worked around (the kinematic oracle and the inverse dynamics push the drivers by their efforts);
+#: stated for its reproducer.
 _PRESCRIBED_ROUND_OFF = Finding(
     "Simbody solves a prescribed motion's constraint forces with the round-off of its rate",
     "Simbody forms G M^-1 G^T column by column as the constraints' velocity errors at M^-1 G^T less their "
@@ -77,14 +78,15 @@ _PRESCRIBED_ROUND_OFF = Finding(
     "acceleration misses its law by up to the multipliers times ulp(rate) / 2, a product of SI values: "
     "heavy, large mechanisms lose the most digits. Such a bar pinned at one end, prescribed to turn "
     "uniformly at 1 or 2 rad/s under gravity, has 1.07e-9 rad/s^2 where 0 is exact (round-off 3e-18; "
-    "1.9e-7 at 1000 t; exact at 0 rad/s, and for 1 kg and 1 m; opensim 4.6). On xcheck's crank-rocker at "
-    "1 km (tests/data/km-fourbar.toml, bodies of 3 to 9 t, crank at 2 rad/s) the kinematic oracle's "
-    "accelerations are 4.6e-8 of the largest off (angular 8.0e-8), its positions and rates at round-off, "
-    "and OpenSim's reactions 4.8e-8 off. Solving again with the first solve's driver torque applied by "
-    "an actuator leaves 2.3e-10, the loops' multipliers reaching the same row: the equations are right, "
-    "their solve is not",
+    "1.9e-7 at 1000 t; exact at 0 rad/s, and for 1 kg and 1 m; opensim 4.6). With its crank prescribed, "
+    "xcheck's crank-rocker at 1 km (tests/data/km-fourbar.toml, bodies of 3 to 9 t, crank at 2 rad/s) had "
+    "its accelerations 4.6e-8 of the largest off and its reactions 4.8e-8; solving again with the first "
+    "solve's torque applied by an actuator left 2.3e-10, the loops' multipliers reaching the same row. "
+    "xcheck's kinematic oracle and inverse dynamics realise the accelerations with the drivers free, each "
+    "pushed by the effort that gives its law's acceleration: 7e-13 and 2.8e-13 there. OpenSim's driven "
+    "dynamics prescribes its drivers, and its inputs are compared as realised, which hides the miss",
     ("acceleration", "alpha"),
-    kinds=("kinematic",),
+    kinds=(),
     reproducer="reproducers/opensim_prescribed_motion_round_off.py",
 )
 
@@ -128,7 +130,9 @@ class OpenSim(Engine):
         "prescribed by the quadratic in time with the input's value, rate and acceleration, the model assembled "
         "by OpenSim's assembler from the neighbouring input's coordinates, its loops cut as PointOnLineConstraints "
         "(the planar pin's two rows: with a PointConstraint's redundant row the assembler leaves the loops open), "
-        "its speeds projected by Simbody and its accelerations realised; reactions and efforts (revolute joints) "
+        "its speeds projected by Simbody and its accelerations realised with the drivers free, each pushed by an "
+        "actuator with the effort that gives its law's acceleration (Simbody's prescribed motion solves its "
+        "constraint forces with the round-off of its rate); reactions and efforts (revolute joints) "
         "from Simbody's constrained accelerations there. Driven: each driven coordinate "
         "prescribed by its law (PolynomialFunction, Sine), integrated by fixed-step Runge-Kutta-Merson; "
         "springs and loads left out there (they change the drivers' efforts, not the motion). Free motion: "

@@ -2,14 +2,16 @@
 efforts from Simbody's constrained acceleration solve.
 
 At each native state the drivers are prescribed (the quadratic in time with the
-state's input values, rates and accelerations) and OpenSim's assembler, speed
-projection and accelerations give the state (:func:`.kinematic.assembled_states`,
-from the previous state's coordinates). Then, all OpenSim's own:
+state's input values, rates and accelerations), OpenSim's assembler and speed
+projection give the state, and the accelerations are realised with the drivers
+free, each pushed by the effort that gives its input's acceleration
+(:func:`.kinematic.assembled_states`, from the previous state's coordinates).
+Then, all OpenSim's own:
 
 * a tree joint's reaction is ``Joint.calcReactionOnChildExpressedInGround``'s
   force on its child (the opposite where the child is the joint's first body);
 * a driven revolute's effort is that reaction's moment about z, the torque
-  the prescribed motion takes (signed as the driver's coordinate);
+  its actuator applies (signed as the driver's coordinate);
 * a loop cut's reaction is from its ``PointOnLineConstraint``'s record values:
   per constrained body the force and moment it exerts on the constraint, the
   opposite of what the constraint applies to it, expressed in the frame of the
@@ -101,7 +103,8 @@ def inverse_forces(
         drivers,
         settings={"samples": n, "cuts": "PointOnLineConstraint"},
         notes=(
-            "OpenSim: each state assembled with the drivers prescribed, speeds projected, accelerations realised; "
+            "OpenSim: each state assembled with the drivers prescribed, speeds projected, accelerations realised "
+            "with the drivers pushed by the efforts that give their inputs' accelerations; "
             "tree joints' reactions from Joint.calcReactionOnChildExpressedInGround (a driven revolute's effort "
             "its moment about z), loop cuts' from their PointOnLineConstraints' record values."
         ),

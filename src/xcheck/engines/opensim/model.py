@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -97,6 +97,8 @@ class OpenSimModel:
         Moving body -> OpenSim's body (its frame: xcheck's body frame).
     coordinates : dict of str to opensim.Coordinate
         Tree joint name -> its coordinate.
+    actuators : dict of str to opensim.CoordinateActuator
+        Tree joint name -> the actuator of its coordinate, where :func:`build` was asked for one.
     """
 
     model: Any
@@ -104,6 +106,7 @@ class OpenSimModel:
     tree: TreeFrames
     bodies: dict[str, Any]
     coordinates: dict[str, Any]
+    actuators: dict[str, Any] = field(default_factory=dict)
 
     def prescribe(self, functions: dict[str, Any]) -> None:
         """Prescribe the coordinates of ``functions`` (tree joint name -> an OpenSim
@@ -150,6 +153,7 @@ def build(
     qd: np.ndarray | None = None,
     prescribed: dict[str, Any] | None = None,
     planar_cuts: bool = False,
+    actuated: tuple[str, ...] = (),
 ) -> OpenSimModel:
     """The mechanism as an OpenSim model assembled at native body coordinates ``q``
     (x, y, phi per moving body; m, rad), its coordinates' default speeds the rates of
@@ -157,6 +161,8 @@ def build(
     time that prescribes its coordinate (0 at the build state). With ``planar_cuts``
     each loop cut is a ``PointOnLineConstraint`` (the point on the line along z through
     the other: the two rows of a planar pin, none redundant) instead of a ``PointConstraint``.
+    Each tree joint of ``actuated`` gets a ``CoordinateActuator`` of its coordinate (optimal
+    force 1: its actuation is the generalized force, N m or N), in :attr:`OpenSimModel.actuators`.
 
     Raises
     ------
@@ -195,6 +201,7 @@ def build(
         return model.getGround() if name == GROUND else bodies[name]
 
     coordinates: dict[str, Any] = {}
+    actuators: dict[str, Any] = {}
     rates = tree.rates(mech, q, np.zeros_like(q) if qd is None else qd)
     for k, joint in enumerate(tree.joints):
         built = converter(_JOINTS, mech.joint(joint.name), "OpenSim")(osim)(
@@ -216,6 +223,12 @@ def build(
             coordinate.set_prescribed(True)
             coordinate.setPrescribedFunction(prescribed[joint.name])
         coordinates[joint.name] = coordinate
+        if joint.name in actuated:
+            actuator = osim.CoordinateActuator(coordinate.getName())
+            actuator.setName(f"{coordinate.getName()}_actuator")
+            actuator.setOptimalForce(1.0)
+            model.addForce(actuator)
+            actuators[joint.name] = actuator
     for k, (body_a, point_a, body_b, point_b) in enumerate(tree.cuts):
         if planar_cuts:
             along_z = osim.Vec3(0.0, 0.0, 1.0)
@@ -242,4 +255,4 @@ def build(
         force.setName(component_name(spring.name, k))
         model.addForce(force)
     state = model.initSystem()
-    return OpenSimModel(model, state, tree, bodies, coordinates)
+    return OpenSimModel(model, state, tree, bodies, coordinates, actuators)
