@@ -13,12 +13,12 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import MODELS, run_dynamic
+from conftest import DATA, MODELS, run_dynamic
 
 pytest.importorskip("exudyn")
 
 from xcheck import Kinematics, load_mechanism  # noqa: E402
-from xcheck.engines import NotApplicable  # noqa: E402
+from xcheck.engines import NotApplicable, with_unit_mass  # noqa: E402
 
 
 def _kinematics(name: str) -> Kinematics:
@@ -46,3 +46,40 @@ def test_fourbar_positions_at_round_off_velocities_at_second_order():
 def test_a_slide_driver_is_not_applicable():
     with pytest.raises(NotApplicable, match="driver r_y: a slide"):
         run_dynamic("exudyn-dynamic", _kinematics("task-2-2"))
+
+
+def test_newton_on_a_heavy_kilometre_four_bar_stops_at_its_round_off():
+    """A crank-rocker of 3 to 9 t at 1 km (moments about 2e10 N m): Newton's residual in N
+    and N m cannot fall to 1e-10 (eps times the moments is 5e-6), and Newton failed at the
+    first step. With its absolute tolerance at least NEWTON_ROUND_OFF eps times the moment
+    scale every run converges, positions at round-off (measured 2.5e-13 to 2.8e-13 m, of 1000 m) and
+    rates at second order; on every bundled model that floor is below 1e-10 (slider-crank,
+    the heaviest: 1.8e-11), so their runs are as before."""
+    from xcheck.dynamics import force_floors
+    from xcheck.engines.exudyn.model import NEWTON_ROUND_OFF, Setting, newton_floor, solver_settings
+    from xcheck.ladder import DrivenProblem
+    from xcheck.results import scale_floors
+
+    kin = Kinematics(load_mechanism(DATA / "km-fourbar.toml"))
+    problem = DrivenProblem.of(kin)
+    floors = scale_floors(kin.mechanism, *problem.window.inputs(kin, problem.times)[1:])
+    floor = newton_floor(kin.mechanism, floors)
+    assert floor == pytest.approx(NEWTON_ROUND_OFF * 2.220446049250313e-16 * force_floors(kin.mechanism, floors)["N m"])
+    assert 1e-4 < floor < 1e-2
+    assert (
+        solver_settings(
+            Setting(0.9, newton_tolerance=1e-10), 1e-3, 1.0, 0.1, floor
+        ).timeIntegration.newton.absoluteTolerance
+        == floor
+    )
+    result = run_dynamic("exudyn-dynamic", kin)
+    assert result.ok and (result.summary["status"] == "ok").all(), result.summary
+    best = result.summary[result.summary["setting"] == "best"].sort_values("timestep", ascending=False)
+    assert best["position_error"].max() <= 1e-10 * kin.mechanism.size
+    errors = list(best["velocity_error"])
+    assert all(1.8 <= math.log2(errors[i] / errors[i + 1]) <= 2.2 for i in range(2)), errors
+    for name in ("fourbar", "slider-crank", "two-body-arm"):
+        model = _kinematics(name)
+        ahead = DrivenProblem.of(model)
+        ahead_floors = scale_floors(model.mechanism, *ahead.window.inputs(model, ahead.times)[1:])
+        assert newton_floor(with_unit_mass(model.mechanism), ahead_floors) < 1e-10, name

@@ -25,9 +25,9 @@ from xcheck.engines._contract import NotApplicable, with_unit_mass
 from xcheck.kinematics import rotate
 from xcheck.ladder import DrivenProblem, Run, Rung, Series
 from xcheck.model import GROUND, Mechanism
-from xcheck.results import Trajectory
+from xcheck.results import Trajectory, scale_floors
 
-from .model import Setting, build_system, joint_gaps, matched, solver_settings
+from .model import Setting, build_system, joint_gaps, matched, newton_floor, solver_settings
 
 __all__ = ["MODE", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
@@ -77,6 +77,7 @@ def run_dynamic_once(mech: Mechanism, problem: DrivenProblem, rung: Rung) -> Run
     duration, dt, per = window.duration, rung.timestep, rung.counts[0]
     setting: Setting = series.options
     failure = ""
+    floors = scale_floors(mech, *problem.window.inputs(problem.kinematics, problem.times)[1:])
     model = build_system(mech, problem.start.q[0], problem.start.qd[0])
     mbs = model.mbs
     ground = mbs.AddNode(ei.NodePointGround(visualization=ei.VNodePointGround(show=False)))
@@ -124,7 +125,8 @@ def run_dynamic_once(mech: Mechanism, problem: DrivenProblem, rung: Rung) -> Run
     try:
         solve: Any = exu.SolveDynamic  # its stubs lack showHints
         every = problem.interval
-        if not solve(mbs, solver_settings(setting, dt, duration, every), showHints=False, showCausingItems=False):
+        settings = solver_settings(setting, dt, duration, every, newton_floor(mech, floors))
+        if not solve(mbs, settings, showHints=False, showCausingItems=False):
             failure = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"
     except Exception:  # noqa: BLE001 - a solver that gives up is a row
         failure = f"Newton failed at t = {mbs.systemData.GetTime():.6g} s"

@@ -34,7 +34,33 @@ from xcheck.joints import GearPair, LineJoint, Revolute, converter
 from xcheck.kinematics import rotate
 from xcheck.model import GROUND, Mechanism
 
-__all__ = ["Setting", "ExudynModel", "build_system", "energy", "joint_gaps", "matched", "refuse", "solver_settings"]
+__all__ = [
+    "NEWTON_ROUND_OFF",
+    "ExudynModel",
+    "Setting",
+    "build_system",
+    "energy",
+    "joint_gaps",
+    "matched",
+    "newton_floor",
+    "refuse",
+    "solver_settings",
+]
+
+
+#: Newton's absolute tolerance is at least this many units in the last place of the mechanism's
+#: largest generalized force: its residual (N and N m) cannot fall below its round-off, and on a
+#: crank-rocker of tonnes at 1 km it stalled above 1e-10 of its first iterate (Newton failed)
+NEWTON_ROUND_OFF = 100.0
+
+
+def newton_floor(mech: Mechanism, floors: dict[str, float]) -> float:
+    """The least absolute tolerance Newton's residual can meet: :data:`NEWTON_ROUND_OFF`
+    eps times the mechanism's moment scale, N m (:func:`xcheck.dynamics.force_floors` of
+    its masses and ``floors``, :func:`xcheck.results.scale_floors`)."""
+    from xcheck.dynamics import force_floors
+
+    return NEWTON_ROUND_OFF * float(np.finfo(float).eps) * force_floors(mech, floors)["N m"]
 
 
 @dataclass(frozen=True)
@@ -306,8 +332,9 @@ def _timed(law):
     return load
 
 
-def solver_settings(setting: Setting, dt: float, duration: float, every: float):
-    """Exudyn's simulation settings of a run (no files, no output, sensors every ``every`` s)."""
+def solver_settings(setting: Setting, dt: float, duration: float, every: float, floor: float = 0.0):
+    """Exudyn's simulation settings of a run (no files, no output, sensors every ``every`` s),
+    Newton's absolute tolerance at least ``floor`` (:func:`newton_floor`)."""
     import exudyn as exu
 
     s: Any = exu.SimulationSettings()  # its stubs lack solutionSettings and others
@@ -321,6 +348,8 @@ def solver_settings(setting: Setting, dt: float, duration: float, every: float):
     if setting.newton_tolerance is not None:
         s.timeIntegration.newton.relativeTolerance = setting.newton_tolerance
         s.timeIntegration.newton.absoluteTolerance = setting.newton_tolerance
+    newton = s.timeIntegration.newton
+    newton.absoluteTolerance = max(float(newton.absoluteTolerance), floor)
     s.solution.file.write = False
     s.solution.sensors.writePeriod = every
     s.linearSolver.solverType = exu.LinearSolverType.EigenDense
