@@ -114,6 +114,31 @@ def whole_run(branch_map_cache):
 
 
 @pytest.fixture(scope="session")
+def once_per_run(branch_map_cache):
+    """``get(key, make)``: the text ``make()`` returns, computed once for the whole
+    test run: the first worker to ask computes it into the run's cache directory
+    while holding the key's lock, the others wait and read it from there. For a
+    costly text that several tests check in their own ways (an engine file of a
+    large mechanism)."""
+    import fcntl
+
+    folder = branch_map_cache / "once-per-run"
+    folder.mkdir(exist_ok=True)
+
+    def get(key: str, make) -> str:
+        path = folder / f"{key}.txt"
+        with open(folder / f"{key}.lock", "w") as held:
+            fcntl.flock(held, fcntl.LOCK_EX)
+            if not path.exists():
+                staged = folder / f"{key}.staged"
+                staged.write_text(make(), encoding="utf-8")
+                staged.replace(path)
+            return path.read_text(encoding="utf-8")
+
+    return get
+
+
+@pytest.fixture(scope="session")
 def kinematics():
     """Kinematics of a model in models/ by name, built once per session."""
     cache: dict[str, Kinematics] = {}

@@ -50,14 +50,21 @@ def _file(name: str):
     return path if path.is_file() else MODELS / "benchmarks" / f"{name}.toml"
 
 
-def _mjcf(name: str, tmp_path) -> tuple[Kinematics, mujoco.MjModel]:
-    """The writer's MJCF of a model, every number exact (as the engine's modes
-    load it; the committed file, the same rounded to 12 significant digits, is
-    checked current by test_mujoco), loaded from a path."""
-    kin = Kinematics(load_mechanism(_file(name)))
-    path = tmp_path / f"{name}.xml"
-    path.write_text(mjcf_text(kin))
-    return kin, mujoco.MjModel.from_xml_path(str(path))
+@pytest.fixture
+def mjcf(once_per_run, tmp_path):
+    """``mjcf(name)``: the writer's MJCF of a model, every number exact (as the
+    engine's modes load it; the committed file, the same rounded to 12 significant
+    digits, is checked current by test_mujoco), loaded from a path, with the model's
+    kinematics. The text is written once per test run for this module's tests
+    (iftomm-a02-n40's alone costs 3.6 CPU s: its servos' inertia sweeps the input's range)."""
+
+    def get(name: str) -> tuple[Kinematics, mujoco.MjModel]:
+        text = once_per_run(f"mjcf-{name}", lambda: mjcf_text(Kinematics(load_mechanism(_file(name)))))
+        path = tmp_path / f"{name}.xml"
+        path.write_text(text)
+        return Kinematics(load_mechanism(_file(name))), mujoco.MjModel.from_xml_path(str(path))
+
+    return get
 
 
 def _pose_error(kin: Kinematics, model, data, q: np.ndarray) -> tuple[float, float]:
@@ -79,8 +86,8 @@ def _equality_violation(model, data, size: float) -> float:
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES + BENCHMARKS)
-def test_mjcf_opens_assembled_at_qpos0(name, tmp_path):
-    kin, model = _mjcf(name, tmp_path)
+def test_mjcf_opens_assembled_at_qpos0(name, mjcf):
+    kin, model = mjcf(name)
     q = kin.assemble()
     data = mujoco.MjData(model)  # qpos = qpos0, no keyframe reset
     np.testing.assert_array_equal(data.qpos, model.qpos0)
@@ -93,13 +100,13 @@ def test_mjcf_opens_assembled_at_qpos0(name, tmp_path):
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES + BENCHMARKS)
-def test_mjcf_qpos_keeps_its_meaning_away_from_the_assembly(name, tmp_path):
+def test_mjcf_qpos_keeps_its_meaning_away_from_the_assembly(name, mjcf):
     """With every joint's ref at the assembly, qpos is still the model's joint
     coordinate: native states away from the assembly (inputs moved by 0.05 and
     0.1 rad, or that times the size for a slide), mapped by joint_coordinates,
     put MuJoCo's bodies where the native solver does (this checks the
     re-expressed axes of a body with two joints, a pin-in-slot)."""
-    kin, model = _mjcf(name, tmp_path)
+    kin, model = mjcf(name)
     mech = kin.mechanism
     lay = layout(mech)
     scale = np.array([1.0 if d.quantity == "angle" else mech.size for d in mech.drivers])
@@ -120,10 +127,10 @@ def test_mjcf_qpos_keeps_its_meaning_away_from_the_assembly(name, tmp_path):
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES)
-def test_mjcf_settings_and_visuals_leave_the_mass_alone(name, tmp_path):
+def test_mjcf_settings_and_visuals_leave_the_mass_alone(name, mjcf, tmp_path):
     """The tight equality settings, stated in a comment; every moving body has a
     visual geom that neither collides nor adds mass (explicit inertials)."""
-    kin, model = _mjcf(name, tmp_path)
+    kin, model = mjcf(name)
     text = (tmp_path / f"{name}.xml").read_text()
     assert "Solver settings: the tight ones xcheck's dynamic mode verifies" in text
     if model.neq:

@@ -71,9 +71,12 @@ def test_every_mode_within_tolerance(whole_run, name):
         assert set(outcome.categories.category) == expected
 
 
+@pytest.mark.slow
 def test_json_summary_shape(whole_run):
     """The JSON of every mode of the four-bar (the comparison of
-    test_every_mode_within_tolerance, read from the run's results cache)."""
+    test_every_mode_within_tolerance, read from the run's results cache). A whole
+    comparison, MJX's compilation included: with the slow tests it costs only the
+    JSON's reading (the comparison is theirs), without them the whole comparison."""
     whole_run(MODELS / "fourbar.toml")
     with results_cache_on():
         result = _cli(
