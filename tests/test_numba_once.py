@@ -37,3 +37,25 @@ def test_a_kernel_waits_while_another_process_compiles():
         assert caller.is_alive() and not results and not square.overloads
     caller.join(timeout=60)
     assert results == [9.0]
+
+
+class _Dispatcher:
+    """A compiled kernel as a dispatcher hands back an exception raised while it ran:
+    a SystemError whose cause is that exception."""
+
+    overloads = {(): None}
+
+    def __init__(self, cause: BaseException):
+        self.cause = cause
+
+    def __call__(self):
+        raise SystemError("CPUDispatcher returned a result with an exception set") from self.cause
+
+
+def test_ctrl_c_in_a_kernel_is_a_keyboard_interrupt_and_other_errors_stay():
+    import pytest
+
+    with pytest.raises(KeyboardInterrupt):
+        run_compiled(_Dispatcher(KeyboardInterrupt()))
+    with pytest.raises(SystemError, match="exception set"):
+        run_compiled(_Dispatcher(ValueError("not an interrupt")))

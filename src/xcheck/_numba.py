@@ -14,11 +14,19 @@ def run_compiled(function, *args):
     types first, or loaded from numba's cache, by one process at a time: processes
     started together (a test run's workers, a parallel run's) wait for the first to
     compile, then load what it cached, rather than each compiling the same code again.
-    Anything else (a plain function standing in for a kernel) is called as it is."""
+    Anything else (a plain function standing in for a kernel) is called as it is.
+
+    Ctrl-C while compiled code runs reaches the caller as KeyboardInterrupt (the
+    dispatcher reports it as a SystemError "returned a result with an exception set")."""
     if not hasattr(function, "overloads"):
         return function(*args)
     types = tuple(function.typeof_pyval(value) for value in args)
     if types not in function.overloads:
         with directory_lock(Path(__file__).parent):
             function.compile(types)
-    return function(*args)
+    try:
+        return function(*args)
+    except SystemError as err:
+        if isinstance(err.__cause__ or err.__context__, KeyboardInterrupt):
+            raise KeyboardInterrupt from None
+        raise
