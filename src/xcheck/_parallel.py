@@ -87,6 +87,12 @@ class Pool(ProcessPoolExecutor):
             return False
         return super().__exit__(kind, value, traceback)
 
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        """As :meth:`ProcessPoolExecutor.submit`, a worker it starts starting with SIGINT
+        ignored (:func:`_spawning`)."""
+        with _spawning():
+            return super().submit(fn, *args, **kwargs)
+
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         self.closed = True
         super().shutdown(wait, cancel_futures=cancel_futures)
@@ -94,6 +100,22 @@ class Pool(ProcessPoolExecutor):
     def usable(self, jobs: int) -> bool:
         """Whether it is open, none of its workers died, and it has ``jobs`` workers or more."""
         return not self.closed and not getattr(self, "_broken", False) and self.jobs >= jobs
+
+
+@contextlib.contextmanager
+def _spawning() -> Iterator[None]:
+    """SIGINT ignored in this process while it starts worker processes (from the main
+    thread; elsewhere nothing changes): a worker inherits that, so Ctrl-C while it still
+    imports does not print a KeyboardInterrupt traceback from the middle of its imports;
+    its initializer (:func:`_start_worker`) gives SIGINT its default action."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 #: the pools :func:`process_pool` keeps for the next call, innermost :func:`workers_kept` last
