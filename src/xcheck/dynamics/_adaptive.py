@@ -26,7 +26,12 @@ through a step of the length the control proposes, the point of a step farthest
 from every stage of DOP853 and of its dense output (0.13 of the step away). That
 step is accepted at an error norm up to :data:`CROSSING_ALLOWANCE`, since a
 shorter one would only be worse; its error, like every other, shows in the
-differences of the reference's ladder.
+differences of the reference's ladder. Its stages are projected onto the
+constraints before their accelerations are evaluated: a stage is off them by
+its own truncation error, and near a singular position the accelerations move
+by that error over the Jacobian's smallest singular value (measured on A02 at
+1e-3 s from a pass: a state 1e-13 m off moves them by 2.3e-10 m/s^2), where on
+the constraints they are accurate to round-off.
 """
 
 from __future__ import annotations
@@ -231,10 +236,13 @@ def _stage(A, s, h, y, K, out):
 
 
 @_internal
-def _rates(model, structure, scratch, buffers, measure, y, t, out):
-    """dy/dt of y = (q, qd, work) at time t (s) into ``out``; q'' returned."""
+def _rates(model, structure, scratch, buffers, measure, y, t, out, project):
+    """dy/dt of y = (q, qd, work) at time t (s) into ``out``; q'' returned. With ``project``,
+    of y's (q, qd) projected onto the constraints first (a stage near a singular position)."""
     n = (len(y) - 1) // 2
     q, qd = y[:n], y[n : 2 * n]
+    if project:
+        q, qd, _, _ = _project(model, structure, scratch, buffers, q.copy(), qd.copy())
     qdd = _acceleration(model, structure, scratch, buffers, measure, q, qd, t)
     out[:n] = qd
     out[n : 2 * n] = qdd
@@ -265,12 +273,12 @@ def _error_norm(K, h, E3, E5, y0, y1, d, tolerance, floor):
 
 
 @_internal
-def _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F):
+def _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F, project):
     """The dense output's coefficients of the step (its three extra stages first) into ``F``."""
     stage = np.empty(len(y))
     for s in range(_STAGES + 1, _EXTENDED):
         _stage(A, s, h, y, K, stage)
-        _rates(model, structure, scratch, buffers, measure, stage, t + C[s] * h, K[s])
+        _rates(model, structure, scratch, buffers, measure, stage, t + C[s] * h, K[s], project)
     delta = y_new - y
     F[0] = delta
     F[1] = h * K[0] - delta
@@ -373,6 +381,14 @@ def _solve_cost(measure, below, heavy):
 
 
 @_internal
+def _stage_cost(measure, below, heavy, projected, projection):
+    """The work of a stage's evaluation (:func:`_solve_cost`), and of its projection where
+    ``projected`` (``projection`` solves, each measuring)."""
+    solve = _solve_cost(measure, below, heavy)
+    return solve + projection * max(MEASURE_COST, solve) if projected else solve
+
+
+@_internal
 def _plan(h, ahead):
     """The next step, ``h`` as the error control proposes it, cut where a singular position
     lies ``ahead`` (s): so that it lies CROSSING_AT of the way through a step of about ``h``
@@ -408,7 +424,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
 
     q, qd, _, measure = _project(model, structure, scratch, buffers, q0.copy(), qd0.copy())
     y[:n], y[n : 2 * n] = q, qd
-    qdd = _rates(model, structure, scratch, buffers, measure, y, 0.0, K[0])
+    qdd = _rates(model, structure, scratch, buffers, measure, y, 0.0, K[0], NO)
     counts[2] += 1
     counts[4] += projection * max(MEASURE_COST, _solve_cost(measure, below, heavy)) + _solve_cost(measure, below, heavy)
     if not np.all(np.isfinite(K[0])):
@@ -428,7 +444,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
     h = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h = min(h, duration)
     stage[:] = y + h * K[0]
-    _rates(model, structure, scratch, buffers, measure, stage, h, K[1])
+    _rates(model, structure, scratch, buffers, measure, stage, h, K[1], NO)
     counts[2] += 1
     counts[4] += _solve_cost(measure, below, heavy)
     d2 = 0.0
@@ -460,13 +476,13 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
             h = duration - t
         for s in range(1, _STAGES):
             _stage(A, s, h, y, K, stage)
-            _rates(model, structure, scratch, buffers, measure, stage, t + C[s] * h, K[s])
+            _rates(model, structure, scratch, buffers, measure, stage, t + C[s] * h, K[s], crossing)
         y_new[:] = y
         for j in range(_STAGES):
             y_new += (h * B[j]) * K[j]
-        _rates(model, structure, scratch, buffers, measure, y_new, t + h, K[_STAGES])
+        _rates(model, structure, scratch, buffers, measure, y_new, t + h, K[_STAGES], crossing)
         counts[2] += _STAGES
-        counts[4] += _STAGES * _solve_cost(measure, below, heavy)
+        counts[4] += _STAGES * _stage_cost(measure, below, heavy, crossing, projection)
         error = _error_norm(K, h, E3, E5, y, y_new, d, tolerance, floor)
         attempt = int(counts[0] + counts[1])
         if attempt < len(trace):
@@ -485,9 +501,9 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
         t_new = duration if last else t + h
         # the outputs in (t, t_new], from the dense output, each projected; a crossing's least measure
         if crossing or (written <= outputs and written * output_step < t_new - 1e-12 * duration):
-            _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F)
+            _dense(A, C, D, model, structure, scratch, buffers, measure, t, h, y, y_new, K, F, crossing)
             counts[2] += 3
-            counts[4] += 3 * _solve_cost(measure, below, heavy)
+            counts[4] += 3 * _stage_cost(measure, below, heavy, crossing, projection)
         while written <= outputs and written * output_step <= t_new + 1e-12 * duration:
             target = written * output_step
             if written == outputs or abs(target - t_new) <= 1e-12 * duration:
@@ -517,7 +533,7 @@ def _integrate(model, structure, q0, qd0, outputs, output_step, tolerance, budge
             return q_out, qd_out, qdd_out, residual, energy, work, found[:passes], counts, NON_FINITE, written, t
         t = t_new
         y[:n], y[n : 2 * n], y[2 * n] = q, qd, y_new[2 * n]
-        qdd = _rates(model, structure, scratch, buffers, measure, y, t, K[0])
+        qdd = _rates(model, structure, scratch, buffers, measure, y, t, K[0], NO)
         counts[2] += 1
         counts[4] += _solve_cost(measure, below, heavy)
         # the next step: the error control's, or where a plan cut this one (to land a crossing
