@@ -1,7 +1,9 @@
 """The native free-motion reference against its speed goals: its CPU time and its true error.
 
 - IFToMM A02 (the double four-bar, ten singular passes in 10 s): the DOP853 reference at the
-  file's tolerance and at the goal's (1e-11 m, 5e-12 of its 2 m size), its CPU time (the
+  file's tolerance, at 1e-11 of its 2 m size and at the goal's (1e-11 m, 5e-12 of the size),
+  and at 1e-11 of the size again from the reduction's exact start (1e-16 from the release
+  state: how far round-off at the passes moves the runs), its CPU time (the
   ladder's runs, the release excluded) and its true error against the double four-bar reduced
   to one degree of freedom, theta'' = -(3.5 / 3) g cos(theta) (mpmath's Taylor method, 30 digits);
   goal: at most 1e-11 m in at most 1 CPU s.
@@ -9,12 +11,18 @@
   branch's map), the reference's (its ladder within its work budget), whether it converged, its
   stated error and its cranks' true error against the chain's reduction,
   theta'' = -((41/2 + 40) / (41/3 + 40)) g cos(theta) (as tests/test_free_motion.py); then its
-  single runs at local tolerances 1e-10 to 1e-14, each within the ladder's whole budget;
+  single runs at local tolerances 1e-10 to 1e-15, each within the ladder's whole budget;
   goal: converged to 1e-9 of its size in at most 60 CPU s.
 
 - passes: where A02's round-off comes from: single DOP853 runs from the exact state (the
   reduction's, in 30 digits) 0.2 s before a singular pass to 0.2 s after it, and over a stretch
   without one, at local tolerances 1e-11 to 1e-15: their errors in position and velocity at the end.
+
+- conditioning: A02's accelerations near the pass at 0.714 s (1e-2 to 1e-5 s after it) at
+  the reduction's state rounded to float64: the Jacobian's smallest singular value, the
+  error of the float64 solve, that of the same float64 equations solved in 50 digits, and how
+  far the exact accelerations move for a state 1e-13 m off the constraints (along the
+  Jacobian's weakest row direction).
 
 Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40] [passes]``
 """
@@ -57,6 +65,16 @@ def reduced_theta(k: float, times: np.ndarray) -> np.ndarray:
     return np.array([float(solution(mp.mpf(float(t)))[0]) for t in times])
 
 
+def _a02_state(solution, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """A02's body coordinates and rates at ``t`` (s) from its reduction (three cranks, then
+    two couplers), rounded to float64."""
+    theta, w = solution(mp.mpf(t))
+    c, s = float(mp.cos(theta)), float(mp.sin(theta))
+    q = [[i + c / 2, s / 2, float(theta)] for i in range(3)] + [[i + 0.5 + c, s, 0.0] for i in range(2)]
+    qd = [[-s * float(w) / 2, c * float(w) / 2, float(w)]] * 3 + [[-s * float(w), c * float(w), 0.0]] * 2
+    return np.ravel(q), np.ravel(qd)
+
+
 def passes() -> None:
     """A02's error across single singular passes and over a stretch without one."""
     from xcheck.dynamics._adaptive import integrate_adaptive
@@ -66,12 +84,8 @@ def passes() -> None:
     kin, _, _, size, _ = _released("iftomm-a02", "where the round-off comes from")
     packed, solution = Packed(_Dynamics(kin)), _reduction(3.5 / 3.0)
 
-    def exact(t: float) -> tuple[np.ndarray, np.ndarray]:  # three cranks, then two couplers
-        theta, w = solution(mp.mpf(t))
-        c, s = float(mp.cos(theta)), float(mp.sin(theta))
-        q = [[i + c / 2, s / 2, float(theta)] for i in range(3)] + [[i + 0.5 + c, s, 0.0] for i in range(2)]
-        qd = [[-s * float(w) / 2, c * float(w) / 2, float(w)]] * 3 + [[-s * float(w), c * float(w), 0.0]] * 2
-        return np.ravel(q), np.ravel(qd)
+    def exact(t: float) -> tuple[np.ndarray, np.ndarray]:
+        return _a02_state(solution, t)
 
     def off(a: np.ndarray, b: np.ndarray) -> float:  # angles times the size
         delta = np.abs(a - b)
@@ -88,6 +102,50 @@ def passes() -> None:
                 f"  {begin:g}-{end:g} s, {what}, at {tolerance:g}: {run.accepted} steps, {run.failure or 'ok'}; "
                 f"off by {off(run.q[-1], q1):.2g} m, {off(run.qd[-1], qd1):.2g} m/s"
             )
+
+
+def conditioning() -> None:
+    """A02's accelerations near a singular pass: where their error comes from."""
+    from xcheck.dynamics._free import _Dynamics
+
+    kin, _, _, _, _ = _released("iftomm-a02", "what the accelerations near a pass are sensitive to")
+    dyn, k = _Dynamics(kin), 3.5 / 3.0
+    solution = _reduction(k)
+    crossing = mp.findroot(lambda t: mp.sin(solution(t)[0]), mp.mpf("0.714"))
+
+    def exact_acceleration(q: np.ndarray, qd: np.ndarray) -> np.ndarray:  # M, J, gamma in float64, solved in 50 digits
+        mp.mp.dps = 50
+        mass, jac, gamma, load = dyn._mass(q), dyn.joints.jacobian(q), dyn.joints.gamma(q, qd), dyn.forces(q, qd)
+        n, m = jac.shape[1], jac.shape[0]
+        system, rhs = mp.zeros(n + m, n + m), mp.matrix(list(load) + list(gamma))
+        for i in range(n):
+            for j in range(n):
+                system[i, j] = mass[i, j]
+        for r in range(m):
+            for j in range(n):
+                system[n + r, j] = system[j, n + r] = jac[r, j]
+        x = mp.lu_solve(system, rhs)
+        mp.mp.dps = 30
+        return np.array([float(x[i]) for i in range(n)])
+
+    for after in [1e-2, 1e-3, 1e-4, 1e-5]:
+        t = crossing + mp.mpf(after)
+        q, qd = _a02_state(solution, t)
+        theta, w = solution(t)
+        a = -k * mp.mpf("9.81") * mp.cos(theta)
+        c, s = mp.cos(theta), mp.sin(theta)
+        crank = [-(c * w * w + s * a) / 2, (-s * w * w + c * a) / 2, a]
+        coupler = [-(c * w * w + s * a), -s * w * w + c * a, 0]
+        true = np.array([float(v) for v in crank * 3 + coupler * 2])
+        u, singular, _ = np.linalg.svd(dyn.joints.jacobian(q))
+        off = dyn.joints.jacobian(q).T @ u[:, -1]
+        moved = exact_acceleration(q + 1e-13 * off / np.abs(off).max(), qd)
+        print(
+            f"  {after:g} s after the pass: smallest singular value {singular[-1]:.2g}; accelerations off by "
+            f"{np.abs(dyn.acceleration(q, qd) - true).max():.2g} (float64), "
+            f"{np.abs(exact_acceleration(q, qd) - true).max():.2g} (the float64 equations in 50 digits); "
+            f"a state 1e-13 m off the constraints moves them by {np.abs(moved - true).max():.2g} m/s^2"
+        )
 
 
 def _released(name: str, goal: str):
@@ -107,9 +165,18 @@ def _released(name: str, goal: str):
     return kin, start, spec, size, cranks
 
 
-def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
+def run(name: str, k: float, tolerances: list[float | None], goal: str, exact_start: float | None = None) -> None:
+    """The reference's ladder at each tolerance (None: the file's); with ``exact_start``, at
+    that tolerance once more from the reduction's start rounded to float64 (A02 only)."""
+    from xcheck.dynamics._free import FreeState
+
     kin, start, spec, size, cranks = _released(name, goal)
-    for tolerance in tolerances:
+    starts = [(tolerance, start, "") for tolerance in tolerances]
+    if exact_start is not None:
+        q0, qd0 = _a02_state(_reduction(k), 0.0)
+        off = max(float(np.abs(q0 - start.q).max()), float(np.abs(qd0 - start.qd).max()))
+        starts.append((exact_start, FreeState(q0, qd0), f", from the exact start ({off:.2g} off the release)"))
+    for tolerance, start, where in starts:
         tolerance = spec.tolerance if tolerance is None else tolerance
         begin = time.process_time()
         reference = adaptive_reference(kin, start, spec.duration, spec.output_step, tolerance)
@@ -119,8 +186,8 @@ def run(name: str, k: float, tolerances: list[float | None], goal: str) -> None:
         true = float(np.abs(motion.q[:, cranks] - theta[:, None]).max()) * size
         state = "converged" if reference.converged else "NOT converged"
         print(
-            f"  tolerance {tolerance:g} of the size: {state}, {cpu:.2f} CPU s over {len(reference.ladder)} runs "
-            f"({sum(e['steps'] for e in reference.ladder)} steps); stated {reference.estimate.max():.3g} m, "
+            f"  tolerance {tolerance:g} of the size{where}: {state}, {cpu:.2f} CPU s over {len(reference.ladder)} "
+            f"runs ({sum(e['steps'] for e in reference.ladder)} steps); stated {reference.estimate.max():.3g} m, "
             f"true {true:.3g} m (cranks' angles x the size)"
         )
         if not reference.converged:
@@ -155,11 +222,13 @@ def runs(name: str, k: float, tolerances: list[float], goal: str) -> None:
 if __name__ == "__main__":
     which = sys.argv[1:] or ["a02", "n40"]
     if "a02" in which:
-        run("iftomm-a02", 3.5 / 3.0, [None, 5e-12], "<= 1e-11 m true error in <= 1 CPU s")
+        run("iftomm-a02", 3.5 / 3.0, [None, 1e-11, 5e-12], "<= 1e-11 m true error in <= 1 CPU s", 1e-11)
     if "n40" in which:
         k = (41 / 2 + 40) / (41 / 3 + 40)
         goal = "converged to 1e-9 of the size in <= 60 CPU s"
         run("iftomm-a02-n40", k, [None], goal)
-        runs("iftomm-a02-n40", k, [1e-10, 1e-11, 1e-12, 1e-13, 1e-14], goal)
+        runs("iftomm-a02-n40", k, [1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15], goal)
     if "passes" in sys.argv[1:]:
         passes()
+    if "conditioning" in sys.argv[1:]:
+        conditioning()
