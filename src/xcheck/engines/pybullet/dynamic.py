@@ -31,13 +31,11 @@ from xcheck.ladder import DrivenProblem, Run, Rung, Series
 from xcheck.model import GROUND
 from xcheck.topology import spanning_tree
 
-from .model import Multibody, Setting, build, p, set_state, velocity
+from .model import CONSTRAINT_FORCE, Multibody, Setting, build, p, set_state, velocity
 
 __all__ = ["MODE", "dynamic_series", "prepare_dynamic", "run_dynamic_once"]
 
 MODE = "pybullet-dynamic"
-#: the motor's force bound, N or N m: no bound a mechanism of the files reaches
-MOTOR_FORCE = 1e12
 #: the body quantities PyBullet gives
 QUANTITIES = ("position", "angle", "velocity", "omega")
 
@@ -164,7 +162,7 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
                     p.POSITION_CONTROL,
                     targetPosition=sign * value,
                     targetVelocity=sign * rate,
-                    force=MOTOR_FORCE,
+                    force=CONSTRAINT_FORCE,  # the motor's bound: none a mechanism reaches
                     physicsClientId=client,
                 )
             p.stepSimulation(physicsClientId=client)

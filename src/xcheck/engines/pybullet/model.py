@@ -65,12 +65,15 @@ def _import_quietly():
 
 p = _import_quietly()
 
-__all__ = ["Setting", "Multibody", "build", "set_state", "Forces", "velocity", "energy", "p"]
+__all__ = ["CONSTRAINT_FORCE", "Setting", "Multibody", "build", "set_state", "Forces", "velocity", "energy", "p"]
 
 #: the gear constraint's error reduction (PyBullet's default, 0, corrects no slip of the mesh)
 GEAR_ERP = 1.0
 #: joint speed limit set on every link (PyBullet's default, 100 rad/s, is not the model's)
 MAX_JOINT_VELOCITY = 1e6
+#: the force bound of every loop and gear constraint, N: none a mechanism reaches (PyBullet's
+#: default, 500 N, let the loops of a crank-rocker of tonnes come apart)
+CONSTRAINT_FORCE = 1e30
 
 
 @dataclass(frozen=True)
@@ -306,6 +309,7 @@ def _point2point(mech: Mechanism, cut: Revolute, uid: int, links: dict, topology
     cid = p.createConstraint(
         uid, la, uid, lb, p.JOINT_POINT2POINT, [0.0, 0.0, 0.0], [*fa, 0.0], [*fb, 0.0], physicsClientId=client
     )
+    p.changeConstraint(cid, maxForce=CONSTRAINT_FORCE, physicsClientId=client)
     return cid, (na, pa, nb, pb)
 
 
@@ -330,7 +334,7 @@ def _gear(mech: Mechanism, gear: GearPair, uid: int, links: dict, topology: Topo
         cid,
         gearRatio=-k,
         relativePositionTarget=s_b * gear.phase,
-        maxForce=1e30,
+        maxForce=CONSTRAINT_FORCE,
         erp=GEAR_ERP,
         physicsClientId=client,
     )
