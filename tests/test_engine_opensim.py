@@ -182,6 +182,28 @@ def test_the_oracle_walks_a_long_step_on_its_branch():
         assert worst[quantity] <= 1e-3 * ROUND_OFF.limit(quantity), (quantity, worst[quantity])
 
 
+def test_a_crank_stepping_by_the_longest_step_is_not_walked_in_parts(kinematics, monkeypatch):
+    """A turn in 180 samples steps by the continuation's longest step itself, each
+    step a few ulps either side of it: every sample is one assembly, none split."""
+    from xcheck.engines._continuation import MAX_STEP
+    from xcheck.engines._contract import with_unit_mass
+    from xcheck.engines.opensim import kinematic
+
+    kin = kinematics("slider-crank")
+    mech = dataclasses.replace(with_unit_mass(kin.mechanism), springs=(), rotational_springs=(), loads=())
+    inputs = kin.reference_inputs()[0] + np.linspace(0.0, 2.0 * math.pi, 181)[:6, None]
+    assert np.any(np.diff(inputs[:, 0]) > MAX_STEP)  # past it by round-off: the case in point
+    made = []
+    assembled = kinematic._assembled
+    monkeypatch.setattr(kinematic, "_assembled", lambda *args: made.append(args[4]) or assembled(*args))
+    zeros = np.zeros_like(inputs)
+    walked = kinematic.assembled_states(
+        mech, kin.assemble(), kin.reference_inputs(), (inputs, zeros, zeros), (range(6),)
+    )
+    assert [j for j, *_ in walked] == list(range(6))
+    assert len(made) == 6
+
+
 def test_the_oracle_says_where_the_assembler_leaves_a_loop_open(kinematics, monkeypatch):
     """With the loops cut as PointConstraints (three rows, one redundant) the assembler
     leaves the four-bar's loop open (measured 0.08 to 0.18 m): the mode fails, saying where."""

@@ -52,6 +52,8 @@ MODE = "opensim-kinematic"
 QUANTITIES = ("position", "angle", "velocity", "omega", "acceleration", "alpha")
 #: the widest a loop may stay open after assembly, of the mechanism's size
 CLOSED = 1e-9
+#: a step this much longer than MAX_STEP (a fraction of it) is not walked in parts
+_ROUND_OFF = 1e-9
 
 
 def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states: tuple, walks: tuple) -> Iterator:
@@ -92,8 +94,9 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
     for walk in walks:
         guess, last = dict(start_guess), start
         for step, j in enumerate(walk):
-            # a longer step than MAX_STEP from the last assembly: walked in steps, each from the one before
-            parts = math.ceil(float(np.max(np.abs(inputs[j] - last) / scale)) / MAX_STEP)
+            # a longer step than MAX_STEP from the last assembly: walked in steps, each from the one before;
+            # a crank's sweep of a turn in 180 samples steps by MAX_STEP itself, give or take its round-off
+            parts = math.ceil(float(np.max(np.abs(inputs[j] - last) / scale)) / MAX_STEP - _ROUND_OFF)
             for fraction in np.arange(1, parts) / parts:
                 between = last + fraction * (inputs[j] - last)
                 om, manager = _assembled(mech, q_ref, ref, signs, (between, 0 * between, 0 * between), guess, om)
