@@ -4,7 +4,7 @@ with its inputs driven (:mod:`.modes`), its impulses as reactions
 
 from __future__ import annotations
 
-from xcheck.engines._contract import Engine, Mode
+from xcheck.engines._contract import Engine, Finding, Mode
 from xcheck.tolerances import CONVERGENCE_NOTE, CONVERGES, FREE_MOTION, Tolerance
 
 __all__ = ["Pymunk"]
@@ -17,6 +17,22 @@ _DYNAMIC = Tolerance(
     "converges to the exact answer: semi-implicit "
     "Euler, error_bias 0, 500 iterations, window/2000, /4000, /8000 steps: order 2 in positions "
     "and angles, 1 in rates and accelerations (central differences of velocities)" + CONVERGENCE_NOTE,
+)
+
+
+#: Shown as the reactions' failure (a force source has no verdict of findings); stated for its reproducer.
+_POINT_MASS_MOTOR = Finding(
+    "pymunk's pivot does not hold a point mass whose rotation a motor holds",
+    "A body of 1 kg whose moment about its centre of mass is 1e-12 kg m^2 (a point mass) hangs 1 m from a "
+    "PivotJoint, level with it, under gravity, a SimpleMotor holding its angular velocity at 0; at 0.25 ms "
+    "steps, 500 iterations, every error corrected in full, it falls freely: 0.30 m in 0.25 s, its angle "
+    "still 0. At 1e-6 and 1e-3 kg m^2 the state blows up; with a rod's 1/12 kg m^2 it stays put, and "
+    "without the motor the pendulum swings on its pivot (held to 2e-7 m; pymunk 7.3.1, Chipmunk 2.0.1). "
+    "xcheck's pymunk reactions drive every input by a motor: on IFToMM's pendulum (tests/data/pendulum.toml, "
+    "a point mass held still by its driver) its scene comes apart at 0.25 s, 0.30 m open",
+    ("position",),
+    kinds=(),
+    reproducer="reproducers/pymunk_point_mass_motor.py",
 )
 
 
@@ -45,6 +61,7 @@ class Pymunk(Engine):
         "impulses over a step of the driven simulation, first order in the time step (measured at "
         "most 3.2e-2, about half the bound)"
     )
+    findings = (_POINT_MASS_MOTOR,)
     color = "tab:green"
     force_style = {"lw": 0, "marker": ".", "ms": 4}  # impulses scatter step to step
     notes = (
