@@ -18,6 +18,13 @@ from xcheck import Kinematics, load_mechanism
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 _BLAS_LIMITS = threadpool_limits(limits=1, user_api="blas")
+#: In an xdist worker each core already runs a worker of the test run: the commands a
+#: test runs (here or in a subprocess) default to one process ($XCHECK_JOBS), not to one
+#: per core on top, whose start-up alone (the engines' imports) cost about a CPU second
+#: a command. A test about worker processes names its --jobs; run serially (-n 0), the
+#: tests keep the default of one process per core.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("XCHECK_JOBS", "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"

@@ -66,12 +66,31 @@ def test_a_seed_outside_64_bits_is_refused(seed):
         arguments.seed(seed)
 
 
-def test_processes_default_to_the_cpu_count():
+def test_processes_default_to_the_cpu_count(monkeypatch):
     import os
 
+    monkeypatch.delenv(arguments.JOBS_ENV, raising=False)
     assert arguments.processes(None) == (os.cpu_count() or 1)
     with pytest.raises(InputError, match="^--workers: expected a whole number from 1 to 256, found 0$"):
         arguments.processes(0, "--workers")
+
+
+def test_xcheck_jobs_sets_the_default_processes_and_a_bad_one_is_one_line(monkeypatch):
+    """$XCHECK_JOBS is the default where a value is not given (a container's share of
+    the cores); a given value wins; a bad one is refused, naming the variable, before
+    any work (the command line: exit 2, one line)."""
+    monkeypatch.setenv("XCHECK_JOBS", " 3 ")
+    assert arguments.processes(None) == 3 and arguments.processes(2, "--jobs") == 2
+    monkeypatch.setenv("XCHECK_JOBS", "")
+    assert arguments.processes(None) == (os.cpu_count() or 1)
+    for bad, found in (("0", "0"), ("300", "300"), ("two", "'two'"), ("1.5", "'1.5'")):
+        monkeypatch.setenv("XCHECK_JOBS", bad)
+        with pytest.raises(InputError, match=rf"^\$XCHECK_JOBS: expected a whole number from 1 to 256, found {found}$"):
+            arguments.processes(None, "--jobs")
+    done = invoke("run", "fourbar", "--engines", "formulations", "--json")
+    assert done.returncode == 2 and done.stdout == ""
+    line = "xcheck: error: $XCHECK_JOBS: expected a whole number from 1 to 256, found '1.5'"
+    assert done.stderr.strip().splitlines() == [line]
 
 
 def test_a_directory_that_cannot_be_written_is_refused(tmp_path):

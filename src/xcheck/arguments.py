@@ -33,6 +33,7 @@ __all__ = [
     "MIN_SAMPLES",
     "DEFAULT_SAMPLES",
     "MAX_PROCESSES",
+    "JOBS_ENV",
     "MAX_STATES",
     "MAX_SEED",
     "whole_number",
@@ -95,10 +96,24 @@ def samples(value: object, name: str = "samples", low: int = MIN_SAMPLES) -> int
     return whole_number(value, name, low, MAX_SAMPLES)
 
 
+#: the environment variable that sets the default number of worker processes
+JOBS_ENV = "XCHECK_JOBS"
+
+
 def processes(value: object, name: str = "jobs") -> int:
-    """A number of worker processes (1 to :data:`MAX_PROCESSES`); None: one per CPU core."""
+    """A number of worker processes (1 to :data:`MAX_PROCESSES`); None: ``$XCHECK_JOBS``
+    where it is set (a container's or a shared machine's part of the cores, which
+    the CPU count does not know), else one per CPU core."""
     if value is None:
-        return os.cpu_count() or 1
+        text = os.environ.get(JOBS_ENV, "").strip()
+        if not text:
+            return os.cpu_count() or 1
+        name = f"${JOBS_ENV}"
+        try:
+            value = int(text)
+        except ValueError:
+            expected = f"expected a whole number from 1 to {MAX_PROCESSES}"
+            raise InputError(f"{name}: {expected}, found {shown(text)}") from None
     return whole_number(value, name, 1, MAX_PROCESSES)
 
 

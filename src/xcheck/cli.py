@@ -385,9 +385,9 @@ def run_command(
         typer.Option(
             "--jobs",
             "-j",
-            help="Processes at once (default: one per CPU core): with several mechanisms, one mechanism each; "
-            "with one, one mode each. 1: everything one after another in this process. The results and reports "
-            "are those of a serial run.",
+            help="Processes at once (default: $XCHECK_JOBS, or one per CPU core): with several mechanisms, "
+            "one mechanism each; with one, one mode each. 1: everything one after another in this process. "
+            "The results and reports are those of a serial run.",
             show_default=False,
         ),
     ] = None,
@@ -496,8 +496,8 @@ def simulate_command(
         typer.Option(
             "--jobs",
             "-j",
-            help="Free modes run at once, each in its own process (default: one per CPU core; 1: one after "
-            "another in this process). The results and the report are those of a serial run.",
+            help="Free modes run at once, each in its own process (default: $XCHECK_JOBS, or one per CPU "
+            "core; 1: one after another in this process). The results and the report are those of a serial run.",
             show_default=False,
         ),
     ] = None,
@@ -642,7 +642,7 @@ def fuzz_command(
         Optional[str], typer.Option("--scheduler", help="Address of a Dask scheduler (default: a local process pool).")
     ] = None,
     workers: Annotated[
-        Optional[int], typer.Option("--workers", help="Local worker processes (default: the CPU count).")
+        Optional[int], typer.Option("--workers", help="Local worker processes (default: $XCHECK_JOBS, or one per CPU).")
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="Output folder: cases/, results/ (Parquet), failures.md.")] = Path(
         "fuzz"

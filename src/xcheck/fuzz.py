@@ -785,7 +785,7 @@ def fuzz(
     """Generate ``count`` cases of ``seed``, run ``modes`` on each and write the rows.
 
     Cases already in ``out``/results/ are skipped (resume). The work runs on a
-    local process pool of ``workers`` processes (default: the CPU count; 1, or
+    local process pool of ``workers`` processes (default: ``$XCHECK_JOBS``, or the CPU count; 1, or
     a mode of an engine registered at run time: in this process), on the Dask
     cluster at ``scheduler``, or on a given ``dask.distributed.Client``.
 
