@@ -239,6 +239,26 @@ def test_reactions_and_efforts_are_the_multipliers_to_round_off(kinematics, name
         assert np.abs(forces.drivers[driver]["effort"] - effort).max() <= 1e-12 * np.abs(effort).max(), driver
 
 
+def test_reactions_assemble_each_state_once_from_its_native_configuration(kinematics, monkeypatch):
+    """The window's states of fourbar-dynamics lie 5 to 6 degrees of crank apart: each is
+    assembled once, from its native configuration, not walked to from the state before in
+    steps of the continuation's longest (217 assemblies for 73 states)."""
+    from xcheck.dynamics import determined_states, inverse_dynamics
+    from xcheck.engines._continuation import MAX_STEP
+    from xcheck.engines.opensim import kinematic
+
+    kin = kinematics("fourbar-dynamics")
+    solution = determined_states(kin, None, 9)
+    assert np.min(np.abs(np.diff(solution.inputs[:, 0]))) > MAX_STEP  # every step a long one
+    made = []
+    assembled = kinematic._assembled
+    monkeypatch.setattr(kinematic, "_assembled", lambda *args: made.append(args[4]) or assembled(*args))
+    forces = engines.engine("opensim").inverse_dynamics(kin, solution=solution)
+    assert len(made) == len(solution.inputs)
+    reaction = inverse_dynamics(solution).joints["B"]["reaction"]
+    assert np.abs(forces.joints["B"]["reaction"] - reaction).max() <= 1e-12 * np.abs(reaction).max()
+
+
 def test_reactions_of_a_prismatic_joint_are_not_applicable():
     kin = Kinematics(load_mechanism(DATA / "free-slider-crank-spring.toml"))
     with pytest.raises(NotApplicable, match="prismatic joint: xcheck reads OpenSim's reactions of revolutes only"):

@@ -25,6 +25,8 @@ the OpenSim model cannot hold (:func:`.model.refuse`).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from xcheck.dynamics import Forces, determined_states, require_mass_data
@@ -73,7 +75,9 @@ def inverse_forces(
     ancestors = [_common_ancestor(tree, joint.body_a, joint.body_b) for joint in cuts]
     names = {b.name: component_name(b.name, k) for k, b in enumerate(mech.moving_bodies)}
     try:
-        for i, om, state, _ in assembled_states(mech, q_ref, inputs[0], (inputs, rates, accelerations), (range(n),)):
+        seeds = functools.partial(_coordinates, mech, tree, solution.q, q_ref)
+        walked = assembled_states(mech, q_ref, inputs[0], (inputs, rates, accelerations), (range(n),), seeds)
+        for i, om, state, _ in walked:
             model = om.model
             joint_set, constraint_set = model.getJointSet(), model.getConstraintSet()
             for k, frames in enumerate(tree.joints):
@@ -109,6 +113,17 @@ def inverse_forces(
             "its moment about z), loop cuts' from their PointOnLineConstraints' record values."
         ),
     )
+
+
+def _coordinates(mech, tree, q: np.ndarray, q_ref: np.ndarray, i: int) -> dict[str, float]:
+    """The revolute tree joints' coordinates (rad, 0 at ``q_ref``) at native state ``i``
+    of ``q`` (N, 3 per moving body): the child's turn against the parent's since ``q_ref``."""
+    index = {b.name: 3 * k + 2 for k, b in enumerate(mech.moving_bodies)}
+
+    def turned(body: str) -> float:
+        return 0.0 if body == GROUND else float(q[i, index[body]] - q_ref[index[body]])
+
+    return {joint.name: turned(joint.child) - turned(joint.parent) for joint in tree.joints}
 
 
 def _common_ancestor(tree, body_a: str, body_b: str) -> str:

@@ -56,7 +56,9 @@ CLOSED = 1e-9
 _ROUND_OFF = 1e-9
 
 
-def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states: tuple, walks: tuple) -> Iterator:
+def assembled_states(
+    mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states: tuple, walks: tuple, seeds=None
+) -> Iterator:
     """OpenSim's states at given inputs, each assembled from its neighbour's coordinates.
 
     Parameters
@@ -71,6 +73,11 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
         The samples in the order they are assembled: each walk from the first walk's
         first sample's coordinates (the first from the build state's), each sample from
         the one before.
+    seeds : callable, optional
+        Sample -> the tree joints' coordinates there (name -> rad or m), where they are
+        known (the native states of the inverse dynamics): a sample farther than
+        :data:`~xcheck.engines._continuation.MAX_STEP` from the last assembly is assembled
+        from them instead of walked to.
 
     Yields
     ------
@@ -97,6 +104,8 @@ def assembled_states(mech: Mechanism, q_ref: np.ndarray, ref: np.ndarray, states
             # a longer step than MAX_STEP from the last assembly: walked in steps, each from the one before;
             # a crank's sweep of a turn in 180 samples steps by MAX_STEP itself, give or take its round-off
             parts = math.ceil(float(np.max(np.abs(inputs[j] - last) / scale)) / MAX_STEP - _ROUND_OFF)
+            if seeds is not None and parts > 1:
+                guess, parts = seeds(j), 1
             for fraction in np.arange(1, parts) / parts:
                 between = last + fraction * (inputs[j] - last)
                 om, manager = _assembled(mech, q_ref, ref, signs, (between, 0 * between, 0 * between), guess, om)
