@@ -112,7 +112,7 @@ class OpenSimModel:
         """Prescribe the coordinates of ``functions`` (tree joint name -> an OpenSim
         ``Function`` of time) by new functions and initialise the model again:
         :attr:`state` is its new build state. The same model as :func:`build` with
-        these functions gives, in half its time (the bodies and joints are kept)."""
+        these functions gives, its bodies, joints and constraints kept."""
         for name, function in functions.items():
             self.coordinates[name].setPrescribedFunction(function)
         self.state = self.model.initSystem()
