@@ -826,8 +826,9 @@ class StepLadder:
     def settings(self) -> list[float]:
         return [self.first / 2.0**k for k in range(self.halvings + 1)]
 
-    def run(self, setting: float, evaluations: float) -> FreeMotion:
-        return simulate_free(self.kinematics, self.start, self.duration, self.output_step, setting, self.compiled)
+    def run(self, setting: float, evaluations: float, start: FreeState | None = None) -> FreeMotion:
+        start = self.start if start is None else start
+        return simulate_free(self.kinematics, start, self.duration, self.output_step, setting, self.compiled)
 
     def work(self, setting: float, previous: FreeMotion | None) -> float:
         """Evaluations: four accelerations and a projection a step."""
@@ -860,11 +861,12 @@ class ToleranceLadder:
         count = max(1, int(math.floor(math.log10(self.first / FINEST_TOLERANCE) + 1e-9)) + 1)
         return [self.first / 10.0**k for k in range(count)]
 
-    def run(self, setting: float, evaluations: float) -> FreeMotion:
+    def run(self, setting: float, evaluations: float, start: FreeState | None = None) -> FreeMotion:
         from ._adaptive import simulate_adaptive
 
         budget = int(min(evaluations, 2**62))
-        return simulate_adaptive(self.kinematics, self.start, self.duration, self.output_step, setting, budget)
+        start = self.start if start is None else start
+        return simulate_adaptive(self.kinematics, start, self.duration, self.output_step, setting, budget)
 
     def work(self, setting: float, previous: FreeMotion | None) -> float:
         """Work in evaluations (as :func:`._adaptive.integrate_adaptive` counts it): the last
@@ -894,8 +896,9 @@ class ToleranceLadder:
 
 
 #: the finest local tolerance of a DOP853 ladder (float64's round-off of the state over a few
-#: thousand steps; on iftomm-a02-n40 a run at 1e-15 is 1.2e-8 m off, more than the run at 1e-14,
-#: and their difference, 5.4e-9 m, would state less than either's error)
+#: thousand steps; on IFToMM A02 from its exact start the run at 1e-14 is 1.5e-11 m off where
+#: runs from starts a few ulps apart differ by 8e-13 to 1.9e-11 m: one such run measures the
+#: round-off only roughly, too roughly to trust a rung finer than this)
 FINEST_TOLERANCE = 1e-14
 
 

@@ -54,6 +54,8 @@ SAFETY = 1.25
 #: projections, singularity measures and least-squares solves at their cost in evaluations
 #: (7 to 10 s of CPU, near singular positions too)
 WORK_BUDGET = 1e8
+#: how far the round-off run starts from the ladder's start: this many units in the last place
+ROUND_OFF_ULPS = 4.0
 #: the most values an output array may hold (outputs times coordinates: 160 MB each)
 MAX_OUTPUT_VALUES = 2e7
 
@@ -67,10 +69,11 @@ class LadderMethod(Protocol):
 
     name: str
     nominal: float | None
+    start: FreeState
 
     def settings(self) -> Sequence[float]: ...
 
-    def run(self, setting: float, evaluations: float) -> FreeMotion: ...
+    def run(self, setting: float, evaluations: float, start: FreeState | None = None) -> FreeMotion: ...
 
     def work(self, setting: float, previous: FreeMotion | None) -> float: ...
 
@@ -84,10 +87,7 @@ def difference(kinematics: Kinematics, fine: FreeMotion, coarse: FreeMotion) -> 
     (rad x size), at least the round-off floor: the running maximum, because the two runs'
     difference may pass through zero where the error does not. Both runs must share their
     output times (N,)."""
-    size = kinematics.system.size
-    delta = np.abs(fine.q - coarse.q)
-    delta[:, 2::3] *= size
-    return np.maximum(np.maximum.accumulate(delta.max(axis=1)), ROUND_OFF * size)
+    return np.maximum(spread_of(kinematics, fine, coarse), ROUND_OFF * kinematics.system.size)
 
 
 def stated_error(gap: np.ndarray, previous: np.ndarray | None, nominal: float | None) -> tuple[np.ndarray, str]:
@@ -153,7 +153,7 @@ def run_ladder(
     spent = 0.0
     last: FreeMotion | None = None  # the last run that went through
     gaps: list[np.ndarray] = []  # the differences so far
-    best: tuple[FreeMotion, np.ndarray, float] | None = None  # the run with the least stated error so far
+    best: tuple[FreeMotion, np.ndarray, float, float] | None = None  # the run with the least stated error so far
     converged, stop, grew = False, "", 0
     for setting in settings:
         cost = method.work(setting, last) * units
@@ -200,7 +200,7 @@ def run_ladder(
         gaps.append(gap)
         last = motion
         if best is None or relative <= best[2]:
-            best = motion, estimate, relative
+            best = motion, estimate, relative, setting
         if relative <= tolerance:
             converged = True
             break
@@ -218,12 +218,86 @@ def run_ladder(
                 f"{kinematics.mechanism.path}: free_motion: expected a motion the {method.name} reference can "
                 f"follow, found none of its runs went through ({reasons})"
             )
-        best = last, np.full(len(last.times), math.inf), math.inf  # one run went through: its error is unknown
-    motion, estimate, relative = best
-    basis = method.describe() + (
-        f"; stopped at the tolerance, {tolerance:g} of the size" if converged else f"; stopped: {stop}"
-    )
+        best = last, np.full(len(last.times), math.inf), math.inf, math.nan  # one run went through: error unknown
+    motion, estimate, relative, kept = best
+    stopped = f"stopped at the tolerance, {tolerance:g} of the size" if converged else f"stopped: {stop}"
+    if math.isfinite(relative):
+        estimate, measured = _with_round_off(kinematics, method, motion, kept, estimate, ladder, progress)
+        relative = float(estimate.max()) / size
+        if converged and relative > tolerance:
+            converged = False
+            stopped = (
+                f"stopped: the round-off measured lifts the stated error above the tolerance, {tolerance:g} of the size"
+            )
+        stopped += f"; {measured}"
+    basis = f"{method.describe()}; {stopped}"
     return FreeReference(motion, estimate, relative, converged, ladder, tolerance, method.name, basis)
+
+
+def _with_round_off(
+    kinematics: Kinematics,
+    method: LadderMethod,
+    kept: FreeMotion,
+    setting: float,
+    estimate: np.ndarray,
+    ladder: list[dict],
+    progress: Callable[[str], None] | None,
+) -> tuple[np.ndarray, str]:
+    """The stated error ``estimate`` (m, (N,)) of the ``kept`` run (at ``setting``) plus the round-off measured
+    by one more run at its setting from :func:`perturbed_start`: their running largest
+    difference, added at every output; with the words that say so. The run is the ladder's
+    last entry. A run that fails leaves the round-off unmeasured: the error is then unknown
+    (inf)."""
+    if progress is not None:
+        progress(f"native: {method.name} at {setting:.4g} from a start moved {ROUND_OFF_ULPS:g} ulps (round-off)")
+    evaluations = 2.0 * float(kept.statistics.get("cost", kept.statistics.get("evaluations", 0.0))) + 1e6
+    with threadpool_limits(limits=1, user_api="blas"):
+        moved = method.run(setting, evaluations, perturbed_start(kinematics, method.start))
+    how = f"round-off, measured by a second run at {setting:.4g} from a start moved {ROUND_OFF_ULPS:g} ulps"
+    entry = {
+        "setting": setting,
+        "steps": int(moved.statistics.get("steps", round(float(moved.times[-1]) / moved.step)))
+        if len(moved.times)
+        else 0,
+        "seconds": moved.seconds,
+        "difference": math.nan,
+        "status": moved.failure or f"round-off: from a start moved {ROUND_OFF_ULPS:g} ulps",
+    }
+    if method.name == "RK4":
+        entry["step"] = moved.step
+    ladder.append(entry)
+    if moved.failure or len(moved.times) != len(kept.times):
+        return np.full(len(kept.times), math.inf), f"{how}: that run failed ({moved.failure}), so the error is unknown"
+    spread = spread_of(kinematics, moved, kept)
+    total = estimate + spread
+    entry["difference"], entry["error"], entry["rule"] = float(spread.max()), float(total.max()), how
+    return total, f"{how} (projected onto the constraints): up to {spread.max():.3g} m, added to the stated error"
+
+
+def perturbed_start(kinematics: Kinematics, start: FreeState) -> FreeState:
+    """``start`` moved by :data:`ROUND_OFF_ULPS` units in the last place of each coordinate
+    and rate (of the size, 1 rad, or the largest rate of its kind where that is larger), in
+    a fixed pattern of signs, then projected onto the constraints."""
+    from ._free import consistent_state
+
+    q, qd = np.asarray(start.q, dtype=float), np.asarray(start.qd, dtype=float)
+    signs = np.where(np.random.default_rng(12345).random(2 * len(q)) < 0.5, -1.0, 1.0)
+    angle = np.zeros(len(q), dtype=bool)
+    angle[2::3] = True
+    floor_q = np.where(angle, 1.0, kinematics.system.size)
+    floor_qd = np.where(angle, np.abs(qd[angle]).max(initial=0.0), np.abs(qd[~angle]).max(initial=0.0))
+    step = ROUND_OFF_ULPS * np.finfo(float).eps
+    moved_q = q + step * np.maximum(np.abs(q), floor_q) * signs[: len(q)]
+    moved_qd = qd + step * np.maximum(np.abs(qd), floor_qd) * signs[len(q) :]
+    return consistent_state(kinematics, moved_q, moved_qd)
+
+
+def spread_of(kinematics: Kinematics, one: FreeMotion, other: FreeMotion) -> np.ndarray:
+    """Per output, the largest |one - other| so far over body positions (m) and angles
+    (rad x size), (N,): the running maximum."""
+    delta = np.abs(one.q - other.q)
+    delta[:, 2::3] *= kinematics.system.size
+    return np.maximum.accumulate(delta.max(axis=1))
 
 
 def round_off(kinematics: Kinematics, motion: FreeMotion, steps: int) -> np.ndarray:
