@@ -179,3 +179,25 @@ def test_compiled_sweep_matches_the_reference_at_scale():
     fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
     ref = kin.solve(c, rates, accelerations, branch=branch, compiled=False)
     assert_same_solution(kin, fast, ref)
+
+
+def test_an_exactly_singular_jacobian_takes_the_minimum_norm_step():
+    """Newton's step where LU meets an exact zero pivot: the least-squares,
+    minimum-norm solution, as the reference's. Every body of the four-bar at
+    the origin at angle 0 makes Phi_q exactly singular (rank 8 of 9); the step
+    equals pinv(Phi_q) phi to 2.3 eps of its size (measured; 16 allowed, as above)."""
+    from xcheck.kinematics import _compiled
+
+    kin = Kinematics(load_mechanism(ROOT / "models" / "fourbar.toml"))
+    system, packed = kin.system, _compiled.Packed(kin.system)
+    kind, bodies, geometry, _, _, row = packed.terms()
+    q = np.zeros(system.n)
+    phi = system.residual(q[None], kin.reference_inputs()[None])[0]
+    jacobian = system.jacobian(q[None])[0]
+    assert _compiled._lu(jacobian.copy(), np.empty(system.n, dtype=np.int64)) == 0.0
+    pose = _compiled._new_pose(system.n)
+    _compiled._pose(q, pose)
+    step = np.full(system.n, np.nan)
+    _compiled._least_squares_step(pose, kind, bodies, geometry, row, phi, system.n, step)
+    expected = np.linalg.pinv(jacobian) @ phi
+    assert np.max(np.abs(step - expected)) <= 16 * EPS * np.max(np.abs(expected))

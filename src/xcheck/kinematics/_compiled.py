@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, objmode
 
 from ..joints import _equations as eq
 from ..joints._terms import COINCIDENCE, GEOMETRY, PROJECTION
@@ -451,7 +451,12 @@ def _least_squares_step(pose, kind, bodies, geometry, row, phi, n, step):
     """step = lstsq(Phi_q, phi) at an exactly singular Jacobian, from a dense Phi_q."""
     dense = np.empty((len(phi), n))
     _jacobian(pose, kind, bodies, geometry, row, None, np.zeros(4, dtype=np.int64), dense)
-    step[:] = np.linalg.lstsq(dense, phi, rcond=-1.0)[0]
+    # NumPy's lstsq, called back in Python: the same LAPACK driver (gelsd) and the
+    # same bits as numba's own, whose compilation was most of this module's cold start
+    with objmode(solution="float64[:]"):
+        solution = np.linalg.lstsq(dense, phi, rcond=-1.0)[0]
+    for r in range(n):
+        step[r] = solution[r]
 
 
 # -- the sweep ------------------------------------------------------------------------
