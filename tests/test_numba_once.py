@@ -1,5 +1,6 @@
 """xcheck._numba.run_compiled: a kernel compiled for its arguments' types, by one
-process at a time (a lock on xcheck's package folder), then called."""
+process at a time per kernel family (a lock on the folder of the kernel's module),
+then called."""
 
 from __future__ import annotations
 
@@ -24,19 +25,25 @@ def test_a_kernel_is_compiled_once_for_its_arguments_then_called():
     assert run_compiled(lambda x: x + 1, 1) == 2  # a plain function standing in for a kernel
 
 
-def test_a_kernel_waits_while_another_process_compiles():
+def test_a_kernel_waits_while_another_process_compiles_its_family_only():
     @njit
     def square(x):
         return x * x
 
     results: list[float] = []
-    with directory_lock(Path(xcheck.__file__).parent):  # as another process compiling
-        caller = threading.Thread(target=lambda: results.append(run_compiled(square, 3.0)))
+    with directory_lock(Path(xcheck.__file__).parent / "kinematics"):  # another family compiling
+        beside = threading.Thread(target=lambda: results.append(run_compiled(square, 2.0)), daemon=True)
+        beside.start()
+        beside.join(timeout=60)
+        assert results == [4.0]  # compiled while the other family's lock is held
+    results.clear()
+    with directory_lock(Path(__file__).parent):  # as another process compiling this family
+        caller = threading.Thread(target=lambda: results.append(run_compiled(square, 3)))
         caller.start()
         caller.join(timeout=0.5)
-        assert caller.is_alive() and not results and not square.overloads
+        assert caller.is_alive() and not results and len(square.overloads) == 1
     caller.join(timeout=60)
-    assert results == [9.0]
+    assert results == [9] and len(square.overloads) == 2  # int64 beside float64
 
 
 class _Dispatcher:
