@@ -43,6 +43,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_cli.py 5 $(BIN)/xcheck solve fourbar
 	$(BIN)/python benchmarks/bench_main_job.py --out $(BENCH_OUT)/main-job
 	$(BIN)/python benchmarks/bench_report_figures.py fourbar
+	$(BIN)/python benchmarks/bench_numba_compile.py
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck simulate iftomm-a02 --engines native --json --no-report
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_free_step.py
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_free_reference.py
