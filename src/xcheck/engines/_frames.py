@@ -147,28 +147,29 @@ def empty_states(mechanism, samples: int, quantities) -> tuple[dict, dict, np.nd
     samples : int
         N, the samples of the run.
     quantities : iterable of str
-        The body quantities kept: ``position`` and ``velocity`` (N, 2), the others (N,).
+        The body quantities kept: the vectors ``position``, ``velocity`` and
+        ``acceleration`` (N, 2), the others (N,).
 
     Returns
     -------
     bodies : dict of str to dict of str to ndarray
         Per moving body, per quantity.
     points : dict of str to dict of str to ndarray
-        Per named point off the ground, ``position`` and ``velocity`` (N, 2), m and m/s.
+        Per named point off the ground, the vectors of ``quantities`` (N, 2): m, m/s, m/s^2.
     inputs, rates : ndarray, shape (N, k)
         The drivers' realised values (rad or m) and rates.
     gaps : ndarray, shape (N,)
         The loops' largest opening (m), zeros.
     """
+    vectors = ("position", "velocity", "acceleration")
     bodies = {
-        body.name: {
-            key: np.full((samples, 2) if key in ("position", "velocity") else samples, np.nan) for key in quantities
-        }
+        body.name: {key: np.full((samples, 2) if key in vectors else samples, np.nan) for key in quantities}
         for body in mechanism.moving_bodies
     }
     ground = mechanism.ground.name
+    kept = ("position", "velocity", *(key for key in quantities if key == "acceleration"))
     points = {
-        label: {"position": np.full((samples, 2), np.nan), "velocity": np.full((samples, 2), np.nan)}
+        label: {key: np.full((samples, 2), np.nan) for key in kept}
         for label, owner in mechanism.point_owners.items()
         if owner != ground
     }

@@ -135,8 +135,6 @@ def run_dynamic_once(massive: Kinematics, problem: DrivenProblem, rung: Rung) ->
     manager = om.started_manager("RungeKuttaMerson", fixed_step=dt)
     state = om.state
     bodies, points, inputs, rates, gaps = empty_states(mech, samples, QUANTITIES)
-    for states in (*bodies.values(), *points.values()):  # accelerations are vectors too
-        states["acceleration"] = np.full((samples, 2), np.nan)
     accelerations = np.full_like(inputs, np.nan)
     start = np.array([float(d.law.at_time(0.0)[0]) for d in mech.drivers])
     failure, reached = "", 0

@@ -78,7 +78,7 @@ def inverse_forces(
     try:
         seeds = functools.partial(_coordinates, mech, tree, solution.q, q_ref)
         walked = assembled_states(mech, q_ref, inputs[0], (inputs, rates, accelerations), (range(n),), seeds)
-        for i, om, state, _ in walked:
+        for i, om, state, _, _ in walked:
             model = om.model
             joint_set, constraint_set = model.getJointSet(), model.getConstraintSet()
             for k, frames in enumerate(tree.joints):

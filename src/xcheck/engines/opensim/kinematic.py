@@ -81,10 +81,10 @@ def assembled_states(
 
     Yields
     ------
-    (j, OpenSimModel, state, frames)
+    (j, OpenSimModel, state, frames, gap)
         The sample, the model whose drivers are pushed by their efforts (:func:`_realised_by_efforts`)
-        and its state at the assembly, realised to acceleration (valid until the next), and
-        :meth:`~.model.OpenSimModel.frames`.
+        and its state at the assembly, realised to acceleration (valid until the next),
+        :meth:`~.model.OpenSimModel.frames` and the loops' largest opening there (m).
 
     Raises
     ------
@@ -120,7 +120,7 @@ def assembled_states(
             if not gap <= CLOSED * mech.size:
                 where = ", ".join(f"{d.name} = {v:.6g}" for d, v in zip(mech.drivers, inputs[j]))
                 raise RuntimeError(f"OpenSim's assembler left a loop {gap:.3g} m open at {where}")
-            yield j, pushed, pushed_state, frames
+            yield j, pushed, pushed_state, frames, gap
             guess, last = {name: c.getValue(state) for name, c in om.coordinates.items()}, inputs[j]
             if walk is walks[0] and step == 0:
                 start_guess, start = guess, last
@@ -224,15 +224,13 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
     inputs, rates, accelerations = sweep_inputs(kinematics, samples, branch)
     n = len(inputs)
     bodies, points, _, _, gaps = empty_states(mech, n, QUANTITIES)
-    for states in (*bodies.values(), *points.values()):  # accelerations are vectors too
-        states["acceleration"] = np.full((n, 2), np.nan)
     first = int(np.argmin(np.abs(inputs[:, 0] - ref[0])))
     massive = dataclasses.replace(with_unit_mass(mech), springs=(), rotational_springs=(), loads=())
     try:
-        for j, om, state, frames in assembled_states(
+        for j, om, state, frames, gap in assembled_states(
             massive, q_ref, ref, (inputs, rates, accelerations), (range(first, n), range(first - 1, -1, -1))
         ):
-            gaps[j] = loop_gap(frames, om.tree.cuts)
+            gaps[j] = gap
             record_state(om, mech, state, frames, (bodies, points), j)
     except RuntimeError as error:  # OpenSim's exceptions are RuntimeErrors: the mode failed, as data
         return ModeResult(MODE, mech.name, False, one_line(error))
