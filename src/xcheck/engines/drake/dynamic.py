@@ -30,12 +30,10 @@ Measured: see :func:`run_dynamic_once`; the gain sweep: ``benchmarks/drake_pd_ga
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from xcheck.engines._contract import with_unit_mass
-from xcheck.engines._frames import driven_run, empty_states, loop_gap, point_velocity, stepped_samples, world_point
+from xcheck.engines._frames import driven_run, empty_states, loop_gap, record_moving_states, stepped_samples
 from xcheck.kinematics import Kinematics
 from xcheck.ladder import DRIVEN_SAMPLES, DrivenProblem, Run, Rung, Series, came_apart
 from xcheck.motion import SimulationWindow
@@ -119,7 +117,6 @@ def simulate(
     mech = kinematics.mechanism
     dt = window.duration / samples / per  # the ladder's step (DrivenProblem.rung)
     pd = gains(massive, dt) if pd is None else pd
-    moving = [b.name for b in mech.moving_bodies]
     bodies, points, inputs, rates, gaps = empty_states(mech, samples, ERRORS)
     model = build(massive, dt, pd)
     set_state(model, massive, q0, qd0)
@@ -141,19 +138,8 @@ def simulate(
 
     def record(j: int) -> str:
         frames = model.frames()
-        if not all(np.isfinite(f[0]).all() and math.isfinite(f[1]) for f in frames.values()):
+        if not record_moving_states(mech, frames, (bodies, points), j):
             return f"went non-finite at t = {times[j]:.6g} s"
-        for name in moving:
-            origin, phi, velocity, omega = frames[name]
-            bodies[name]["position"][j] = origin
-            bodies[name]["angle"][j] = phi
-            bodies[name]["velocity"][j] = velocity
-            bodies[name]["omega"][j] = omega
-        for label in points:
-            owner = mech.point_owners[label]
-            local = np.asarray(mech.body(owner).points[label], dtype=float)
-            points[label]["position"][j] = world_point(frames, owner, local)
-            points[label]["velocity"][j] = point_velocity(frames, owner, local)
         for k, (child, sign) in enumerate(drivers):
             value, rate = _coordinate(model, child)
             inputs[j, k], rates[j, k] = sign * value, sign * rate
