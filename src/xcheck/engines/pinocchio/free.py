@@ -189,26 +189,25 @@ class _Free:
             total += 0.5 * stiffness * (self._turned(k, self._twist_energy, first, second) - rest) ** 2
         return float(total)
 
-    def acceleration(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
-        """q'' (nv,) at (q, v) and time t (s)."""
+    def _constraint_dynamics(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """q'' (nv,) at (q, v) and time t (s): Pinocchio's own array, overwritten by the next call."""
         self.evaluations += 1
-        a = pin.constraintDynamics(
-            self.model, self.data, q, v, self.applied(q, v, t), self.cms, self.cds, self.settings
-        ).copy()
+        tau = self.applied(q, v, t) if self._unforced is None else self._unforced
+        a = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cms, self.cds, self.settings)
         self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
         return a
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """q'' (nv,) at (q, v) and time t (s)."""
+        return self._constraint_dynamics(q, v, t).copy()
 
     def derivative(self, state: np.ndarray, t: float) -> np.ndarray:
         """(v, q'') (2 nv,) of the state (q, v) (2 nv,) at time t (s): what an explicit
         Runge-Kutta method steps (q and v one array: half the array operations)."""
         n = self.model.nv
-        q, v = state[:n], state[n:]
-        self.evaluations += 1
         out = np.empty(2 * n)
-        out[:n] = v
-        tau = self.applied(q, v, t) if self._unforced is None else self._unforced
-        out[n:] = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cms, self.cds, self.settings)
-        self.proximal_iterations = max(self.proximal_iterations, self.settings.iter)
+        out[:n] = state[n:]
+        out[n:] = self._constraint_dynamics(state[:n], state[n:], t)
         return out
 
 
