@@ -168,20 +168,8 @@ def run_ladder(
         with threadpool_limits(limits=1, user_api="blas"):
             motion = method.run(setting, (budget - spent) / units)
         spent += float(motion.statistics.get("cost", motion.statistics.get("evaluations", cost / units))) * units
-        steps = (
-            int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step)))
-            if len(motion.times)
-            else 0
-        )
-        entry = {
-            "setting": setting,
-            "steps": steps,
-            "seconds": motion.seconds,
-            "difference": math.nan,
-            "status": motion.failure or "ok",
-        }
-        if method.name == "RK4":
-            entry["step"] = motion.step
+        entry = _ladder_entry(method, setting, motion, motion.failure or "ok")
+        steps = entry["steps"]
         ladder.append(entry)
         if motion.failure:
             continue
@@ -254,17 +242,9 @@ def _with_round_off(
     with threadpool_limits(limits=1, user_api="blas"):
         moved = method.run(setting, evaluations, perturbed_start(kinematics, method.start))
     how = f"round-off, measured by a second run at {setting:.4g} from a start moved {ROUND_OFF_ULPS:g} ulps"
-    entry = {
-        "setting": setting,
-        "steps": int(moved.statistics.get("steps", round(float(moved.times[-1]) / moved.step)))
-        if len(moved.times)
-        else 0,
-        "seconds": moved.seconds,
-        "difference": math.nan,
-        "status": moved.failure or f"round-off: from a start moved {ROUND_OFF_ULPS:g} ulps",
-    }
-    if method.name == "RK4":
-        entry["step"] = moved.step
+    entry = _ladder_entry(
+        method, setting, moved, moved.failure or f"round-off: from a start moved {ROUND_OFF_ULPS:g} ulps"
+    )
     ladder.append(entry)
     if moved.failure or len(moved.times) != len(kept.times):
         return np.full(len(kept.times), math.inf), f"{how}: that run failed ({moved.failure}), so the error is unknown"
@@ -272,6 +252,18 @@ def _with_round_off(
     total = estimate + spread
     entry["difference"], entry["error"], entry["rule"] = float(spread.max()), float(total.max()), how
     return total, f"{how} (projected onto the constraints): up to {spread.max():.3g} m, added to the stated error"
+
+
+def _ladder_entry(method: LadderMethod, setting: float, motion: FreeMotion, status: str) -> dict:
+    """The ladder's row of a run of ``method`` at ``setting``: its steps, CPU seconds and
+    ``status`` (its ``difference`` NaN until one is measured; RK4's also its step, s)."""
+    steps = (
+        int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step))) if len(motion.times) else 0
+    )
+    entry = {"setting": setting, "steps": steps, "seconds": motion.seconds, "difference": math.nan, "status": status}
+    if method.name == "RK4":
+        entry["step"] = motion.step
+    return entry
 
 
 def perturbed_start(kinematics: Kinematics, start: FreeState) -> FreeState:
