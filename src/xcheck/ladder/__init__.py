@@ -45,6 +45,7 @@ from ._free import (
     left_branch,
     out_of_phase,
     path_distance,
+    point_gaps,
 )
 from ._study import STUDY_COLUMNS, convergence_study, empty_study, ladder_result, ladder_verdicts, observed_order
 
@@ -82,5 +83,6 @@ __all__ = [
     "one_line",
     "out_of_phase",
     "path_distance",
+    "point_gaps",
     "run_rungs",
 ]

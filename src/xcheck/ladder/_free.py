@@ -177,6 +177,14 @@ def free_errors(reference: FreeReference, trajectory: Trajectory) -> dict[str, f
     }
 
 
+def point_gaps(trajectory: Trajectory, native, times: np.ndarray) -> np.ndarray:
+    """The largest distance (m) of a named point of ``trajectory`` from the reference's at
+    each of its samples (N,): ``native`` the reference's :class:`~xcheck.kinematics.Solution`
+    at its output ``times`` (s), which the samples' times match (to :data:`TIME_MATCH`)."""
+    index = np.searchsorted(times, np.asarray(trajectory.times, dtype=float) - TIME_MATCH)
+    return _point_gaps(trajectory, native, index)
+
+
 def _point_gaps(trajectory: Trajectory, native, index: np.ndarray) -> np.ndarray:
     """The largest distance (m) of a named point from the reference's at each sample (N,)."""
     position = np.zeros(len(index))
@@ -217,8 +225,8 @@ def left_branch(reference: FreeReference, trajectory: Trajectory, limit: float) 
     measured against the whole path: that distance bounds the path's from above."""
     candidates = None
     if trajectory.times is not None:
-        index = np.searchsorted(reference.motion.times, np.asarray(trajectory.times) - TIME_MATCH)
-        candidates = np.flatnonzero(_point_gaps(trajectory, reference.motion.solution(), index) > limit)
+        gaps = point_gaps(trajectory, reference.motion.solution(), reference.motion.times)
+        candidates = np.flatnonzero(gaps > limit)
         if not candidates.size:
             return ""
     away = path_distance(reference, trajectory, candidates)
@@ -237,13 +245,11 @@ def out_of_phase(reference: FreeReference, trajectory: Trajectory, limit: float)
     """ "" if every named point stays within ``limit`` (m) of the reference's at the
     same time, else when the run fell out of phase (for a run on the branch:
     :func:`left_branch` found it near the reference's path throughout)."""
-    times = np.asarray(trajectory.times)
-    index = np.searchsorted(reference.motion.times, times - TIME_MATCH)
-    gaps = _point_gaps(trajectory, reference.motion.solution(), index)
+    gaps = point_gaps(trajectory, reference.motion.solution(), reference.motion.times)
     off = np.flatnonzero(gaps > limit)
     if not off.size:
         return ""
-    return f"out of phase from t ≈ {float(times[int(off[0])]):.4g} s"
+    return f"out of phase from t ≈ {float(np.asarray(trajectory.times)[int(off[0])]):.4g} s"
 
 
 def _free_row(problem: FreeProblem, rung: Rung, run: Run, titles: str) -> tuple[dict, Trajectory | None]:

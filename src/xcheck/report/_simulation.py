@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 
 from .. import engines  # noqa: E402
 from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
-from ..ladder import LADDER_COLUMNS, ladder_verdicts  # noqa: E402
+from ..ladder import LADDER_COLUMNS, ladder_verdicts, point_gaps  # noqa: E402
 from ..runner import versions  # noqa: E402
 from ..simulation import SimulationResult  # noqa: E402
 from . import _figures  # noqa: E402
@@ -104,11 +104,7 @@ def _errors(result: SimulationResult) -> bytes | None:
     figure, ax = plt.subplots(figsize=(7, 4))
     for mode, outcome in runs:
         best = outcome.trajectories[0]
-        index = np.searchsorted(motion.times, np.asarray(best.times) - 1e-9)
-        gap = np.zeros(len(index))
-        for label, states in best.points.items():
-            delta = np.asarray(states["position"]) - native.point(label)["position"][index]
-            gap = np.maximum(gap, np.hypot(delta[:, 0], delta[:, 1]))
+        gap = point_gaps(best, native, motion.times)
         style = dict(engines.mode(mode).style)
         ax.semilogy(
             best.times, np.maximum(gap, 1e-18), label=f"{mode} ({_setting(best)})", color=style.get("color"), lw=1
