@@ -148,9 +148,8 @@ _IMAGES = (
     ("motion.gif", "motion_gif", "gif"),
 )
 #: the figures one worker draws, as one task, where the run has workers, while this process
-#: draws the others: on fourbar the GIF 0.56 CPU s, quantities 0.30 and drawing 0.12 there
-#: (and matplotlib's import, about 0.3), against convergence 0.74, differences 0.44 and
-#: forces 0.29 here
+#: draws the others: the two shares about equal with the worker's import of matplotlib counted
+#: (each figure's cost: benchmarks/bench_report_figures.py)
 _WORKER_SHARE = ("motion_gif", "quantities", "drawing")
 
 
