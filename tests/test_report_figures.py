@@ -16,6 +16,7 @@ import pytest  # noqa: E402
 from conftest import MODELS  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import NullLocator  # noqa: E402
 
 from xcheck import api  # noqa: E402
 from xcheck.report import _figures  # noqa: E402
@@ -66,6 +67,37 @@ def test_time_step_tick_labels_do_not_overlap(span):
     ]
     assert len(boxes) >= 2  # labelled, even on less than a decade
     assert not any(a.overlaps(b) for a, b in itertools.combinations(boxes, 2))
+
+
+@pytest.mark.parametrize(
+    "y, minor_labelled",
+    [((3e-10, 4e-4), False), ((2e-7, 3e-5), False), ((2e-6, 5e-6), True)],  # decades; under one: labels
+)
+def test_minor_ticks_drawn_as_two_lines_give_matplotlibs_pixels(y, minor_labelled):
+    """The report's unlabelled minor ticks, drawn as one line of tick marks and
+    one of grid lines per axis, are the pixels of matplotlib's own ticks (grid
+    on both, log x with the time-step ticks of the convergence figure)."""
+
+    def figure() -> Figure:
+        made = Figure(figsize=(3.2, 2.6))
+        ax = made.add_subplot()
+        ax.loglog([1.5e-4, 2.1e-3], y, "o-")
+        ax.grid(alpha=0.3, which="both")
+        _figures._step_ticks(ax)
+        return made
+
+    def pixels(made: Figure) -> bytes:
+        canvas = FigureCanvasAgg(made)
+        canvas.draw()
+        return bytes(canvas.buffer_rgba())
+
+    theirs, ours = figure(), figure()
+    _figures._unlabelled_minor_ticks_as_lines(ours)
+    (ax,) = ours.axes
+    replaced = {axis: isinstance(axis.get_minor_locator(), NullLocator) for axis in (ax.xaxis, ax.yaxis)}
+    assert replaced == {ax.xaxis: True, ax.yaxis: not minor_labelled}
+    assert len(ax.lines) == 1 + sum(replaced.values()) == 1 + len(ax.collections)  # data; marks, grid per axis
+    assert pixels(ours) == pixels(theirs)
 
 
 @pytest.fixture(scope="module")
