@@ -2,8 +2,8 @@
 
 - IFToMM A02 (the double four-bar, ten singular passes in 10 s): the DOP853 reference at the
   file's tolerance, at 1e-11 of its 2 m size and at the goal's (1e-11 m, 5e-12 of the size),
-  and at 1e-11 of the size again from the reduction's exact start (1e-16 from the release
-  state: how far round-off at the passes moves the runs), its CPU time (the
+  and at 1e-11 of the size again from the reduction's exact start (3.3e-16 from the release
+  state), its CPU time (the
   ladder's runs, the release excluded) and its true error against the double four-bar reduced
   to one degree of freedom, theta'' = -(3.5 / 3) g cos(theta) (mpmath's Taylor method, 30 digits);
   goal: at most 1e-11 m in at most 1 CPU s.
@@ -24,7 +24,16 @@
   far the exact accelerations move for a state 1e-13 m off the constraints (along the
   Jacobian's weakest row direction).
 
-Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40] [passes]``
+- segments: where A02's round-off enters: single DOP853 runs at 1e-14 over each 0.2 s of its
+  10 s from the reduction's exact state and from that state moved 4 ulps: how far apart
+  their cranks' angles and rates end, over stretches with a singular pass and without.
+
+- starts: A02's ladder at 1e-11 of its size from 40 starts moved 4 ulps: whether its stated
+  error bounds its true error at every output from each (and would, with one round-off
+  run's spread added unscaled).
+
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_free_reference.py [a02] [n40] [passes]
+[conditioning] [segments] [starts]``
 """
 
 from __future__ import annotations
@@ -43,6 +52,7 @@ import mpmath as mp  # noqa: E402
 import numpy as np  # noqa: E402
 
 from xcheck import Kinematics, load_mechanism  # noqa: E402
+from xcheck.dynamics._adaptive import simulate_adaptive  # noqa: E402
 from xcheck.dynamics._free import adaptive_reference, release_state  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -196,7 +206,6 @@ def run(name: str, k: float, tolerances: list[float | None], goal: str, exact_st
 
 
 def runs(name: str, k: float, tolerances: list[float], goal: str) -> None:
-    from xcheck.dynamics._adaptive import simulate_adaptive
     from xcheck.dynamics._reference import WORK_BUDGET, difference, work_units
 
     kin, start, spec, size, cranks = _released(name, goal)
@@ -220,6 +229,75 @@ def runs(name: str, k: float, tolerances: list[float], goal: str) -> None:
             previous = motion
 
 
+def segments(length: float = 0.2) -> None:
+    """Where A02's round-off enters: single DOP853 runs at 1e-14 over each ``length`` (s) of
+    its 10 s from the reduction's exact state rounded to float64, and from that state moved 4
+    ulps in four patterns of signs: the spread of the five runs' cranks' angle and rate at the
+    segment's end, for segments with a singular pass and without."""
+    from xcheck.dynamics._free import FreeState, consistent_state
+    from xcheck.dynamics._reference import perturbed_start
+
+    kin, _, _, _, cranks = _released("iftomm-a02", "where the round-off enters, and how much")
+    solution = _reduction(3.5 / 3.0)
+    crossings = [float(mp.findroot(lambda t: mp.sin(solution(t)[0]), mp.mpf(guess))) for guess in
+                 [0.714, 1.228, 2.657, 3.171, 4.599, 5.113, 6.542, 7.056, 8.484, 8.998]]  # fmt: skip
+    spread: dict[bool, list[tuple[float, float]]] = {True: [], False: []}
+    for begin in np.arange(0.1, 10.0 - length + 1e-9, length):
+        q0, qd0 = _a02_state(solution, begin)
+        theta, rate = (float(v) for v in solution(mp.mpf(begin + length)))
+        exact = consistent_state(kin, q0, qd0)
+        ends = []
+        for start in [exact, *(perturbed_start(kin, exact, pattern) for pattern in range(4))]:
+            run = simulate_adaptive(kin, FreeState(start.q, start.qd), length, length / 4, 1e-14, 10**7)
+            ends.append((run.q[-1, cranks].mean() - theta, run.qd[-1, cranks].mean() - rate))
+        near = any(begin < t < begin + length for t in crossings)
+        spread[near].append(tuple(np.ptp(np.array(ends), axis=0)))
+    for near, what in [(True, "with a singular pass"), (False, "without one")]:
+        angle, rate = np.array(spread[near]).T
+        print(
+            f"  {len(angle)} segments of {length:g} s {what}: the five runs' spread at the end up to "
+            f"{angle.max():.2g} rad (median {np.median(angle):.2g}) and {rate.max():.2g} rad/s (median "
+            f"{np.median(rate):.2g})"
+        )
+
+
+def starts(count: int = 40) -> None:
+    """A02's ladder at 1e-11 of its size from ``count`` starts moved 4 ulps (each in its own
+    pattern of signs, projected onto the constraints): whether its stated error bounds its
+    true error at every output from each, and how the true and stated errors scatter; and
+    whether it would with one round-off run's spread added unscaled instead (those runs
+    repeated: the same runs as the ladder's)."""
+    from xcheck.dynamics._free import FreeState
+    from xcheck.dynamics._reference import ROUND_OFF_FACTOR, ROUND_OFF_RUNS, perturbed_start, spread_of
+
+    kin, start, spec, size, cranks = _released("iftomm-a02", "a stated error that bounds from any start")
+    theta = reduced_theta(3.5 / 3.0, np.arange(round(spec.duration / spec.output_step) + 1) * spec.output_step)
+    rows = []
+    for pattern in range(1000, 1000 + count):
+        moved = perturbed_start(kin, start, pattern)
+        begin = time.process_time()
+        reference = adaptive_reference(kin, FreeState(moved.q, moved.qd), spec.duration, spec.output_step, 1e-11)
+        cpu = time.process_time() - begin
+        kept, setting = reference.motion, reference.ladder[-1]["setting"]
+        true = np.maximum.accumulate(np.abs(kept.q[:, cranks] - theta[:, None]).max(axis=1)) * size
+        spreads = [
+            spread_of(kin, simulate_adaptive(kin, perturbed_start(kin, moved, i), spec.duration, spec.output_step,
+                                             setting, 10**8), kept)
+            for i in range(ROUND_OFF_RUNS)
+        ]  # fmt: skip
+        one = reference.estimate - ROUND_OFF_FACTOR * np.max(spreads, axis=0) + spreads[0]
+        rows.append((float((true / reference.estimate).max()), float(true.max()), float(reference.estimate.max()),
+                     reference.converged, cpu, float((true / one).max())))  # fmt: skip
+    ratio, true, stated, converged, cpu, single = (np.array(column) for column in zip(*rows, strict=True))
+    print(
+        f"  {count} starts moved 4 ulps, ladders at 1e-11 of the size: true / stated at most {ratio.max():.2f} "
+        f"(median {np.median(ratio):.2f}; above 1 from {(ratio > 1).sum()}); true {true.min():.2g} to "
+        f"{true.max():.2g} m (median {np.median(true):.2g}), stated {stated.min():.2g} to {stated.max():.2g} m; "
+        f"converged from {converged.sum()}; {np.median(cpu):.2f} CPU s each (median). With one round-off run's "
+        f"spread unscaled: true / stated at most {single.max():.2f}, above 1 from {(single > 1).sum()}"
+    )
+
+
 if __name__ == "__main__":
     which = sys.argv[1:] or ["a02", "n40"]
     if "a02" in which:
@@ -233,3 +311,7 @@ if __name__ == "__main__":
         passes()
     if "conditioning" in sys.argv[1:]:
         conditioning()
+    if "segments" in sys.argv[1:]:
+        segments()
+    if "starts" in sys.argv[1:]:
+        starts()

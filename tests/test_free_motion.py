@@ -543,20 +543,24 @@ def test_double_fourbar_of_forty_windows_follows_its_reduction():
     assert np.allclose(motion.singular_passes, crossings, atol=0.01 + motion.step)
 
 
-def test_reference_adds_the_round_off_measured_from_a_moved_start(monkeypatch):
-    """The kept run is repeated from a start moved by a few ulps (projected onto the
-    constraints); their largest difference so far is added to the stated error at every
-    output, and where that lifts it above the tolerance the ladder is not converged."""
+def test_reference_adds_the_round_off_measured_from_moved_starts(monkeypatch):
+    """The kept run is repeated from starts moved by a few ulps, each in its own pattern
+    (projected onto the constraints); twice their largest difference so far from the kept
+    run is added to the stated error at every output, and where that lifts it above the
+    tolerance the ladder is not converged."""
     import types
 
     import xcheck.dynamics._free as free
+    from xcheck.dynamics._reference import ROUND_OFF_FACTOR, ROUND_OFF_RUNS
 
     kin = Kinematics(load_mechanism(MODELS / "benchmarks/iftomm-a02.toml"))
     start = release_state(kin)
     errors = {0.0025: 1e-6, 0.00125: 1e-7, 0.000625: 1e-8, 0.0003125: 1e-9}  # m, made up
     amplify = {"by": 0.0}
+    starts = []
 
     def fake(kinematics, moved, duration, output_step, step, compiled=True):
+        starts.append(moved.q.copy())
         q = np.zeros((3, kinematics.system.n))
         q[:, 0] = errors[round(step, 9)] + np.array([0.0, 1.0, 0.5]) * amplify["by"] * np.abs(moved.q - start.q).max()
         return types.SimpleNamespace(q=q, step=step, seconds=0.0, times=np.arange(3) * 0.5, statistics={}, failure="")
@@ -564,22 +568,28 @@ def test_reference_adds_the_round_off_measured_from_a_moved_start(monkeypatch):
     monkeypatch.setattr(free, "simulate_free", fake)
     tolerance = 5e-7 / kin.system.size
     exact = free.free_reference(kin, start, 1.0, 0.01, tolerance=tolerance, first_step=0.0025)
-    assert exact.converged and exact.ladder[-1]["difference"] == 0.0
+    assert exact.converged and [entry["difference"] for entry in exact.ladder[-ROUND_OFF_RUNS:]] == [0.0, 0.0]
+    moved = starts[-ROUND_OFF_RUNS:]
+    assert ROUND_OFF_RUNS == 2 and 0.0 < np.abs(moved[0] - moved[1]).max() < 1e-13 * kin.system.size
     amplify["by"] = 1e9
     rounded = free.free_reference(kin, start, 1.0, 0.01, tolerance=tolerance, first_step=0.0025)
-    spread = rounded.ladder[-1]["difference"]
-    assert 1e-7 < spread < 1e-5  # a few ulps of the start, amplified
-    np.testing.assert_allclose(rounded.estimate - exact.estimate, [0.0, spread, spread], rtol=1e-12, atol=1e-20)
+    spreads = [entry["difference"] for entry in rounded.ladder[-ROUND_OFF_RUNS:]]
+    assert all(e["status"].startswith("round-off") for e in rounded.ladder[-ROUND_OFF_RUNS:])
+    assert spreads[0] != spreads[1] and 1e-7 < max(spreads) < 1e-5  # a few ulps of each start, amplified
+    added = ROUND_OFF_FACTOR * max(spreads)
+    np.testing.assert_allclose(rounded.estimate - exact.estimate, [0.0, added, added], rtol=1e-12, atol=1e-20)
     assert not rounded.converged
     assert "the round-off measured lifts the stated error above the tolerance" in rounded.basis
-    assert f"up to {spread:.3g} m, added to the stated error" in rounded.basis
+    assert f"2 x their largest difference from the kept run, up to {added:.3g} m, added to the stated error" in (
+        rounded.basis
+    )
 
 
 def test_reference_ladder_stops_where_the_difference_grows_twice(monkeypatch):
     """A difference that grows once (a coarse run off its asymptote) does not end the ladder;
     one that grows twice in a row (round-off, not truncation, rules there) does: not
-    converged, the run with the least stated error kept, then run once more from a start
-    moved by a few ulps (its round-off: none here, the made-up runs ignore their start)."""
+    converged, the run with the least stated error kept, then run again from starts moved
+    by a few ulps (its round-off: none here, the made-up runs ignore their start)."""
     import types
 
     import xcheck.dynamics._free as free
@@ -599,6 +609,6 @@ def test_reference_ladder_stops_where_the_difference_grows_twice(monkeypatch):
     assert "grew twice" in reference.basis
     assert reference.motion.step == 0.00125
     assert reference.estimate.max() == pytest.approx(9e-7)
-    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625, 0.0003125, 0.00125]
+    assert [entry["step"] for entry in reference.ladder] == [0.0025, 0.00125, 0.000625, 0.0003125, 0.00125, 0.00125]
     assert reference.ladder[-1]["status"].startswith("round-off") and reference.ladder[-1]["difference"] == 0.0
-    assert "round-off, measured by a second run at 0.00125" in reference.basis
+    assert "round-off, measured by 2 more runs at 0.00125" in reference.basis

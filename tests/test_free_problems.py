@@ -143,12 +143,12 @@ def _problem_error(name: str):
 @pytest.mark.parametrize("name", ["iftomm-a01", *sorted(fp.PROBLEMS)])
 def test_both_native_methods_agree_and_each_states_an_honest_error(name):
     """DOP853 and its RK4 check at 1e-11 of the size: they agree to 1e-11 of the size, and
-    each one's stated error bounds its true error at every output. Measured (agreement, and
-    true / stated errors of DOP853 and RK4, m): A01 5.4e-13, 1.5e-13 / 2.4e-12, 3.7e-13 /
-    7.2e-12; crank-rocker 4.2e-12, 7.2e-12 / 5.8e-11, 3e-12 / 1.1e-11 (neither reaches 1e-11
-    within its finest setting: inconclusive); double pendulum 3.3e-13, 3.3e-13 / 5.1e-12,
-    6e-14 / 3.7e-12; four-bar 2.9e-13, 1.5e-13 / 9.5e-13, 2.6e-13 / 2.2e-12; slider-crank
-    2.1e-12, 1.1e-13 / 2.6e-12, 2.1e-12 / 3.9e-12."""
+    each one's stated error bounds its true error at every output. Measured (agreement, of
+    the size, and true / stated errors of DOP853 and RK4, m): A01 5.4e-13, 1.5e-13 / 2.7e-12,
+    3.7e-13 / 7.3e-12; crank-rocker 1.9e-12, 1.6e-12 / 1.1e-11, 3e-12 / 1.5e-11 (neither
+    reaches 1e-11 of the size within its finest setting: inconclusive); double pendulum
+    3.3e-13, 3.3e-13 / 5.1e-12, 6e-14 / 3.7e-12; four-bar 9.8e-13, 1.5e-13 / 1.1e-12, 2.6e-13
+    / 2.2e-12; slider-crank 3.4e-12, 1.1e-13 / 3.1e-12, 2.1e-12 / 3.9e-12."""
     if name == "iftomm-a01":
         kin, true = Kinematics(load_mechanism(MODELS / "benchmarks" / "iftomm-a01.toml")), _pendulum_error
         kin.assemble()

@@ -895,11 +895,10 @@ class ToleranceLadder:
         )
 
 
-#: the finest local tolerance of a DOP853 ladder (float64's round-off of the state over a few
-#: thousand steps; on IFToMM A02 from its exact start the run at 1e-14 is 1.5e-11 m off where
-#: runs from starts a few ulps apart differ by 8e-13 to 1.9e-11 m: one such run measures the
-#: round-off only roughly, too roughly to trust a rung finer than this)
-FINEST_TOLERANCE = 1e-14
+#: the finest local tolerance of a DOP853 ladder (below it float64's round-off of the state
+#: rules: on IFToMM A02 runs at 1e-15 from 40 starts moved 4 ulps are 4e-12 to 2e-11 m off,
+#: as at 1e-14; the round-off the ladder measures bounds that at every output)
+FINEST_TOLERANCE = 1e-15
 
 
 def free_reference(
@@ -941,7 +940,7 @@ def adaptive_reference(
     progress=None,
 ) -> FreeReference:
     """The DOP853 reference: runs at local tolerances from a tenth of ``tolerance`` (at most
-    1e-6, at least 1e-12) down, judged by :func:`._reference.run_ladder`."""
+    1e-6, at least 1e-13) down, judged by :func:`._reference.run_ladder`."""
     from ._reference import run_ladder, time_scale
 
     first = min(max(0.1 * tolerance, 100.0 * FINEST_TOLERANCE), 1e-6)  # three runs at least
