@@ -1,6 +1,7 @@
 """Time a command line: ``python benchmarks/bench_cli.py N COMMAND...`` runs it N
 times and prints the median wall time (``perf_counter``) and the median CPU time
-(user + system of the child, from ``getrusage``), with the load average. On a
+(user + system of the command and every process it started, from ``getrusage``;
+:func:`bench_main_job.adopt_orphans`), with the load average. On a
 shared machine the CPU time is the figure to compare (README, Speed).
 
 Example: ``PYTHONPATH=src python benchmarks/bench_cli.py 5 python -m xcheck solve fourbar``
@@ -13,15 +14,19 @@ import subprocess
 import sys
 import time
 
+from bench_main_job import adopt_orphans, reap_orphans
+
 
 def main() -> None:
     n, command = int(sys.argv[1]), sys.argv[2:]
     walls, cpus = [], []
+    adopt_orphans()
     for _ in range(n):
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
         done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         walls.append(time.perf_counter() - start)
+        reap_orphans()
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
         if done.returncode not in (0, 1):

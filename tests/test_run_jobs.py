@@ -236,7 +236,7 @@ class Slow(engines.Engine):
     )
 
     def run(self, mode, kinematics, *, native, samples, branch=None):
-        (pathlib.Path(os.environ["SLOW_STARTED"]) / str(os.getpid())).touch()
+        (pathlib.Path(os.environ["SLOW_STARTED"]) / f"{os.getpid()}-{os.getppid()}").touch()
         time.sleep(120)
         raise RuntimeError("still running after 120 s")
 """
@@ -249,12 +249,14 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     workers, and no worker left behind.
 
     Two modes of an installed plug-in (an entry point in a ``.dist-info``
-    folder on the path, which spawned workers find too) sleep for two minutes,
-    each in its worker, after leaving a file named by the worker's pid: the
-    signal comes only once both are inside their modes, and the run cannot
-    have ended before it. (A worker still starting when the signal comes ends
-    by the signal's default action, which the pool's initializer sets; that
-    moment cannot be timed from here, and this test would pass without it.)
+    folder on the path, which the workers find too) sleep for two minutes,
+    each in its worker, after leaving a file named by the worker's pid and its
+    parent's: the signal comes only once both are inside their modes, and the
+    run cannot have ended before it. (A worker still starting when the signal
+    comes ends by the signal's default action, which the pool's initializer
+    sets; that moment cannot be timed from here, and this test would pass
+    without it.) The command's workers are forked from one fork server, not
+    from the command itself, and the server ignores Ctrl-C and ends with the run.
     """
     import subprocess
     import time
@@ -278,8 +280,9 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
         deadline = time.monotonic() + 300
         while len(list(started.iterdir())) < 2 and run.poll() is None and time.monotonic() < deadline:
             time.sleep(0.1)
-        workers = [int(p.name) for p in started.iterdir()]
+        workers, parents = zip(*(map(int, p.name.split("-")) for p in started.iterdir()))
         assert len(workers) == 2 and run.poll() is None, "the two slow modes did not start"
+        assert parents[0] == parents[1] != run.pid  # the fork server
         signalled = time.monotonic()
         os.killpg(run.pid, signal.SIGINT)
         _, stderr = run.communicate(timeout=60)
@@ -293,10 +296,10 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     deadline = time.monotonic() + 20
     while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
-    left = [pid for pid in workers if _alive(pid)]
+    left = [pid for pid in (*workers, parents[0]) if _alive(pid)]
     for pid in left:  # do not leave them to the next test either
         os.kill(pid, signal.SIGKILL)
-    assert left == [], "workers outlived Ctrl-C"
+    assert left == [], "workers or their fork server outlived Ctrl-C"
 
 
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):

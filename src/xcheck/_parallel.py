@@ -1,10 +1,16 @@
 """Worker processes for ``xcheck run``: mechanisms (``run all --jobs``) or the
 modes of one mechanism (``run <name> --jobs``) at once.
 
-Workers are started afresh ("spawn"): an engine such as JAX holds threads that
-a forked child would inherit in an unknown state. Engines registered at run
-time (:func:`xcheck.engines.register`) exist only in the process that
-registered them; those from entry points load in every worker.
+Workers are never forked from the process that runs the engines: an engine
+such as JAX holds threads that a forked child would inherit in an unknown
+state. The ``xcheck`` command forks its workers from a fork server, a process
+started for them that imports only Python, NumPy, pandas and xcheck (what every
+worker needs), so that a worker costs no start of its own; a program that calls
+xcheck (a script, a notebook, the tests) has them started afresh ("spawn"), as
+its environment may change between runs and a fork server's children keep the
+one it started with. Engines registered at run time
+(:func:`xcheck.engines.register`) exist only in the process that registered
+them; those from entry points load in every worker.
 """
 
 from __future__ import annotations
@@ -138,10 +144,20 @@ def workers_kept() -> Iterator[None]:
 
 def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",)) -> None:
     """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
-    importing ``modules`` while this process goes on: the first tasks find them ready."""
+    importing ``modules`` while this process goes on: the first tasks find them ready.
+    Where workers are forked from a fork server (:func:`_context`), the server is
+    started instead, importing ``modules`` once: a worker is then forked from it
+    in milliseconds when its first task comes (starting one now would wait here
+    for the server's imports)."""
     if not _kept:
         raise RuntimeError("start_workers: expected to be called within workers_kept()")
     pool = process_pool(jobs)
+    if _context(modules).get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        with _spawning():  # the server, and so every worker it forks, starts with SIGINT ignored
+            forkserver.ensure_running()
+        return
     for _ in range(jobs):
         pool.submit(_import_all, modules)
 
@@ -152,8 +168,8 @@ def _import_all(modules: tuple[str, ...]) -> None:
 
 
 def process_pool(jobs: int) -> Pool:
-    """A pool of ``jobs`` spawned worker processes that can send mechanisms and runs both
-    ways, and that end with the process that started them: the pool kept open
+    """A pool of ``jobs`` worker processes (:func:`_context`) that can send mechanisms and
+    runs both ways, and that end with the process that started them: the pool kept open
     (:func:`workers_kept`) where it has as many workers or more."""
     kept = _kept[-1] if _kept else None
     if kept and kept[-1].usable(jobs):
@@ -166,12 +182,25 @@ def process_pool(jobs: int) -> Pool:
 
 
 def _new_pool(jobs: int) -> Pool:
-    """A pool of ``jobs`` spawned worker processes of its own (:func:`process_pool`)."""
+    """A pool of ``jobs`` worker processes of its own (:func:`process_pool`)."""
     from . import engines
 
     picklable_mechanisms()
     # a plug-in this process could not load is not tried again in each worker (its import may hang)
-    return Pool(jobs, multiprocessing.get_context("spawn"), engines.load_problems())
+    return Pool(jobs, _context(), engines.load_problems())
+
+
+def _context(modules: tuple[str, ...] = ("xcheck.runner",)):
+    """How worker processes start: forked from a fork server where this process is the
+    ``xcheck`` command and the platform has one, the server importing the command line
+    and ``modules`` when it starts (the first call decides them); else spawned afresh."""
+    if not _the_command() or "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    # the command line: each child imports the main module (a console script, which the server's
+    # own preload of "__main__" leaves out), finding it imported
+    context.set_forkserver_preload(["xcheck.cli", *modules])  # no effect once the server runs
+    return context
 
 
 def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:

@@ -231,7 +231,7 @@ def run_models(
     """:func:`run_model` for each name, then the reports' indexes.
 
     One mechanism runs its modes in ``jobs`` processes; several run one
-    mechanism per process (started afresh: "spawn"), the outcomes in the order
+    mechanism per worker process (:mod:`xcheck._parallel`), the outcomes in the order
     of ``names`` whatever the order they finish in, so that the results and
     the reports are those of a serial run. A mechanism whose worker died is one
     failure line and the others still count. Engines registered at run time

@@ -141,7 +141,9 @@ REFINEMENTS = 2
 
 #: a run's modes go to worker processes only where that could save more than this
 #: (s): the summed :attr:`~xcheck.engines.Mode.cost` less the costliest, against
-#: two workers' start (Python, NumPy, pandas and xcheck: about 1 s of CPU each)
+#: the workers' start (Python, NumPy, pandas and xcheck: about 0.4 s of CPU, once for
+#: the fork server of the command's workers, each where they are spawned) and the
+#: engines each of them imports again
 PARALLEL_SAVING = 2.0
 #: the power balance of the native solution: drive + loads = d(T + V)/dt, relative
 ENERGY_TOLERANCE = 1e-12

@@ -77,7 +77,7 @@ def simulate_all(
     progress : callable, optional
         Called with a line saying what runs now (with ``jobs`` > 1: each mode as it finishes).
     jobs : int
-        Modes run at once, each in a worker process started afresh, the costliest
+        Modes run at once, each in a worker process (:mod:`xcheck._parallel`), the costliest
         first (1: one after another in this process), where that could save time
         (:func:`xcheck.runner.worth_workers`: their costs per simulated second
         times the duration); the modes of engines registered at run time run
