@@ -75,12 +75,14 @@ def _read_only(items: dict) -> types.MappingProxyType:
 
 class Pool(ProcessPoolExecutor):
     """A :class:`~concurrent.futures.ProcessPoolExecutor` that knows whether a worker
-    started (``started.value`` 1: one ran the initializer), and that stays open
-    at the end of its ``with`` block while it is kept (:func:`workers_kept`)."""
+    started (``started.value`` 1: one ran the initializer) and whether its workers are
+    forked from a fork server (``forked``), and that stays open at the end of its
+    ``with`` block while it is kept (:func:`workers_kept`)."""
 
     def __init__(self, jobs: int, context, broken: dict[str, str]):
         # shared memory without a lock: a named semaphore would outlive a process that ends at once
         self.started = context.RawValue("i", 0)
+        self.forked = context.get_start_method() == "forkserver"
         self.jobs = jobs
         self.kept = False
         self.closed = False
@@ -142,17 +144,17 @@ def workers_kept() -> Iterator[None]:
             pool.shutdown(cancel_futures=True)
 
 
-def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",)) -> None:
+def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",), preload: tuple[str, ...] = ()) -> None:
     """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
     importing ``modules`` while this process goes on: the first tasks find them ready.
     Where workers are forked from a fork server (:func:`_context`), the server is
-    started instead, importing ``modules`` once: a worker is then forked from it
-    in milliseconds when its first task comes (starting one now would wait here
-    for the server's imports)."""
+    started instead, importing ``modules`` and ``preload`` (what some of the workers
+    will need) once: a worker is then forked from it in milliseconds when its first
+    task comes (starting one now would wait here for the server's imports)."""
     if not _kept:
         raise RuntimeError("start_workers: expected to be called within workers_kept()")
-    pool = process_pool(jobs)
-    if _context(modules).get_start_method() == "forkserver":
+    pool = process_pool(jobs, (*modules, *preload))
+    if pool.forked:
         from multiprocessing import forkserver
 
         with _spawning():  # the server, and so every worker it forks, starts with SIGINT ignored
@@ -167,30 +169,32 @@ def _import_all(modules: tuple[str, ...]) -> None:
         importlib.import_module(module)
 
 
-def process_pool(jobs: int) -> Pool:
+def process_pool(jobs: int, preload: tuple[str, ...] = ()) -> Pool:
     """A pool of ``jobs`` worker processes (:func:`_context`) that can send mechanisms and
     runs both ways, and that end with the process that started them: the pool kept open
-    (:func:`workers_kept`) where it has as many workers or more."""
+    (:func:`workers_kept`) where it has as many workers or more. ``preload``: modules
+    the workers will import, which a fork server, where it is yet to start, imports
+    once for all of them."""
     kept = _kept[-1] if _kept else None
     if kept and kept[-1].usable(jobs):
         return kept[-1]
-    pool = _new_pool(jobs)
+    pool = _new_pool(jobs, preload)
     if kept is not None:
         pool.kept = True
         kept.append(pool)
     return pool
 
 
-def _new_pool(jobs: int) -> Pool:
+def _new_pool(jobs: int, preload: tuple[str, ...] = ()) -> Pool:
     """A pool of ``jobs`` worker processes of its own (:func:`process_pool`)."""
     from . import engines
 
     picklable_mechanisms()
     # a plug-in this process could not load is not tried again in each worker (its import may hang)
-    return Pool(jobs, _context(), engines.load_problems())
+    return Pool(jobs, _context(("xcheck.runner", *preload)), engines.load_problems())
 
 
-def _context(modules: tuple[str, ...] = ("xcheck.runner",)):
+def _context(modules: tuple[str, ...]):
     """How worker processes start: forked from a fork server where this process is the
     ``xcheck`` command and the platform has one, the server importing the command line
     and ``modules`` when it starts (the first call decides them); else spawned afresh."""

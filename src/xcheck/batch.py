@@ -246,7 +246,7 @@ def run_models(
         with workers_kept():  # one mechanism: the workers of its modes draw its report's figures
             if len(names) == 1 and worth_workers(settings.modes, jobs) and _all_cached(names[0], settings) is False:
                 # they start while this process loads the mechanism and solves it
-                start_workers(min(jobs, sum(mode != "native" for mode in settings.modes)))
+                start_workers(min(jobs, sum(mode != "native" for mode in settings.modes)), preload=_figures(settings))
             outcomes = [run_model(name, settings, step, jobs if len(names) == 1 else 1) for name in names]
     else:
         outcomes = _run_in_pool(names, settings, jobs, done or (lambda: None))
@@ -290,7 +290,7 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     with contextlib.ExitStack() as stack:
         if away:
             calls = {i: (run_model, (names[i], settings)) for i in away}
-            pool = stack.enter_context(process_pool(min(jobs, len(away))))
+            pool = stack.enter_context(process_pool(min(jobs, len(away)), _figures(settings)))
             futures = submit(pool, calls)
         for i in here:  # where it is the one mechanism not in the cache: its modes in worker processes
             outcomes[i] = run_model(names[i], settings, jobs=1 if away else jobs)
@@ -298,6 +298,12 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
         if away:
             outcomes.update(collect(futures, failed, lambda _: done(), calls, jobs))
     return [outcomes[i] for i in range(len(names))]
+
+
+def _figures(settings: RunSettings) -> tuple[str, ...]:
+    """The module of the reports' figures where a worker process will draw some (with
+    reports: matplotlib's import, about 0.3 CPU s), else none (:func:`xcheck._parallel.process_pool`)."""
+    return ("xcheck.report._figures",) if settings.report else ()
 
 
 def _all_cached(model: str, settings: RunSettings) -> bool | None:
