@@ -45,7 +45,10 @@ def _is_dynamic(mode: str) -> bool:
 
 
 def _png(figure, dpi: int = 90, **options) -> bytes:
-    """The figure as PNG bytes (``options`` go to ``savefig``); the figure is closed."""
+    """The figure, complete, as PNG bytes (``options`` go to ``savefig``); the
+    figure is closed. Its unlabelled minor ticks are drawn as a few lines
+    (:func:`_unlabelled_minor_ticks_as_lines`: the same pixels)."""
+    _unlabelled_minor_ticks_as_lines(figure)
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, **options)
     plt.close(figure)
@@ -457,7 +460,6 @@ def _with_legend_and_title(figure, grid, title: str):
     _figure_legend(figure, grid.flat, top=0.62)
     figure.suptitle(title, fontsize=10)
     _margins(figure, left=0.85, right=0.2, bottom=0.55, top=1.45, wspace=1.1, hspace=0.85)
-    _unlabelled_minor_ticks_as_lines(figure)
     return figure
 
 
@@ -630,7 +632,6 @@ def convergence_figure(run: RunResult):
         va="top",
     )
     _margins(figure, left=1.1, right=0.25, bottom=under, top=0.85, wspace=1.0, hspace=under + 0.35)
-    _unlabelled_minor_ticks_as_lines(figure)
     return figure
 
 
