@@ -120,6 +120,51 @@ def test_a_mechanisms_modes_in_worker_processes_equal_the_serial_run(tmp_path):
         assert parallel_files[relative] == data, f"{relative} differs between the serial and the parallel run"
 
 
+_TWIN_PLUG_IN = """
+import dataclasses
+from xcheck import engines
+
+
+class Twin(engines.Engine):
+    name = "twin"
+    modes = tuple(
+        dataclasses.replace(engines.mode("formulation-I"), name=f"twin-{k}", cost=5.0) for k in (1, 2)
+    )
+
+    def run(self, mode, kinematics, *, native, samples, branch=None):
+        result = engines.engine("formulations").run(
+            "formulation-I", kinematics, native=native, samples=samples, branch=branch
+        )
+        return dataclasses.replace(result, mode=mode)
+"""
+
+
+def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tmp_path):
+    """The ``xcheck`` command forks its workers from a fork server (a program calling
+    the API spawns them): its JSON with two workers equals its serial run's but for the
+    timings. Two modes of an installed plug-in, each formulation I's solution and
+    declared costly, so that the run sends them to workers."""
+    import subprocess
+
+    from conftest import ROOT, install_plug_in
+
+    site = tmp_path / "site"
+    site.mkdir()
+    install_plug_in(site, "xcheck_twin_test", _TWIN_PLUG_IN, "[xcheck.engines]\ntwin = xcheck_twin_test:Twin\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")])}
+    command = [sys.executable, "-m", "xcheck", "run", "slider-crank", "--models", str(MODELS), "--engines"]
+    command += ["twin", "--samples", "11", "--json"]
+    documents = []
+    for jobs in ("2", "1"):
+        done = subprocess.run([*command, "--jobs", jobs], capture_output=True, text=True, timeout=300, env=env)
+        assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+        document = json.loads(done.stdout)
+        del document["timings"]
+        documents.append(document)
+    assert list(documents[0]["engines"]) == ["native", "twin-1", "twin-2"]
+    assert documents[0] == documents[1]
+
+
 def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
     """A spawned worker imports the script that started it: unguarded, the script
     starts workers again, which multiprocessing refuses; the modes fail with a
