@@ -234,6 +234,8 @@ def test_a_mode_on_request_runs_only_when_named(findings):
             "closed_loops": False,
             "reproducer": "",
             "series": [],
+            "steps_below": None,
+            "mechanisms": None,
         }
     ]
 

@@ -86,14 +86,7 @@ class EngineFacts(_Markdown):
                 f"Joint reactions and driving efforts: within {engine.force_tolerance:g} ({engine.force_basis}).",
             ]
         for finding in engine.findings:
-            if finding.kinds:
-                where = f"{', '.join(finding.kinds)} modes; {', '.join(finding.quantities)}" + (
-                    "; closed loops only" if finding.closed_loops else ""
-                )
-                where += f"; series {', '.join(finding.series)}" if finding.series else ""
-            else:
-                where = "flags no mode's rows"
-            lines += ["", f"**Stated finding** ({where}): {_cell(finding.title)}. {_cell(finding.text)}."]
+            lines += ["", f"**Stated finding** ({finding.scope}): {_cell(finding.title)}. {_cell(finding.text)}."]
             if finding.reproducer:
                 # the script as its engine's maintainers would run it (docs/engines/NAME.md -> the repository's root)
                 lines += [

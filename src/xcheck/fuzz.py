@@ -556,8 +556,9 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
         outcome = run.outcomes[mode]
         worst = _worst(outcome.categories)
         if not outcome.ok:
-            origin = "engine" if outcome.result is not None else "exception"
-            rows.append(row(mode, "error", origin, outcome.reason, seconds=outcome.seconds, **worst))
+            origin = "engine" if outcome.result is not None or outcome.finding else "exception"
+            text = _with_finding(outcome.reason, outcome.finding)
+            rows.append(row(mode, "error", origin, text, seconds=outcome.seconds, **worst))
         elif outcome.passed:
             rows.append(row(mode, "passed", "", outcome.reason, seconds=outcome.seconds, **worst))
         else:
@@ -585,11 +586,13 @@ def run_case(case: Case, path: str, modes: Sequence[str], samples: int) -> list[
             if not forces.applies:
                 rows.append(row(label, "not-applicable", "engine", str(forces.reason)))
             elif not ok:
-                rows.append(row(label, "error", "engine", str(forces.reason), **figures))
+                text = _with_finding(str(forces.reason), str(forces.get("finding", "") or ""))
+                rows.append(row(label, "error", "engine", text, **figures))
             else:
                 passed = bool(forces.passed)
-                origin = "" if passed else _force_origin(forces)
-                text = "" if passed else str(forces.get("basis", "") or "")
+                finding = str(forces.get("finding", "") or "")
+                origin = "" if passed else "engine" if finding else _force_origin(forces)
+                text = "" if passed else _with_finding(str(forces.get("basis", "") or ""), finding)
                 rows.append(row(label, "passed" if passed else "failed", origin, text, **figures))
     if run.energy is not None:
         energy = run.energy
@@ -667,6 +670,13 @@ def _engine_limitation(failing: pd.DataFrame, mode: str) -> str:
             + f" (observed orders: `xcheck run FILE --engines {mode}`, basis)"
         )
     return "; ".join(parts)
+
+
+def _with_finding(text: str, finding: str) -> str:
+    """A failure's text, and the engine's stated finding that explains it where one does."""
+    if not finding:
+        return text
+    return f"{text}; the engine's stated finding: {finding}" if text else f"the engine's stated finding: {finding}"
 
 
 def _force_origin(forces: pd.Series) -> str:

@@ -652,7 +652,9 @@ def run_json(run) -> dict:
             "worst": f"{row.name} {row.quantity}".strip() or None,
             "states": int(row.states),
             "pass": bool(row.passed) if row.applies else None,
+            "verdict": row.verdict,
             "reason": row.reason or None,
+            "finding": row.finding or None,
         }
     energy = (
         None if run.energy is None else {k: (_number(v) if isinstance(v, float) else v) for k, v in run.energy.items()}
@@ -710,8 +712,11 @@ def print_run(console: Console, run) -> None:
     )
     for mode, outcome in run.outcomes.items():
         if not outcome.ok:
-            table.add_row(mode, "[red]failed[/red]", *["—"] * len(CATEGORIES))
-            failures.append(f"[red]{mode}: {outcome.reason}[/red]")
+            style = "yellow" if outcome.finding else "red"
+            table.add_row(mode, f"[{style}]{outcome.verdict}[/{style}]", *["—"] * len(CATEGORIES))
+            failures.append(f"[{style}]{mode}: {escape(outcome.reason)}[/{style}]")
+            if outcome.finding:
+                failures.append(f"[yellow]{mode}: the engine's stated finding: {escape(outcome.finding)}[/yellow]")
             continue
         cells = []
         rows = {r.category: r for r in outcome.categories.itertuples()}
@@ -750,11 +755,17 @@ def print_run(console: Console, run) -> None:
                 parts.append(f"{row.engine} not applicable ({row.reason})")
                 continue
             if not row.ok:
-                parts.append(f"[red]{row.engine} failed[/red] ({row.reason})")
+                failed = "[yellow]finding[/yellow] (failed: " if row.finding else "[red]failed[/red] ("
+                parts.append(f"{row.engine} {failed}{row.reason})")
                 continue
-            style = "green" if row.passed else "red"
+            style = "green" if row.passed else "yellow" if row.finding else "red"
             parts.append(f"{row.engine} [{style}]{row.max_rel:.1e}[/{style}]/{row.tolerance:g}")
         console.print("  joint reactions and driving effort vs native: " + ", ".join(parts))
+        for row in run.force_table.itertuples():
+            if row.finding:
+                console.print(
+                    f"  [yellow]{row.engine} reactions: the engine's stated finding: {escape(row.finding)}[/yellow]"
+                )
         e = run.energy
         if e is None:
             console.print(f"  power balance: not computed ({escape(run.no_energy)})")

@@ -176,6 +176,8 @@ class ModeResult:
     ``summary`` is an optional table of the engine's own (e.g. every run's
     errors and diagnostics); a dynamic mode's ``study`` is its error against
     time step (:func:`xcheck.ladder.convergence_study`), the same for every engine.
+    Where a ladder's compared run failed, ``failed_run`` holds its ``series`` and
+    ``timestep`` (s), by which an engine's stated findings may explain the failure.
     """
 
     mode: str
@@ -185,6 +187,7 @@ class ModeResult:
     trajectories: list = field(default_factory=list)
     summary: pd.DataFrame | None = None
     study: pd.DataFrame | None = None
+    failed_run: dict = field(default_factory=dict)
 
 
 def trajectory_from_solution(solution: Solution, source: str = "native") -> Trajectory:

@@ -32,7 +32,15 @@ from .dynamics import (
 from .engines import NotApplicable
 from .errors import InputError, XcheckError
 from .kinematics import Kinematics, Solution
-from .ladder import ORDER_MARGIN, applicable_findings, empty_study, observed_order, one_line
+from .ladder import (
+    FAILURE,
+    ORDER_MARGIN,
+    REACTIONS,
+    applicable_findings,
+    empty_study,
+    observed_order,
+    one_line,
+)
 from .motion import drive_warnings, law_states, simulation_window, sweep_span
 from .reactions import ForceResult, compare_forces, engine_forces, force_summary
 from .results import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
@@ -190,7 +198,9 @@ class ModeOutcome:
         Wall time of the mode.
     findings : dict of str to tuple of Finding
         Per category, the engine's stated findings that hold for it on this
-        mechanism (:func:`xcheck.ladder.applicable_findings`).
+        mechanism (:func:`xcheck.ladder.applicable_findings`); for a mode that
+        failed, under :data:`~xcheck.ladder.FAILURE`, those that hold for its
+        failed run.
     """
 
     mode: str
@@ -208,31 +218,44 @@ class ModeOutcome:
     @property
     def finding(self) -> str:
         """The engine's stated defects (:attr:`xcheck.engines.Engine.findings`) where
-        every category the mode fails has one that holds (:attr:`findings`); ""
-        where it passed, did not run, or fails a category no finding explains."""
-        if not self.ok or self.passed or self.categories.empty or self.mode == "native":
+        every category the mode fails has one that holds (:attr:`findings`), or
+        where it failed, one holds for its failed run; "" where it passed, or fails
+        in a way no finding explains."""
+        if self.mode == "native" or (self.ok and (self.passed or self.categories.empty)):
             return ""
-        failing = self.categories.category[~self.categories.passed.astype(bool)]
-        if failing.empty or not all(self.findings.get(category) for category in failing):
-            return ""
-        return "; ".join(dict.fromkeys(f.text for category in failing for f in self.findings[category]))
+        failing = (
+            pd.Series([FAILURE]) if not self.ok else self.categories.category[~self.categories.passed.astype(bool)]
+        )
+        return explained(failing, self.findings)
 
     @property
     def verdict(self) -> str:
-        """ "pass", "finding" (it fails only in its engine's stated findings),
-        "fail" (beyond a tolerance elsewhere) or "failed" (it did not run through)."""
+        """ "pass", "finding" (it fails, or did not run through, only in its
+        engine's stated findings), "fail" (beyond a tolerance elsewhere) or
+        "failed" (it did not run through)."""
         if not self.ok:
-            return "failed"
+            return "finding" if self.finding else "failed"
         return "pass" if self.passed else "finding" if self.finding else "fail"
 
 
-def run_verdict(mode_verdicts, others_pass: bool) -> str:
-    """The one rule of a run's verdict (:data:`VERDICTS`), from its modes'
-    verdicts (:attr:`ModeOutcome.verdict`) and whether its reactions and power
-    balance are within their tolerances: "fail" where a mode fails or failed or
-    the others do not pass, else "pass with findings" where a mode fails only in
-    its engine's stated findings, else "pass"."""
-    verdicts = list(mode_verdicts)
+def explained(failing, findings: dict) -> str:
+    """The texts (joined by "; ") of the stated findings that explain every one of
+    ``failing`` (quantity names) by ``findings`` (quantity name to the findings that
+    hold for it); "" where any is unexplained, or none fails."""
+    failing = list(failing)
+    if not failing or not all(findings.get(quantity) for quantity in failing):
+        return ""
+    return "; ".join(dict.fromkeys(f.text for quantity in failing for f in findings[quantity]))
+
+
+def run_verdict(verdicts, others_pass: bool) -> str:
+    """The one rule of a run's verdict (:data:`VERDICTS`), from the verdicts of its
+    modes and force sources (:attr:`ModeOutcome.verdict`, :func:`force_verdict`;
+    sources that do not apply left out) and whether its power balance is within
+    its tolerance: "fail" where a mode or source fails or failed or the balance
+    does not pass, else "pass with findings" where one fails only in its engine's
+    stated findings, else "pass"."""
+    verdicts = list(verdicts)
     if not others_pass or any(v not in ("pass", "finding") for v in verdicts):
         return "fail"
     return "pass with findings" if "finding" in verdicts else "pass"
@@ -290,8 +313,12 @@ class RunResult:
 
     @property
     def findings(self) -> dict[str, str]:
-        """Mode name to its stated finding, for the modes that fail only there."""
-        return {mode: o.finding for mode, o in self.outcomes.items() if o.finding}
+        """Mode name (a force source: ``ENGINE-forces``) to its stated finding, for the
+        modes and force sources that fail only there."""
+        modes = {mode: o.finding for mode, o in self.outcomes.items() if o.finding}
+        forces = self.force_table
+        sources = {} if "finding" not in forces else dict(zip(forces.engine, forces.finding))
+        return modes | {f"{source}-forces": finding for source, finding in sources.items() if finding}
 
     @property
     def verdict(self) -> str:
@@ -300,10 +327,9 @@ class RunResult:
         with findings" when every failure is an engine's stated finding
         (:attr:`findings`), else "fail". The exit code of ``xcheck run`` follows
         it (:data:`EXIT_CODES`)."""
-        table = self.force_table
-        forces_pass = table.empty or bool((table.passed | ~table.applies).all())  # not applicable: no verdict
+        forces = [v for v in self.force_table.get("verdict", []) if v != "not applicable"]
         energy_pass = self.energy is None or bool(self.energy["passed"])
-        return run_verdict([o.verdict for o in self.outcomes.values()], forces_pass and energy_pass)
+        return run_verdict([*(o.verdict for o in self.outcomes.values()), *forces], energy_pass)
 
     @property
     def summary(self) -> pd.DataFrame:
@@ -650,11 +676,19 @@ def _run_mode(
     except NotApplicable:
         raise
     except Exception as err:  # an engine's failure is this mode's outcome, not the run's
-        return ModeOutcome(mode, False, one_line(err), seconds=time.perf_counter() - start)
+        findings = {FAILURE: tuple(applicable_findings(engine.findings, kind, FAILURE, kinematics.mechanism))}
+        return ModeOutcome(mode, False, one_line(err), seconds=time.perf_counter() - start, findings=findings)
     if not result.ok or not result.trajectories:
-        return ModeOutcome(
-            mode, False, result.reason or "no trajectory", result=result, seconds=time.perf_counter() - start
-        )
+        failed = result.failed_run
+        findings = {
+            FAILURE: tuple(
+                applicable_findings(
+                    engine.findings, kind, FAILURE, kinematics.mechanism, failed.get("series"), failed.get("timestep")
+                )
+            )
+        }
+        why = result.reason or "no trajectory"
+        return ModeOutcome(mode, False, why, result=result, seconds=time.perf_counter() - start, findings=findings)
     trajectory, reference, details, categories = _judge(kinematics, mode, result, floors, branch)
     short = _order_short(categories)
     orders = [_observed_orders(categories, short)]
@@ -680,9 +714,8 @@ def _run_mode(
         categories = _with_basis(categories, _refinement_note(refine, orders), short)
         categories["refinements"] = refine
     passed = bool(not categories.empty and categories.passed.all())
-    findings = {
-        c: tuple(applicable_findings(engine.findings, kind, c, kinematics.mechanism)) for c in categories.category
-    }
+    judged = (kinematics.mechanism, trajectory.settings.get("series"), trajectory.settings.get("timestep"))
+    findings = {c: tuple(applicable_findings(engine.findings, kind, c, *judged)) for c in categories.category}
     return ModeOutcome(
         mode,
         True,
@@ -959,6 +992,8 @@ def _compute_forces(run: RunResult, sources: list[str], branch: str | None) -> N
     table["basis"], table["refinements"], table["refinement_failure"] = "", 0, ""
     for i in table.index[table.ok & ~table.passed]:
         _refine_forces(run, table, i, branch)
+    table["finding"] = [_force_finding(run, row) for row in table.itertuples()]
+    table["verdict"] = [force_verdict(row) for row in table.itertuples()]
     run.force_table = table
     try:
         energy = energy_summary(kinematics, branch)
@@ -969,6 +1004,37 @@ def _compute_forces(run: RunResult, sources: list[str], branch: str | None) -> N
     energy["round_off"] = power_round_off(condition, ratio)
     energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
     run.energy = energy
+
+
+def _force_finding(run: RunResult, row) -> str:
+    """The texts of the stated findings of a force source's engine that explain its
+    failure (:func:`explained`): every quantity beyond its tolerance, or the source's
+    failure to run through (:data:`~xcheck.ladder.FAILURE`), by the findings that hold
+    for it (:func:`~xcheck.ladder.applicable_findings`, kind :data:`~xcheck.ladder.REACTIONS`);
+    "" where it passed, does not apply, or fails in a way no finding explains."""
+    if row.engine == "newton-euler" or not row.applies or (row.ok and row.passed):
+        return ""
+    if row.ok:
+        table = next(r.table for r in run.forces if r.engine == row.engine)
+        assert table is not None  # a source that ran through has its table
+        beyond = table[table.max_rel.to_numpy(dtype=float) > float(row.tolerance)]
+        failing = list(dict.fromkeys(str(q).strip("|") for q in beyond.quantity))
+    else:
+        failing = [FAILURE]
+    findings, mech = engines.engine(row.engine).findings, run.mechanism
+    return explained(failing, {q: tuple(applicable_findings(findings, REACTIONS, q, mech)) for q in failing})
+
+
+def force_verdict(row) -> str:
+    """A force source's verdict, as a mode's (:attr:`ModeOutcome.verdict`): "pass",
+    "finding" (it fails, or did not run through, only in its engine's stated findings),
+    "fail", "failed" (it did not run through) or "not applicable"; ``row``: one of
+    :attr:`RunResult.force_table`."""
+    if not row.applies:
+        return "not applicable"
+    if row.ok and row.passed:
+        return "pass"
+    return "finding" if row.finding else "fail" if row.ok else "failed"
 
 
 def _refine_forces(run: RunResult, table: pd.DataFrame, row: int, branch: str | None) -> None:

@@ -53,7 +53,7 @@ import numpy as np
 
 from .engines import KINDS, Engine, NotApplicable
 from .engines._contract import _installed
-from .ladder import APART, Run
+from .ladder import APART, FAILURE, FORCE_QUANTITIES, REACTIONS, Run
 from .results import BODY_QUANTITIES, POINT_QUANTITIES, ModeResult, Trajectory
 
 if TYPE_CHECKING:
@@ -198,10 +198,13 @@ def _check_declaration(engine: Engine, check: EngineCheck) -> None:
             problems.append("a one-line title")
         if not str(finding.text).strip():
             problems.append("the measured defect in its text")
-        if not finding.quantities or set(finding.quantities) - set(BODY_QUANTITIES):
-            problems.append(f"quantities among {', '.join(BODY_QUANTITIES)} (found {list(finding.quantities)})")
-        if set(finding.kinds) - set(KINDS):
-            problems.append(f"kinds among {', '.join(KINDS)} (found {list(finding.kinds)})")
+        known = (*BODY_QUANTITIES, *FORCE_QUANTITIES, FAILURE)
+        if not finding.quantities or set(finding.quantities) - set(known):
+            problems.append(f"quantities among {', '.join(known)} (found {list(finding.quantities)})")
+        if set(finding.kinds) - {*KINDS, REACTIONS}:
+            problems.append(f"kinds among {', '.join((*KINDS, REACTIONS))} (found {list(finding.kinds)})")
+        if REACTIONS in finding.kinds and engine.force_tolerance is None:
+            problems.append("reactions only where the engine gives them (found kinds with reactions)")
         name = finding.reproducer.rpartition("/")[2]
         if not (finding.reproducer.startswith("reproducers/") and name.startswith(f"{engine.name}_")):
             problems.append(f"a reproducer reproducers/{engine.name}_WHAT.py (found {finding.reproducer!r})")

@@ -21,7 +21,10 @@ inputs each run realised, and refines it a rung at a time.
 
 from ._core import (
     APART,
+    FAILURE,
+    FORCE_QUANTITIES,
     ORDER_MARGIN,
+    REACTIONS,
     Finding,
     Run,
     Rung,
@@ -52,12 +55,15 @@ from ._study import STUDY_COLUMNS, convergence_study, empty_study, ladder_result
 __all__ = [
     "APART",
     "COMPARED",
+    "FAILURE",
+    "FORCE_QUANTITIES",
     "DRIVEN_SAMPLES",
     "DYNAMIC_COLUMNS",
     "FREE_ROUND_OFF",
     "FREE_STEPS",
     "LADDER_COLUMNS",
     "ORDER_MARGIN",
+    "REACTIONS",
     "STUDY_COLUMNS",
     "DrivenLadder",
     "DrivenProblem",

@@ -33,12 +33,24 @@ APART = 0.1
 ORDER_MARGIN = 0.5
 
 
+#: The kind of a force source (an engine's joint reactions and driving efforts), beside
+#: the modes' kinds: a finding with it in its ``kinds`` holds for the engine's reactions.
+REACTIONS = "reactions"
+#: The quantities of a force source a finding can spoil
+#: (:data:`xcheck.dynamics.JOINT_QUANTITIES` and :data:`~xcheck.dynamics.DRIVER_QUANTITIES`).
+FORCE_QUANTITIES = ("reaction", "normal", "moment", "tooth_force", "effort")
+#: The quantity of a finding whose defect makes a run fail as a whole (come apart,
+#: turn non-finite) rather than miss: a mode or force source that fails where it
+#: holds has the engine's known result, and its failure line names it.
+FAILURE = "failure"
+
+
 @dataclass(frozen=True)
 class Finding:
     """A stated, measured defect of an engine: the quantities it spoils and
-    where it holds. A mode failing only in findings that apply is the
-    engine's known result (its verdict "finding"), and every ladder row the
-    finding applies to carries its title.
+    where it holds. A mode or force source failing only in findings that apply
+    is the engine's known result (its verdict "finding"), and every ladder row
+    the finding applies to carries its title.
 
     Attributes
     ----------
@@ -47,10 +59,12 @@ class Finding:
     text : str
         The defect as measured, with its figures and where they come from.
     quantities : tuple of str
-        The quantities it spoils (:data:`xcheck.results.BODY_QUANTITIES` names:
-        position, angle, velocity, omega, acceleration, alpha).
+        The quantities it spoils: :data:`xcheck.results.BODY_QUANTITIES` names
+        (position, angle, velocity, omega, acceleration, alpha), a force
+        source's (:data:`FORCE_QUANTITIES`), or :data:`FAILURE`: the runs fail.
     kinds : tuple of str
-        The kinds of mode it applies to (``kinematic``, ``dynamic``, ``free``).
+        What it applies to: the kinds of mode (``kinematic``, ``dynamic``,
+        ``free``) and :data:`REACTIONS`, the engine's force source.
     closed_loops : bool
         Whether it holds only on a mechanism with closed loops (a joint that the
         spanning tree cuts): an engine's loop constraint plays no part in an
@@ -61,11 +75,18 @@ class Finding:
         numpy, prints the measured numbers beside the expected ones, and exits 0
         while the defect shows); the tests run it where the engine is installed.
         A finding that flags no mode's rows (``kinds`` empty: xcheck's model
-        works around the defect, or it shows as the runs' failure) is stated
-        for its reproducer.
+        works around the defect) is stated for its reproducer.
     series : tuple of str
         The ladder series (:attr:`Series.key`) it holds for, where it is one of
         an engine's solvers (Newton's Featherstone); empty: every series.
+    steps_below : float or None
+        It holds only for runs at a time step below this, s (where the defect was
+        measured); None: at any step.
+    mechanisms : callable or None
+        It holds only on a mechanism for which this returns True (what in a
+        mechanism the defect needs, as only its engine knows); None: on any.
+    mechanisms_text : str
+        What ``mechanisms`` asks, in words (e.g. "a driven body that is a point mass").
     """
 
     title: str
@@ -75,9 +96,13 @@ class Finding:
     closed_loops: bool = False
     reproducer: str = ""
     series: tuple[str, ...] = ()
+    steps_below: float | None = None
+    mechanisms: Callable[[Mechanism], bool] | None = None
+    mechanisms_text: str = ""
 
     def as_dict(self) -> dict:
-        """The finding as JSON: title, text, quantities, kinds, closed_loops, reproducer, series."""
+        """The finding as JSON: title, text, quantities, kinds, closed_loops, reproducer, series,
+        steps_below (s, or None) and mechanisms (``mechanisms_text``, or None)."""
         return {
             "title": self.title,
             "text": self.text,
@@ -86,15 +111,38 @@ class Finding:
             "closed_loops": self.closed_loops,
             "reproducer": self.reproducer,
             "series": list(self.series),
+            "steps_below": self.steps_below,
+            "mechanisms": self.mechanisms_text or None,
         }
+
+    @property
+    def scope(self) -> str:
+        """Where it holds, in words: its kinds, quantities and conditions; "flags no
+        mode's rows" where ``kinds`` is empty."""
+        if not self.kinds:
+            return "flags no mode's rows"
+        kinds = [f"{k} modes" if k != REACTIONS else "reactions" for k in self.kinds]
+        parts = [", ".join(kinds), ", ".join("the runs fail" if q == FAILURE else q for q in self.quantities)]
+        parts += ["closed loops only"] if self.closed_loops else []
+        parts += [f"series {', '.join(self.series)}"] if self.series else []
+        parts += [f"time steps below {self.steps_below:g} s"] if self.steps_below is not None else []
+        parts += [self.mechanisms_text] if self.mechanisms_text else []
+        return "; ".join(parts)
 
 
 def applicable_findings(
-    findings: Sequence[Finding], kind: str, quantity: str, mechanism: Mechanism, series: str | None = None
+    findings: Sequence[Finding],
+    kind: str,
+    quantity: str,
+    mechanism: Mechanism,
+    series: str | None = None,
+    timestep: float | None = None,
 ) -> list[Finding]:
-    """The findings that hold for ``quantity`` of a ``kind`` mode on ``mechanism`` (for a
-    ladder's row, of its ``series``): the one rule by which a finding flags a row and
-    excuses a failing category. A finding of some series only holds for a row of one of them."""
+    """The findings that hold for ``quantity`` (or :data:`FAILURE`) of a ``kind`` mode
+    or force source (:data:`REACTIONS`) on ``mechanism``, for a run of ``series`` at
+    ``timestep`` (s): the one rule by which a finding flags a row and excuses a
+    failing category, force source or run. A finding of some series only holds for
+    a run of one of them, one below a time step only for a run with a smaller one."""
     if not findings:
         return []
     loops = None
@@ -104,6 +152,8 @@ def applicable_findings(
             continue
         if finding.series and series not in finding.series:
             continue
+        if finding.steps_below is not None and not (timestep is not None and timestep < finding.steps_below):
+            continue
         if finding.closed_loops:
             if loops is None:
                 from ..topology import spanning_tree
@@ -111,17 +161,35 @@ def applicable_findings(
                 loops = bool(spanning_tree(mechanism).cuts)
             if not loops:
                 continue
+        if finding.mechanisms is not None and not finding.mechanisms(mechanism):
+            continue
         out.append(finding)
     return out
 
 
 def finding_titles(
-    findings: Sequence[Finding], kind: str, quantities: Sequence[str], mechanism: Mechanism, series: str
+    findings: Sequence[Finding],
+    kind: str,
+    quantities: Sequence[str],
+    mechanism: Mechanism,
+    series: str,
+    timestep: float | None = None,
 ) -> str:
     """The titles (joined by "; ") of the findings that hold for any of ``quantities``
-    on a ``kind`` ladder's row of ``series`` on ``mechanism``: its ``finding`` column."""
-    found = [f for q in quantities for f in applicable_findings(findings, kind, q, mechanism, series)]
+    on a ``kind`` ladder's row of ``series`` at ``timestep`` (s) on ``mechanism``: its
+    ``finding`` column."""
+    found = [f for q in quantities for f in applicable_findings(findings, kind, q, mechanism, series, timestep)]
     return "; ".join(dict.fromkeys(f.title for f in found))
+
+
+def run_titles(
+    findings: Sequence[Finding], kind: str, quantities: Sequence[str], mechanism: Mechanism, rung: Rung, counts: bool
+) -> str:
+    """The ``finding`` column of a ``kind`` ladder's row for the run at ``rung``: the
+    titles of the findings that hold for its ``quantities`` at its series and step, and
+    for :data:`FAILURE` where the run does not count (it failed)."""
+    judged = (*quantities, *(() if counts else (FAILURE,)))
+    return finding_titles(findings, kind, judged, mechanism, rung.series.key, rung.timestep)
 
 
 @dataclass(frozen=True)
@@ -259,11 +327,11 @@ def run_rungs(call: Callable[[Rung], Run], rungs: Sequence[Rung]) -> list[Run]:
     return runs
 
 
-def ladder_row(rung: Rung, run: Run, measured: dict, titles: str) -> dict:
+def ladder_row(rung: Rung, run: Run, measured: dict) -> dict:
     """A run's row before it is judged, the same for every ladder: what names the run
     (setting, series, integrator, timestep in s, steps), its status (the run's
     failure, else "ok"), the ``measured`` columns as given (NaN until judged) and
-    ``titles``, the findings that apply (its ``finding`` column)."""
+    its ``finding`` column, empty until judged (:func:`run_titles`)."""
     series = rung.series
     return {
         "setting": series.setting,
@@ -273,7 +341,7 @@ def ladder_row(rung: Rung, run: Run, measured: dict, titles: str) -> dict:
         "steps": int(sum(rung.counts)),
         "status": run.failure or "ok",
         **measured,
-        "finding": titles,
+        "finding": "",
     }
 
 

@@ -20,12 +20,12 @@ from ._core import (
     Rung,
     Series,
     came_apart,
-    finding_titles,
     ladder_row,
     loop_drift,
     one_line,
     reached,
     run_rungs,
+    run_titles,
 )
 from ._study import ladder_result
 
@@ -150,8 +150,9 @@ def driven_floor(kinematics: Kinematics) -> float:
     return convergence_round_off("position") * kinematics.mechanism.size
 
 
-def _driven_row(problem: DrivenProblem, rung: Rung, run: Run, titles: str) -> tuple[dict, Trajectory | None]:
-    """A driven run judged: (its row, its trajectory where it counts, else None)."""
+def _driven_row(problem: DrivenProblem, rung: Rung, run: Run) -> tuple[dict, Trajectory | None]:
+    """A driven run judged: (its row, its trajectory where it counts, else None); its
+    ``finding`` column is left empty."""
     from ..kinematics import Status
     from ..results import differences, native_at
 
@@ -164,7 +165,7 @@ def _driven_row(problem: DrivenProblem, rung: Rung, run: Run, titles: str) -> tu
         "simulated": 0.0,
         "cpu_seconds": run.cpu_seconds,
     }
-    row = ladder_row(rung, run, measured, titles)
+    row = ladder_row(rung, run, measured)
     times = reached(row, run, len(problem.times), "no sample reached")
     trajectory = run.trajectory
     if times is None or trajectory is None:
@@ -298,8 +299,10 @@ class DrivenLadder:
         problem, prepared, _ = self._start()
         mech = self.kinematics.mechanism
         for rung, run in zip(rungs, run_rungs(lambda rung: self._run_once(prepared, problem, rung), rungs)):
-            titles = finding_titles(self.findings, "dynamic", tuple(BODY_QUANTITIES), mech, rung.series.key)
-            row, trajectory = _driven_row(problem, rung, run, titles)
+            row, trajectory = _driven_row(problem, rung, run)
+            row["finding"] = run_titles(
+                self.findings, "dynamic", tuple(BODY_QUANTITIES), mech, rung, trajectory is not None
+            )
             self.judged.append((row, trajectory, run.views))
 
     def _result(self, compared: int) -> ModeResult:

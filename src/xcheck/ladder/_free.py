@@ -20,12 +20,12 @@ from ._core import (
     Series,
     came_apart,
     conservative,
-    finding_titles,
     ladder_row,
     loop_drift,
     one_line,
     reached,
     run_rungs,
+    run_titles,
 )
 from ._study import ladder_result
 
@@ -252,8 +252,9 @@ def out_of_phase(reference: FreeReference, trajectory: Trajectory, limit: float)
     return f"out of phase from t ≈ {float(np.asarray(trajectory.times)[int(off[0])]):.4g} s"
 
 
-def _free_row(problem: FreeProblem, rung: Rung, run: Run, titles: str) -> tuple[dict, Trajectory | None]:
-    """A free run judged: (its row, its trajectory where it counts, else None)."""
+def _free_row(problem: FreeProblem, rung: Rung, run: Run) -> tuple[dict, Trajectory | None]:
+    """A free run judged: (its row, its trajectory where it counts, else None); its
+    ``finding`` column is left empty."""
     mech = problem.kinematics.mechanism
     measured = {
         "phase": "",
@@ -267,7 +268,7 @@ def _free_row(problem: FreeProblem, rung: Rung, run: Run, titles: str) -> tuple[
         "cpu_seconds": run.cpu_seconds,
         "cpu_per_simulated_second": math.nan,
     }
-    row = ladder_row(rung, run, measured, titles)
+    row = ladder_row(rung, run, measured)
     times = reached(row, run, len(problem.index), "no output reached")
     trajectory = run.trajectory
     if times is None or trajectory is None:
@@ -347,8 +348,11 @@ def free_study(
         return ModeResult(mode, mech.name, False, one_line(error))
     rungs = [problem.rung(s, step) for s in series for step in problem.steps(s)]
     runs = run_rungs(lambda rung: run_once(prepared, problem, rung), rungs)
-    titles = {key: finding_titles(findings, "free", ("position",), mech, key) for key in {r.series.key for r in rungs}}
-    judged = [_free_row(problem, rung, run, titles[rung.series.key]) for rung, run in zip(rungs, runs)]
+    judged = []
+    for rung, run in zip(rungs, runs):
+        row, trajectory = _free_row(problem, rung, run)
+        row["finding"] = run_titles(findings, "free", ("position",), mech, rung, trajectory is not None)
+        judged.append((row, trajectory))
     return ladder_result(mode, mech.name, judged, free_floor(problem))
 
 

@@ -178,11 +178,13 @@ def ladder_result(
         if not trajectories:
             head = judged[0][0]
             reason = f"no run went through ({head['series']} dt = {head['timestep']:.4g} s: {head['status']})"
-            return ModeResult(mode, mechanism, False, reason, [], summary, study)
+            failed = {"series": head["series"], "timestep": head["timestep"]}
+            return ModeResult(mode, mechanism, False, reason, [], summary, study, failed)
         return ModeResult(mode, mechanism, True, "", trajectories, summary, study)
     row, compared_run = judged[compared]
     others = [t for i, (_, t) in enumerate(judged) if i != compared and t is not None]
     if compared_run is None:
         reason = f"{row['series']} dt = {row['timestep']:.4g} s: {row['status']}"
-        return ModeResult(mode, mechanism, False, reason, others, summary, study)
+        failed = {"series": row["series"], "timestep": row["timestep"]}
+        return ModeResult(mode, mechanism, False, reason, others, summary, study, failed)
     return ModeResult(mode, mechanism, True, "", [compared_run, *(views or []), *others], summary, study)

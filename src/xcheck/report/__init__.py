@@ -252,7 +252,7 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         "name": name,
         "title": run.mechanism.title,
         "passed": passed(run, evidence),
-        "findings": [m for m, p in evidence.modes.items() if p.get("finding")],
+        "findings": [m for m, p in (*evidence.modes.items(), *evidence.sources.items()) if p.get("finding")],
         "worst": worst_text(evidence),
         "textbook": textbook_text(run),
         "command": command,

@@ -91,7 +91,8 @@ def verdict_counts(textbook: list[dict]) -> dict[str, int]:
 def _mode_row(run: RunResult, outcome) -> list[str]:
     """A mode's cells of the comparison table, after its name."""
     if not outcome.ok:
-        return [f"**failed**: {outcome.reason}"] + ["—"] * len(CATEGORIES) + [""]
+        result = "finding, failed" if outcome.finding else "**failed**"
+        return [f"{result}: {outcome.reason}"] + ["—"] * len(CATEGORIES) + [""]
     cells = []
     table = outcome.categories.set_index("category") if not outcome.categories.empty else None
     for c in CATEGORIES:
@@ -189,7 +190,8 @@ def _comparison_section(run: RunResult, evidence: Evidence, marks: dict[str, str
     text = _table(headers, rows, "ll" + "r" * len(CATEGORIES) + "l")
     for mode, part in ran.items():
         if part["finding"]:
-            text += f"\n\n`{mode}` fails (✗) only where its engine is known to be wrong: {part['finding']}."
+            fails = "fails (✗)" if part.get("ran") else "failed"
+            text += f"\n\n`{mode}` {fails} only where its engine is known to be wrong: {part['finding']}."
     text += (
         "\n\nEach cell: the largest difference from the native solution / the tolerance; < b: below b, "
         "the round-off that the states' conditioning allows (10 eps kappa for positions and angles, 10 eps kappa^2 "
@@ -389,13 +391,17 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
     parts = {}
     made = _made(run, "forces", made)
     for r in run.force_table.to_dict("records"):
+        finding = str(r.get("finding", "") or "")
+        # where its engine's stated findings explain its failure, the part says so (and only then)
+        explained = {"verdict": "finding", "finding": finding} if finding else {}
         if not r["ok"]:  # failed, or the engine cannot hold the mechanism (no verdict either way)
-            outcome = "**failed**" if r["applies"] else "not applicable"
+            outcome = "not applicable" if not r["applies"] else "finding, failed" if finding else "**failed**"
             parts[str(r["engine"])] = {
                 "row": [f"{outcome}: {r['reason']}", "—", "—", "—", "—"],
                 "basis": "",
                 "passed": not r["applies"],
                 "produced": made,
+                **explained,
             }
             continue
         bound, relative, unit = float(r.get("round_off", 0.0)), float(r["max_rel"]), r["unit"]
@@ -406,7 +412,7 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
             where = f"{r['name']} {r['quantity']}: {_g(r['max_abs'], 3)} {unit}"
         parts[str(r["engine"])] = {
             "row": [
-                "pass" if r["passed"] else "**FAIL**",
+                "pass" if r["passed"] else "finding" if finding else "**FAIL**",
                 shown(relative, bound),
                 f"{_g(r['tolerance'], 2)} (scale ≥ {_g(r['floor'], 3)} {unit})",
                 where,
@@ -415,6 +421,7 @@ def source_parts(run: RunResult, made: dict) -> dict[str, dict]:
             "basis": str(r.get("basis", "") or ""),
             "passed": bool(r["passed"]),
             "produced": made,
+            **explained,
         }
     return parts
 
@@ -437,6 +444,8 @@ def _forces_section(run: RunResult, evidence: Evidence, images: dict[str, str], 
     )
     text += _table(["source", "result", "largest difference (rel.)", "tolerance", "where", "states"], rows, "llrrlr")
     for source, part in evidence.sources.items():
+        if part.get("finding"):
+            text += f"\n\n`{source}` fails only where its engine is known to be wrong: {part['finding']}."
         if part["basis"]:
             text += f"\n\n`{source}`: {part['basis']}."
     if e is None:
@@ -458,10 +467,10 @@ def _forces_section(run: RunResult, evidence: Evidence, images: dict[str, str], 
 def report_verdict(run: RunResult, evidence: Evidence) -> str:
     """The verdict of the report (:func:`xcheck.runner.run_verdict`) over its
     evidence: the run's parts and those kept from earlier runs."""
-    sources = all(p["passed"] for p in evidence.sources.values())
+    sources = [p.get("verdict", "pass" if p["passed"] else "fail") for p in evidence.sources.values()]
     return run_verdict(
-        [p.get("verdict", "pass") for p in evidence.modes.values()],
-        sources and (run.energy is None or bool(run.energy["passed"])),
+        [*(p.get("verdict", "pass") for p in evidence.modes.values()), *(v for v in sources if v != "not applicable")],
+        run.energy is None or bool(run.energy["passed"]),
     )
 
 
@@ -476,7 +485,7 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
     ``images`` maps figure keys to paths relative to the report."""
     mech = run.mechanism
     marks, provenance = _provenance(evidence)
-    findings = [m for m, p in evidence.modes.items() if p.get("finding")]
+    findings = [m for m, p in (*evidence.modes.items(), *evidence.sources.items()) if p.get("finding")]
     verdict = {
         "pass": "**pass** (every mode within its tolerance)",
         "pass with findings": "**pass with findings** (every mode within its tolerance but the stated findings of "
