@@ -414,17 +414,17 @@ def quantities_figure(run: RunResult):
     )
 
 
-def _relative_scale(run: RunResult, outcome, category: str) -> float:
-    """The scale that makes a category's difference relative, as the verdict
+def _relative_scales(run: RunResult, outcome) -> dict[str, float]:
+    """Per category, the scale that makes a difference relative, as the verdict
     does (:func:`xcheck.runner._categorise`): the mechanism's size for
     positions, 1 rad for angles, else the largest magnitude of the quantity
-    over all bodies and points (at least its physical floor)."""
-    if category == "position":
-        return run.kinematics.system.size
-    if category == "angle":
-        return 1.0
-    part = outcome.details[outcome.details.quantity == category] if not outcome.details.empty else None
-    return float(part.scale.max()) if part is not None and not part.empty else math.nan
+    over all bodies and points (at least its physical floor; NaN where the
+    mode's details have none)."""
+    details = outcome.details
+    largest = {} if details.empty else details.groupby("quantity", sort=False).scale.max().to_dict()
+    scales = {category: float(largest.get(category, math.nan)) for category in CATEGORIES}
+    scales.update(position=run.kinematics.system.size, angle=1.0)
+    return scales
 
 
 def error_plots(run: RunResult) -> bytes:
@@ -471,21 +471,26 @@ def error_figure(run: RunResult):
     difference here is not the gap between the curves of :func:`quantities`
     where an engine's input lags the law."""
     blocks = _blocks(run)
+    shown = {mode for _, _, series in blocks for mode, _, _ in series}
+    limits: dict[str, dict[str, float]] = {mode: {} for mode in shown}  # per mode and category: its tolerance
+    for mode in shown:
+        table = run.outcomes[mode].categories
+        for category, tolerance in zip(table.category, table.tolerance):
+            limits[mode].setdefault(category, float(tolerance))
+    scales = {mode: _relative_scales(run, run.outcomes[mode]) for mode in shown}  # one pass over each table
     figure, grid = plt.subplots(2 * len(blocks), 3, figsize=(13, 1.0 + 7 * len(blocks)), squeeze=False)
     for b, (title, axis, series) in enumerate(blocks):
         axes = grid[2 * b : 2 * b + 2]
         xlabel = _abscissa(run, axis, np.zeros(1))[1]
         for ax, category in zip(axes.flat, CATEGORIES):
             for mode, raw_x, mask in series:
-                outcome = run.outcomes[mode]
-                errors = outcome.errors.get(category)
-                row = outcome.categories[outcome.categories.category == category]
-                if errors is None or not mask.any() or row.empty:
+                errors = run.outcomes[mode].errors.get(category)
+                limit = limits[mode].get(category)
+                if errors is None or not mask.any() or limit is None:
                     continue
-                limit = float(row.tolerance.iloc[0])
                 if not (np.isfinite(limit) and limit > 0):
                     continue
-                ratio = errors[mask] / _relative_scale(run, outcome, category) / limit
+                ratio = errors[mask] / scales[mode][category] / limit
                 x, _ = _abscissa(run, axis, raw_x[mask])
                 order = np.argsort(x, kind="stable")
                 floor = np.fmax(ratio[order], 1e-12)  # exact zeros (and below) drawn at the floor
