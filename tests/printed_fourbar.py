@@ -1,5 +1,5 @@
-"""Seed 000's printed four-bar table (Primjer 1, "Rješenja") under the names
-that other tests import: PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units.
+"""Seed 000's printed four-bar table (Primjer 1, "Rješenja") in the shape other
+tests use: :func:`printed_table` and :func:`last_digit_units`.
 
 The printed values, their verdicts and the causes now live in
 ``comparisons/fourbar.toml`` and are pinned in ``tests/test_comparisons.py``;
@@ -9,6 +9,7 @@ knowledge. It holds no tests of its own.
 
 from __future__ import annotations
 
+import functools
 from decimal import Decimal
 
 from conftest import MODELS, ROOT
@@ -42,7 +43,13 @@ def last_digit_units(printed: str, computed: float) -> float:
     return abs(computed - float(text)) / 10.0 ** text.as_tuple().exponent
 
 
-def _table():
+@functools.cache
+def printed_table() -> tuple[list[tuple[str, list[str]]], set[tuple[str, int]], set[tuple[str, int]]]:
+    """``(printed, rounding, wrong)``: each quantity with its values as printed in 000,
+    "Rješenja", at 30, 60 and 120 deg; the (quantity, instant) pairs printed beyond half
+    a unit of their last digit but within 1 % (rounding), and those that disagree (wrong:
+    x2 at 120 deg, its sign dropped). Computed on first use (the verdicts solve the
+    four-bar), not when a test module imports this one."""
     kin = Kinematics(load_mechanism(MODELS / "fourbar.toml"))
     comparisons = load_comparisons(ROOT / "comparisons" / "fourbar.toml", kin.mechanism)
     rows = {
@@ -60,9 +67,3 @@ def _table():
                 wrong.add((key, i))
         printed.append((key, values))
     return printed, rounding, wrong
-
-
-#: (quantity, [printed at 30, 60, 120 deg]) as printed in 000, "Rješenja"
-#: ROUNDING: printed values beyond half a unit of their last digit but within 1 %;
-#: WRONG: printed values that disagree (x2 at 120 deg: the sign is dropped)
-PRINTED_FOURBAR, ROUNDING, WRONG = _table()

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 from conftest import DATA, MODEL_NAMES
-from printed_fourbar import PRINTED_FOURBAR, ROUNDING, WRONG, last_digit_units
+from printed_fourbar import last_digit_units, printed_table
 
 from xcheck import Kinematics, Status
 from xcheck.engines import NotApplicable
@@ -445,14 +445,15 @@ def test_formulation_i_thetas_against_the_printed_table(kinematics):
     120 deg, with the verdicts of tests/printed_fourbar.py (agrees, or
     off by rounding where the general solver found so)."""
     trajectory = FORMULATIONS["formulation-I"](kinematics("fourbar"), np.radians([30.0, 60.0, 120.0]))
-    rows = [(q, printed) for q, printed in PRINTED_FOURBAR if q.startswith("theta")]
+    table, rounding, wrong = printed_table()
+    rows = [(q, printed) for q, printed in table if q.startswith("theta")]
     assert [q for q, _ in rows] == ["theta1", "theta2", "theta3"]
     for quantity, printed in rows:
         computed = np.degrees(trajectory.diagnostics[quantity])
         for i, text in enumerate(printed):
             units = last_digit_units(text, computed[i])
-            assert (quantity, i) not in WRONG
-            if (quantity, i) in ROUNDING:
+            assert (quantity, i) not in wrong
+            if (quantity, i) in rounding:
                 assert 0.5 < units <= 1.0, (quantity, i, computed[i], text)
             else:
                 assert units <= 0.5, (quantity, i, computed[i], text)
