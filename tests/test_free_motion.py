@@ -544,7 +544,7 @@ def test_double_fourbar_of_forty_windows_follows_its_reduction():
 
 
 def test_reference_adds_the_round_off_measured_from_moved_starts(monkeypatch):
-    """The kept run is repeated from starts moved by a few ulps, each in its own pattern
+    """The kept run is repeated from starts moved by a few ulps in opposite patterns
     (projected onto the constraints); twice their largest difference so far from the kept
     run is added to the stated error at every output, and where that lifts it above the
     tolerance the ladder is not converged."""
@@ -562,7 +562,7 @@ def test_reference_adds_the_round_off_measured_from_moved_starts(monkeypatch):
     def fake(kinematics, moved, duration, output_step, step, compiled=True):
         starts.append(moved.q.copy())
         q = np.zeros((3, kinematics.system.n))
-        q[:, 0] = errors[round(step, 9)] + np.array([0.0, 1.0, 0.5]) * amplify["by"] * np.abs(moved.q - start.q).max()
+        q[:, 0] = errors[round(step, 9)] + np.array([0.0, 1.0, 0.5]) * amplify["by"] * (moved.q - start.q).max()
         return types.SimpleNamespace(q=q, step=step, seconds=0.0, times=np.arange(3) * 0.5, statistics={}, failure="")
 
     monkeypatch.setattr(free, "simulate_free", fake)
@@ -571,6 +571,7 @@ def test_reference_adds_the_round_off_measured_from_moved_starts(monkeypatch):
     assert exact.converged and [entry["difference"] for entry in exact.ladder[-ROUND_OFF_RUNS:]] == [0.0, 0.0]
     moved = starts[-ROUND_OFF_RUNS:]
     assert ROUND_OFF_RUNS == 2 and 0.0 < np.abs(moved[0] - moved[1]).max() < 1e-13 * kin.system.size
+    assert np.dot(moved[0] - start.q, moved[1] - start.q) < 0.0  # opposite: apart along the one free direction
     amplify["by"] = 1e9
     rounded = free.free_reference(kin, start, 1.0, 0.01, tolerance=tolerance, first_step=0.0025)
     spreads = [entry["difference"] for entry in rounded.ladder[-ROUND_OFF_RUNS:]]

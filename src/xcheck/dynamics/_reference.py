@@ -58,7 +58,7 @@ SAFETY = 1.25
 WORK_BUDGET = 1e8
 #: how far the round-off runs start from the ladder's start: this many units in the last place
 ROUND_OFF_ULPS = 4.0
-#: how many runs measure the round-off of the kept run, each from a start moved in its own pattern of signs
+#: how many runs measure the round-off of the kept run, from starts moved in opposite patterns of signs
 ROUND_OFF_RUNS = 2
 #: the round-off stated: this many times the largest difference of those runs from the kept one.
 #: Float64's round-off enters at every step and grows as the motion's own sensitivity carries
@@ -66,8 +66,8 @@ ROUND_OFF_RUNS = 2
 #: roundings differ scatter about the true motion as independent samples: the kept run's own
 #: round-off is one more sample, which two samples' spread bounds only with this margin
 #: (measured on A02 from 40 starts moved 4 ulps, its ladder at 1e-11 of the size: twice the
-#: spread of two runs bounds the true error at every output from all 40, at most 0.70 of the
-#: stated error; the spread of one run, unscaled, from 35, up to 2.6 times below it from 5)
+#: spread of two runs bounds the true error at every output from all 40, at most 0.71 of the
+#: stated error; the spread of one run, unscaled, from 35, up to 1.6 times below it from 5)
 ROUND_OFF_FACTOR = 2.0
 #: the most values an output array may hold (outputs times coordinates: 160 MB each)
 MAX_OUTPUT_VALUES = 2e7
@@ -245,14 +245,14 @@ def _with_round_off(
     progress: Callable[[str], None] | None,
 ) -> tuple[np.ndarray, str]:
     """The stated error ``estimate`` (m, (N,)) of the ``kept`` run (at ``setting``) plus its
-    round-off: :data:`ROUND_OFF_RUNS` more runs at its setting, each from
-    :func:`perturbed_start` in its own pattern, and :data:`ROUND_OFF_FACTOR` x their largest
+    round-off: :data:`ROUND_OFF_RUNS` more runs at its setting, from :func:`perturbed_start`
+    in patterns 0, 1, ..., and :data:`ROUND_OFF_FACTOR` x their largest
     running difference from the kept run, added at every output; with the words that say so.
     The runs are the ladder's last entries. A run that fails leaves the round-off unmeasured:
     the error is then unknown (inf)."""
     evaluations = 2.0 * float(kept.statistics.get("cost", kept.statistics.get("evaluations", 0.0))) + 1e6
     runs = "a second run" if ROUND_OFF_RUNS == 1 else f"{ROUND_OFF_RUNS} more runs"
-    moved_by = f"from starts moved {ROUND_OFF_ULPS:g} ulps, each in its own pattern of signs"
+    moved_by = f"from starts moved {ROUND_OFF_ULPS:g} ulps in opposite patterns of signs"
     how = f"round-off, measured by {runs} at {setting:.4g} {moved_by}"
     spread = np.zeros(len(kept.times))
     for pattern in range(ROUND_OFF_RUNS):
@@ -293,11 +293,14 @@ def _ladder_entry(method: LadderMethod, setting: float, motion: FreeMotion, stat
 def perturbed_start(kinematics: Kinematics, start: FreeState, pattern: int = 0) -> FreeState:
     """``start`` moved by :data:`ROUND_OFF_ULPS` units in the last place of each coordinate
     and rate (of the size, 1 rad, or the largest rate of its kind where that is larger), in
-    the fixed pattern of signs numbered ``pattern``, then projected onto the constraints."""
+    the fixed pattern of signs numbered ``pattern`` (an odd one the opposite of the even one
+    before it, so that two runs start apart even where the constraints leave one direction
+    free), then projected onto the constraints."""
     from ._free import consistent_state
 
     q, qd = np.asarray(start.q, dtype=float), np.asarray(start.qd, dtype=float)
-    signs = np.where(np.random.default_rng(12345 + pattern).random(2 * len(q)) < 0.5, -1.0, 1.0)
+    signs = np.where(np.random.default_rng(12345 + pattern // 2).random(2 * len(q)) < 0.5, -1.0, 1.0)
+    signs *= -1.0 if pattern % 2 else 1.0
     angle = np.zeros(len(q), dtype=bool)
     angle[2::3] = True
     floor_q = np.where(angle, 1.0, kinematics.system.size)
