@@ -225,3 +225,23 @@ def test_forces_and_energy_in_the_json_summary():
     result = _cli("run", "task-2-3", "--json", "--no-report", "--samples", "21", "--engines", "formulations")
     doc = json.loads(result.stdout)
     assert doc["forces"] == {} and "expected mass and inertia" in doc["forces_not_computed"]
+
+
+def test_work_meanwhile_is_done_once_after_the_reactions(monkeypatch):
+    """``run_mechanism``'s ``meanwhile`` (a report's imports, done while workers run the
+    modes): called once, after the reactions, in a run of this process too."""
+    from xcheck import load, runner
+
+    events = []
+    add_forces = runner._add_forces
+
+    def recorded(*args, **kwargs):
+        add_forces(*args, **kwargs)
+        events.append("reactions")
+
+    monkeypatch.setattr(runner, "_add_forces", recorded)
+    kinematics = load(MODELS / "slider-crank.toml").kinematics
+    run = runner.run_mechanism(
+        kinematics, ("native", "formulation-I"), 11, meanwhile=lambda: events.append("meanwhile")
+    )
+    assert events == ["reactions", "meanwhile"] and run.outcomes["formulation-I"].ok

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import platform
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
 
@@ -796,6 +797,7 @@ def run_mechanism(
     progress=None,
     jobs: int = 1,
     cache: bool = True,
+    meanwhile: Callable[[], object] | None = None,
 ) -> RunResult:
     """Run the native solver and the requested modes on one mechanism.
 
@@ -820,6 +822,10 @@ def run_mechanism(
         made by this code, and keep what was computed there
         (:mod:`xcheck.result_cache`; also off where ``$XCHECK_RESULTS_CACHE`` or
         ``$XCHECK_CACHE_DIR`` is ``off``). The outcomes are the same either way.
+    meanwhile : callable, optional
+        Called once, after the reactions: where worker processes run the modes, while
+        this process waits for them. Work of this process that needs none of the
+        modes' results, such as a report's imports.
     """
     from . import result_cache
 
@@ -862,7 +868,7 @@ def run_mechanism(
         for mode in modes:
             if progress is not None and mode not in runnable:
                 progress(mode)
-        ran = _run_modes_in_parallel(run, runnable, modes, arguments, jobs, progress, cache)
+        ran = _run_modes_in_parallel(run, runnable, modes, arguments, jobs, progress, cache, meanwhile)
     else:
         ran = {}
         for mode in modes:
@@ -871,6 +877,8 @@ def run_mechanism(
             if mode in runnable:
                 ran[mode] = _run_or_not_applicable(mode, *arguments)
         _add_forces(run, modes, branch, progress, cache)
+        if meanwhile is not None:
+            meanwhile()
     for mode in runnable if cache else ():  # what ran through, or does not apply: a failure may be the machine's
         if isinstance(ran[mode], NotApplicable) or ran[mode].ok:
             parts, used = (mode, samples, branch_name), (engines.engine_of(mode),)
@@ -912,13 +920,20 @@ def _run_or_not_applicable(mode: str, kinematics: Kinematics, native: Solution, 
 
 
 def _run_modes_in_parallel(
-    run: RunResult, runnable: list[str], modes: tuple[str, ...], arguments: tuple, jobs: int, progress, cache: bool
+    run: RunResult,
+    runnable: list[str],
+    modes: tuple[str, ...],
+    arguments: tuple,
+    jobs: int,
+    progress,
+    cache: bool,
+    meanwhile: Callable[[], object] | None = None,
 ) -> dict:
     """Each of the ``runnable`` modes in a pool of ``jobs`` worker processes, the
     costliest first (:attr:`xcheck.engines.Mode.cost`), while this process
     computes the reactions and the power balance (:func:`_add_forces`), then
     runs the modes of engines registered at run time, which a worker does not
-    know (:func:`xcheck._parallel.known_to_workers`). Returns mode name to
+    know (:func:`xcheck._parallel.known_to_workers`), then ``meanwhile``. Returns mode name to
     its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
     engine's crash) is that mode's failure, with the reason."""
     from ._parallel import collect, known_to_workers, process_pool, submit
@@ -935,6 +950,8 @@ def _run_modes_in_parallel(
             if progress is not None:
                 progress(mode)
             ran[mode] = _run_or_not_applicable(mode, *arguments)
+        if meanwhile is not None:
+            meanwhile()
         ran.update(collect(futures, lambda mode, why: ModeOutcome(mode, False, why), progress, calls, jobs))
     return ran
 
