@@ -98,15 +98,42 @@ def test_a_walk_into_a_fold_stops_and_says_where():
     assert np.allclose(walk.qpos[:3, 1], np.sqrt(1.0 - x[:3] ** 2), atol=1e-14, rtol=0.0)
 
 
+def test_a_walk_whose_solver_takes_only_tiny_steps_stops_within_its_budget():
+    """A solver that converges only over steps below 1e-7 (one failing systematically):
+    the walk's steps shrink and would creep on; with a budget of 40 solves it stops
+    between the samples, saying so, instead of taking 2e5 steps to the next one."""
+    circle = _newton(_circle, _circle_matrix)
+
+    def timid(q: np.ndarray, c: np.ndarray):
+        moved = abs(float(c[0]) - float(timid.at))
+        q, violation, iterations, ok = circle(q, c)
+        if ok and moved < 1e-7:
+            timid.at = float(c[0])
+            return q, violation, iterations, True
+        return q, violation, iterations, False
+
+    timid.at = 0.0
+    x = np.array([0.0, 0.02])
+    walk = follow(
+        timid, _circle_matrix, 1, np.array([0.0, 1.0]), np.zeros(1), x[:, None], np.ones(1), np.ones(2), budget=40
+    )
+    assert walk.stopped == 1 and walk.converged[0] and not walk.converged[1]
+    assert "40 solves from the last sample did not reach the next" in walk.reason
+    assert 0.0 < timid.at < 1e-5
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("engine", ["mujoco", "pinocchio"])
+@pytest.mark.parametrize("engine", ["mujoco", "pinocchio", "opensim"])
 def test_kinematic_oracles_follow_the_branch_next_to_a_dead_centre(engine):
     """tests/data/near-dead-centre.toml: the other branch is 15 mm away at crank =
     270 deg and a sample falls 0.3 deg from it. The slider follows the right
     branch B_x = r cos(theta) + sqrt(L^2 - (e - r sin(theta))^2) at every sample
-    (before the fix both engines jumped there: errors of 1.9 sizes)."""
+    (before the fix MuJoCo and Pinocchio jumped there: errors of 1.9 sizes;
+    OpenSim's assembler, from its neighbour's coordinates, 8.0e-3 of the size)."""
     import importlib
 
+    if engine == "opensim":
+        pytest.importorskip("opensim")
     run_kinematic = importlib.import_module(f"xcheck.engines.{engine}.modes").run_kinematic
     kinematics = Kinematics(load_mechanism(DATA / "near-dead-centre.toml"))
     result = run_kinematic(kinematics, 181)

@@ -10,8 +10,9 @@ predicted move: a tangent step's error grows like its square, so halving the
 step brings a too-large correction down) and the determinant of the engine's
 square system keeps its sign (it changes only through a singular
 configuration, or on the other branch). Otherwise the step is halved; below
-:data:`MIN_STEP` the walk stops and says where and why, so that a branch the
-engine cannot follow is a stated result, never a silent jump.
+:data:`MIN_STEP`, or past a budget of the engine's solves from one sample to the
+next, the walk stops and says where and why, so that a branch the engine cannot
+follow is a stated result, never a silent jump or a walk without end.
 
 Every number here (residuals, Jacobians) comes from the engine; the native
 solver only provides the first configuration (at the reference inputs).
@@ -26,7 +27,20 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-__all__ = ["MAX_STEP", "MIN_STEP", "MAX_CORRECTION", "CORRECTION_RATIO", "PERIODIC", "Walk", "crank_period", "follow"]
+__all__ = [
+    "MAX_STEP",
+    "MIN_STEP",
+    "MAX_CORRECTION",
+    "CORRECTION_RATIO",
+    "PERIODIC",
+    "Walk",
+    "crank_period",
+    "follow",
+    "square_rows",
+    "square_sign",
+    "step_refused",
+    "tangent",
+]
 
 #: Longest step, scaled input units (rad; slides per mechanism size), as the native continuation.
 MAX_STEP = math.radians(2.0)
@@ -78,11 +92,42 @@ def crank_period(mechanism) -> float | None:
     return 2.0 * math.pi if len(drivers) == 1 and drivers[0].quantity == "angle" else None
 
 
-def _square_rows(matrix: np.ndarray) -> np.ndarray:
+def square_rows(matrix: np.ndarray) -> np.ndarray:
     """Indices of nv independent rows of the (rows, nv) system (pivoted QR of its
     transpose): the planar rows, without the structural zeros (a connect's z)."""
     _, _, pivots = scipy.linalg.qr(matrix.T, pivoting=True, mode="economic")
     return np.sort(pivots[: matrix.shape[1]])
+
+
+def tangent(matrix: np.ndarray, n_loop: int) -> np.ndarray:
+    """dq/dc, (nv, k), of a system matrix (n_loop + k, nv): the loop rows' change zero,
+    the inputs' rows the identity (least squares)."""
+    k = matrix.shape[0] - n_loop
+    rhs = np.zeros((matrix.shape[0], k))
+    rhs[n_loop:] = np.eye(k)
+    return np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+
+
+def step_refused(
+    q: np.ndarray, guess: np.ndarray, q_new: np.ndarray, sign: float, new_sign: float, coordinate_scale: np.ndarray
+) -> str:
+    """Why a converged step from ``q`` to ``q_new``, predicted at ``guess``, leaves the
+    branch ("" where it is accepted): the determinant's sign (``sign``, ``new_sign``:
+    of the square system before and after) changed, or the correction from the
+    prediction exceeds :data:`MAX_CORRECTION` or :data:`CORRECTION_RATIO` of the
+    predicted move (scaled coordinates)."""
+    predicted = float(np.max(np.abs((guess - q) * coordinate_scale)))
+    correction = float(np.max(np.abs((q_new - guess) * coordinate_scale)))
+    if new_sign != sign and sign != 0.0 and new_sign != 0.0:
+        return "the determinant of its Jacobian changes sign (a singular configuration or the other branch)"
+    if correction > min(MAX_CORRECTION, max(CORRECTION_RATIO * predicted, MIN_STEP)):
+        return f"Newton's correction stays large ({correction:.3g} scaled)"
+    return ""
+
+
+def square_sign(matrix: np.ndarray, rows: np.ndarray) -> float:
+    """The sign of the determinant of the square system: ``matrix``'s ``rows``."""
+    return float(np.linalg.slogdet(matrix[rows])[0])
 
 
 def follow(
@@ -95,6 +140,7 @@ def follow(
     input_scale: np.ndarray,
     coordinate_scale: np.ndarray,
     period: float | None = None,
+    budget: int | None = None,
 ) -> Walk:
     """Walk an engine's solver from (q0, c0) through ``inputs`` in order.
 
@@ -120,6 +166,10 @@ def follow(
         by whole turns, :data:`PERIODIC`), and then skips the remaining whole turns by
         that change, the engine's Newton closing the loops where it lands: the cost
         stays at most a turn per sample (fuzz s1-00419: 94 000 steps over 517 turns).
+    budget : int, optional
+        The most Newton calls from one sample to the next (None: no bound): where the
+        engine's solver fails systematically, accepting only ever smaller steps, the
+        walk stops there with its reason instead of creeping on.
     """
     n, nv = inputs.shape[0], q0.size
     qpos, residual = np.full((n, nv), np.nan), np.full(n, np.inf)
@@ -132,44 +182,32 @@ def follow(
             qpos, residual, iterations, steps, converged, 0, f"the start does not close the loops ({loop:.3g} m)"
         )
     matrix = system_matrix(q)
-    rows = _square_rows(matrix)
+    rows = square_rows(matrix)
     k = matrix.shape[0] - n_loop
-
-    def tangent(m: np.ndarray) -> np.ndarray:
-        rhs = np.zeros((m.shape[0], k))
-        rhs[n_loop:] = np.eye(k)
-        return np.linalg.lstsq(m, rhs, rcond=None)[0]
-
-    def orientation(m: np.ndarray) -> float:
-        return float(np.linalg.slogdet(m[rows])[0])
-
-    sign = orientation(matrix)
+    sign = square_sign(matrix, rows)
     step = MAX_STEP
-    taken, its = 0, 0
+    taken, its, calls = 0, 0, 0
 
     def walk_to(target: np.ndarray) -> str:
         """Step from (c, q) to ``target``; "" when there, else why the walk stopped."""
-        nonlocal q, c, matrix, sign, step, loop, taken, its
+        nonlocal q, c, matrix, sign, step, loop, taken, its, calls
         while True:
             distance = float(np.max(np.abs((target - c) * input_scale), initial=0.0))
             if distance == 0.0:
                 return ""
+            if budget is not None and calls >= budget:
+                where = ", ".join(f"{v:.9g}" for v in c)
+                return f"stopped at inputs ({where}): {calls} solves from the last sample did not reach the next"
             fraction = min(1.0, step / distance)
             c_next = target if fraction == 1.0 else c + (target - c) * fraction
-            guess = q + tangent(matrix) @ (c_next - c)
+            guess = q + tangent(matrix, n_loop) @ (c_next - c)
             q_new, violation, iterations_now, ok = newton(guess, c_next)
+            calls += 1
             if ok:
-                predicted = float(np.max(np.abs((guess - q) * coordinate_scale)))
-                correction = float(np.max(np.abs((q_new - guess) * coordinate_scale)))
                 new_matrix = system_matrix(q_new)
-                new_sign = orientation(new_matrix)
-                if new_sign != sign and sign != 0.0 and new_sign != 0.0:
-                    ok, why = (
-                        False,
-                        "the determinant of its Jacobian changes sign (a singular configuration or the other branch)",
-                    )
-                elif correction > min(MAX_CORRECTION, max(CORRECTION_RATIO * predicted, MIN_STEP)):
-                    ok, why = False, f"Newton's correction stays large ({correction:.3g} scaled)"
+                new_sign = square_sign(new_matrix, rows)
+                why = step_refused(q, guess, q_new, sign, new_sign, coordinate_scale)
+                ok = not why
             else:
                 why = f"Newton does not converge (loop violation {violation:.3g} m)"
             if ok:
@@ -186,7 +224,7 @@ def follow(
     turn: np.ndarray | None = None  # the change of q over one turn forward, once measured
     periodic = period is not None and k == 1
     for i, target in enumerate(inputs):
-        taken, its = 0, 0
+        taken, its, calls = 0, 0, 0
         ahead = float((target - c)[0]) if periodic else 0.0
         why = ""
         if period is not None and abs(ahead) > period:
