@@ -488,11 +488,11 @@ def test_andrews_squeezer_reaches_the_published_state():
 
 
 def test_andrews_squeezer_both_native_methods_reach_the_published_state():
-    """A03 at the file's tolerance: DOP853 and its RK4 check converge, agree within their
-    stated errors, and each reaches the published state to its precision. Measured: they
-    agree to 3.0e-12 m (4.1e-11 of the size; stated 1.7e-11 and 2.7e-11 m), and both are
-    1.36e-9 and 1.41e-9 rad from the published state (at a tolerance of 1e-11 of the size
-    too: the rest is the published value's own precision)."""
+    """A03 at the file's tolerance: DOP853 and its check (Gauss-Legendre collocation)
+    converge, agree within their stated errors, and each reaches the published state to its
+    precision. Measured: they agree to 4.6e-12 m (6.2e-11 of the size; stated 2.3e-11 and
+    5.2e-13 m), and both are 1.36e-9 and 1.43e-9 rad from the published state (at a
+    tolerance of 1e-11 of the size too: the rest is the published value's own precision)."""
     from xcheck.dynamics._free import simulate
 
     kin = Kinematics(load_mechanism(MODELS / "benchmarks" / "iftomm-a03.toml"))

@@ -485,8 +485,8 @@ def simulate_command(
         bool,
         typer.Option(
             "--check/--no-check",
-            help="Check the reference by the second native method (RK4 at halving steps) and report how closely "
-            "the two agree.",
+            help="Check the reference by the second native method (Gauss-Legendre collocation of order 8 at "
+            "halving steps) and report how closely the two agree.",
         ),
     ] = True,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
@@ -508,8 +508,9 @@ def simulate_command(
     accelerations by Gauss's principle and a projection onto the constraints
     after every step, at local tolerances a tenth of the last until two runs
     agree to the file's tolerance; their difference is the stated error. It is
-    checked by RK4 at halving steps, judged by the same rule. Singular positions
-    passed, the loop closure and the energy balance are reported.
+    checked by Gauss-Legendre collocation (order 8) at halving steps, judged by
+    the same rule. Singular positions passed, the loop closure and the energy
+    balance are reported.
 
     Exit codes: 0 when the reference met its tolerance (and, checked, the two
     methods agree within their stated errors); 1 when it did not, or they

@@ -860,8 +860,9 @@ def simulation_json(reference, result=None) -> dict:
 FREE_ERROR_RULE = (
     "per output, the largest difference so far of a body position (m) or angle (rad times the size) between "
     "the run kept and the one before it in the ladder (the previous run's error, which the finer one does not "
-    "exceed); for RK4, where the last two differences fell 16 times a halving or faster, 1.25 times the "
-    "difference over 15 there instead (Roache's grid convergence index); where they fell less than 2.25 times "
+    "exceed); for the check (Gauss-Legendre collocation, order 8), where the last two differences fell 256 "
+    "times a halving or faster, 1.25 times the difference over 255 there instead (Roache's grid convergence "
+    "index); where they fell less than 2.25 times "
     "(the runs not converging there), 1.25 times the larger of the two; at least the run's round-off (1e-13 of "
     "the size and float64's epsilon of it a step taken); plus the kept run's round-off: twice the largest "
     "difference so far from it of two more runs at its setting from starts moved 4 units in the last place; "

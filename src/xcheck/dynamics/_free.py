@@ -1017,8 +1017,8 @@ def simulate(
 ) -> FreeReference:
     """The native reference of the mechanism's ``[free_motion]`` (over ``duration``, s, a
     whole number of output steps, instead of the file's; to ``tolerance`` x the size instead
-    of the file's): DOP853's ladder from :func:`release_state`; with ``check``, RK4's ladder
-    too, compared with it (``reference.check``).
+    of the file's): DOP853's ladder from :func:`release_state`; with ``check``, the ladder of
+    Gauss-Legendre collocation (:mod:`._collocation`) too, compared with it (``reference.check``).
 
     Raises
     ------
@@ -1026,7 +1026,7 @@ def simulate(
         A duration that is not a whole number of output steps, too many outputs, a
         motion no run can follow within the work budget.
     """
-    from ._reference import compare_runs, free_duration, time_scale
+    from ._reference import compare_runs, free_duration
 
     spec = kinematics.mechanism.free_motion
     length = free_duration(kinematics, duration)
@@ -1035,20 +1035,10 @@ def simulate(
     output = min(spec.output_step, length)
     tolerance = spec.tolerance if tolerance is None else tolerance
     reference = adaptive_reference(kinematics, start, length, output, tolerance, progress=progress)
-    if check:  # RK4 at outputs a whole number of the reference's apart, about four of its first steps
-        natural = min(length / 1000.0, 0.5 * time_scale(kinematics, start)[0])
-        spacing = output * _divisor_at_most(round(length / output), max(1, int(4.0 * natural / output)))
-        second = free_reference(
-            kinematics, start, length, spacing, tolerance, first_step=min(spacing / 4.0, natural),
-            progress=progress,
-        )  # fmt: skip
-        reference.check = compare_runs(kinematics, reference, second)
+    if check:  # Gauss-Legendre collocation at the reference's outputs
+        from ._collocation import collocation_reference
+
+        reference.check = compare_runs(
+            kinematics, reference, collocation_reference(kinematics, start, length, output, tolerance, progress)
+        )
     return reference
-
-
-def _divisor_at_most(count: int, most: int) -> int:
-    """The largest divisor of ``count`` that is at most ``most`` (1 at least)."""
-    for k in range(min(count, most), 0, -1):
-        if count % k == 0:
-            return k
-    return 1

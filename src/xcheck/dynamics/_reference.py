@@ -56,6 +56,8 @@ SAFETY = 1.25
 #: projections, singularity measures and least-squares solves at their cost in evaluations
 #: (7 to 10 s of CPU, near singular positions too)
 WORK_BUDGET = 1e8
+#: the methods whose setting is a fixed step (s)
+FIXED_STEP = ("RK4", "Gauss")
 #: how far the round-off runs start from the ladder's start: this many units in the last place
 ROUND_OFF_ULPS = 4.0
 #: how many runs measure the round-off of the kept run, from starts moved in opposite patterns of signs
@@ -280,12 +282,13 @@ def _with_round_off(
 
 def _ladder_entry(method: LadderMethod, setting: float, motion: FreeMotion, status: str) -> dict:
     """The ladder's row of a run of ``method`` at ``setting``: its steps, CPU seconds and
-    ``status`` (its ``difference`` NaN until one is measured; RK4's also its step, s)."""
+    ``status`` (its ``difference`` NaN until one is measured; a fixed-step method's also its step,
+    s, the setting shortened to divide the output step)."""
     steps = (
         int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step))) if len(motion.times) else 0
     )
     entry = {"setting": setting, "steps": steps, "seconds": motion.seconds, "difference": math.nan, "status": status}
-    if method.name == "RK4":
+    if method.name in FIXED_STEP:
         entry["step"] = motion.step
     return entry
 

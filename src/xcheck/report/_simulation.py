@@ -209,7 +209,7 @@ def _reference_section(reference) -> list[str]:
 
 def _ladder_table(reference) -> str:
     """A native ladder as a table: the setting, steps, CPU, difference and the stated error."""
-    setting = "step [s]" if reference.method == "RK4" else "local tolerance"
+    setting = "local tolerance" if reference.method == "DOP853" else "step [s]"
     rows = [
         [
             _g(e["setting"], 4),
