@@ -3,8 +3,9 @@
 - IFToMM A02 (the double four-bar, ten singular passes in 10 s): the DOP853 reference at the
   file's tolerance, at 1e-11 of its 2 m size and at the goal's (1e-11 m, 5e-12 of the size),
   and at 1e-11 of the size again from the reduction's exact start (3.3e-16 from the release
-  state), its CPU time (the
-  ladder's runs, the release excluded) and its true error against the double four-bar reduced
+  state), its CPU time (the ladder's runs, the release excluded) and its true error, each
+  followed by its check's (the ladder of Gauss-Legendre collocation at the same tolerance,
+  and its agreement with the reference), against the double four-bar reduced
   to one degree of freedom, theta'' = -(3.5 / 3) g cos(theta) (mpmath's Taylor method, 30 digits);
   goal: at most 1e-11 m in at most 1 CPU s.
 - iftomm-a02-n40 (81 bars, 243 coordinates) over its file's 20 s: the release's CPU time (the
@@ -175,9 +176,12 @@ def _released(name: str, goal: str):
     return kin, start, spec, size, cranks
 
 
-def run(name: str, k: float, tolerances: list[float | None], goal: str, exact_start: float | None = None) -> None:
+def run(
+    name: str, k: float, tolerances: list[float | None], goal: str, exact_start: float | None = None, check=False
+) -> None:
     """The reference's ladder at each tolerance (None: the file's); with ``exact_start``, at
-    that tolerance once more from the reduction's start rounded to float64 (A02 only)."""
+    that tolerance once more from the reduction's start rounded to float64 (A02 only); with
+    ``check``, the check's ladder after each (:func:`_check`)."""
     from xcheck.dynamics._free import FreeState
 
     kin, start, spec, size, cranks = _released(name, goal)
@@ -203,6 +207,27 @@ def run(name: str, k: float, tolerances: list[float | None], goal: str, exact_st
         )
         if not reference.converged:
             print(f"    {reference.basis.rsplit('; stopped: ', 1)[-1]}")
+        if check:
+            _check(kin, start, spec, reference, theta, cranks, size)
+
+
+def _check(kin, start, spec, reference, theta, cranks, size) -> None:
+    """The check's ladder (Gauss-Legendre collocation) at the reference's tolerance: its CPU
+    time, stated and true error, and its agreement with the reference."""
+    from xcheck.dynamics._collocation import collocation_reference
+    from xcheck.dynamics._reference import compare_runs
+
+    begin = time.process_time()
+    check = collocation_reference(kin, start, spec.duration, spec.output_step, reference.tolerance)
+    cpu = time.process_time() - begin
+    off = np.maximum.accumulate(np.abs(check.motion.q[:, cranks] - theta[:, None]).max(axis=1)) * size
+    agreement = compare_runs(kin, reference, check)
+    print(
+        f"    check (Gauss-Legendre collocation): {'converged' if check.converged else 'NOT converged'}, {cpu:.2f} "
+        f"CPU s over {len(check.ladder)} runs; stated {check.estimate.max():.3g} m, true {off.max():.3g} m, true / "
+        f"stated at most {(off / check.estimate).max():.2g}; agrees with DOP853 to {agreement.agreement.max():.3g} "
+        f"m ({agreement.relative:.2g} of the size)"
+    )
 
 
 def runs(name: str, k: float, tolerances: list[float], goal: str) -> None:
@@ -301,7 +326,7 @@ def starts(count: int = 40) -> None:
 if __name__ == "__main__":
     which = sys.argv[1:] or ["a02", "n40"]
     if "a02" in which:
-        run("iftomm-a02", 3.5 / 3.0, [None, 1e-11, 5e-12], "<= 1e-11 m true error in <= 1 CPU s", 1e-11)
+        run("iftomm-a02", 3.5 / 3.0, [None, 1e-11, 5e-12], "<= 1e-11 m true error in <= 1 CPU s", 1e-11, check=True)
     if "n40" in which:
         k = (41 / 2 + 40) / (41 / 3 + 40)
         goal = "converged to 1e-9 of the size in <= 60 CPU s"
