@@ -51,7 +51,7 @@ def engine_version(engine) -> str:
 
 
 #: the quantity categories a finding may name, as ``xcheck engines`` shows them
-_CATEGORY_WORDS = {"omega": "angular velocity", "alpha": "angular acceleration"}
+_CATEGORY_WORDS = {"omega": "angular velocity", "alpha": "angular acceleration", "failure": "runs fail"}
 
 
 def print_engines(console: Console, rows: list[dict]) -> None:
@@ -64,8 +64,11 @@ def print_engines(console: Console, rows: list[dict]) -> None:
         version = row["version"] if row["available"] else "[red]not installed[/red]"
         for k, mode in enumerate(row["modes"]):
             findings = ", ".join(_CATEGORY_WORDS.get(c, c) for c in mode["findings"]) or "—"
-            loops = [f["closed_loops"] for f in row.get("findings", ()) if mode["kind"] in f["kinds"]]
-            findings += " (closed loops)" if loops and all(loops) else ""
+            held = [f for f in row.get("findings", ()) if mode["kind"] in f["kinds"]]
+            steps = [f["steps_below"] for f in held if f.get("steps_below") is not None]
+            where = ["closed loops"] if held and all(f["closed_loops"] for f in held) else []
+            where += [f"steps < {max(steps):g} s"] if held and len(steps) == len(held) else []
+            findings += f" ({'; '.join(where)})" if where else ""
             kind = mode["kind"] + (" (on request)" if mode["on_request"] else "")
             table.add_row(
                 escape(row["name"]) if k == 0 else "",
