@@ -3,7 +3,7 @@ modes of one mechanism (``run <name> --jobs``) at once.
 
 Workers are never forked from the process that runs the engines: an engine
 such as JAX holds threads that a forked child would inherit in an unknown
-state. The ``xcheck`` command forks its workers from a fork server, a process
+state. On Linux the ``xcheck`` command forks its workers from a fork server, a process
 started for them that imports only Python, NumPy, pandas and xcheck (what every
 worker needs), so that a worker costs no start of its own; a program that calls
 xcheck (a script, a notebook, the tests) has them started afresh ("spawn"), as
@@ -196,9 +196,10 @@ def _new_pool(jobs: int, preload: tuple[str, ...] = ()) -> Pool:
 
 def _context(modules: tuple[str, ...]):
     """How worker processes start: forked from a fork server where this process is the
-    ``xcheck`` command and the platform has one, the server importing the command line
-    and ``modules`` when it starts (the first call decides them); else spawned afresh."""
-    if not _the_command() or "forkserver" not in multiprocessing.get_all_start_methods():
+    ``xcheck`` command on Linux, the server importing the command line and ``modules``
+    when it starts (the first call decides them); else spawned afresh (on macOS a fork
+    of a process that has loaded NumPy's BLAS, Accelerate, is not safe to use it)."""
+    if not _the_command() or not sys.platform.startswith("linux"):
         return multiprocessing.get_context("spawn")
     context = multiprocessing.get_context("forkserver")
     # the command line: each child imports the main module (a console script, which the server's
