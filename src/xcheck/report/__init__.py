@@ -24,7 +24,6 @@ any figure that shows them (:func:`._evidence.merge`).
 from __future__ import annotations
 
 import contextlib
-import gc
 import json
 import os
 import shutil
@@ -159,26 +158,13 @@ def _figure(function: str, run: RunResult, identity: str | None = None) -> bytes
     figure cache where the run has an ``identity`` (:func:`xcheck.result_cache.run_identity`)."""
     from . import _figures
 
-    with _old_objects_frozen():
+    with _figures.old_objects_frozen():
         data = getattr(_figures, function)(run)
     if identity is not None:
         from ..result_cache import keep_figure
 
         keep_figure(identity, function, data)
     return data
-
-
-@contextlib.contextmanager
-def _old_objects_frozen() -> Iterator[None]:
-    """Leave the objects alive now out of the garbage collector's passes for the
-    block (:func:`gc.freeze`): a figure makes and drops thousands of matplotlib
-    objects, which start full collections that would otherwise traverse every
-    object the process holds (the run, the modules of the engines) each time."""
-    gc.freeze()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
 
 
 def _drawn(functions: list[str], run: RunResult, identity: str | None) -> dict[str, bytes | None]:

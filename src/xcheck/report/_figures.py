@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import io
 import math
 import textwrap
+from collections.abc import Iterator
 
 import matplotlib
 import matplotlib.collections
@@ -24,7 +27,16 @@ from ..results import native_at  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
 from ..tolerances import convergence_round_off  # noqa: E402
 
-__all__ = ["drawing", "motion_gif", "quantities", "error_plots", "convergence_plot", "forces_plot", "tracked"]
+__all__ = [
+    "drawing",
+    "motion_gif",
+    "quantities",
+    "error_plots",
+    "convergence_plot",
+    "forces_plot",
+    "tracked",
+    "old_objects_frozen",
+]
 
 _NATIVE_STYLE = dict(color="black", lw=1.6, ls="-")
 
@@ -42,6 +54,19 @@ def _line_style(mode: str) -> dict:
 
 def _is_dynamic(mode: str) -> bool:
     return mode != "native" and engines.mode(mode).kind == "dynamic"
+
+
+@contextlib.contextmanager
+def old_objects_frozen() -> Iterator[None]:
+    """Leave the objects alive now out of the garbage collector's passes for the
+    block (:func:`gc.freeze`): a figure makes and drops thousands of matplotlib
+    objects, which start full collections that would otherwise traverse every
+    object the process holds (the run, the modules of the engines) each time."""
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _png(figure, dpi: int = 90, **options) -> bytes:

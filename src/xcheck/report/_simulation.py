@@ -49,7 +49,8 @@ def figures(result: SimulationResult, keys=None) -> dict[str, bytes]:
     drawers = {"drawing": _drawing, "energy": _energy, "errors": _errors, "work-precision": _work_precision}
     out = {}
     for key in drawers if keys is None else keys:
-        figure = drawers[key](result)
+        with _figures.old_objects_frozen():
+            figure = drawers[key](result)
         if figure is not None:
             out[key] = figure
     return out
