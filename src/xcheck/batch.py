@@ -300,18 +300,21 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     return [outcomes[i] for i in range(len(names))]
 
 
+#: the module of the reports' figures (with matplotlib: about 0.3 CPU s to import)
+_FIGURES = "xcheck.report._figures"
+
+
 def _import_figures() -> None:
-    """Import the reports' figures (matplotlib: about 0.3 CPU s) while the workers run the
-    modes, instead of after them."""
+    """Import the reports' figures while the workers run the modes, instead of after them."""
     import importlib
 
-    importlib.import_module("xcheck.report._figures")
+    importlib.import_module(_FIGURES)
 
 
 def _figures(settings: RunSettings) -> tuple[str, ...]:
-    """The module of the reports' figures where a worker process will draw some (with
-    reports: matplotlib's import, about 0.3 CPU s), else none (:func:`xcheck._parallel.process_pool`)."""
-    return ("xcheck.report._figures",) if settings.report else ()
+    """The reports' figures module where a worker process will draw some (with reports),
+    else none: what a fork server imports ahead (:func:`xcheck._parallel.process_pool`)."""
+    return (_FIGURES,) if settings.report else ()
 
 
 def _all_cached(model: str, settings: RunSettings) -> bool | None:
