@@ -143,7 +143,7 @@ def test_reactions_beyond_their_bound_are_a_finding_only_in_the_quantities_it_sp
     assert forces["relative"] > 1e-6 and forces["verdict"] == "finding"
     assert forces["finding"] == "the toy's efforts are 1 % high"
     report = (tmp_path / "fourbar-dynamics.md").read_text(encoding="utf-8")
-    assert "Result: **pass with findings**" in report and "stated findings of `high-effort`" in report
+    assert "Result: **pass with findings**" in report and "stated findings of `high-effort-forces`" in report
     assert "`high-effort` fails only where its engine is known to be wrong: the toy's efforts are 1 % high" in report
     table = _run(MODELS / "fourbar-dynamics.toml", "high-effort", "--no-report")
     assert "high-effort reactions: the engine's stated finding: the toy's efforts" in " ".join(table.stdout.split())

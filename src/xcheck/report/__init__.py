@@ -48,7 +48,16 @@ from ..fileio import (
 )
 from ..runner import RunResult
 from ._evidence import Evidence, merge, produced, read_evidence
-from ._markdown import index_markdown, mode_parts, passed, report_markdown, source_parts, textbook_text, worst_text
+from ._markdown import (
+    finding_names,
+    index_markdown,
+    mode_parts,
+    passed,
+    report_markdown,
+    source_parts,
+    textbook_text,
+    worst_text,
+)
 
 __all__ = [
     "write_report",
@@ -238,7 +247,7 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         "name": name,
         "title": run.mechanism.title,
         "passed": passed(run, evidence),
-        "findings": [m for m, p in (*evidence.modes.items(), *evidence.sources.items()) if p.get("finding")],
+        "findings": finding_names(evidence),
         "worst": worst_text(evidence),
         "textbook": textbook_text(run),
         "command": command,

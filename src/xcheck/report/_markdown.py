@@ -479,13 +479,20 @@ def passed(run: RunResult, evidence: Evidence) -> bool:
     return report_verdict(run, evidence) != "fail"
 
 
+def finding_names(evidence: Evidence) -> list[str]:
+    """The modes, and the force sources (``ENGINE-forces``), that fail only in their
+    engines' stated findings, as :attr:`xcheck.runner.RunResult.findings` names them."""
+    modes = [mode for mode, part in evidence.modes.items() if part.get("finding")]
+    return modes + [f"{source}-forces" for source, part in evidence.sources.items() if part.get("finding")]
+
+
 def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], command: str) -> str:
     """The report of one mechanism: ``run``'s native solution and the parts of
     ``evidence`` (the run's, and those kept from earlier runs, marked);
     ``images`` maps figure keys to paths relative to the report."""
     mech = run.mechanism
     marks, provenance = _provenance(evidence)
-    findings = [m for m, p in (*evidence.modes.items(), *evidence.sources.items()) if p.get("finding")]
+    findings = finding_names(evidence)
     verdict = {
         "pass": "**pass** (every mode within its tolerance)",
         "pass with findings": "**pass with findings** (every mode within its tolerance but the stated findings of "
