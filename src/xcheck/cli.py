@@ -507,10 +507,9 @@ def simulate_command(
     The native reference: DOP853 (order 8, error control, dense output) with
     accelerations by Gauss's principle and a projection onto the constraints
     after every step, at local tolerances a tenth of the last until two runs
-    agree to the file's tolerance; their difference is the stated error. It is
-    checked by Gauss-Legendre collocation (order 8) at halving steps, judged by
-    the same rule. Singular positions passed, the loop closure and the energy
-    balance are reported.
+    agree to the file's tolerance; their difference plus the measured round-off
+    is the stated error, checked by Gauss-Legendre collocation (order 8, halving
+    steps). Singular passes, loop closure and the energy balance are reported.
 
     Exit codes: 0 when the reference met its tolerance (and, checked, the two
     methods agree within their stated errors); 1 when it did not, or they
