@@ -245,3 +245,20 @@ def test_work_meanwhile_is_done_once_after_the_reactions(monkeypatch):
         kinematics, ("native", "formulation-I"), 11, meanwhile=lambda: events.append("meanwhile")
     )
     assert events == ["reactions", "meanwhile"] and run.outcomes["formulation-I"].ok
+
+
+def test_no_work_meanwhile_where_every_mode_comes_from_the_cache(monkeypatch, tmp_path):
+    """With every mode's outcome in the results cache nothing is computed, so there is
+    no wait for ``meanwhile`` to fill (a warm run's report would import matplotlib for
+    nothing)."""
+    from xcheck import load, runner
+    from xcheck.store import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    kinematics = load(MODELS / "slider-crank.toml").kinematics
+    calls = []
+    with results_cache_on():
+        for _ in range(2):
+            run = runner.run_mechanism(kinematics, ("native", "formulation-I"), 11, meanwhile=lambda: calls.append(1))
+            assert run.outcomes["formulation-I"].ok
+    assert calls == [1] and run.provenance["formulation-I"].from_cache

@@ -823,9 +823,10 @@ def run_mechanism(
         (:mod:`xcheck.result_cache`; also off where ``$XCHECK_RESULTS_CACHE`` or
         ``$XCHECK_CACHE_DIR`` is ``off``). The outcomes are the same either way.
     meanwhile : callable, optional
-        Called once, after the reactions: where worker processes run the modes, while
-        this process waits for them. Work of this process that needs none of the
-        modes' results, such as a report's imports.
+        Called once, after the reactions, where a mode is computed (not every one taken
+        from the results cache): where worker processes run the modes, while this
+        process waits for them. Work of this process that needs none of the modes'
+        results, such as a report's imports.
     """
     from . import result_cache
 
@@ -877,7 +878,7 @@ def run_mechanism(
             if mode in runnable:
                 ran[mode] = _run_or_not_applicable(mode, *arguments)
         _add_forces(run, modes, branch, progress, cache)
-        if meanwhile is not None:
+        if meanwhile is not None and runnable:  # with every mode cached there is no wait to fill
             meanwhile()
     for mode in runnable if cache else ():  # what ran through, or does not apply: a failure may be the machine's
         if isinstance(ran[mode], NotApplicable) or ran[mode].ok:
