@@ -66,3 +66,24 @@ def test_run_all_ends_with_its_totals(tmp_path):
         r"3 mechanisms \(2 pass, 1 not run: bad input\); modes: 6 of 6 passed, 0 stated findings, 0 failed; \d+ s",
         totals,
     ), totals
+
+
+def test_a_mode_whose_convergence_cannot_be_observed_shows_no_tolerance_not_nan(tmp_path):
+    """Pinocchio's driven run through the dead centre of tests/data/near-dead-centre.toml
+    goes through at its finest step only, so no order, hence no tolerance, can be
+    observed (the JSON's tolerance is null): the table and the report show none, the
+    failure line says why, instead of printing NaN as if it were a number, and the
+    report is written (it had failed on the missing tolerances)."""
+    result = CliRunner().invoke(
+        app,
+        ["run", "tests/data/near-dead-centre.toml", "--engines", "native,pinocchio-dynamic", "--out", str(tmp_path)],
+        env=WIDE,
+    )
+    assert result.exit_code == 1, result.output
+    assert not re.search(r"\bnan\b", result.output, re.IGNORECASE)
+    row = next(line for line in result.output.splitlines() if line.startswith("pinocchio-dynamic "))
+    assert row.split()[1] == "FAIL" and all(cell.endswith("/—") for cell in row.split()[2:])
+    assert "position 6.28e-03 with no tolerance (no coarser run of the same settings ran through" in result.output
+    report = (tmp_path / "near-dead-centre.md").read_text(encoding="utf-8")
+    row = next(line for line in report.splitlines() if line.startswith("| `pinocchio-dynamic` | **FAIL**"))
+    assert row.count("/ — ✗") == 6 and not re.search(r"\bnan\b", report, re.IGNORECASE)

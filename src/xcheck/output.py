@@ -729,10 +729,12 @@ def print_run(console: Console, run) -> None:
                 cells.append("—")
                 continue
             style = "green" if r.passed else "yellow" if outcome.finding else "red"
-            cells.append(f"[{style}]{r.relative:.1e}[/{style}]/{r.tolerance:.2g}")
+            judged = math.isfinite(r.tolerance)  # none where the mode's convergence could not be observed
+            cells.append(f"[{style}]{r.relative:.1e}[/{style}]/" + (f"{r.tolerance:.2g}" if judged else "—"))
             if not r.passed:
+                against = f"> {r.tolerance:.2g}" if judged else f"with no tolerance ({escape(str(r.basis))})"
                 failures.append(
-                    f"[{style}]{mode}: {c} {r.relative:.2e} > {r.tolerance:.2g} at {r.worst}, "
+                    f"[{style}]{mode}: {c} {r.relative:.2e} {against} at {r.worst}, "
                     f"{driver.name} = {r.worst_input / scale:.4g} {unit}[/{style}]"
                 )
         if outcome.finding:

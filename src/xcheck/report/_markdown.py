@@ -70,12 +70,6 @@ def _category_round_off(outcome, category: str) -> float:
     return max((_round_off(r) for r in table.itertuples() if r.category == category), default=0.0)
 
 
-def _above_round_off(table) -> list[str]:
-    """The categories of a mode's table whose difference is above its round-off
-    bound: only there does the worst sample say where the mode differs."""
-    return [str(r.category) for r in table.itertuples() if not r.relative < _round_off(r)]
-
-
 def _table(headers: list[str], rows: list[list[str]], align: str | None = None) -> str:
     align = align or "l" * len(headers)
     marks = {"l": "---", "r": "---:", "c": ":---:"}
@@ -104,10 +98,9 @@ def _mode_row(run: RunResult, outcome) -> list[str]:
         cells.append(f"{shown(row.relative, _round_off(row))} / {_g(row.tolerance, 2)}{mark}")
     worst = ""
     if table is not None:
-        measured = _above_round_off(outcome.categories)
-        if measured:
-            ratios = (table.relative / table.tolerance)[measured]
-            c = str(ratios.idxmax())
+        largest = _worst(outcome)  # a category with no tolerance (its order not observed) counts as the worst
+        if largest is not None:
+            c = largest["category"]
             x = float(table.at[c, "worst_input"])
             worst = f"{c}: {table.at[c, 'worst']!s} at {run.mechanism.drivers[0].name} = {_input_text(run, x)}"
         else:
