@@ -38,7 +38,7 @@ from numba import njit
 
 from .._numba import run_compiled
 from ._adaptive import _crossing_ahead, _rates
-from ._free import PROJECTION_ITERATIONS, SINGULAR_THRESHOLD
+from ._free import PROJECTION_ITERATIONS, SINGULAR_THRESHOLD, HalvingSteps
 from ._free_compiled import NO, _energy_of, _internal, _project
 
 __all__ = ["STAGES", "CollocationLadder", "collocation_reference", "simulate_collocation", "tableau"]
@@ -134,20 +134,13 @@ def simulate_collocation(kinematics, start, duration: float, output_step: float,
     )
 
 
-class CollocationLadder:
-    """Gauss-Legendre collocation (:func:`simulate_collocation`) at steps halved from
-    ``first_step`` (s): at most ``max_halvings`` + 1 runs; its error falls 2^(2 x
-    :data:`STAGES`) times a halving (its order)."""
+class CollocationLadder(HalvingSteps):
+    """Gauss-Legendre collocation (:func:`simulate_collocation`) at halving steps
+    (:class:`._free.HalvingSteps`); its error falls 2^(2 x :data:`STAGES`) times a halving
+    (its order)."""
 
     name = "Gauss"
     nominal: float | None = 2.0 ** (2 * STAGES)
-
-    def __init__(self, kinematics, start, duration, output_step, first_step, max_halvings):
-        self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
-        self.first, self.halvings = first_step, max(int(max_halvings), 1)
-
-    def settings(self) -> list[float]:
-        return [self.first / 2.0**k for k in range(self.halvings + 1)]
 
     def run(self, setting: float, evaluations: float, start=None):
         start = self.start if start is None else start
@@ -167,9 +160,6 @@ class CollocationLadder:
             "iteration) at a fixed step on the index-1 equations, positions and velocities projected onto the "
             f"constraints after every step; steps halved from {self.first:.4g} s, at most {self.halvings + 1} runs"
         )
-
-    def cost(self) -> str:
-        return f"steps of {self.first:.3g} s over {self.duration:g} s"
 
 
 def collocation_reference(kinematics, start, duration: float, output_step: float, tolerance: float, progress=None):

@@ -120,7 +120,8 @@ class FreeMotion:
     seconds : float
         CPU time of the integration, s.
     method : str
-        "RK4" (:func:`simulate_free`) or "DOP853" (:mod:`._partitioned`).
+        "RK4" (:func:`simulate_free`), "DOP853" (:mod:`._adaptive`) or "Gauss"
+        (:mod:`._collocation`).
     failure : str
         "" or why the run stopped early (its outputs are then those reached).
     statistics : dict
@@ -195,12 +196,12 @@ class FreeReference:
     converged : bool
         relative <= ``tolerance``, the requested accuracy (relative to the size).
     ladder : list of dict
-        Per run: setting (RK4: the step, s; DOP853: the local tolerance), steps,
+        Per run: setting (a fixed-step method's step, s; DOP853's local tolerance), steps,
         seconds (CPU), difference from the previous run that went through (m),
         status ("ok" or why it failed), and, from the second run on, error (its
-        stated error, m) and rule (how it was obtained); RK4's also step (s).
+        stated error, m) and rule (how it was obtained); a fixed-step method's also step (s).
     method : str
-        "DOP853" or "RK4".
+        "DOP853", "RK4" or "Gauss".
     basis : str
         The ladder and how it stopped, in words.
     check : FreeCheck or None
@@ -812,19 +813,34 @@ def consistent_state(kinematics: Kinematics, q: np.ndarray, qd: np.ndarray) -> F
     return FreeState(q, qd)
 
 
-class StepLadder:
-    """RK4 (:func:`simulate_free`) at halving steps from ``first_step`` (s): at most
-    ``max_halvings`` + 1 runs; its error falls 16 times a halving (order 4)."""
+class HalvingSteps:
+    """The settings of a fixed-step method's ladder: steps halved from ``first_step`` (s), at
+    most ``max_halvings`` + 1 runs (of :class:`StepLadder` and
+    :class:`._collocation.CollocationLadder`)."""
+
+    fixed_step = True
+
+    def __init__(self, kinematics, start, duration, output_step, first_step, max_halvings):
+        self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
+        self.first, self.halvings = first_step, max(int(max_halvings), 1)
+
+    def settings(self) -> list[float]:
+        return [self.first / 2.0**k for k in range(self.halvings + 1)]
+
+    def cost(self) -> str:
+        return f"steps of {self.first:.3g} s over {self.duration:g} s"
+
+
+class StepLadder(HalvingSteps):
+    """RK4 (:func:`simulate_free`) at halving steps (:class:`HalvingSteps`); its error falls
+    16 times a halving (order 4)."""
 
     name = "RK4"
     nominal: float | None = 16.0
 
     def __init__(self, kinematics, start, duration, output_step, first_step, max_halvings, compiled=True):
-        self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step
-        self.first, self.halvings, self.compiled = first_step, max(int(max_halvings), 1), compiled
-
-    def settings(self) -> list[float]:
-        return [self.first / 2.0**k for k in range(self.halvings + 1)]
+        super().__init__(kinematics, start, duration, output_step, first_step, max_halvings)
+        self.compiled = compiled
 
     def run(self, setting: float, evaluations: float, start: FreeState | None = None) -> FreeMotion:
         start = self.start if start is None else start
@@ -842,9 +858,6 @@ class StepLadder:
             f"at most {self.halvings + 1} runs"
         )
 
-    def cost(self) -> str:
-        return f"steps of {self.first:.3g} s over {self.duration:g} s"
-
 
 class ToleranceLadder:
     """DOP853 (:mod:`._adaptive`) at local tolerances divided by ten from ``first`` down to
@@ -852,6 +865,7 @@ class ToleranceLadder:
 
     name = "DOP853"
     nominal: float | None = None
+    fixed_step = False
 
     def __init__(self, kinematics, start, duration, output_step, first, time_scale, source=""):
         self.kinematics, self.start, self.duration, self.output_step = kinematics, start, duration, output_step

@@ -56,8 +56,6 @@ SAFETY = 1.25
 #: projections, singularity measures and least-squares solves at their cost in evaluations
 #: (7 to 10 s of CPU, near singular positions too)
 WORK_BUDGET = 1e8
-#: the methods whose setting is a fixed step (s)
-FIXED_STEP = ("RK4", "Gauss")
 #: how far the round-off runs start from the ladder's start: this many units in the last place
 ROUND_OFF_ULPS = 4.0
 #: how many runs measure the round-off of the kept run, from starts moved in opposite patterns of signs
@@ -77,13 +75,15 @@ MAX_OUTPUT_VALUES = 2e7
 
 class LadderMethod(Protocol):
     """What a ladder needs of a method: its name, the rate its error nominally falls by from
-    one setting to the next (None: none), its settings (coarsest first), a run at a setting
-    within a number of evaluations, the evaluations a setting would cost (given the last run
-    that went through, or None), a line describing the ladder and a few words on what sets
-    its first runs' cost."""
+    one setting to the next (None: none), whether a setting is a fixed step (s; the ladder's
+    rows then also give the step a run took), its start, its settings (coarsest first), a run
+    at a setting within a number of evaluations (from its start, or another), the
+    evaluations a setting would cost (given the last run that went through, or None), a
+    line describing the ladder and a few words on what sets its first runs' cost."""
 
     name: str
     nominal: float | None
+    fixed_step: bool
     start: FreeState
 
     def settings(self) -> Sequence[float]: ...
@@ -288,7 +288,7 @@ def _ladder_entry(method: LadderMethod, setting: float, motion: FreeMotion, stat
         int(motion.statistics.get("steps", round(float(motion.times[-1]) / motion.step))) if len(motion.times) else 0
     )
     entry = {"setting": setting, "steps": steps, "seconds": motion.seconds, "difference": math.nan, "status": status}
-    if method.name in FIXED_STEP:
+    if method.fixed_step:
         entry["step"] = motion.step
     return entry
 
