@@ -42,6 +42,7 @@ __all__ = [
     "submit",
     "collect",
     "run_as_command",
+    "import_all",
     "exit_at_once",
     "nothing_left_running",
     "WORKER_DIED",
@@ -161,10 +162,12 @@ def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",), prel
             forkserver.ensure_running()
         return
     for _ in range(jobs):
-        pool.submit(_import_all, modules)
+        pool.submit(import_all, modules)
 
 
-def _import_all(modules: tuple[str, ...]) -> None:
+def import_all(modules: tuple[str, ...]) -> None:
+    """Import each of ``modules`` (names), in this process: a worker's warm-up, or
+    work to fill a wait."""
     for module in modules:
         importlib.import_module(module)
 
@@ -204,7 +207,7 @@ def _context(modules: tuple[str, ...]):
     context = multiprocessing.get_context("forkserver")
     # the command line: each child imports the main module (a console script, which the server's
     # own preload of "__main__" leaves out), finding it imported
-    context.set_forkserver_preload(["xcheck.cli", *modules])  # no effect once the server runs
+    context.set_forkserver_preload(list(dict.fromkeys(["xcheck.cli", *modules])))  # no effect once the server runs
     return context
 
 

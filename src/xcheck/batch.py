@@ -9,6 +9,7 @@ and prints.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -167,6 +168,7 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
     processes, and, if the settings say so, its report. Returns (the run or
     None, (reports directory, file, index entry) or None, failure lines).
     ``step(label, stage)`` is told of each stage (left out in a worker process)."""
+    from ._parallel import import_all
     from .api import printed_answers
     from .runner import run_mechanism
 
@@ -190,7 +192,7 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
         textbook, _ = printed_answers(kin, s.comparisons)
         run = run_mechanism(
             kin, s.modes, s.samples, s.branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs,
-            cache=s.use_cache, meanwhile=_import_figures if s.report else None,
+            cache=s.use_cache, meanwhile=functools.partial(import_all, _figures(settings)) if s.report else None,
         )  # fmt: skip
         if s.use_cache:
             cache.store(kin)
@@ -300,15 +302,9 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     return [outcomes[i] for i in range(len(names))]
 
 
-#: the module of the reports' figures (with matplotlib: about 0.3 CPU s to import)
+#: the module of the reports' figures (with matplotlib: about 0.3 CPU s to import), imported while
+#: the workers run the modes (:func:`run_model`'s ``meanwhile``) instead of after them
 _FIGURES = "xcheck.report._figures"
-
-
-def _import_figures() -> None:
-    """Import the reports' figures while the workers run the modes, instead of after them."""
-    import importlib
-
-    importlib.import_module(_FIGURES)
 
 
 def _figures(settings: RunSettings) -> tuple[str, ...]:
