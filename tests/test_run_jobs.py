@@ -122,6 +122,8 @@ def test_a_mechanisms_modes_in_worker_processes_equal_the_serial_run(tmp_path):
 
 _TWIN_PLUG_IN = """
 import dataclasses
+import multiprocessing
+import os
 from xcheck import engines
 
 
@@ -130,6 +132,14 @@ class Twin(engines.Engine):
     modes = tuple(
         dataclasses.replace(engines.mode("formulation-I"), name=f"twin-{k}", cost=5.0) for k in (1, 2)
     )
+    force_tolerance = 1e-9
+
+    def inverse_dynamics(self, kinematics, branch=None, **options):
+        from xcheck.dynamics import newton_euler, window_states
+
+        with open(os.environ["TWIN_LOG"], "a") as log:  # which process computes the reactions
+            log.write("worker\\n" if multiprocessing.parent_process() else "command\\n")
+        return newton_euler(window_states(kinematics, branch))
 
     def run(self, mode, kinematics, *, native, samples, branch=None):
         result = engines.engine("formulations").run(
@@ -143,7 +153,9 @@ def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tm
     """The ``xcheck`` command forks its workers from a fork server (a program calling
     the API spawns them): its JSON with two workers equals its serial run's but for the
     timings. Two modes of an installed plug-in, each formulation I's solution and
-    declared costly, so that the run sends them to workers."""
+    declared costly, so that the run sends them to workers; its reactions (the native
+    per-body form's) are computed by the worker that runs its costlier mode, not by the
+    command, with two workers."""
     import subprocess
 
     from conftest import ROOT, install_plug_in
@@ -151,18 +163,23 @@ def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tm
     site = tmp_path / "site"
     site.mkdir()
     install_plug_in(site, "xcheck_twin_test", _TWIN_PLUG_IN, "[xcheck.engines]\ntwin = xcheck_twin_test:Twin\n")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")])}
+    log = tmp_path / "reactions.log"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(ROOT / "src")]), "TWIN_LOG": str(log)}
     command = [sys.executable, "-m", "xcheck", "run", "slider-crank", "--models", str(MODELS), "--engines"]
     command += ["twin", "--samples", "11", "--json"]
-    documents = []
+    documents, computed_by = [], []
     for jobs in ("2", "1"):
         done = subprocess.run([*command, "--jobs", jobs], capture_output=True, text=True, timeout=300, env=env)
         assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
         document = json.loads(done.stdout)
         del document["timings"]
         documents.append(document)
+        computed_by.append(log.read_text().split())
+        log.unlink()
     assert list(documents[0]["engines"]) == ["native", "twin-1", "twin-2"]
+    assert documents[0]["forces"]["twin"]["pass"] is True
     assert documents[0] == documents[1]
+    assert computed_by == [["worker"], ["command"]]
 
 
 def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):

@@ -823,10 +823,11 @@ def run_mechanism(
         (:mod:`xcheck.result_cache`; also off where ``$XCHECK_RESULTS_CACHE`` or
         ``$XCHECK_CACHE_DIR`` is ``off``). The outcomes are the same either way.
     meanwhile : callable, optional
-        Called once, after the reactions, where a mode is computed (not every one taken
-        from the results cache): where worker processes run the modes, while this
-        process waits for them. Work of this process that needs none of the modes'
-        results, such as a report's imports.
+        Called once where a mode is computed (not every one taken from the results
+        cache): after the reactions in a serial run; where worker processes run the
+        modes (and the reactions of their engines), after this process's share of the
+        reactions, while it waits for them. Work of this process that needs none of the
+        modes' results, such as a report's imports.
     """
     from . import result_cache
 
@@ -931,21 +932,36 @@ def _run_modes_in_parallel(
     meanwhile: Callable[[], object] | None = None,
 ) -> dict:
     """Each of the ``runnable`` modes in a pool of ``jobs`` worker processes, the
-    costliest first (:attr:`xcheck.engines.Mode.cost`), while this process
-    computes the reactions and the power balance (:func:`_add_forces`), then
-    runs the modes of engines registered at run time, which a worker does not
-    know (:func:`xcheck._parallel.known_to_workers`), then ``meanwhile``. Returns mode name to
-    its :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an
-    engine's crash) is that mode's failure, with the reason."""
+    costliest first (:attr:`xcheck.engines.Mode.cost`), each engine's reactions
+    computed after its costliest mode there, by the worker that has loaded the engine
+    (:func:`_run_with_forces`); meanwhile this process computes the native reactions,
+    the power balance and the reactions of the engines none of whose modes a worker
+    runs, then runs the modes of engines registered at run time, which a worker does not
+    know (:func:`xcheck._parallel.known_to_workers`), then ``meanwhile``, and at last
+    judges the reactions (:func:`_add_forces`). Returns mode name to its
+    :class:`ModeOutcome` or :class:`NotApplicable`. A worker that dies (an engine's
+    crash) is that mode's failure, with the reason, and its reactions' too."""
     from ._parallel import collect, known_to_workers, process_pool, submit
 
     branch = arguments[3]  # (kinematics, native, samples, branch, floors)
     here = [mode for mode in runnable if not known_to_workers(mode)]
     away = costliest_first(mode for mode in runnable if mode not in here)
-    calls = {mode: (_run_or_not_applicable, (mode, *arguments)) for mode in away}
+    sources = _forces_wanted(run, modes, progress, cache)
+    with_forces = {}  # mode to the force source computed after it
+    for source in sources[1:]:  # newton-euler, the first, is this process's
+        mode = next((m for m in away if engines.engine_of(m).name == source), None)
+        if mode is not None:
+            with_forces[mode] = source
+    calls = {
+        mode: (_run_with_forces, (mode, with_forces[mode], *arguments))
+        if mode in with_forces
+        else (_run_or_not_applicable, (mode, *arguments))
+        for mode in away
+    }
     with process_pool(max(1, min(jobs, len(away)))) as pool:
         futures = submit(pool, calls)
-        _add_forces(run, modes, branch, progress, cache)
+        forces = _NativeForces(run, branch) if sources else None
+        computed = {s: engine_forces(run.kinematics, s, branch) for s in sources if s not in with_forces.values()}
         ran = {}
         for mode in here:
             if progress is not None:
@@ -954,7 +970,22 @@ def _run_modes_in_parallel(
         if meanwhile is not None:
             meanwhile()
         ran.update(collect(futures, lambda mode, why: ModeOutcome(mode, False, why), progress, calls, jobs))
+    for mode, source in with_forces.items():
+        if isinstance(ran[mode], tuple):
+            ran[mode], computed[source] = ran[mode]
+        else:  # its worker died: the mode failed, and the reactions after it were not computed
+            computed[source] = ForceResult(source, run.mechanism.name, False, ran[mode].reason)
+    if forces is not None:
+        forces.judge([computed[s] for s in sources], cache)
     return ran
+
+
+def _run_with_forces(mode: str, source: str, kinematics: Kinematics, native: Solution, samples, branch, floors):
+    """(:func:`_run_or_not_applicable` of ``mode``, then the reactions of the force
+    source ``source`` (:func:`~xcheck.reactions.engine_forces`)): in the worker that has
+    loaded the mode's engine, the reactions of that engine."""
+    outcome = _run_or_not_applicable(mode, kinematics, native, samples, branch, floors)
+    return outcome, engine_forces(kinematics, source, branch)
 
 
 #: what :func:`_add_forces` sets on a run (and the results cache keeps)
@@ -965,6 +996,17 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress, cache: bool
     """Reactions and efforts of every source against the native multipliers,
     and the native power balance, when every moving body has mass data; from
     the results cache where ``cache`` and it holds them."""
+    sources = _forces_wanted(run, modes, progress, cache)
+    if sources:
+        forces = _NativeForces(run, branch)
+        forces.judge(compare_forces(run.kinematics, sources, branch), cache)
+
+
+def _forces_wanted(run: RunResult, modes, progress, cache: bool) -> list[str]:
+    """The force sources whose reactions are to be computed: "newton-euler", then each
+    engine with reactions that runs one of ``modes``; none where a moving body lacks
+    mass data or a load varies (``run.no_forces`` says why), or where ``cache`` and the
+    results cache holds them (set on ``run``). ``progress("forces")`` before."""
     from . import result_cache
 
     kinematics = run.kinematics
@@ -973,7 +1015,7 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress, cache: bool
         require_constant_loads(kinematics.mechanism)
     except XcheckError as err:
         run.no_forces = str(err)
-        return
+        return []
     sources = ["newton-euler"] + [
         e.name
         for e in engines.engines()
@@ -981,47 +1023,66 @@ def _add_forces(run: RunResult, modes, branch: str | None, progress, cache: bool
     ]
     if progress is not None:
         progress("forces")
-    parts, used = ("forces and energy", tuple(sources), run.branch), tuple(engines.engine(s) for s in sources[1:])
     if cache:
-        kept, run.provenance["forces"] = result_cache.lookup(kinematics, "forces", parts, used)
+        kept, run.provenance["forces"] = result_cache.lookup(kinematics, "forces", *_forces_key(run, sources))
         if kept is not None:
             for name in _FORCE_FIELDS:
                 setattr(run, name, kept[name])
+            return []
+    return sources
+
+
+def _forces_key(run: RunResult, sources: list[str]) -> tuple[tuple, tuple]:
+    """The results cache's (parts, engines used) of a run's reactions from ``sources``."""
+    return ("forces and energy", tuple(sources), run.branch), tuple(engines.engine(s) for s in sources[1:])
+
+
+class _NativeForces:
+    """A run's native reactions and power balance, computed when made; :meth:`judge`
+    then sets the sources' reactions against them on the run (:func:`_add_forces`)."""
+
+    def __init__(self, run: RunResult, branch: str | None):
+        kinematics = run.kinematics
+        self.run, self.branch = run, branch
+        states = window_states(kinematics, branch)
+        run.native_forces = inverse_dynamics(states)
+        self.condition = condition_number(states)
+        self.ratio = length_ratio(kinematics.mechanism)
+        try:
+            energy = energy_summary(kinematics, branch)
+        except ValueError as err:  # the motion passes an undetermined state: a balance there means nothing
+            run.no_energy = f"over the simulation window, {err}"
             return
-    _compute_forces(run, sources, branch)
-    if cache and all(r.ok or not r.applies for r in run.forces):
-        kept = {name: getattr(run, name) for name in _FORCE_FIELDS}
-        run.provenance["forces"] = result_cache.keep(kinematics, parts, used, kept, run.provenance["forces"].recomputed)
+        energy["tolerance"] = energy_tolerance(self.condition, self.ratio)
+        energy["round_off"] = power_round_off(self.condition, self.ratio)
+        energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
+        run.energy = energy
 
+    def judge(self, results: list[ForceResult], cache: bool) -> None:
+        """Tabulate and judge each source's reactions (``results``, one per source, the
+        native per-body form first), refining a source beyond its bound
+        (:func:`_refine_forces`), and keep them in the results cache where ``cache`` and
+        each ran through or does not apply."""
+        from . import result_cache
 
-def _compute_forces(run: RunResult, sources: list[str], branch: str | None) -> None:
-    """The work of :func:`_add_forces`."""
-    kinematics = run.kinematics
-    states = window_states(kinematics, branch)
-    run.native_forces = inverse_dynamics(states)
-    condition = condition_number(states)
-    run.forces = compare_forces(kinematics, sources, branch)
-    ratio = length_ratio(kinematics.mechanism)
-    round_off = {source: force_round_off(source, condition, ratio) for source in sources}
-    table = force_summary(run.forces, round_off)
-    table["tolerance"] = [force_tolerance(source, condition, ratio) for source in table.engine]
-    table["round_off"] = [round_off[source] for source in table.engine]
-    table["passed"] = table.ok & (table.max_rel <= table.tolerance)
-    table["basis"], table["refinements"], table["refinement_failure"] = "", 0, ""
-    for i in table.index[table.ok & ~table.passed]:
-        _refine_forces(run, table, i, branch)
-    table["finding"] = [_force_finding(run, row) for row in table.itertuples()]
-    table["verdict"] = [force_verdict(row) for row in table.itertuples()]
-    run.force_table = table
-    try:
-        energy = energy_summary(kinematics, branch)
-    except ValueError as err:  # the motion passes an undetermined state: a balance there means nothing
-        run.no_energy = f"over the simulation window, {err}"
-        return
-    energy["tolerance"] = energy_tolerance(condition, ratio)
-    energy["round_off"] = power_round_off(condition, ratio)
-    energy["passed"] = bool(energy["relative"] <= energy["tolerance"])
-    run.energy = energy
+        run, branch, condition, ratio = self.run, self.branch, self.condition, self.ratio
+        sources = [r.engine for r in results]
+        run.forces = results
+        round_off = {source: force_round_off(source, condition, ratio) for source in sources}
+        table = force_summary(run.forces, round_off)
+        table["tolerance"] = [force_tolerance(source, condition, ratio) for source in table.engine]
+        table["round_off"] = [round_off[source] for source in table.engine]
+        table["passed"] = table.ok & (table.max_rel <= table.tolerance)
+        table["basis"], table["refinements"], table["refinement_failure"] = "", 0, ""
+        for i in table.index[table.ok & ~table.passed]:
+            _refine_forces(run, table, i, branch)
+        table["finding"] = [_force_finding(run, row) for row in table.itertuples()]
+        table["verdict"] = [force_verdict(row) for row in table.itertuples()]
+        run.force_table = table
+        if cache and all(r.ok or not r.applies for r in run.forces):
+            kept = {name: getattr(run, name) for name in _FORCE_FIELDS}
+            recomputed = run.provenance["forces"].recomputed
+            run.provenance["forces"] = result_cache.keep(run.kinematics, *_forces_key(run, sources), kept, recomputed)
 
 
 def _force_finding(run: RunResult, row) -> str:
