@@ -445,7 +445,7 @@ def test_a_mechanism_name_must_be_a_plain_file_name(tmp_path, name):
     victim.mkdir()
     (victim / "keep.txt").write_text("mine")
     result = _cli("run", path, "--engines", "formulations", "--samples", "11")
-    assert result.exit_code == 2 and "mechanism.name: expected a name of letters" in result.stderr
+    assert result.exit_code == 2 and "mechanism.name: expected a name of ASCII letters" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "\x07" not in result.stderr
     assert (victim / "keep.txt").read_text() == "mine"
     assert _cli("export", "--models", path.parent).exit_code == 2

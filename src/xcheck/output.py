@@ -732,7 +732,12 @@ def print_run(console: Console, run) -> None:
             judged = math.isfinite(r.tolerance)  # none where the mode's convergence could not be observed
             cells.append(f"[{style}]{r.relative:.1e}[/{style}]/" + (f"{r.tolerance:.2g}" if judged else "—"))
             if not r.passed:
-                against = f"> {r.tolerance:.2g}" if judged else f"with no tolerance ({escape(str(r.basis))})"
+                if not judged:
+                    against = f"with no tolerance ({escape(str(r.basis))})"
+                elif r.relative <= r.tolerance:  # failed for the samples it left without a value
+                    against = f"within {r.tolerance:.2g}"
+                else:
+                    against = f"> {r.tolerance:.2g}"
                 failures.append(
                     f"[{style}]{mode}: {c} {r.relative:.2e} {against} at {r.worst}, "
                     f"{driver.name} = {r.worst_input / scale:.4g} {unit}[/{style}]"

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .kinematics import Kinematics, Solution
+from .kinematics import Kinematics, Solution, Status
 
 if TYPE_CHECKING:
     import pandas as pd  # imported where used: 0.3 s that `xcheck solve` and `list` need not pay
@@ -280,8 +280,8 @@ def differences(
         ``worst_sample`` (index) and ``worst_input`` (the first driver's value
         there, SI). Samples where the native solver did not succeed are left
         out (``samples`` counts the others); ``missing`` counts those of them
-        where the trajectory has no finite value. Pass ``native`` (from :func:`native_at`)
-        when it is already solved.
+        where the trajectory has no finite value (:func:`missing_samples`). Pass
+        ``native`` (from :func:`native_at`) when it is already solved.
     """
     import pandas as pd
 
@@ -308,10 +308,24 @@ def differences(
                 "worst_sample": int(worst),
                 "worst_input": float(trajectory.inputs[worst, 0]),
                 "samples": int(good.sum()),
-                "missing": int(good.sum() - determined.sum()),
+                "missing": missing_samples(native.status, determined),
             }
         )
     return relative_to_floored_scale(pd.DataFrame(rows), "quantity", floors)
+
+
+def missing_samples(status: np.ndarray, finite: np.ndarray) -> int:
+    """How many samples a source leaves without a value where the native solution
+    has one: native ``status`` OK (N,) and ``finite`` (N,) false. A sample the
+    native solver finds near-singular is not counted: its rates there carry few
+    or no digits (a change point's carry none), and a source that finds the state
+    singular says the same."""
+    return int(np.count_nonzero((status == Status.OK) & ~finite))
+
+
+def undetermined_text(missing: int) -> str:
+    """The words for ``missing`` samples (:func:`missing_samples`)."""
+    return f"no value at {missing} sample{'s' if missing != 1 else ''} where the native solution has one"
 
 
 def relative_to_floored_scale(

@@ -44,7 +44,15 @@ from .ladder import (
 )
 from .motion import drive_warnings, law_states, simulation_window, sweep_span
 from .reactions import ForceResult, compare_forces, engine_forces, force_summary
-from .results import ModeResult, Trajectory, differences, native_at, sample_errors, scale_floors
+from .results import (
+    ModeResult,
+    Trajectory,
+    differences,
+    native_at,
+    sample_errors,
+    scale_floors,
+    undetermined_text,
+)
 from .tolerances import (
     CONDITIONING_FACTOR,
     ENGINE_CONDITIONING_FACTOR,
@@ -477,7 +485,7 @@ def _categorise(
                 "floor": float(part["floor"].max()) if "floor" in part else math.nan,
                 "passed": bool(relative.iloc[worst] <= limit) and missing == 0,
                 "missing": missing,
-                "worst": f"{row['kind']} {row['name']}" + (f" ({missing} samples undetermined)" if missing else ""),
+                "worst": f"{row['kind']} {row['name']}" + (f" ({undetermined_text(missing)})" if missing else ""),
                 "worst_input": float(row.worst_input),
             }
         )

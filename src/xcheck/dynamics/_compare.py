@@ -13,7 +13,7 @@ import numpy as np
 
 from ..kinematics import Kinematics, Solution, Status
 from ..motion import law_states, simulation_window
-from ..results import relative_to_floored_scale, scale_floors
+from ..results import missing_samples, relative_to_floored_scale, scale_floors
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
 from ._inverse import inverse_dynamics
@@ -120,7 +120,8 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
         either); ``max_rel`` = max_abs / scale; ``worst_sample``,
         ``worst_input`` (first driver's value there, SI); ``samples`` (states
         where the native solution succeeded) and ``missing`` (of those, states
-        where the source gave no finite value: left out of the figures).
+        where the source gave no finite value, :func:`~xcheck.results.missing_samples`:
+        left out of the figures).
     """
     import pandas as pd
 
@@ -163,7 +164,7 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                         "worst_sample": worst,
                         "worst_input": float(forces.inputs[worst, 0]),
                         "samples": int(good.sum()),
-                        "missing": int(good.sum() - finite.sum()),
+                        "missing": missing_samples(native.status, finite),
                     }
                 )
     # the floors follow the drivers' laws at the source's inputs: an engine's realised rates of a driver

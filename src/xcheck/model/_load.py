@@ -244,10 +244,10 @@ class _Reader:
             # the name names the report and the exported files: it must stay a plain file name
             self.fail(
                 "mechanism.name",
-                "a name of letters, digits, spaces, '-', '_' and '.', neither starting "
+                "a name of ASCII letters, digits, spaces, '-', '_' and '.', neither starting "
                 "with '.' or a space nor ending with a space, at most 100 characters (it names the report "
                 "and the exported files)",
-                ascii(name) if len(name) <= 60 else ascii(name[:57]) + "...",
+                repr(name) if len(name) <= 60 else repr(name[:57]) + "...",
             )
         reserved = reserved_name(name)
         if reserved is not None:
