@@ -10,6 +10,7 @@ import pytest
 from conftest import DATA, invoke
 
 import xcheck
+from xcheck.batch import export_models
 from xcheck.kinematics import Status
 from xcheck.results import missing_samples
 
@@ -49,3 +50,18 @@ def test_a_name_outside_ascii_is_refused_as_written(tmp_path, name):
         "'.', neither starting with '.' or a space nor ending with a space, at most 100 characters (it names "
         f"the report and the exported files), found {name!r}"
     )
+
+
+def test_export_names_a_file_that_cannot_assemble_once_and_goes_on(tmp_path):
+    """A coupler of 10 m cannot close the change-point four-bar's loop (B and C are at most
+    2 + 4 + 3 = 9 m apart): its file is one error, not one per format, and the good file
+    beside it is still exported."""
+    (tmp_path / "good.toml").write_text(CHANGE_POINT.read_text())
+    bad = tmp_path / "open.toml"
+    text = CHANGE_POINT.read_text().replace('name = "change-point"', 'name = "open"')
+    bad.write_text(text.replace("length = 3\n", "length = 10\n", 1))
+    done = list(export_models(None, ["mjcf", "urdf"], tmp_path))
+    errors = [text for kind, text in done if kind == "error"]
+    assert len(errors) == 1 and errors[0].startswith(f"{bad}: assembly.at: expected an input at which every loop"), done
+    assert ("wrote", str(tmp_path / "mjcf" / "change-point.xml")) in done
+    assert not (tmp_path / "mjcf" / "open.xml").exists() and not (tmp_path / "urdf" / "open.urdf").exists()

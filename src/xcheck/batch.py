@@ -448,6 +448,7 @@ def export_models(
         try:
             path = model_path(name, directory)
             kin = Kinematics(load_mechanism(path))
+            kin.assemble()  # a file that does not assemble is one error, not one per format
         except XcheckError as err:
             yield "error", " ".join(str(err).split())
             continue
