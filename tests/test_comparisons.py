@@ -457,3 +457,31 @@ def test_cli_bad_comparisons_file_is_one_line(tmp_path):
         f"xcheck: error: {tmp_path / 'fourbar.toml'}: printed[0].unit: expected the printed value's "
         "unit (one of deg, rad), found none",
     ]
+
+
+def test_printed_answers_that_cannot_be_computed_fail_the_run_once_its_modes_are_back(monkeypatch):
+    """A run computes the printed answers while its modes run (they need none of them;
+    in a serial run after them): an answer whose instant cannot be solved is the
+    mechanism's failure line, in one line, after the modes."""
+    from xcheck import batch, runner, textbook
+
+    events = []
+    run_mode = runner._run_or_not_applicable
+
+    def mode(*args):
+        events.append("mode")
+        return run_mode(*args)
+
+    def unsolvable(kinematics, comparisons):
+        events.append("answers")
+        raise ModelError(comparisons.path, "printed[0].instant", "an instant that assembles", "'x': singular")
+
+    monkeypatch.setattr(runner, "_run_or_not_applicable", mode)
+    monkeypatch.setattr(textbook, "check_printed", unsolvable)
+    settings = batch.RunSettings(MODELS, ("native", "formulation-I"), 11, use_cache=False)
+    run, entry, failures = batch.run_model("fourbar", settings)
+    assert (run, entry) == (None, None) and events == ["mode", "answers"]
+    assert failures == [
+        f"{ROOT / 'comparisons' / 'fourbar.toml'}: printed[0].instant: expected an instant that assembles, "
+        "found 'x': singular"
+    ]

@@ -38,13 +38,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import arguments, engines
-from .catalog import comparisons_dir, comparisons_path, model_path, models_dir
+from .catalog import model_path, models_dir
 from .errors import InputError
 from .kinematics import Kinematics, Solution, Status
 from .model import Mechanism, load_mechanism
 from .motion import drive_warnings
 from .states import drawn_state, limit_warnings, solve_asked, states_asked
-from .textbook import check_printed, load_comparisons
+from .textbook import check_printed, comparisons_of
 
 if TYPE_CHECKING:
     import pandas as pd  # imported where used: `xcheck solve` need not pay for it
@@ -495,13 +495,9 @@ def printed_answers(kinematics: Kinematics, comparisons: str | Path | None = Non
     XcheckError
         If the comparisons file is bad.
     """
-    path = Path(kinematics.mechanism.path)
-    if comparisons is not None:
-        comparisons = arguments.path(comparisons, "comparisons")
-    found = comparisons_path(path, comparisons_dir(path, comparisons))
-    if found is None:
+    printed = comparisons_of(kinematics.mechanism, comparisons)
+    if printed is None:
         return None, ""
-    printed = load_comparisons(found, kinematics.mechanism)
     return check_printed(kinematics, printed), printed.document
 
 

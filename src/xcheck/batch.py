@@ -26,6 +26,7 @@ from .motion import drive_warnings
 if TYPE_CHECKING:
     from .runner import RunResult
     from .simulation import SimulationResult
+    from .textbook import Comparisons
 
 __all__ = [
     "RunSettings",
@@ -168,9 +169,8 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
     processes, and, if the settings say so, its report. Returns (the run or
     None, (reports directory, file, index entry) or None, failure lines).
     ``step(label, stage)`` is told of each stage (left out in a worker process)."""
-    from ._parallel import import_all
-    from .api import printed_answers
     from .runner import run_mechanism
+    from .textbook import comparisons_of
 
     s = settings
 
@@ -189,11 +189,12 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
 
             claim_report(reports_dir(path, s.out), label, partial=leaves_out(s.modes))
             claim_index(reports_dir(path, s.out))
-        textbook, _ = printed_answers(kin, s.comparisons)
+        answers = _PrintedAnswers(kin, comparisons_of(kin.mechanism, s.comparisons))  # a bad file stops it here
         run = run_mechanism(
-            kin, s.modes, s.samples, s.branch, textbook, progress=lambda mode: tell(label, mode), jobs=jobs,
-            cache=s.use_cache, meanwhile=functools.partial(import_all, _figures(settings)) if s.report else None,
+            kin, s.modes, s.samples, s.branch, progress=lambda mode: tell(label, mode), jobs=jobs,
+            cache=s.use_cache, meanwhile=functools.partial(answers.meanwhile, _figures(settings)),
         )  # fmt: skip
+        run.textbook = answers.checked()
         if s.use_cache:
             cache.store(kin)
     except XcheckError as err:
@@ -221,6 +222,42 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
             f"({type(err).__name__}: {err}); please report it"
         )
     return run, None, [problem]
+
+
+class _PrintedAnswers:
+    """A mechanism's printed answers (``printed``: its comparisons file, read, or None),
+    computed by :meth:`meanwhile`, where the run calls it, while the workers run the
+    modes, which do not need them, else by :meth:`checked`."""
+
+    def __init__(self, kinematics: Kinematics, printed: Comparisons | None):
+        self.kinematics, self.printed = kinematics, printed
+        self.answers: list[dict] | XcheckError | None = None
+
+    def meanwhile(self, modules: tuple[str, ...] = ()) -> None:
+        """Compute the answers (an error in them kept for :meth:`checked`), then import
+        ``modules`` (a report's figures)."""
+        from ._parallel import import_all
+        from .textbook import check_printed
+
+        try:
+            self.answers = [] if self.printed is None else check_printed(self.kinematics, self.printed)
+        except XcheckError as err:  # said once the modes are back, which the cache keeps
+            self.answers = err
+        import_all(modules)
+
+    def checked(self) -> list[dict]:
+        """The printed answers checked (:func:`xcheck.textbook.check_printed`).
+
+        Raises
+        ------
+        XcheckError
+            Where an answer's instant cannot be solved."""
+        if self.answers is None:
+            self.meanwhile()
+        if isinstance(self.answers, XcheckError):
+            raise self.answers
+        assert self.answers is not None  # computed above
+        return self.answers
 
 
 def run_models(

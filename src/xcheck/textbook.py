@@ -67,6 +67,7 @@ __all__ = [
     "Printed",
     "Comparisons",
     "load_comparisons",
+    "comparisons_of",
     "parse_comparisons",
     "check_printed",
     "quantity_values",
@@ -181,6 +182,27 @@ class Comparisons:
     document: str
     notes: str
     entries: tuple[Printed, ...]
+
+
+def comparisons_of(mechanism: Mechanism, comparisons: str | Path | None = None) -> Comparisons | None:
+    """A mechanism's comparisons file (``NAME.toml`` in ``comparisons``, else in the
+    directory :func:`xcheck.catalog.comparisons_dir` names), read and checked against
+    it (:func:`load_comparisons`): its printed answers, not yet computed
+    (:func:`check_printed`); None where it has none.
+
+    Raises
+    ------
+    XcheckError
+        If the comparisons file, or ``comparisons``, is bad.
+    """
+    from . import arguments
+    from .catalog import comparisons_dir, comparisons_path
+
+    path = Path(mechanism.path)
+    if comparisons is not None:
+        comparisons = arguments.path(comparisons, "comparisons")
+    found = comparisons_path(path, comparisons_dir(path, comparisons))
+    return None if found is None else load_comparisons(found, mechanism)
 
 
 def load_comparisons(path: str | Path, mechanism: Mechanism) -> Comparisons:
