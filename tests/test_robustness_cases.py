@@ -3,6 +3,7 @@ exposed: a change point passed by the sweep, a mechanism name in another script.
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -65,3 +66,77 @@ def test_export_names_a_file_that_cannot_assemble_once_and_goes_on(tmp_path):
     assert len(errors) == 1 and errors[0].startswith(f"{bad}: assembly.at: expected an input at which every loop"), done
     assert ("wrote", str(tmp_path / "mjcf" / "change-point.xml")) in done
     assert not (tmp_path / "mjcf" / "open.xml").exists() and not (tmp_path / "urdf" / "open.urdf").exists()
+
+
+def _solved(name: str) -> list[dict]:
+    done = invoke("solve", str(DATA / f"{name}.toml"), "--json")
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)["states"]
+
+
+def _close(found, expected, scale: float) -> None:
+    assert np.max(np.abs(np.asarray(found, float) - np.asarray(expected, float))) <= 1e-13 * scale, (found, expected)
+
+
+# The answers below were derived apart from xcheck with sympy (20 digits), as each file's
+# comments say: closed-form positions differentiated in time, and a torque by the power balance.
+
+
+def test_offset_slider_crank_in_mm_and_rpm_with_a_load():
+    """Slider positions, velocities and accelerations (SI, from a file in mm, deg and rpm), and
+    the crank torque against gravity and a 100 N load."""
+    states = _solved("offset-slider-crank")
+    expected = {
+        0: ([0.21758552076855569, -0.02], [-0.45465555997979385, 0], [-7.6306734555495242, 0], -3.1704696739790871),
+        1: ([0.13299202255930347, -0.02], [0.22440794730173312, 0], [5.4385790126276255, 0], 1.6443513502898258),
+    }
+    for i, (position, velocity, acceleration, effort) in expected.items():
+        point = states[i]["points"]["B"]
+        _close(point["position"], position, 0.2)
+        _close(point["velocity"], velocity, 0.5)
+        _close(point["acceleration"], acceleration, 8.0)
+        _close([states[i]["drivers"]["crank"]["effort"]], [effort], 3.0)
+
+
+def test_crank_shaper_with_a_slot_on_a_moving_rocker():
+    """The ram and the rocker of a quick-return shaper (cm, deg/s in the file) at crank = 135 deg."""
+    state = _solved("crank-shaper")[1]
+    ram = state["points"]["C"]
+    _close(ram["position"], [0.13740485840189022, 0.28], 0.3)
+    _close(ram["velocity"], [-0.40287400308132980, 0], 0.5)
+    _close(ram["acceleration"], [0.52291342705030732, 0], 1.0)
+    rocker = state["bodies"]["rocker"]
+    _close(
+        [rocker["angle"], rocker["omega"], rocker["alpha"]],
+        [1.7592758375655018, 0.68849009648158766, -0.82568606124459108],
+        2.0,
+    )
+
+
+def test_fivebar_with_two_inputs_and_explicit_rates():
+    """C of a five-bar driven by both cranks, the second's rate and acceleration given in the instant."""
+    point = _solved("fivebar-two-inputs")[1]["points"]["C"]
+    _close(point["position"], [0.13373817821122408, 0.29764875617791083], 0.3)
+    _close(point["velocity"], [-0.12993834391093967, -0.039538537965162415], 0.2)
+    _close(point["acceleration"], [-0.056410953697900143, -0.15164409235147829], 0.2)
+
+
+def test_a_damped_sprung_pendulum_released_level_follows_its_own_equation():
+    """The native free motion against the pendulum's one equation (the file's comments),
+    integrated by scipy to 1e-13: within the error xcheck states, at every output."""
+    from scipy.integrate import solve_ivp
+
+    mass, gravity, arm, inertia, stiffness, damping = 1.2, 9.81, 0.25, 0.025, 3.0, 0.05
+
+    def swing(_, y):
+        angle, rate = y
+        torque = -mass * gravity * arm * np.cos(angle) - stiffness * (angle + np.pi / 2) - damping * rate
+        return [rate, torque / (inertia + mass * arm**2)]
+
+    motion = xcheck.simulate(DATA / "pendulum-spring-damper.toml")
+    assert motion.attrs["converged"]
+    times = motion.time_s.to_numpy()
+    exact = solve_ivp(swing, (0, 2), [0.0, 0.0], method="DOP853", t_eval=times, rtol=1e-13, atol=1e-15).y[0]
+    tip_error = 0.5 * np.abs(motion.angle_rad.to_numpy() - exact)  # the tip P, 0.5 m out
+    assert np.all(tip_error <= motion.error_bound_m.to_numpy() + 1e-14), np.max(tip_error)
+    assert abs(motion.angle_rad.iloc[-1] - exact[-1]) < 1e-11  # (measured 3.1e-13 rad)
