@@ -6,6 +6,7 @@ import contextlib
 import gc
 import io
 import math
+import re
 import textwrap
 from collections.abc import Iterator
 
@@ -18,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import ticker  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from .. import engines  # noqa: E402
@@ -69,13 +71,25 @@ def old_objects_frozen() -> Iterator[None]:
         gc.unfreeze()
 
 
-def _png(figure, dpi: int = 90, **options) -> bytes:
-    """The figure, complete, as PNG bytes (``options`` go to ``savefig``); the
-    figure is closed. Its unlabelled minor ticks are drawn as a few lines
-    (:func:`_unlabelled_minor_ticks_as_lines`: the same pixels)."""
+def _png(figure, dpi: int = 90, compact: bool = True, **options) -> bytes:
+    """The figure, complete, as PNG bytes; the figure is closed. Its unlabelled
+    minor ticks are drawn as a few lines (:func:`_unlabelled_minor_ticks_as_lines`:
+    the same pixels).
+
+    ``compact``: the figure's RGB pixels (it is opaque) compressed at zlib level 3,
+    with no metadata but the resolution; else matplotlib's own PNG (RGBA, with its
+    version), ``options`` going to ``savefig``. The same pixels either way."""
     _unlabelled_minor_ticks_as_lines(figure)
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=dpi, **options)
+    if compact:
+        assert not options, options
+        canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else FigureCanvasAgg(figure)
+        figure.set_dpi(dpi)
+        canvas.draw()
+        pixels = np.asarray(canvas.buffer_rgba())[..., :3]
+        Image.fromarray(pixels).save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
+    else:
+        figure.savefig(buffer, format="png", dpi=dpi, **options)
     plt.close(figure)
     return buffer.getvalue()
 
@@ -108,6 +122,36 @@ def _log_panel_title(ax, text: str) -> None:
     at each draw to find that place (a log axis has no offset text, and these
     panels no ticks on top)."""
     ax.set_title(text, fontsize=9, y=1.0)
+
+
+#: digits and the minus sign as Unicode superscripts
+_SUPERSCRIPTS = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
+
+
+class _PlainLogFormatter(ticker.LogFormatterSciNotation):
+    """matplotlib's labels of a log axis (10^k, and c×10^k where it labels the
+    minor ticks) in plain text, the exponent in Unicode superscripts, instead of
+    mathtext, whose parser a figure would otherwise start and run for each label."""
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)
+        match = re.fullmatch(r"\$\\mathdefault\{(.*)\}\$", label)
+        if match is None:
+            return label
+        text = match.group(1).replace(r"\times", "×")
+        return re.sub(r"\^\{(-?[0-9]+)\}", lambda power: power.group(1).translate(_SUPERSCRIPTS), text)
+
+
+def _plain_log_labels(ax) -> None:
+    """Label the log axes of ``ax`` with :class:`_PlainLogFormatter` where they carry
+    matplotlib's own log labels (other formatters are kept)."""
+    for axis in (ax.xaxis, ax.yaxis):
+        for formatter, install in (
+            (axis.get_major_formatter(), axis.set_major_formatter),
+            (axis.get_minor_formatter(), axis.set_minor_formatter),
+        ):
+            if type(formatter) is ticker.LogFormatterSciNotation:
+                install(_PlainLogFormatter(axis.get_transform().base, labelOnlyBase=formatter.labelOnlyBase))
 
 
 def _unlabelled_minor_ticks_as_lines(figure) -> None:
@@ -254,22 +298,19 @@ def drawing(run: RunResult, poses: int = 5) -> bytes:
 def motion_gif(run: RunResult, frames: int = 24) -> bytes:
     """An animated GIF of the mechanism over the sweep, 12 frames a second.
 
-    What matplotlib's ``FuncAnimation(figure, draw, frames).save(..., writer=PillowWriter(fps=12))``
-    writes, byte for byte, but each frame drawn once: ``save`` draws it for the
-    animation, then again to grab it."""
+    Each frame is matplotlib's drawing of its pose (:func:`_motion_figure`); the
+    frames share one palette of 256 colours, Pillow's median cut of them all, so
+    that what stands still keeps its colours from frame to frame."""
     figure, draw = _motion_figure(run, frames)
-    width, height = figure.get_size_inches()
-    size = int(width * figure.dpi + 1e-8), int(height * figure.dpi + 1e-8)
-    images = []
-    with matplotlib.rc_context({"savefig.bbox": None}):
-        for n in range(frames):
-            draw(n)
-            pixels = io.BytesIO()
-            figure.savefig(pixels, format="rgba", dpi=figure.dpi)
-            image = Image.frombuffer("RGBA", size, pixels.getvalue(), "raw", "RGBA", 0, 1)
-            transparent = np.asarray(image.getchannel("A")).min() < 255  # as PillowWriter: RGB when opaque
-            images.append(image if transparent else image.convert("RGB"))
+    pictures = []
+    for n in range(frames):
+        draw(n)
+        figure.canvas.draw()
+        pictures.append(np.array(figure.canvas.buffer_rgba())[..., :3])  # the figure is opaque
     plt.close(figure)
+    height, width = pictures[0].shape[:2]
+    strip = Image.fromarray(np.concatenate(pictures)).quantize(256, method=Image.Quantize.MEDIANCUT)
+    images = [strip.crop((0, n * height, width, (n + 1) * height)) for n in range(frames)]
     movie = io.BytesIO()
     images[0].save(movie, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / 12), loop=0)
     return movie.getvalue()
@@ -524,6 +565,7 @@ def error_figure(run: RunResult):
             ax.set_ylabel(f"{category} difference / tolerance")
             ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3, which="both")
+            _plain_log_labels(ax)
         _log_panel_title(axes[0, 1], title)
     return _with_legend_and_title(
         figure,
@@ -560,11 +602,12 @@ def _reference_slopes(ax) -> None:
         inside = e <= y1
         end = int(np.flatnonzero(inside)[-1]) if inside.any() else 0
         ax.annotate(
-            f"$h^{order}$" if order != 1 else "$h$",
+            f"h{order}".translate(_SUPERSCRIPTS) if order != 1 else "h",
             (h[end], e[end]),
             xytext=(2, 0),
             textcoords="offset points",
             fontsize=7,
+            fontstyle="italic",
             color="0.4",
         )
     ax.set_xlim(x0, x1)
@@ -646,6 +689,7 @@ def convergence_figure(run: RunResult):
         else:
             _reference_slopes(ax)
         _step_ticks(ax)
+        _plain_log_labels(ax)
         _log_panel_title(ax, mode)
         ax.set_xlabel("time step [s]")
         ax.set_ylabel("largest position error [m]")

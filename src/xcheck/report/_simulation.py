@@ -31,7 +31,7 @@ __all__ = ["REFERENCE_FIGURES", "figures", "figure_modes", "mode_parts", "markdo
 
 
 def _png(figure, **options) -> bytes:
-    return _figures._png(figure, dpi=110, metadata={"Software": None}, **options)
+    return _figures._png(figure, dpi=110, compact=False, metadata={"Software": None}, **options)
 
 
 def _passes(ax, result: SimulationResult) -> None:
