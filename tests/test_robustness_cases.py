@@ -140,3 +140,31 @@ def test_a_damped_sprung_pendulum_released_level_follows_its_own_equation():
     tip_error = 0.5 * np.abs(motion.angle_rad.to_numpy() - exact)  # the tip P, 0.5 m out
     assert np.all(tip_error <= motion.error_bound_m.to_numpy() + 1e-14), np.max(tip_error)
     assert abs(motion.angle_rad.iloc[-1] - exact[-1]) < 1e-11  # (measured 3.1e-13 rad)
+
+
+@pytest.mark.parametrize("degrees", [1e308, 1e200])
+def test_an_input_a_double_cannot_place_is_never_assembled(degrees):
+    """At 1e308 deg the crank's angle is a double with nothing left below 1e290 rad: the
+    shaper's loops could not be closed there, and were reported closed ("ok") 15 cm open.
+    Such a state is refused; 1e17 deg, whose double is still placed exactly, assembles."""
+    shaper = xcheck.load(DATA / "crank-shaper.toml")
+    with pytest.raises(ValueError, match="expected a state where the mechanism assembles"):
+        shaper.solve(at=degrees)
+    state = shaper.solve(at=1e17).to_frame()
+    assert np.isfinite(state.x_m).all()
+
+
+def test_a_sweep_whose_samples_a_double_cannot_tell_apart_is_refused(tmp_path):
+    """From 1e100 deg a turn adds nothing a double can hold: every sample of the sweep was
+    the same state, and the run passed on it."""
+    text = (DATA / "crank-shaper.toml").read_text()
+    path = tmp_path / "wound.toml"
+    path.write_text(
+        text.replace("start = 0\n", "start = 1e100\n").replace("at = { crank = 0 }", "at = { crank = 1e100 }")
+    )
+    done = invoke("run", str(path), "--engines", "native", "--samples", "5", "--no-report", "--no-cache")
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == (
+        f"xcheck: error: {path}: assembly.at.crank: expected an input a double holds finely enough to sweep "
+        "5 distinct samples around it, found 1e+100 deg, where they coincide"
+    )

@@ -441,6 +441,13 @@ def sweep_inputs(kinematics: Kinematics, samples: int, branch: str | None = None
     span = sweep_span(kinematics, 0, branch, margin)
     inputs = np.tile(ref, (samples, 1))
     inputs[:, 0] = np.linspace(*span, samples)
+    if samples > 1 and not np.all(np.diff(inputs[:, 0]) > 0.0):  # a double too coarse there: samples coincide
+        driver = mech.drivers[0]
+        raise InputError(
+            f"{mech.path}: assembly.at.{driver.name}: expected an input a double holds finely enough to sweep "
+            f"{samples} distinct samples around it, found "
+            f"{mech.units.show_input(driver.quantity, float(inputs[0, 0]))}, where they coincide"
+        )
     rates, accelerations, reached = law_states(mech, inputs)
     for k, driver in enumerate(mech.drivers):
         if not reached[:, k].all():

@@ -26,6 +26,10 @@ CONVERGED_TOLERANCE = 1e-10
 #: from 1e3 to 1e9 rad: at most 0.36 eps |phi| size), so past some 10^4 turns
 #: the fixed fraction above would reject every exact solution.
 ANGLE_ROUNDOFF = 16 * np.finfo(float).eps
+#: ... but never above this fraction: past some 1e11 rad a double no longer holds
+#: an angle well enough to place a mechanism (at 1e17 deg the input's own spacing
+#: is 16 deg), and loops open by more than this are not assembled, whatever the angle.
+LARGEST_CONVERGED = 1e-5
 #: Largest accepted correction from the predicted configuration (scaled units:
 #: radians, or lengths per mechanism size) before a step counts as a jump.
 MAX_CORRECTION = 0.1
@@ -106,7 +110,8 @@ def converged_tolerance(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
     """Largest violation (m) at which configurations count as assembled, shape (N,).
 
     :data:`CONVERGED_TOLERANCE` of the mechanism's size, or the round-off of
-    the largest body angle (:data:`ANGLE_ROUNDOFF`) where that is larger.
+    the largest body angle (:data:`ANGLE_ROUNDOFF`) where that is larger, at
+    most :data:`LARGEST_CONVERGED` of the size.
 
     Parameters
     ----------
@@ -116,7 +121,7 @@ def converged_tolerance(system: ConstraintSystem, q: np.ndarray) -> np.ndarray:
     """
     angles = np.abs(q[:, 2::3])
     largest = np.max(np.where(np.isfinite(angles), angles, 0.0), axis=1, initial=0.0)
-    return system.size * np.maximum(CONVERGED_TOLERANCE, ANGLE_ROUNDOFF * largest)
+    return system.size * np.minimum(np.maximum(CONVERGED_TOLERANCE, ANGLE_ROUNDOFF * largest), LARGEST_CONVERGED)
 
 
 #: Samples per batch of :func:`polish` (bounds its (N, n, n) Jacobians' memory).
@@ -235,8 +240,9 @@ def continue_to(
     while True:
         remaining = (target - c) * scale
         distance = float(np.max(np.abs(remaining)))
-        if distance == 0.0:
-            return q, c, True, trail
+        if distance == 0.0:  # there: reached if the loops close (a start given at the target may not)
+            closes = system.residual_metres(system.residual(q[None], target[None]))[0]
+            return q, c, bool(closes <= converged_tolerance(system, q[None])[0]), trail
         fraction = min(1.0, step / distance)
         c_next = target if fraction == 1.0 else c + (target - c) * fraction
         guess = q + tangent(system, q[None], jac)[0] @ (c_next - c)

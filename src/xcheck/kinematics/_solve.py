@@ -16,6 +16,7 @@ from ..model import Mechanism
 from ._newton import (
     ANGLE_ROUNDOFF,
     CONVERGED_TOLERANCE,
+    LARGEST_CONVERGED,
     MAX_CORRECTION,
     POLISH_CHUNK,
     STOP_TOLERANCE,
@@ -813,6 +814,7 @@ class Kinematics:
         assembled = np.empty(n_samples, dtype=bool)
         tolerances = (CONVERGED_TOLERANCE * system.size, ANGLE_ROUNDOFF * system.size)
         run_compiled(fast.assembled, q, residual, attempt, *tolerances, assembled)
+        assembled &= residual <= LARGEST_CONVERGED * system.size  # the cap of converged_tolerance
         converged = np.flatnonzero(assembled)
         for start in range(0, converged.size, POLISH_CHUNK):  # polish, as the reference's step 4
             chunk = converged[start : start + POLISH_CHUNK]
