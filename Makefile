@@ -50,4 +50,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_cli.py 1 $(BIN)/xcheck fuzz --count 20 --seed 1 --out $(BENCH_OUT)/fuzz
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache docs/_build
+	rm -rf $(VENV) build src/*.egg-info .pytest_cache tests/.jax-cache docs/_build

@@ -25,6 +25,15 @@ _BLAS_LIMITS = threadpool_limits(limits=1, user_api="blas")
 #: tests keep the default of one process per core.
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("XCHECK_JOBS", "1")
+#: JAX's compiled functions (MJX's rollouts) kept between test runs in this checkout,
+#: as numba keeps xcheck's kernels in __pycache__: JAX keys each entry by the graph,
+#: the compiler's options and JAX's version, so a change to the code compiles anew,
+#: and a run finds what an earlier run compiled instead of compiling it again (about
+#: 25 CPU s of the quick selection here). Read by JAX at its import, in this process
+#: and in the commands the tests start; a cache the environment already names is kept.
+JAX_CACHE = Path(__file__).resolve().parent / ".jax-cache"
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(JAX_CACHE))
+os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(2**28))  # bytes; the least recently used go
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -35,14 +44,14 @@ MODEL_NAMES = sorted(p.stem for p in MODELS.glob("*.toml"))
 
 @pytest.fixture(scope="session", autouse=True)
 def branch_map_cache(tmp_path_factory):
-    """xcheck's cache directory (xcheck.store: the branch maps, JAX's compiled
-    functions) of the whole test run in a temporary directory, never the
-    user's, and one for all the run's xdist workers (each worker's basetemp is
-    a folder of the run's), so that a mechanism's JAX compilation is paid once
-    per run, not once per worker. The results cache (xcheck.result_cache) is off:
-    every test computes what it checks (the cache's own tests turn it on, and
-    :func:`whole_run` shares one comparison per mechanism through it). The
-    command lines run here and in subprocesses read the environment."""
+    """xcheck's cache directory (xcheck.store: the branch maps) of the whole
+    test run in a temporary directory, never the user's, and one for all the
+    run's xdist workers (each worker's basetemp is a folder of the run's); JAX's
+    compiled functions go to :data:`JAX_CACHE` instead. The results cache
+    (xcheck.result_cache) is off: every test computes what it checks (the
+    cache's own tests turn it on, and :func:`whole_run` shares one comparison
+    per mechanism through it). The command lines run here and in subprocesses
+    read the environment."""
     from xcheck.result_cache import RESULTS_ENV
     from xcheck.store import CACHE_ENV
 
