@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,3 +169,32 @@ def test_a_sweep_whose_samples_a_double_cannot_tell_apart_is_refused(tmp_path):
         f"xcheck: error: {path}: assembly.at.crank: expected an input a double holds finely enough to sweep "
         "5 distinct samples around it, found 1e+100 deg, where they coincide"
     )
+
+
+def _spring_through_the_slider(tmp_path) -> Path:
+    """The offset slider-crank with a spring of rest length 50 mm from the ground point S on
+    the slider's line, which the slider's pin B passes at crank = 90 deg exactly: there
+    B_x = 50 cos 90 + sqrt(180^2 - (50 + 20)^2) = sqrt(27500) mm."""
+    text = (DATA / "offset-slider-crank.toml").read_text()
+    text = text.replace(
+        "points = { O = [0, 0], L = [0, -20] }", 'points = { O = [0, 0], L = [0, -20], S = ["sqrt(27500)", -20] }'
+    )
+    path = tmp_path / "spring.toml"
+    path.write_text(text + '\n[[springs]]\npoints = ["S", "B"]\nstiffness = 2000\nrest_length = 50\n')
+    return path
+
+
+def test_a_spring_whose_ends_meet_has_no_direction_there(tmp_path):
+    """Where the ends of a spring with a rest length meet, its 100 N pull has no direction: the
+    round-off of B's position chose one (the crank torque was a number, its sign noise). The
+    reactions and efforts there are undetermined, said in a warning, and the power balance over
+    the motion is not computed, with the reason, instead of being printed as NaN."""
+    path = _spring_through_the_slider(tmp_path)
+    done = invoke("solve", str(path), "--at", "90,100", "--json")
+    assert done.returncode == 0, done.stderr
+    states = json.loads(done.stdout)["states"]
+    assert states[0]["drivers"]["crank"]["effort"] is None and states[0]["joints"]["O"]["reaction"] is None
+    assert np.isfinite(states[1]["drivers"]["crank"]["effort"])
+    assert "spring 'spring 1' has its two ends at one point at crank = 90 deg" in done.stderr
+    run = xcheck.run(path, engines="native", samples=7)
+    assert run.energy is None and "spring 'spring 1' has its two ends at one point" in run.no_energy

@@ -369,8 +369,29 @@ def solve_asked(kinematics: Kinematics, asked: Asked, branch: str | None = None)
     check_ranges(kinematics, asked, branch)
     solution = kinematics.solve(asked.inputs, asked.rates, asked.accelerations, branch=branch)
     _check_statuses(solution, asked)
-    lines = [*drive_warnings(kinematics, branch), *limit_warnings(solution, branch)]
+    lines = [*drive_warnings(kinematics, branch), *limit_warnings(solution, branch), *spring_warnings(solution)]
     return Solved(solution, asked.labels, lines)
+
+
+def spring_warnings(solution: Solution) -> list[str]:
+    """One line per spring whose ends meet at some solved state while it pulls
+    (:func:`xcheck.dynamics.directionless_springs`), naming the first such input."""
+    from .dynamics import directionless_springs
+
+    mech = solution.mechanism
+    lines = []
+    for name, where in directionless_springs(solution).items():
+        if where.any():
+            i = int(np.flatnonzero(where)[0])
+            shown = ", ".join(
+                f"{d.name} = {mech.units.show_input(d.quantity, float(solution.inputs[i, k]), digits=10)}"
+                for k, d in enumerate(mech.drivers)
+            )
+            lines.append(
+                f"{mech.name}: spring {name!r} has its two ends at one point at {shown}: its pull has no "
+                "direction there, so the reactions and efforts are not determined"
+            )
+    return lines
 
 
 def reactions_of(solution: Solution):

@@ -26,9 +26,17 @@ from ._forces import (
     require_constant_loads,
     require_mass_data,
 )
-from ._inverse import AppliedLoad, applied_loads, body_dynamics, inverse_dynamics, newton_euler
+from ._inverse import (
+    AppliedLoad,
+    applied_loads,
+    body_dynamics,
+    directionless_springs,
+    inverse_dynamics,
+    newton_euler,
+)
 
 __all__ = [
+    "directionless_springs",
     "AppliedLoad",
     "applied_loads",
     "DRIVER_QUANTITIES",

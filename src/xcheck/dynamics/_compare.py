@@ -16,7 +16,7 @@ from ..motion import law_states, simulation_window
 from ..results import missing_samples, relative_to_floored_scale, scale_floors
 from ._energy import energy_balance, mechanical_energy
 from ._forces import DRIVER_QUANTITIES, JOINT_QUANTITIES, Forces, quantity_unit, require_mass_data
-from ._inverse import inverse_dynamics
+from ._inverse import directionless_springs, inverse_dynamics
 
 if TYPE_CHECKING:
     import pandas as pd  # imported where used: 0.3 s that `xcheck solve` and `list` need not pay
@@ -150,7 +150,9 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                 finite = np.isfinite(error) & good
                 if not finite.any():
                     continue
-                magnitude = _magnitude(exact)[good]
+                exact_size = _magnitude(exact)
+                determined = np.isfinite(exact_size)
+                magnitude = exact_size[good & determined]
                 worst = int(np.flatnonzero(finite)[np.argmax(error[finite])])
                 rows.append(
                     {
@@ -164,7 +166,8 @@ def force_differences(kinematics: Kinematics, forces: Forces, branch: str | None
                         "worst_sample": worst,
                         "worst_input": float(forces.inputs[worst, 0]),
                         "samples": int(good.sum()),
-                        "missing": missing_samples(native.status, finite),
+                        # a state whose native force is not determined either is no state the source left out
+                        "missing": missing_samples(native.status, finite | ~determined),
                     }
                 )
     # the floors follow the drivers' laws at the source's inputs: an engine's realised rates of a driver
@@ -197,13 +200,20 @@ def energy_summary(kinematics: Kinematics, branch: str | None = None, samples: i
         If a moving body has no mass data.
     ValueError
         If a state of the window did not assemble or is singular (the first
-        one, in one line: :func:`determined_states`).
+        one, in one line: :func:`determined_states`), or a spring's pull has no
+        direction there (:func:`~xcheck.dynamics.directionless_springs`).
     """
     require_mass_data(kinematics.mechanism)
     window = simulation_window(kinematics, branch)
     times = window.times(samples)
     solved = kinematics.solve(*window.inputs(kinematics, times), branch=branch)
     solution = determined_states(kinematics, branch, solution=solved)
+    for name, where in directionless_springs(solution).items():
+        if where.any():
+            raise ValueError(
+                f"spring {name!r} has its two ends at one point at t = {times[int(np.argmax(where))]:.6g} s: "
+                "its pull has no direction there"
+            )
     balance = energy_balance(solution, inverse_dynamics(solution))
     kinetic, potential = mechanical_energy(solution)
     rate = scale_floors(kinematics.mechanism, solved.input_rates, solved.input_accelerations)["rate"]

@@ -41,7 +41,19 @@ from ..kinematics import Solution, Status
 from ..model import GROUND, Driver, Mechanism
 from ._forces import Forces, require_constant_loads, require_mass_data
 
-__all__ = ["AppliedLoad", "applied_loads", "inverse_dynamics", "newton_euler", "body_dynamics"]
+__all__ = [
+    "AppliedLoad",
+    "applied_loads",
+    "inverse_dynamics",
+    "newton_euler",
+    "body_dynamics",
+    "directionless_springs",
+]
+
+#: A spring's ends closer than this fraction of the mechanism's size coincide to
+#: round-off (its positions are held to a few eps of the size): the direction of
+#: its pull is then noise.
+COINCIDENT = 64 * np.finfo(float).eps
 
 
 def _rot(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -167,6 +179,7 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
         for load in mech.loads
     ]
     owners = mech.point_owners
+    directionless = directionless_springs(solution)
     for spring in mech.springs:
         ends = [solution.point(label) for label in spring.points]
         d = ends[1]["position"] - ends[0]["position"]
@@ -174,6 +187,7 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
         unit = np.divide(d, length[:, None], out=np.zeros_like(d), where=length[:, None] > 0.0)
         rate = np.einsum("ij,ij->i", unit, ends[1]["velocity"] - ends[0]["velocity"])
         tension = spring.stiffness * (length - spring.rest_length) + spring.damping * rate
+        tension[directionless[spring.name]] = np.nan
         for label, sign in zip(spring.points, (1.0, -1.0)):
             body = owners[label]
             if body != GROUND:
@@ -191,6 +205,21 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
         for body, sign in ((twist.body_b, 1.0), (twist.body_a, -1.0)):
             if body != GROUND:
                 out.append(AppliedLoad(f"{twist.name}@{body}", body, zero, np.zeros((n, 2)), sign * torque))
+    return out
+
+
+def directionless_springs(solution: Solution) -> dict[str, np.ndarray]:
+    """Per spring, the states (N,) bool where its ends coincide to round-off
+    (:data:`COINCIDENT`) while its rest length or damping pulls: its pull has
+    no direction there, so the reactions and efforts are not determined (a spring
+    of rest length 0 without damping pulls with nothing there)."""
+    size = solution.kinematics.system.size
+    out = {}
+    for spring in solution.mechanism.springs:
+        ends = [solution.point(label)["position"] for label in spring.points]
+        length = np.hypot(*(ends[1] - ends[0]).T)
+        pulls = spring.rest_length > 0.0 or spring.damping > 0.0
+        out[spring.name] = pulls & (length <= COINCIDENT * size)
     return out
 
 
