@@ -23,12 +23,15 @@ def test_a_change_point_is_no_missing_sample():
     """The five-sample sweep of the change-point four-bar hits crank = 180 deg, where
     all links are collinear: the native solver finds it near-singular (its rates
     carry no digits there), the exact formulations singular (no rates at all).
-    That agreement is not a sample the formulations left out."""
+    That agreement is not a sample the formulations left out, and the run warns of the
+    singular position it passes."""
     with warnings.catch_warnings(record=True):
         at_change = xcheck.load(CHANGE_POINT).solve(at=180)
     assert "near a limit or singular position" in " ".join(at_change.warnings)
     run = xcheck.run(CHANGE_POINT, engines="native,formulations", samples=5)
     assert run.verdict == "pass", run.summary.to_string()
+    # the terminal says so, as the report does (they print the run's warnings)
+    assert any("crank = 180 deg is near a limit or singular position" in line for line in run.warnings), run.warnings
     for mode in ("formulation-I", "formulation-II"):
         assert int(run.outcomes[mode].categories.missing.max()) == 0
 

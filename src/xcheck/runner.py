@@ -53,6 +53,7 @@ from .results import (
     scale_floors,
     undetermined_text,
 )
+from .states import limit_warnings
 from .tolerances import (
     CONDITIONING_FACTOR,
     ENGINE_CONDITIONING_FACTOR,
@@ -304,7 +305,8 @@ class RunResult:
     no_forces: str = ""
     no_energy: str = ""
     floors: dict = field(default_factory=dict)
-    #: what the file asks that the mechanism cannot do (:func:`xcheck.motion.drive_warnings`)
+    #: what the file asks that the mechanism cannot do (:func:`xcheck.motion.drive_warnings`), then
+    #: where the sweep passes near a limit or singular position (:func:`xcheck.states.limit_warnings`)
     warnings: list[str] = field(default_factory=list)
     provenance: dict = field(default_factory=dict)
     left_out: dict = field(default_factory=dict)
@@ -869,7 +871,7 @@ def run_mechanism(
                 "the drivers stand still (every state is a static position): there is no motion to integrate"
             )
     run = RunResult(kinematics, branch_name, native, outcomes, {}, textbook or [], 0.0, floors=floors)
-    run.warnings = drive_warnings(kinematics, branch)
+    run.warnings = [*drive_warnings(kinematics, branch), *limit_warnings(native, branch)]
     run.left_out = left_out(("native", *modes))
     cached = {}
     cache = cache and result_cache.enabled()

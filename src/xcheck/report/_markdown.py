@@ -23,7 +23,6 @@ from ..runner import (
     tolerance,
     versions,
 )
-from ..states import limit_warnings
 from ..tolerances import conditioned_round_off
 from ._evidence import Evidence
 
@@ -496,7 +495,7 @@ def report_markdown(run: RunResult, evidence: Evidence, images: dict[str, str], 
         f"# {mech.name}: {mech.title}",
         f"Source: {mech.source or '—'}. Result: {verdict}.",
         provenance,
-        "\n\n".join(f"> **Warning:** {line}." for line in [*run.warnings, *limit_warnings(run.native, run.branch)]),
+        "\n\n".join(f"> **Warning:** {line}." for line in run.warnings),
         mech.notes.strip(),
         f"![the mechanism]({images['drawing']})" + (f"  ![motion]({images['gif']})" if "gif" in images else ""),
         "## Printed answers\n\n" + _textbook_section(run),
