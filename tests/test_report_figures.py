@@ -101,6 +101,50 @@ def test_minor_ticks_drawn_as_two_lines_give_matplotlibs_pixels(y, minor_labelle
     assert pixels(ours) == pixels(theirs)
 
 
+@pytest.mark.parametrize(
+    "x, y, scale, replaced",
+    [
+        ((-130.0, 125.0), (0.1, 800.0), "linear", True),  # the quantities figure's panels
+        ((-130.0, 125.0), (-18.0, 6.5), "linear", True),  # negative labels
+        ((-130.0, 125.0), (1e-12, 1.0), "log", True),  # the differences figure's, minor ticks unlabelled
+        ((-130.0, 125.0), (2e-6, 7e-6), "log", False),  # labelled minor ticks: left as they are
+        ((-130.0, 125.0), (1e5, 1e5 + 1e-3), "linear", False),  # labels with an offset: left as they are
+        ((-0.2, 0.32), (-0.2, 0.3), "equal", True),  # the drawing: its limits set by the aspect as it draws
+    ],
+)
+def test_major_ticks_drawn_as_artists_give_matplotlibs_pixels(x, y, scale, replaced):
+    """A report's major ticks, drawn as one line of tick marks, one of grid lines
+    and a text per label, with the axis labels placed clear of them as matplotlib
+    places them, are the pixels of matplotlib's own ticks."""
+
+    def figure() -> Figure:
+        made = Figure(figsize=(3.2, 2.6), dpi=90)
+        FigureCanvasAgg(made)
+        ax = made.add_subplot()
+        ax.plot(x, y, "o-")
+        if scale == "equal":
+            ax.set_aspect("equal", adjustable="datalim")
+        else:
+            ax.set_yscale(scale)
+        ax.set_xlabel("crank [deg]")
+        ax.set_ylabel("x of C [mm]")
+        ax.set_title("the runner's sweep", fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        return made
+
+    def pixels(made: Figure) -> bytes:
+        made.canvas.draw()
+        return bytes(made.canvas.buffer_rgba())
+
+    theirs, ours = figure(), figure()
+    _figures._unlabelled_minor_ticks_as_lines(ours)
+    _figures._major_ticks_as_artists(ours)
+    (ax,) = ours.axes
+    assert isinstance(ax.xaxis.get_major_locator(), NullLocator)
+    assert isinstance(ax.yaxis.get_major_locator(), NullLocator) == replaced
+    assert pixels(ours) == pixels(theirs)
+
+
 @pytest.fixture(scope="module")
 def two_input_run():
     return api.run("two-body-arm", engines="formulations,mujoco", samples=21, models=MODELS)

@@ -13,6 +13,8 @@ from collections.abc import Iterator
 import matplotlib
 import matplotlib.collections
 import matplotlib.lines
+import matplotlib.text
+import matplotlib.transforms
 
 matplotlib.use("Agg")
 
@@ -85,6 +87,7 @@ def _png(figure, dpi: int = 90, compact: bool = True, **options) -> bytes:
         assert not options, options
         canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else FigureCanvasAgg(figure)
         figure.set_dpi(dpi)
+        _major_ticks_as_artists(figure)
         canvas.draw()
         pixels = np.asarray(canvas.buffer_rgba())[..., :3]
         Image.fromarray(pixels).save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
@@ -154,6 +157,53 @@ def _plain_log_labels(ax) -> None:
                 install(_PlainLogFormatter(axis.get_transform().base, labelOnlyBase=formatter.labelOnlyBase))
 
 
+#: the zorders of a panel's tick artists above its x axis's: x major, x minor, y axis, y major, y minor
+#: (matplotlib draws the x axis's ticks, then the y axis's, major before minor, and where two grid
+#: lines cross the second blends over the first: the artists keep that order)
+_TICK_ORDER = {"x major": 0.5e-6, "x minor": 1e-6, "y axis": 2e-6, "y major": 2.5e-6, "y minor": 3e-6}
+
+
+def _in_view(axis, locations: np.ndarray) -> np.ndarray:
+    """The tick locations that lie in the axis's view, by matplotlib's own test."""
+    scale = axis.get_transform()
+    low, high = sorted(scale.transform(axis.get_view_interval()))
+    slack = 1e-10 * (high - low)
+    at = scale.transform(locations)
+    return locations[(at >= low - slack) & (at <= high + slack)]
+
+
+def _tick_lines(ax, axis, template, locations: np.ndarray, zorder: float) -> None:
+    """The grid lines and tick marks of ``axis`` at ``locations``, styled as its
+    tick ``template``: one collection of grid lines (one path each: where two lie
+    closer than their width, each blends) and one line of tick marks."""
+    grid, marks = template.gridline, template.tick1line
+    if grid.get_visible():
+        ends = np.stack([np.zeros(len(locations)), np.ones(len(locations))], axis=1)
+        along = np.repeat(locations[:, None], 2, axis=1)
+        segments = np.stack((along, ends) if axis is ax.xaxis else (ends, along), axis=2)
+        lines = matplotlib.collections.LineCollection(
+            list(segments),
+            colors=[grid.get_color()],
+            alpha=grid.get_alpha(),
+            linewidths=grid.get_linewidth(),
+            linestyles=grid.get_linestyle(),
+            capstyle=grid.get_solid_capstyle(),
+            joinstyle=grid.get_solid_joinstyle(),
+            transform=grid.get_transform(),
+            zorder=zorder,
+        )
+        lines.set_clip_path(ax.patch)
+        ax.add_artist(lines)
+    if marks.get_visible():
+        zeros = np.zeros(len(locations))
+        line = matplotlib.lines.Line2D(*((locations, zeros) if axis is ax.xaxis else (zeros, locations)))
+        line.update_from(marks)
+        line.set_transform(marks.get_transform())
+        line.set_zorder(zorder)
+        line.set_clip_on(False)
+        ax.add_artist(line)
+
+
 def _unlabelled_minor_ticks_as_lines(figure) -> None:
     """Draw the unlabelled minor ticks of ``figure``'s panels as two artists per
     axis, one line of tick marks and one collection of grid lines, styled as
@@ -165,52 +215,75 @@ def _unlabelled_minor_ticks_as_lines(figure) -> None:
     for ax in figure.axes:
         if not ax.get_visible():
             continue
-        # matplotlib draws the x axis's ticks, then the y axis's, and where two grid lines
-        # cross the second blends over the first: the lines keep that order between the axes
-        step = 1e-6
         base = ax.xaxis.get_zorder()
-        ax.yaxis.set_zorder(base + 2 * step)
-        for rank, axis in enumerate((ax.xaxis, ax.yaxis)):
+        ax.yaxis.set_zorder(base + _TICK_ORDER["y axis"])
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
             if isinstance(axis.get_minor_locator(), ticker.NullLocator):
                 continue
-            locations = axis.get_minorticklocs()
-            scale = axis.get_transform()
-            low, high = sorted(scale.transform(axis.get_view_interval()))
-            slack = 1e-10 * (high - low)  # matplotlib's own test of a tick in view
-            at = scale.transform(locations)
-            locations = locations[(at >= low - slack) & (at <= high + slack)]
+            locations = _in_view(axis, axis.get_minorticklocs())
             if any(axis.minor.formatter.format_ticks(locations)):
                 continue
             template = axis.get_minor_ticks(1)[0]
             axis.set_minor_locator(ticker.NullLocator())
-            if not len(locations):
+            if len(locations):
+                _tick_lines(ax, axis, template, locations, base + _TICK_ORDER[f"{name} minor"])
+
+
+def _major_ticks_as_artists(figure) -> None:
+    """Draw the major ticks of ``figure``'s panels as one line of tick marks, one
+    collection of grid lines and a text per label, styled and placed as
+    matplotlib's own major ticks, and put each axis label where matplotlib would
+    (clear of those labels), instead of five artists per tick made and drawn one
+    by one: the same pixels. For a static image at its final resolution: call it
+    after :func:`_unlabelled_minor_ticks_as_lines`, once the figure's dpi is set.
+    An axis that still has minor ticks (labelled), whose labels have an offset,
+    or with ticks or its label on its other side is left as it is."""
+    renderer = figure.canvas.get_renderer()
+    dots = figure.dpi / 72
+    for ax in figure.axes:
+        if not ax.get_visible():
+            continue
+        ax.apply_aspect()  # the limits the drawing will have (an equal aspect adjusts them as it draws)
+        base = ax.xaxis.get_zorder()
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            if isinstance(axis.get_major_locator(), ticker.NullLocator):
                 continue
-            grid, marks = template.gridline, template.tick1line
-            if grid.get_visible():  # one path per grid line: where two lie closer than their width, each blends
-                ends = np.stack([np.zeros(len(locations)), np.ones(len(locations))], axis=1)
-                along = np.repeat(locations[:, None], 2, axis=1)
-                segments = np.stack((along, ends) if axis is ax.xaxis else (ends, along), axis=2)
-                lines = matplotlib.collections.LineCollection(
-                    list(segments),
-                    colors=[grid.get_color()],
-                    alpha=grid.get_alpha(),
-                    linewidths=grid.get_linewidth(),
-                    linestyles=grid.get_linestyle(),
-                    capstyle=grid.get_solid_capstyle(),
-                    joinstyle=grid.get_solid_joinstyle(),
-                    transform=grid.get_transform(),
-                    zorder=base + (2 * rank + 1) * step,  # after its axis's major ticks, under the data
-                )
-                lines.set_clip_path(ax.patch)
-                ax.add_artist(lines)
-            if marks.get_visible():
-                zeros = np.zeros(len(locations))
-                line = matplotlib.lines.Line2D(*((locations, zeros) if axis is ax.xaxis else (zeros, locations)))
-                line.update_from(marks)
-                line.set_transform(marks.get_transform())
-                line.set_zorder(base + (2 * rank + 1) * step)
-                line.set_clip_on(False)
-                ax.add_artist(line)
+            if not isinstance(axis.get_minor_locator(), ticker.NullLocator):
+                continue
+            everywhere = axis.get_majorticklocs()
+            labels = axis.major.formatter.format_ticks(everywhere)  # as matplotlib formats them, all at once
+            template = axis.get_major_ticks(1)[0]
+            if (
+                axis.major.formatter.get_offset()
+                or template.tick2line.get_visible()
+                or template.label2.get_visible()
+                or axis.get_label_position() != ("bottom" if name == "x" else "left")
+            ):
+                continue
+            locations = _in_view(axis, everywhere)
+            labels = [label for location, label in zip(everywhere, labels) if location in locations]
+            axis.set_major_locator(ticker.NullLocator())
+            zorder = base + _TICK_ORDER[f"{name} major"]
+            if len(locations):
+                _tick_lines(ax, axis, template, locations, zorder)
+            boxes = []
+            if template.label1.get_visible():
+                for location, label in zip(locations, labels):
+                    x, y = (location, 0.0) if name == "x" else (0.0, location)
+                    text = matplotlib.text.Text(x, y, label)
+                    text.update_from(template.label1)
+                    text.set_zorder(zorder)
+                    text.set_clip_on(False)
+                    ax.add_artist(text)
+                    boxes.append(text.get_window_extent(renderer))
+            # the axis label clear of the tick labels, as matplotlib places it (Axis._update_label_position)
+            x, y = axis.label.get_position()
+            if name == "x":
+                bottom = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("bottom", ax).get_window_extent()])
+                axis.set_label_coords(x, bottom.y0 - axis.labelpad * dots, transform=axis.label.get_transform())
+            else:
+                left = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("left", ax).get_window_extent()])
+                axis.set_label_coords(left.x0 - axis.labelpad * dots, y, transform=axis.label.get_transform())
 
 
 def _input_axis(run: RunResult, values: np.ndarray) -> tuple[np.ndarray, str]:
