@@ -89,8 +89,9 @@ def _png(figure, dpi: int = 90, compact: bool = True, **options) -> bytes:
         figure.set_dpi(dpi)
         _major_ticks_as_artists(figure)
         canvas.draw()
-        pixels = np.asarray(canvas.buffer_rgba())[..., :3]
-        Image.fromarray(pixels).save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
+        width, height = canvas.get_width_height(physical=True)
+        pixels = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        pixels.convert("RGB").save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
     else:
         figure.savefig(buffer, format="png", dpi=dpi, **options)
     plt.close(figure)
