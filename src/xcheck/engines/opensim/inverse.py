@@ -1,9 +1,9 @@
 """OpenSim's inverse dynamics of a prescribed motion: joint reactions and driver
 efforts from Simbody's constrained acceleration solve.
 
-At each native state the drivers are prescribed (the quadratic in time with the
-state's input values, rates and accelerations), OpenSim's assembler and speed
-projection give the state, and the accelerations are realised with the drivers
+At each native state the drivers are prescribed (one by time itself, several by the
+quadratic in time with the state's input values, rates and accelerations), OpenSim's
+assembler and speed projection give the state, and the accelerations are realised with the drivers
 free, each pushed by the effort that gives its input's acceleration
 (:func:`.kinematic.assembled_states`, from the previous state's coordinates, or
 from the state's native configuration where the previous one is far).

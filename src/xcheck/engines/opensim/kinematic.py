@@ -1,9 +1,14 @@
 """OpenSim as a kinematic oracle (mode ``opensim-kinematic``): at each input of the
 sweep (:func:`xcheck.runner.sweep_inputs`), the model of :func:`.model.build` with
-each driven coordinate prescribed by the quadratic in time that has the input's
-value, rate and acceleration at t = 0, assembled by OpenSim's assembler
-(``Model.assemble``, from the previous sample's coordinates) and its speeds projected
-onto the constraints by Simbody (``Manager.initialize``). The accelerations are
+its drivers prescribed, assembled by OpenSim's assembler (``Model.assemble``, from the
+previous sample's coordinates) and its speeds projected onto the constraints by
+Simbody (``Manager.initialize``). One driver is prescribed by time itself (its value,
+from the build state's, is the time; its rate 1), so that one model serves every
+input: the assembly is made at the time of the input's value, and the projected speeds,
+linear in the driver's rate, are multiplied by the input's rate. Several drivers are
+each prescribed by the quadratic in time that has its input's value, rate and
+acceleration at t = 0, the model initialised again at each input (OpenSim fixes a
+prescribed function when it initialises the system). The accelerations are
 realised (``realizeAcceleration``) on a second model whose drivers are free, each
 pushed by a ``CoordinateActuator`` with the effort that gives the input's
 acceleration: with the drivers prescribed, Simbody solves their constraint forces
@@ -140,7 +145,9 @@ def assembled_states(
             state = manager.getState()  # the state lives in the manager
             if pushed is None:
                 pushed = build(mech, q_ref, planar_cuts=True, actuated=tuple(name for name, _ in signs))
-            pushed_state = _realised_by_efforts(pushed, om, state, signs, accelerations[j])
+            pushed_state = _realised_by_efforts(
+                pushed, om, state, signs, accelerations[j], _speed_scale(signs, rates[j])
+            )
             frames = pushed.frames(pushed_state)
             gap = loop_gap(frames, pushed.tree.cuts)
             if not gap <= CLOSED * mech.size:
@@ -166,7 +173,7 @@ def _assembled(
 ) -> tuple[OpenSimModel, Any]:
     """:func:`_assemble`, its speeds projected: (model, the started manager that holds its state)."""
     om = _assemble(mech, q_ref, ref, signs, at, guess, om, defaults)
-    return om, om.started_manager("RungeKuttaMerson", fixed_step=1.0)
+    return om, om.started_manager("RungeKuttaMerson", fixed_step=1.0, time=_clock(signs, at[0], ref))
 
 
 def _assemble(
@@ -187,26 +194,48 @@ def _assemble(
     assembled state, OpenSim's assembler can land on another branch where the default
     pose is far: a stated finding)."""
     values, rates, accelerations = at
-    functions = {  # value, rate and acceleration at t = 0, from the build state's value
-        name: polynomial([sign * accelerations[k] / 2, sign * rates[k], sign * (values[k] - ref[k])])
-        for k, (name, sign) in enumerate(signs)
-    }
+    if len(signs) == 1:  # one driver: prescribed by time itself, its value the time (_clock), its rate 1
+        functions = {signs[0][0]: opensim().LinearFunction(1.0, 0.0)}
+    else:  # value, rate and acceleration at t = 0, from the build state's value
+        functions = {
+            name: polynomial([sign * accelerations[k] / 2, sign * rates[k], sign * (values[k] - ref[k])])
+            for k, (name, sign) in enumerate(signs)
+        }
     built = om is None
     if om is None:
         om = build(mech, q_ref, prescribed=functions, planar_cuts=True)
     if defaults:
         for name, value in guess.items():
             om.coordinates[name].setDefaultValue(value)
-    if defaults or not built:
+    if defaults or (not built and len(signs) > 1):
         om.prescribe(functions)
     model, state = om.model, om.state
     for name, value in guess.items():
         if not om.coordinates[name].isPrescribed(state):
             om.coordinates[name].setValue(state, value, False)
-    state.setTime(0.0)
+    state.setTime(_clock(signs, values, ref))
+    if len(signs) == 1:  # the assembly starts from the driver's value (a quadratic about t = 0 has it there
+        # once the system is initialised; time itself has it at t = 0)
+        om.coordinates[signs[0][0]].setValue(state, _clock(signs, values, ref), False)
     model.updateAssemblyConditions(state)
     model.assemble(state)
     return om
+
+
+def _clock(signs, values: np.ndarray, ref: np.ndarray) -> float:
+    """The time at which :func:`_assemble`'s model prescribes the drivers at ``values``
+    (ndarray (k,); ``ref``: the build state's): with one driver, prescribed by time
+    itself, its value from the build state's; with several, each by its own
+    quadratic about t = 0."""
+    return signs[0][1] * (float(values[0]) - float(ref[0])) if len(signs) == 1 else 0.0
+
+
+def _speed_scale(signs, rates: np.ndarray) -> float:
+    """What the speeds of :func:`_assemble`'s state, projected by Simbody with its
+    drivers' rates, are multiplied by to be those at ``rates`` (ndarray (k,)): with one
+    driver, prescribed at rate 1 (:func:`_clock`), its rate (the velocity constraints are
+    linear in the speeds); with several, prescribed at ``rates``, 1."""
+    return signs[0][1] * float(rates[0]) if len(signs) == 1 else 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -339,7 +368,9 @@ def _continued(om, mech, q_ref, ref, signs, guess: dict, last: np.ndarray, targe
     return om, dict(zip(names, walk.qpos[0]))
 
 
-def _realised_by_efforts(pushed: OpenSimModel, assembled: OpenSimModel, state, signs, accelerations) -> object:
+def _realised_by_efforts(
+    pushed: OpenSimModel, assembled: OpenSimModel, state, signs, accelerations, speed_scale: float = 1.0
+) -> object:
     """``pushed``'s state (its drivers free, an actuator on each) at the coordinates and
     speeds of ``assembled``'s ``state``, realised to acceleration with the actuators'
     efforts solved so that the driven coordinates accelerate as ``accelerations``
@@ -355,7 +386,7 @@ def _realised_by_efforts(pushed: OpenSimModel, assembled: OpenSimModel, state, s
     model, pushed_state = pushed.model, pushed.state
     for name, coordinate in assembled.coordinates.items():
         pushed.coordinates[name].setValue(pushed_state, coordinate.getValue(state), False)
-        pushed.coordinates[name].setSpeedValue(pushed_state, coordinate.getSpeedValue(state))
+        pushed.coordinates[name].setSpeedValue(pushed_state, coordinate.getSpeedValue(state) * speed_scale)
     driven = [pushed.coordinates[name] for name, _ in signs]
     target = np.array([sign * float(a) for (_, sign), a in zip(signs, accelerations)])
 
@@ -432,11 +463,16 @@ def run_kinematic(kinematics: Kinematics, samples: int = 361, branch: str | None
         settings={"samples": samples, "branch": branch or kinematics.branches[0], "cuts": "PointOnLineConstraint"},
         diagnostics={"constraint_violation": gaps},
         notes=(
-            "OpenSim's assembler (Model.assemble, from the neighbouring sample's coordinates) with the driven "
-            "coordinates prescribed by quadratics in time with the inputs' values, rates and accelerations at "
-            "t = 0; speeds projected by Simbody (Manager.initialize); accelerations realised with the drivers "
-            "free, each pushed by the effort that gives its input's acceleration. Loops cut as "
-            f"PointOnLineConstraints. OpenSim {osim.__version__}."
+            "OpenSim's assembler (Model.assemble, from the neighbouring sample's coordinates) with "
+            + (
+                "the driven coordinate prescribed by time itself, at the time of the input's value; speeds projected "
+                "by Simbody (Manager.initialize) at its unit rate and multiplied by the input's rate"
+                if len(mech.drivers) == 1
+                else "the driven coordinates prescribed by quadratics in time with the inputs' values, rates and "
+                "accelerations at t = 0; speeds projected by Simbody (Manager.initialize)"
+            )
+            + "; accelerations realised with the drivers free, each pushed by the effort that gives its input's "
+            f"acceleration. Loops cut as PointOnLineConstraints. OpenSim {osim.__version__}."
         ),
     )
     return ModeResult(MODE, mech.name, True, "", [trajectory], differences(kinematics, trajectory, branch))

@@ -117,11 +117,13 @@ class OpenSimModel:
             self.coordinates[name].setPrescribedFunction(function)
         self.state = self.model.initSystem()
 
-    def started_manager(self, method: str, *, fixed_step: float | None = None, accuracy: float = 0.0):
+    def started_manager(
+        self, method: str, *, fixed_step: float | None = None, accuracy: float = 0.0, time: float = 0.0
+    ):
         """An OpenSim ``Manager`` of this model integrating with ``method`` (the suffix of
         ``IntegratorMethod_``, e.g. "RungeKuttaMerson") at steps of ``fixed_step`` (s) or, without
         one, to ``accuracy``; it records, writes and analyses nothing, and starts from
-        :attr:`state` at t = 0."""
+        :attr:`state` at ``time`` (s)."""
         osim = opensim()
         manager = osim.Manager(self.model)
         manager.setIntegratorMethod(getattr(osim.Manager, f"IntegratorMethod_{method}"))
@@ -132,7 +134,7 @@ class OpenSimModel:
         manager.setRecordStatesTrajectory(False)
         manager.setWriteToStorage(False)
         manager.setPerformAnalyses(False)
-        self.state.setTime(0.0)
+        self.state.setTime(time)
         manager.initialize(self.state)
         return manager
 
