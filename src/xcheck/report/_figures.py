@@ -165,12 +165,12 @@ _TICK_ORDER = {"x major": 0.5e-6, "x minor": 1e-6, "y axis": 2e-6, "y major": 2.
 
 
 def _in_view(axis, locations: np.ndarray) -> np.ndarray:
-    """The tick locations that lie in the axis's view, by matplotlib's own test."""
+    """Which tick locations lie in the axis's view, by matplotlib's own test (a mask)."""
     scale = axis.get_transform()
     low, high = sorted(scale.transform(axis.get_view_interval()))
     slack = 1e-10 * (high - low)
     at = scale.transform(locations)
-    return locations[(at >= low - slack) & (at <= high + slack)]
+    return (at >= low - slack) & (at <= high + slack)
 
 
 def _tick_lines(ax, axis, template, locations: np.ndarray, zorder: float) -> None:
@@ -221,7 +221,8 @@ def _unlabelled_minor_ticks_as_lines(figure) -> None:
         for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
             if isinstance(axis.get_minor_locator(), ticker.NullLocator):
                 continue
-            locations = _in_view(axis, axis.get_minorticklocs())
+            locations = axis.get_minorticklocs()
+            locations = locations[_in_view(axis, locations)]
             if any(axis.minor.formatter.format_ticks(locations)):
                 continue
             template = axis.get_minor_ticks(1)[0]
@@ -261,8 +262,8 @@ def _major_ticks_as_artists(figure) -> None:
                 or axis.get_label_position() != ("bottom" if name == "x" else "left")
             ):
                 continue
-            locations = _in_view(axis, everywhere)
-            labels = [label for location, label in zip(everywhere, labels) if location in locations]
+            shown = _in_view(axis, everywhere)
+            locations, labels = everywhere[shown], [label for label, kept in zip(labels, shown) if kept]
             axis.set_major_locator(ticker.NullLocator())
             zorder = base + _TICK_ORDER[f"{name} major"]
             if len(locations):
@@ -270,8 +271,8 @@ def _major_ticks_as_artists(figure) -> None:
             boxes = []
             if template.label1.get_visible():
                 for location, label in zip(locations, labels):
-                    x, y = (location, 0.0) if name == "x" else (0.0, location)
-                    text = matplotlib.text.Text(x, y, label)
+                    at = (location, 0.0) if name == "x" else (0.0, location)
+                    text = matplotlib.text.Text(at[0], at[1], label)
                     text.update_from(template.label1)
                     text.set_zorder(zorder)
                     text.set_clip_on(False)
