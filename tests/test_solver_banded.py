@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 from scipy.linalg import lapack
-from test_solver_fast import DATA, MODELS, _sweeps
+from test_solver_fast import DATA, MODELS, _sweeps, walk_once
 
 from xcheck import Kinematics, load_mechanism
 from xcheck.kinematics import _banded, _compiled
@@ -208,7 +208,7 @@ def test_every_kind_of_term_on_the_banded_path_matches_the_reference(path, monke
     of the permutations, which the revolute chains above do not."""
     monkeypatch.setattr(_compiled, "BANDED_FROM", 1)
     monkeypatch.setattr(_compiled, "BAND_WIDTH_LIMIT", 100.0)
-    kin = Kinematics(load_mechanism(path))
+    kin = walk_once(Kinematics(load_mechanism(path)))
     for branch, c, rates, accelerations in _sweeps(kin, 1000):
         fast = kin.solve(c, rates, accelerations, branch=branch, compiled=True)
         assert kin._packed.layout is not None
