@@ -142,6 +142,8 @@ class Twin(engines.Engine):
         return newton_euler(window_states(kinematics, branch))
 
     def run(self, mode, kinematics, *, native, samples, branch=None):
+        if os.environ.get("TWIN_CRASH") == mode:  # a crash of the engine's library
+            os._exit(1)
         result = engines.engine("formulations").run(
             "formulation-I", kinematics, native=native, samples=samples, branch=branch
         )
@@ -155,7 +157,8 @@ def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tm
     timings. Two modes of an installed plug-in, each formulation I's solution and
     declared costly, so that the run sends them to workers; its reactions (the native
     per-body form's) are computed by the worker that runs its costlier mode, not by the
-    command, with two workers."""
+    command, with two workers. Where that mode crashes its worker, the reactions after it
+    fail with the mode's reason and the other mode still counts."""
     import subprocess
 
     from conftest import ROOT, install_plug_in
@@ -180,6 +183,14 @@ def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tm
     assert documents[0]["forces"]["twin"]["pass"] is True
     assert documents[0] == documents[1]
     assert computed_by == [["worker"], ["command"]]
+    done = subprocess.run(
+        [*command, "--jobs", "2"], capture_output=True, text=True, timeout=300, env={**env, "TWIN_CRASH": "twin-1"}
+    )
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    document = json.loads(done.stdout)
+    crashed, forces = document["engines"]["twin-1"], document["forces"]["twin"]
+    assert crashed["verdict"] == forces["verdict"] == "failed" and "worker process died" in forces["reason"]
+    assert forces["reason"] == crashed["reason"] and document["engines"]["twin-2"]["verdict"] == "pass"
 
 
 def test_a_script_without_a_main_guard_gets_the_reason_not_a_hang(tmp_path):
