@@ -60,6 +60,37 @@ def test_import_is_quiet(capfd):
     assert jax.config.jax_enable_x64 and hasattr(mjx, "step")
 
 
+def test_jax_keeps_its_compilations_in_xcheck_s_cache_unless_one_is_named(tmp_path, monkeypatch):
+    """JAX's persistent cache goes to jax/ of xcheck's cache directory, bounded; a cache
+    the environment already names (as the test run's, tests/.jax-cache) is kept, and
+    xcheck's cache turned off keeps JAX's off. Checked on JAX's config alone (JAX not
+    imported here: its import is 0.7 CPU s)."""
+    from types import SimpleNamespace
+
+    from xcheck.store import CACHE_ENV
+
+    class Config:
+        def __init__(self, directory: str):
+            self.jax_compilation_cache_dir = directory
+            self.updates: dict = {}
+
+        def update(self, name, value):
+            self.updates[name] = value
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    for named, expected in (
+        ("", {"jax_compilation_cache_dir": str(tmp_path / "jax"), "jax_compilation_cache_max_size": free.CACHE_BYTES}),
+        ("/elsewhere", {}),
+    ):
+        config = Config(named)
+        free._persistent_cache(SimpleNamespace(config=config))
+        assert config.updates == expected
+    monkeypatch.setenv(CACHE_ENV, "off")
+    config = Config("")
+    free._persistent_cache(SimpleNamespace(config=config))
+    assert config.updates == {}
+
+
 @pytest.mark.parametrize(
     ("path", "joints", "equalities"),
     [
