@@ -315,3 +315,44 @@ def test_convergence_panels_in_a_grid_with_legends_under_them_and_round_off_said
     assert labels["exudyn-dynamic"][-1].startswith("round-off bound")
     assert not any(t.get_text().startswith("h") for t in figure.axes[2].texts)  # no slopes to fit
     _boxes_apart(figure)  # the title too, above the panels of a grid two rows high
+
+
+def test_a_figure_fitted_to_its_contents_holds_a_legend_beside_its_panel():
+    """A legend beside the axes, taller and wider than the figure, lies whole in
+    the fitted PNG, measured at the resolution it is drawn at, with the margin asked."""
+    figure = Figure(figsize=(3.0, 2.0))
+    ax = figure.add_subplot()
+    for k in range(30):
+        ax.plot([0, 1], [k, k + 1], label=f"series {k}: a long label that runs beyond the figure")
+    ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    FigureCanvasAgg(figure)
+    figure.set_dpi(110)
+    _figures._fit_to_contents(figure, 0.1)
+    figure.canvas.draw()
+    box = figure.get_tightbbox(figure.canvas.get_renderer())  # inches
+    width, height = figure.get_size_inches()
+    assert width > 3.0 and height > 2.0
+    for margin in (box.x0, box.y0, width - box.x1, height - box.y1):
+        assert margin == pytest.approx(0.1, abs=1.5 / 110)  # to the pixel
+
+
+def test_free_motion_figures_are_written_as_a_runs_are(monkeypatch):
+    """The free-motion report's figures: RGB with no metadata but the resolution,
+    log axes labelled in plain text without matplotlib's mathtext."""
+    import matplotlib.mathtext
+    from PIL import Image
+
+    from xcheck.report import _simulation
+    from xcheck.simulation import simulate_all
+
+    def refused(*_):
+        raise AssertionError("mathtext")
+
+    kinematics = api.load("iftomm-a01", models=MODELS).kinematics
+    result = simulate_all(kinematics, ["mujoco-free"], duration=0.1)
+    monkeypatch.setattr(matplotlib.mathtext.MathTextParser, "parse", refused)
+    drawn = _simulation.figures(result)
+    assert set(drawn) == {"drawing", "energy", "errors", "work-precision"}
+    for data in drawn.values():
+        with Image.open(io.BytesIO(data)) as image:
+            assert image.mode == "RGB" and set(image.info) == {"dpi"}

@@ -73,20 +73,24 @@ def old_objects_frozen() -> Iterator[None]:
         gc.unfreeze()
 
 
-def _png(figure, dpi: int = 90, compact: bool = True, **options) -> bytes:
+def _png(figure, dpi: int = 90, compact: bool = True, fit: float | None = None, **options) -> bytes:
     """The figure, complete, as PNG bytes; the figure is closed. Its unlabelled
     minor ticks are drawn as a few lines (:func:`_unlabelled_minor_ticks_as_lines`:
     the same pixels).
 
     ``compact``: the figure's RGB pixels (it is opaque) compressed at zlib level 3,
-    with no metadata but the resolution; else matplotlib's own PNG (RGBA, with its
-    version), ``options`` going to ``savefig``. The same pixels either way."""
+    with no metadata but the resolution, and with ``fit`` the figure made the size
+    of what it draws plus ``fit`` inches on each side (:func:`_fit_to_contents`);
+    else matplotlib's own PNG (RGBA, with its version), ``options`` going to
+    ``savefig``. The same pixels either way."""
     _unlabelled_minor_ticks_as_lines(figure)
     buffer = io.BytesIO()
     if compact:
         assert not options, options
         canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else FigureCanvasAgg(figure)
         figure.set_dpi(dpi)
+        if fit is not None:  # measured at the resolution it is drawn at: text does not scale exactly
+            _fit_to_contents(figure, fit)
         _major_ticks_as_artists(figure)
         canvas.draw()
         width, height = canvas.get_width_height(physical=True)
@@ -118,6 +122,27 @@ def _margins(figure, left: float, right: float, bottom: float, top: float, wspac
         wspace=wspace / panel_w,
         hspace=hspace / panel_h,
     )
+
+
+def _fit_to_contents(figure, pad: float) -> None:
+    """Make the figure the size of what it draws plus ``pad`` inches on each side,
+    its panels moved with it (savefig's ``bbox_inches="tight"`` for :func:`_png`):
+    room for what stands outside the panels, such as a legend beside them. For a
+    figure whose artists outside the panels are the panels' own (titles, labels,
+    legends): a figure's own title or legend would not move."""
+    box = figure.get_tightbbox(figure.canvas.get_renderer()).padded(pad)  # inches
+    width, height = figure.get_size_inches()
+    for ax in figure.axes:
+        at = ax.get_position()
+        ax.set_position(
+            [
+                (at.x0 * width - box.x0) / box.width,
+                (at.y0 * height - box.y0) / box.height,
+                at.width * width / box.width,
+                at.height * height / box.height,
+            ]
+        )
+    figure.set_size_inches(box.width, box.height)
 
 
 def _log_panel_title(ax, text: str) -> None:

@@ -30,8 +30,14 @@ from ._markdown import _g, _image, _provenance, _table, left_out_markdown  # noq
 __all__ = ["REFERENCE_FIGURES", "figures", "figure_modes", "mode_parts", "markdown"]
 
 
-def _png(figure, **options) -> bytes:
-    return _figures._png(figure, dpi=110, compact=False, metadata={"Software": None}, **options)
+def _png(figure, fit: bool = False) -> bytes:
+    """The figure as a run report's figures are written (:func:`xcheck.report._figures._png`):
+    log axes labelled in plain text, RGB pixels, no metadata but the resolution; laid out
+    by ``tight_layout``, and with ``fit`` the figure made the size of what it draws."""
+    for ax in figure.axes:
+        _figures._plain_log_labels(ax)
+    figure.tight_layout()
+    return _figures._png(figure, dpi=110, fit=0.1 if fit else None)
 
 
 def _passes(ax, result: SimulationResult) -> None:
@@ -91,7 +97,6 @@ def _energy(result: SimulationResult) -> bytes:
         f"{result.kinematics.mechanism.name}: the native reference (grey lines: singular positions passed)",
         fontsize=10,
     )
-    figure.tight_layout()
     return _png(figure)
 
 
@@ -118,7 +123,6 @@ def _errors(result: SimulationResult) -> bytes | None:
     ax.set_title(
         f"{result.kinematics.mechanism.name}: each engine's most accurate run against the reference", fontsize=9
     )
-    figure.tight_layout()
     return _png(figure)
 
 
@@ -164,8 +168,7 @@ def _work_precision(result: SimulationResult) -> bytes | None:
         f"{result.kinematics.mechanism.name}: work-precision (one line per engine and setting, step falling)",
         fontsize=9,
     )
-    figure.tight_layout()
-    return _png(figure, bbox_inches="tight", pad_inches=0.1)  # the legend beside the axes
+    return _png(figure, fit=True)  # the legend beside the axes
 
 
 def _setting(trajectory) -> str:
