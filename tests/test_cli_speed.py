@@ -44,13 +44,17 @@ def test_public_api_still_there_lazily(tmp_path):
 
 
 @pytest.mark.slow
-def test_solve_from_the_cache_pulls_no_heavy_library(tmp_path):
+def test_solve_from_the_cache_pulls_no_heavy_library(tmp_path, monkeypatch):
     run = (
         "import sys\nfrom xcheck.cli import main\nsys.argv = ['xcheck', 'solve', 'fourbar']\n"
         "try:\n    main()\nexcept SystemExit as e:\n    assert not e.code\n"
     )
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path))
+    entry = cache.entry_path(Kinematics(load_mechanism(MODELS / "fourbar.toml")))
+    assert entry is not None and not entry.exists()
     first = _modules_after(run, tmp_path)
-    assert "scipy.optimize" in first  # the sketch was fitted: nothing cached yet
+    assert entry.exists()  # the sketch was fitted and its map kept: nothing was cached before
+    assert "scipy.optimize" not in first  # the sketch fitted without SciPy's optimisers
     assert _modules_after(run, tmp_path) == set()  # from the cache: no fit, no figures, no tables
 
 

@@ -9,11 +9,22 @@ and the correction from the prediction is small.
 
 from __future__ import annotations
 
+import functools
+import sys
+
 import numpy as np
 
 from ._system import ConstraintSystem
 
-__all__ = ["solve_linear", "newton", "tangent", "det_sign", "continue_to", "converged_tolerance"]
+__all__ = [
+    "solve_linear",
+    "newton",
+    "tangent",
+    "det_sign",
+    "continue_to",
+    "converged_tolerance",
+    "minpack_least_squares",
+]
 
 #: Newton stops once the violation is below this fraction of the mechanism's size.
 STOP_TOLERANCE = 1e-15
@@ -268,3 +279,87 @@ def continue_to(
             # (an input of 3.4e6 rad is held to 4.7e-10 rad): stop there too
             if step < max(min_step, 64.0 * float(np.max(np.spacing(np.abs(c * scale))))):
                 return q, c, False, trail
+
+
+def minpack_least_squares(residuals, jacobian, x0: np.ndarray, tolerance: float = 1e-15, max_evaluations: int = 2000):
+    """Minimise ``|residuals(x)|^2`` from ``x0`` by MINPACK's Levenberg-Marquardt
+    (``lmder``), as SciPy's ``least_squares(method="lm")`` calls it, its three
+    tolerances ``tolerance``.
+
+    Parameters
+    ----------
+    residuals : callable
+        x, shape (n,), to r, shape (m,).
+    jacobian : callable
+        x to dr/dx, shape (m, n).
+    x0 : ndarray, shape (n,)
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    lmder = _minpack_lmder()
+    if lmder is not None:
+        try:  # as scipy.optimize._lsq.least_squares.call_minpack calls it, x_scale "jac" (diag None)
+            x, _, _ = lmder(
+                residuals,
+                jacobian,
+                np.array(x0, dtype=float),
+                (),
+                True,
+                False,
+                tolerance,
+                tolerance,
+                tolerance,
+                max_evaluations,
+                100.0,
+                None,
+            )
+            return x
+        except TypeError:  # another SciPy's binding: its public function
+            pass
+    from scipy.optimize import least_squares  # imports all of scipy.optimize
+
+    fit = least_squares(
+        residuals,
+        x0,
+        jac=jacobian,
+        method="lm",
+        xtol=tolerance,
+        ftol=tolerance,
+        gtol=tolerance,
+        max_nfev=max_evaluations,
+        x_scale="jac",
+    )
+    return fit.x
+
+
+@functools.cache
+def _minpack_lmder():
+    """SciPy's binding of MINPACK's ``lmder``, loaded from its extension module alone:
+    importing it the ordinary way imports all of ``scipy.optimize`` first, most of a
+    command's sketch fit (docs/benchmarks.md). None where that module is not found."""
+    import importlib.machinery
+    import importlib.util
+    from pathlib import Path
+
+    import scipy
+
+    folder = Path(scipy.__file__).parent / "optimize"
+    name = "scipy.optimize._minpack"
+    if name in sys.modules:
+        return getattr(sys.modules[name], "_lmder", None)
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = folder / f"_minpack{suffix}"
+        if path.is_file():
+            loader = importlib.machinery.ExtensionFileLoader(name, str(path))
+            spec = importlib.util.spec_from_file_location(name, path, loader=loader)
+            if spec is None:
+                return None
+            try:
+                module = importlib.util.module_from_spec(spec)
+                loader.exec_module(module)
+            except ImportError:
+                return None
+            return getattr(module, "_lmder", None)
+    return None

@@ -23,6 +23,7 @@ from ._newton import (
     continue_to,
     det_sign,
     long_double_residual,
+    minpack_least_squares,
     newton,
     polish,
     tangent,
@@ -503,21 +504,11 @@ class Kinematics:
                 rows.append(weight * row / size)
             return np.vstack([jac] + rows) if rows else jac
 
-        from scipy.optimize import least_squares  # 0.3 s to import: only when a sketch is fitted
-
         q = q0
         for weight in weights:
-            q = least_squares(
-                residuals,
-                q,
-                jac=jacobian,
-                args=(weight,),
-                method="lm",
-                xtol=1e-15,
-                ftol=1e-15,
-                gtol=1e-15,
-                max_nfev=2000,
-            ).x
+            q = minpack_least_squares(
+                lambda x, weight=weight: residuals(x, weight), lambda x, weight=weight: jacobian(x, weight), q
+            )
         return q
 
     # -- feasible range ---------------------------------------------------
