@@ -73,31 +73,25 @@ def old_objects_frozen() -> Iterator[None]:
         gc.unfreeze()
 
 
-def _png(figure, dpi: int = 90, compact: bool = True, fit: float | None = None, **options) -> bytes:
-    """The figure, complete, as PNG bytes; the figure is closed. Its unlabelled
-    minor ticks are drawn as a few lines (:func:`_unlabelled_minor_ticks_as_lines`:
-    the same pixels).
-
-    ``compact``: the figure's RGB pixels (it is opaque) compressed at zlib level 3,
-    with no metadata but the resolution, and with ``fit`` the figure made the size
-    of what it draws plus ``fit`` inches on each side (:func:`_fit_to_contents`);
-    else matplotlib's own PNG (RGBA, with its version), ``options`` going to
-    ``savefig``. The same pixels either way."""
+def _png(figure, dpi: int = 90, fit: float | None = None) -> bytes:
+    """The figure, complete, as PNG bytes: its RGB pixels (it is opaque) compressed
+    at zlib level 3, with no metadata but the resolution ``dpi``; the pixels of
+    matplotlib's own PNG of it. Its unlabelled minor ticks and its major ticks are
+    drawn as a few artists (:func:`_unlabelled_minor_ticks_as_lines`,
+    :func:`_major_ticks_as_artists`: the same pixels); with ``fit``, the figure is
+    made the size of what it draws plus ``fit`` inches on each side
+    (:func:`_fit_to_contents`). The figure is closed."""
     _unlabelled_minor_ticks_as_lines(figure)
     buffer = io.BytesIO()
-    if compact:
-        assert not options, options
-        canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else FigureCanvasAgg(figure)
-        figure.set_dpi(dpi)
-        if fit is not None:  # measured at the resolution it is drawn at: text does not scale exactly
-            _fit_to_contents(figure, fit)
-        _major_ticks_as_artists(figure)
-        canvas.draw()
-        width, height = canvas.get_width_height(physical=True)
-        pixels = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
-        pixels.convert("RGB").save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
-    else:
-        figure.savefig(buffer, format="png", dpi=dpi, **options)
+    canvas = figure.canvas if isinstance(figure.canvas, FigureCanvasAgg) else FigureCanvasAgg(figure)
+    figure.set_dpi(dpi)
+    if fit is not None:  # measured at the resolution it is drawn at: text does not scale exactly
+        _fit_to_contents(figure, fit)
+    _major_ticks_as_artists(figure)
+    canvas.draw()
+    width, height = canvas.get_width_height(physical=True)
+    pixels = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+    pixels.convert("RGB").save(buffer, format="png", dpi=(dpi, dpi), compress_level=3)
     plt.close(figure)
     return buffer.getvalue()
 
