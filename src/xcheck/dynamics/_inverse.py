@@ -179,7 +179,7 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
         for load in mech.loads
     ]
     owners = mech.point_owners
-    directionless = directionless_springs(solution)
+    size = solution.kinematics.system.size
     for spring in mech.springs:
         ends = [solution.point(label) for label in spring.points]
         d = ends[1]["position"] - ends[0]["position"]
@@ -187,7 +187,7 @@ def applied_loads(solution: Solution) -> list[AppliedLoad]:
         unit = np.divide(d, length[:, None], out=np.zeros_like(d), where=length[:, None] > 0.0)
         rate = np.einsum("ij,ij->i", unit, ends[1]["velocity"] - ends[0]["velocity"])
         tension = spring.stiffness * (length - spring.rest_length) + spring.damping * rate
-        tension[directionless[spring.name]] = np.nan
+        tension[_directionless(spring, length, size)] = np.nan
         for label, sign in zip(spring.points, (1.0, -1.0)):
             body = owners[label]
             if body != GROUND:
@@ -217,10 +217,15 @@ def directionless_springs(solution: Solution) -> dict[str, np.ndarray]:
     out = {}
     for spring in solution.mechanism.springs:
         ends = [solution.point(label)["position"] for label in spring.points]
-        length = np.hypot(*(ends[1] - ends[0]).T)
-        pulls = spring.rest_length > 0.0 or spring.damping > 0.0
-        out[spring.name] = pulls & (length <= COINCIDENT * size)
+        out[spring.name] = _directionless(spring, np.hypot(*(ends[1] - ends[0]).T), size)
     return out
+
+
+def _directionless(spring, length: np.ndarray, size: float) -> np.ndarray:
+    """The rule of :func:`directionless_springs` for one spring whose length at each
+    state is ``length`` (N,) (m), the mechanism's size ``size`` (m): (N,) bool."""
+    pulls = spring.rest_length > 0.0 or spring.damping > 0.0
+    return pulls & (length <= COINCIDENT * size)
 
 
 def _good(solution: Solution) -> np.ndarray:
