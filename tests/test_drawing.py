@@ -99,15 +99,67 @@ def test_ground_is_hatched_points_labelled_and_the_input_has_an_arrow():
 def test_a_label_takes_the_side_clearest_of_the_links_and_the_labels_placed():
     from matplotlib.figure import Figure
 
-    from xcheck.drawing import _clear_label
+    from xcheck.drawing import PoseArtists, _clear_label
 
     ax = Figure().add_subplot()
+    drawn = PoseArtists(ax)
     taken: list = []
-    _clear_label(ax, "A", np.zeros(2), [], taken, 1.0, {})  # nothing near: the first side, up and right
-    _clear_label(ax, "B", np.zeros(2), [], taken, 1.0, {})  # A's place taken: the side farthest from it
+    _clear_label(drawn, "A", np.zeros(2), [], taken, 1.0, {})  # nothing near: the first side, up and right
+    _clear_label(drawn, "B", np.zeros(2), [], taken, 1.0, {})  # A's place taken: the side farthest from it
     link = [(np.array([-10.0, 50.0]), np.array([10.0, 50.0]))]  # through C, level: above it (before below)
-    _clear_label(ax, "C", np.array([0.0, 50.0]), link, taken, 1.0, {})
+    _clear_label(drawn, "C", np.array([0.0, 50.0]), link, taken, 1.0, {})
     sides = {t.get_text(): (t.get_ha(), t.get_va()) for t in ax.texts}
     assert sides == {"A": ("left", "bottom"), "B": ("right", "top"), "C": ("center", "bottom")}
     assert np.allclose(ax.texts[0].xyann, [np.sqrt(0.5), np.sqrt(0.5)])
     assert len(taken) == 3
+
+
+def _pixels(figure) -> np.ndarray:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    return np.array(canvas.buffer_rgba())
+
+
+def test_a_pose_drawn_in_place_of_another_is_the_picture_of_a_fresh_drawing():
+    """On axes whose view is fixed, the next pose moves the artists of the one
+    it replaces (a slot's arcs, pins, blocks, labels) and gives the pixels of
+    that pose drawn anew; where an artist's style changes (the input's arrow
+    turns the other way) the rest are made anew in the same order; on axes that
+    autoscale, every old artist goes."""
+    from matplotlib.figure import Figure
+
+    from xcheck.drawing import draw_pose, guide_extents
+
+    mech = xcheck.load("task-2-2", models=MODELS)
+    solution = mech.solve(at=[0.2, 0.6, 1.0]).solution  # the slider's height, m
+    extents = guide_extents(solution)
+    driver = mech.mechanism.drivers[0].name
+
+    def axes():
+        ax = Figure(figsize=(3, 3), dpi=50).add_subplot()
+        ax.set_xlim(-0.2, 1.2)
+        ax.set_ylim(-0.2, 1.4)
+        return ax
+
+    moved = axes()
+    first = draw_pose(moved, Pose.of(solution, 0), extents, arrows={driver: 1.0})
+    before = moved.get_children()  # held: no id is reused while they live
+    second = draw_pose(moved, Pose.of(solution, 1), extents, arrows={driver: 1.0}, replacing=first)
+    assert set(map(id, moved.get_children())) == set(map(id, before))  # every artist moved, none made
+    fresh = axes()
+    draw_pose(fresh, Pose.of(solution, 1), extents, arrows={driver: 1.0})
+    assert np.array_equal(_pixels(moved.figure), _pixels(fresh.figure))
+
+    draw_pose(moved, Pose.of(solution, 2), extents, arrows={driver: -1.0}, replacing=second)
+    fresh = axes()
+    draw_pose(fresh, Pose.of(solution, 2), extents, arrows={driver: -1.0})
+    assert np.array_equal(_pixels(moved.figure), _pixels(fresh.figure))
+    assert len(moved.get_children()) == len(fresh.get_children())
+
+    growing = Figure().add_subplot()
+    first = draw_pose(growing, Pose.of(solution, 0), extents)
+    old = first.artists  # held: no id is reused while they live
+    draw_pose(growing, Pose.of(solution, 1), extents, replacing=first)
+    assert old and not set(map(id, growing.get_children())) & set(map(id, old))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +25,7 @@ from .joints import GearPair, LineJoint
 from .kinematics import Solution, rotate
 from .model import Mechanism, PinInSlot, Prismatic, Revolute
 
-__all__ = ["Pose", "draw_pose", "figure_of", "guide_extents", "check_png_name", "save_png"]
+__all__ = ["Pose", "PoseArtists", "draw_pose", "figure_of", "guide_extents", "check_png_name", "save_png"]
 
 #: body colours (matplotlib's tab10, ground black)
 COLORS = (
@@ -173,7 +174,9 @@ def _plate(points: np.ndarray, size: float) -> np.ndarray | None:
 _LABEL_DIRECTIONS = np.array([[math.cos(a), math.sin(a)] for a in np.radians([45, 135, 315, 225, 90, 0, 270, 180])])
 
 
-def _clear_label(ax, text: str, p: np.ndarray, segments, taken: list[np.ndarray], gap: float, style: dict) -> None:
+def _clear_label(
+    drawn: "PoseArtists", text: str, p: np.ndarray, segments, taken: list[np.ndarray], gap: float, style: dict
+) -> None:
     """Write ``text`` beside point ``p`` (drawing units) on the side farthest
     from the drawn links (``segments``) and the labels already placed
     (``taken``, which this one joins), ``gap`` away from the point."""
@@ -187,15 +190,13 @@ def _clear_label(ax, text: str, p: np.ndarray, segments, taken: list[np.ndarray]
         clearance = np.fmin(clearance, np.hypot(gaps[..., 0], gaps[..., 1]).min(axis=1))
     clearest = int(np.argmax(clearance))  # the first of equals
     best = _LABEL_DIRECTIONS[clearest]
-    spot = p + gap * best
     taken.append(spots[clearest])
-    ax.annotate(
+    drawn.label(
         text,
         p,
-        xytext=spot,
-        textcoords="data",
-        ha="left" if best[0] > 0.3 else "right" if best[0] < -0.3 else "center",
-        va="bottom" if best[1] > 0.3 else "top" if best[1] < -0.3 else "center",
+        p + gap * best,
+        "left" if best[0] > 0.3 else "right" if best[0] < -0.3 else "center",
+        "bottom" if best[1] > 0.3 else "top" if best[1] < -0.3 else "center",
         **style,
     )
 
@@ -204,22 +205,142 @@ def _add_patch(ax, patch: patches.Patch) -> None:
     """Add a patch to the axes; where its view is fixed (autoscaling off both
     ways, as on the frames of an animation), without growing its data limits,
     which nothing then reads and which cost a third of drawing a pose."""
-    if ax.get_autoscalex_on() or ax.get_autoscaley_on():
-        ax.add_patch(patch)
-    else:
+    if _view_fixed(ax):
         ax.add_artist(patch)
+    else:
+        ax.add_patch(patch)
 
 
-def _hatched_strip(ax, start: np.ndarray, end: np.ndarray, side: np.ndarray, depth: float, z: float) -> None:
+def _view_fixed(ax) -> bool:
+    """Whether the axes' limits are fixed (autoscaling off both ways)."""
+    return not (ax.get_autoscalex_on() or ax.get_autoscaley_on())
+
+
+def _arc(centre, diameter: float, theta1: float, theta2: float, **style) -> patches.Arc:
+    """A circular arc from ``theta1`` to ``theta2`` (degrees)."""
+    return patches.Arc(centre, diameter, diameter, theta1=theta1, theta2=theta2, **style)
+
+
+def _move_arc(arc: patches.Arc, centre, diameter: float, theta1: float, theta2: float) -> None:
+    """Move an arc of :func:`_arc` to new geometry."""
+    arc.set_center(centre)
+    arc.set_width(diameter)
+    arc.set_height(diameter)
+    arc.theta1, arc.theta2 = theta1, theta2  # read when it is drawn
+    arc.stale = True
+
+
+#: per kind of patch a pose draws, how one is moved to new geometry (the arguments that made it, but its style)
+_MOVES: dict[object, Callable[..., object]] = {
+    patches.Polygon: lambda polygon, corners: polygon.set_xy(corners),
+    patches.Circle: lambda circle, centre, radius: (circle.set_center(centre), circle.set_radius(radius)),
+    _arc: _move_arc,
+    patches.FancyArrowPatch: lambda arrow, a, b: arrow.set_positions(a, b),
+}
+
+
+class PoseArtists:
+    """The artists :func:`draw_pose` drew for one pose on an axes, in the order drawn.
+
+    Given back to :func:`draw_pose` as ``replacing``, they give way to the next
+    pose: on axes whose view is fixed (autoscaling off, as on the frames of an
+    animation), each artist that the next pose draws again at the same place in
+    the order, of the same kind and style, is moved to its new geometry instead
+    of made anew (the same picture: the same artists in the same order); the
+    others are removed. Elsewhere all are removed and the next pose made anew.
+    """
+
+    def __init__(self, ax, replacing: "PoseArtists | None" = None):
+        self.ax = ax
+        self._drawn: list[tuple[tuple, object]] = []
+        self._old: list[tuple[tuple, object]] = []
+        if replacing is not None:
+            self._old = replacing._drawn
+            if replacing.ax is not ax or not _view_fixed(ax):
+                self._drop(0)
+
+    @property
+    def artists(self) -> list:
+        """The artists drawn, in the order drawn."""
+        return [artist for _, artist in self._drawn]
+
+    def _drop(self, start: int) -> None:
+        """Remove the old artists from ``start`` in the order on."""
+        for _, artist in self._old[start:]:
+            artist.remove()  # type: ignore[attr-defined]
+        del self._old[start:]
+
+    def _reused(self, key: tuple):
+        """The old artist at this place in the order, if it has this kind and style, else None
+        (and the old artists from here on removed, so that new ones keep the order)."""
+        at = len(self._drawn)
+        if at < len(self._old) and self._old[at][0] == key:
+            return self._old[at][1]
+        self._drop(at)
+        return None
+
+    def _add(self, key: tuple, artist) -> None:
+        self._drawn.append((key, artist))
+
+    def line(self, x, y, *fmt: str, **style) -> None:
+        """A line through the points ``x``, ``y`` (sequences), as ``ax.plot`` draws it."""
+        key = ("line", fmt, tuple(sorted(style.items())))
+        line = self._reused(key)
+        if line is None:
+            (line,) = self.ax.plot(x, y, *fmt, **style)
+        else:
+            line.set_data(x, y)
+        self._add(key, line)
+
+    def label(self, text: str, point: np.ndarray, at: np.ndarray, ha: str, va: str, **style) -> None:
+        """A point's label written at ``at`` (data), aligned ``ha``, ``va``."""
+        key = ("label", text, tuple(sorted(style.items())))
+        annotation = self._reused(key)
+        if annotation is None:
+            annotation = self.ax.annotate(text, point, xytext=at, textcoords="data", ha=ha, va=va, **style)
+        else:
+            annotation.xy = point
+            annotation.set_position(at)
+            annotation.set_horizontalalignment(ha)
+            annotation.set_verticalalignment(va)
+        self._add(key, annotation)
+
+    def patch(self, kind, *geometry, **style) -> None:
+        """A patch ``kind(*geometry, **style)``, ``kind`` one of :data:`_MOVES`."""
+        key = (kind, tuple(sorted(style.items())))
+        patch = self._reused(key)
+        if patch is None:
+            patch = kind(*geometry, **style)
+            _add_patch(self.ax, patch)
+        else:
+            _MOVES[kind](patch, *geometry)
+        self._add(key, patch)
+
+    def finish(self) -> "PoseArtists":
+        """Remove the old artists the pose did not reuse; returns itself."""
+        self._drop(len(self._drawn))
+        return self
+
+
+def _hatched_strip(
+    drawn: PoseArtists, start: np.ndarray, end: np.ndarray, side: np.ndarray, depth: float, z: float
+) -> None:
     """Ground hatching: a line from start to end with a hatched strip of
     ``depth`` on the side ``side`` (unit vector)."""
-    ax.plot([start[0], end[0]], [start[1], end[1]], color="black", lw=1.2, zorder=z)
+    drawn.line([start[0], end[0]], [start[1], end[1]], color="black", lw=1.2, zorder=z)
     corners = np.array([start, end, end + depth * side, start + depth * side])
-    _add_patch(ax, patches.Polygon(corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z))
+    drawn.patch(patches.Polygon, corners, closed=True, fill=False, hatch="////", lw=0, color="0.35", zorder=z)
 
 
 def _block(
-    ax, centre: np.ndarray, along: np.ndarray, length: float, height: float, color: str, z: float, alpha: float = 1.0
+    drawn: PoseArtists,
+    centre: np.ndarray,
+    along: np.ndarray,
+    length: float,
+    height: float,
+    color: str,
+    z: float,
+    alpha: float = 1.0,
 ) -> None:
     """A slide block centred at ``centre``, its long side along ``along``."""
     u = along / np.hypot(*along)
@@ -227,9 +348,8 @@ def _block(
     corners = np.array(
         [centre + sx * 0.5 * length * u + sy * 0.5 * height * n for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
     )
-    _add_patch(
-        ax,
-        patches.Polygon(corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z),
+    drawn.patch(
+        patches.Polygon, corners, closed=True, facecolor=color, edgecolor="black", alpha=0.85 * alpha, lw=1, zorder=z
     )
 
 
@@ -242,7 +362,8 @@ def draw_pose(
     labels: bool = True,
     arrows: dict[str, float] | None = None,
     ground: bool = True,
-) -> None:
+    replacing: PoseArtists | None = None,
+) -> PoseArtists:
     """Draw one position of the mechanism on a matplotlib axes.
 
     Parameters
@@ -263,7 +384,16 @@ def draw_pose(
         (a curved one around a driven pin, a straight one along a slide).
     ground : bool
         Draw the ground's pivots, guides and hatching.
+    replacing : PoseArtists, optional
+        The artists of a pose drawn before on these axes, which this one
+        replaces (reusing them where the view is fixed: :class:`PoseArtists`).
+
+    Returns
+    -------
+    PoseArtists
+        The artists drawn.
     """
+    artists = PoseArtists(ax, replacing)
     mech = pose.mechanism
     gname = mech.ground.name
     every = [pose.point(b.name, lbl) for b in (mech.ground, *mech.moving_bodies) for lbl in b.points]
@@ -301,27 +431,24 @@ def draw_pose(
             if ground:
                 normal = np.array([-d[1], d[0]])
                 offset = 0.5 * block_h * normal
-                _hatched_strip(ax, w(start - offset), w(end - offset), -normal, 0.35 * block_h / scale, 1)
+                _hatched_strip(artists, w(start - offset), w(end - offset), -normal, 0.35 * block_h / scale, 1)
         elif isinstance(joint, PinInSlot):
             normal = np.array([-d[1], d[0]])
             for side in (-1, 1):
                 a, b = w(start + side * 1.6 * pin_r * scale * normal), w(end + side * 1.6 * pin_r * scale * normal)
-                ax.plot([a[0], b[0]], [a[1], b[1]], color=colors[joint.body_a], lw=1.4, alpha=alpha, zorder=2)
+                artists.line([a[0], b[0]], [a[1], b[1]], color=colors[joint.body_a], lw=1.4, alpha=alpha, zorder=2)
             for cap, turn in ((start, 1.0), (end, -1.0)):
                 angle = math.degrees(math.atan2(d[1], d[0])) + 90.0 * turn
-                _add_patch(
-                    ax,
-                    patches.Arc(
-                        w(cap),
-                        3.2 * pin_r,
-                        3.2 * pin_r,
-                        theta1=angle,
-                        theta2=angle + 180.0,
-                        ec=colors[joint.body_a],
-                        lw=1.4,
-                        alpha=alpha,
-                        zorder=2,
-                    ),
+                artists.patch(
+                    _arc,
+                    w(cap),
+                    3.2 * pin_r,
+                    angle,
+                    angle + 180.0,
+                    ec=colors[joint.body_a],
+                    lw=1.4,
+                    alpha=alpha,
+                    zorder=2,
                 )
             stubs[joint.body_a].append((start, end))
         else:  # a rod fixed in body_a along which body_b's block slides
@@ -343,13 +470,13 @@ def draw_pose(
         corners = _plate(np.array(nodes + loose), size) if loose else None
         if corners is not None:
             ring = corners
-            _add_patch(ax, patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            artists.patch(patches.Polygon, w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2)
             segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
         elif len(nodes) == 2:
             segments[body.name].append((nodes[0], nodes[1]))
         elif len(nodes) >= 3:
             ring = np.array(nodes)[_hull_order(np.array(nodes))]
-            _add_patch(ax, patches.Polygon(w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2))
+            artists.patch(patches.Polygon, w(ring), closed=True, facecolor=color, alpha=0.15 * alpha, lw=0, zorder=2)
             segments[body.name] += [(ring[k], ring[(k + 1) % len(ring)]) for k in range(len(ring))]
         for label in body.points:
             if label in used[body.name]:
@@ -363,7 +490,7 @@ def draw_pose(
                 segments[body.name].append((nodes[0], p))
         for a, b in segments[body.name]:
             a, b = w(a), w(b)
-            ax.plot([a[0], b[0]], [a[1], b[1]], color=color, lw=3.0, alpha=alpha, zorder=3, solid_capstyle="round")
+            artists.line([a[0], b[0]], [a[1], b[1]], color=color, lw=3.0, alpha=alpha, zorder=3, solid_capstyle="round")
     # gears: each gear's pitch circle about its centre, with a radius along its
     # frame's x axis that shows it turning
     for joint in mech.joints:
@@ -374,9 +501,9 @@ def draw_pose(
             ):
                 c, tick = pose.point(gear, at), pose.direction(gear, np.array([1.0, 0.0]))
                 style = dict(color=colors[gear], alpha=alpha, zorder=2.5)
-                _add_patch(ax, patches.Circle(w(c), radius / scale, fill=False, ls="-.", lw=1.3, **style))
+                artists.patch(patches.Circle, w(c), radius / scale, fill=False, ls="-.", lw=1.3, **style)
                 end = w(c + radius * tick)
-                ax.plot([w(c)[0], end[0]], [w(c)[1], end[1]], lw=1.0, **style)
+                artists.line([w(c)[0], end[0]], [w(c)[1], end[1]], lw=1.0, **style)
                 segments.setdefault(gear, []).append((c, c + radius * tick))
     # blocks: on every prismatic joint, the block of body_b along the line
     for joint in mech.joints:
@@ -384,7 +511,7 @@ def draw_pose(
             centre = pose.point(joint.body_b, joint.point)
             d = pose.direction(joint.body_a, joint.direction)
             owner = joint.body_b if joint.body_b != gname else joint.body_a
-            _block(ax, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4, alpha)
+            _block(artists, w(centre), d, block_l / scale, block_h / scale, colors[owner], 4, alpha)
     # ground pivots: a triangle over hatching
     symbols: list[tuple[np.ndarray, np.ndarray]] = []  # their edges, which labels keep clear of too
     if ground:
@@ -394,11 +521,13 @@ def draw_pose(
                 p = w(pose.point(gname, label))
                 h = 3.2 * pin_r
                 tri = np.array([p, p + [-0.8 * h, -1.4 * h], p + [0.8 * h, -1.4 * h]])
-                _add_patch(ax, patches.Polygon(tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1))
+                artists.patch(patches.Polygon, tri, closed=True, facecolor="white", edgecolor="black", lw=1, zorder=1)
                 symbols += [(tri[k], tri[(k + 1) % 3]) for k in range(3)] + [
                     (p + [-1.3 * h, -2.0 * h], p + [1.3 * h, -2.0 * h])
                 ]
-                _hatched_strip(ax, p + [-1.3 * h, -1.4 * h], p + [1.3 * h, -1.4 * h], np.array([0.0, -1.0]), 0.6 * h, 1)
+                _hatched_strip(
+                    artists, p + [-1.3 * h, -1.4 * h], p + [1.3 * h, -1.4 * h], np.array([0.0, -1.0]), 0.6 * h, 1
+                )
     # pins: revolute and pin-in-slot joints
     for joint in mech.joints:
         if isinstance(joint, Revolute):
@@ -407,7 +536,7 @@ def draw_pose(
             p = w(pose.point(joint.body_b, joint.point))
         else:
             continue
-        _add_patch(ax, patches.Circle(p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5))
+        artists.patch(patches.Circle, p, pin_r, facecolor="white", edgecolor="black", lw=1.2, alpha=alpha, zorder=5)
     # points and their labels, each on the side of its point clearest of the links and the other labels
     drawn = [(w(a), w(b)) for body in mech.moving_bodies for a, b in segments[body.name] + stubs[body.name]]
     drawn += symbols
@@ -420,9 +549,9 @@ def draw_pose(
             shown.add(label)
             p = w(pose.point(body.name, label))
             if label not in used[body.name]:
-                ax.plot(*p, "o", color="black", ms=3, alpha=alpha, zorder=6)
+                artists.line([p[0]], [p[1]], "o", color="black", ms=3, alpha=alpha, zorder=6)
             if labels:
-                _clear_label(ax, label, p, drawn, taken, 3.0 * pin_r, dict(fontsize=9, zorder=7))
+                _clear_label(artists, label, p, drawn, taken, 3.0 * pin_r, dict(fontsize=9, zorder=7))
     # the inputs
     for driver in mech.drivers if arrows is not None else ():
         sign = 1.0 if (arrows or {}).get(driver.name, 1.0) >= 0.0 else -1.0
@@ -433,7 +562,8 @@ def draw_pose(
             start_angle = pose.frames[joint.body_b][1] - sign * 0.9
             a = centre + radius * np.array([math.cos(start_angle), math.sin(start_angle)])
             b = centre + radius * np.array([math.cos(start_angle + sign * 1.8), math.sin(start_angle + sign * 1.8)])
-            arrow = patches.FancyArrowPatch(
+            artists.patch(
+                patches.FancyArrowPatch,
                 a,
                 b,
                 connectionstyle=f"arc3,rad={0.45 * sign}",
@@ -443,8 +573,9 @@ def draw_pose(
                 lw=1.5,
                 zorder=8,
             )
-            _add_patch(ax, arrow)
-            _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
+            _clear_label(
+                artists, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8)
+            )
         else:
             assert isinstance(joint, LineJoint)
             p = pose.point(joint.body_b, joint.point)
@@ -452,11 +583,13 @@ def draw_pose(
             n = np.array([-d[1], d[0]])
             a = w(p + 0.9 * block_h * n - 0.5 * block_l * d)
             b = w(p + 0.9 * block_h * n + 0.9 * block_l * d)
-            _add_patch(
-                ax,
-                patches.FancyArrowPatch(a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8),
+            artists.patch(
+                patches.FancyArrowPatch, a, b, arrowstyle="-|>", mutation_scale=12, color="crimson", lw=1.5, zorder=8
             )
-            _clear_label(ax, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8))
+            _clear_label(
+                artists, driver.name, b, drawn, taken, 3.0 * pin_r, dict(color="crimson", fontsize=8, zorder=8)
+            )
+    return artists.finish()
 
 
 def figure_of(solution: Solution, i: int = 0, title: str | None = None, extents=None) -> Figure:

@@ -25,7 +25,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from .. import engines  # noqa: E402
-from ..drawing import Pose, draw_pose, guide_extents  # noqa: E402
+from ..drawing import Pose, PoseArtists, draw_pose, guide_extents  # noqa: E402
 from ..kinematics import Solution  # noqa: E402
 from ..results import native_at  # noqa: E402
 from ..runner import CATEGORIES, RunResult, convergence_table  # noqa: E402
@@ -337,12 +337,15 @@ def tracked(run: RunResult) -> tuple[str, str]:
     return point, max(candidates, key=lambda name: candidates[name])
 
 
-def _draw_pose(ax, run: RunResult, i: int, alpha: float, labels: bool, extents=None) -> None:
+def _draw_pose(
+    ax, run: RunResult, i: int, alpha: float, labels: bool, extents=None, replacing: PoseArtists | None = None
+) -> PoseArtists:
     """Sample ``i`` of the native sweep (:func:`xcheck.drawing.draw_pose`): the
-    ground, labels and the inputs' arrows with the opaque pose only."""
+    ground, labels and the inputs' arrows with the opaque pose only; in place of
+    the pose ``replacing``, if given."""
     native = run.native
     arrows = {d.name: float(native.input_rates[i, k]) for k, d in enumerate(run.mechanism.drivers)} if labels else None
-    draw_pose(
+    return draw_pose(
         ax,
         Pose.of(native, i),
         extents,
@@ -351,6 +354,7 @@ def _draw_pose(ax, run: RunResult, i: int, alpha: float, labels: bool, extents=N
         labels=labels,
         arrows=arrows,
         ground=labels,
+        replacing=replacing,
     )
 
 
@@ -424,14 +428,12 @@ def _motion_figure(run: RunResult, frames: int):
     ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
     ax.set_aspect("equal")
     ax.set_axis_off()
+    shown: list[PoseArtists] = []
 
     def draw(n):
-        # the frame stays (limits, aspect, no axis); only the previous pose goes
-        for artist in [*ax.patches, *ax.lines, *ax.texts, *ax.collections, *ax.artists, *ax.images]:
-            artist.remove()
-        _draw_pose(ax, run, good[int(round(n * (len(good) - 1) / (frames - 1)))], 1.0, True, extents)
-        ax.set_xlim(xy[:, 0].min() - pad, xy[:, 0].max() + pad)
-        ax.set_ylim(xy[:, 1].min() - pad, xy[:, 1].max() + pad)
+        # the frame stays (limits, aspect, no axis); the previous pose's artists move to this one
+        i = good[int(round(n * (len(good) - 1) / (frames - 1)))]
+        shown[:] = [_draw_pose(ax, run, i, 1.0, True, extents, replacing=shown[0] if shown else None)]
 
     return figure, draw
 
