@@ -139,6 +139,15 @@ def _fit_to_contents(figure, pad: float) -> None:
     figure.set_size_inches(box.width, box.height)
 
 
+def _panels(count: int, columns: int, figsize: tuple[float, float]):
+    """A figure of ``count`` panels, ``columns`` to a row, filled row by row, and
+    its panels (a list): a grid's places past the last panel are left empty, no
+    panel made there."""
+    figure = plt.figure(figsize=figsize)
+    grid = figure.add_gridspec(math.ceil(count / columns), columns)
+    return figure, [figure.add_subplot(grid[n // columns, n % columns]) for n in range(count)]
+
+
 def _log_panel_title(ax, text: str) -> None:
     """A panel's title on axes with a log y scale, at the axes' top: where
     matplotlib would place it, without measuring every tick label of the panel
@@ -747,14 +756,11 @@ def convergence_figure(run: RunResult):
     panel_w, panel_h = 4.6, 3.1
     under = 0.2 * panel_h + 0.2 * (legend_rows + 1) + 0.1
     # (the figure's height: its title, then per row the panel and what stands under it)
-    figure, axes = plt.subplots(
-        rows,
-        columns,
-        figsize=(1.1 + columns * panel_w + (columns - 1) * 1.0, 0.85 + rows * (panel_h + under)),
-        squeeze=False,
+    figure, axes = _panels(
+        len(tables), columns, figsize=(1.1 + columns * panel_w + (columns - 1) * 1.0, 0.85 + rows * (panel_h + under))
     )
     round_off = convergence_round_off("position") * run.kinematics.system.size
-    for ax, (mode, table) in zip(axes.flat, tables):
+    for ax, (mode, table) in zip(axes, tables):
         noise = bool((table.position_error.dropna() <= round_off).all())
         for series, part in table.groupby("series", sort=False):
             ok = part[part.position_error > 0]
@@ -791,8 +797,6 @@ def convergence_figure(run: RunResult):
         ax.set_ylabel("largest position error [m]")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
-    for ax in axes.flat[len(tables) :]:
-        ax.set_visible(False)
     height = figure.get_size_inches()[1]
     figure.suptitle(  # placed in inches from the top, so that a tall grid's title clears its first panels
         f"{run.mechanism.name}: error against time step (observed order between the two smallest steps;\n"
@@ -815,8 +819,8 @@ def forces_plot(run: RunResult) -> bytes | None:
     panels = [("driver", name) for name in native.drivers] + [("joint", name) for name in native.joints]
     columns = min(3, len(panels))
     rows = math.ceil(len(panels) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(4.4 * columns, 3.2 * rows), squeeze=False)
-    for ax, (kind, name) in zip(axes.flat, panels):
+    figure, axes = _panels(len(panels), columns, figsize=(4.4 * columns, 3.2 * rows))
+    for ax, (kind, name) in zip(axes, panels):
         key = "effort" if kind == "driver" else "reaction"
         table = native.drivers if kind == "driver" else native.joints
         x, xlabel = _input_axis(run, native.inputs[:, 0])
@@ -846,9 +850,7 @@ def forces_plot(run: RunResult) -> bytes | None:
         ax.set_ylabel(label)
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(panels) :]:
-        ax.set_visible(False)
-    axes.flat[0].legend(fontsize=7)
+    axes[0].legend(fontsize=7)
     figure.suptitle(f"{run.mechanism.name}: driving effort and joint reactions over the simulation window", fontsize=10)
     _margins(figure, left=0.75, right=0.2, bottom=0.55, top=0.45, wspace=0.85, hspace=0.7)
     return _png(figure)
