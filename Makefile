@@ -1,5 +1,7 @@
 # The two commands of the README: `make run` and `make test`. Both create the
-# virtual environment and install xcheck with its dependencies on first use;
+# virtual environment and install xcheck with its dependencies on first use, its
+# modules byte-compiled as pip compiles an installed package's (an editable install's
+# are not, and where $PYTHONDONTWRITEBYTECODE is set every process compiled them again);
 # `make docs` builds the documentation site into docs/_build/html.
 PYTHON ?= python3
 VENV   ?= .venv
@@ -12,6 +14,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev,docs,all]'
+	$(BIN)/python -m compileall -q src
 	touch $(STAMP)
 
 # the command that reproduces the committed reports/fourbar.md (MJX runs only when named),
