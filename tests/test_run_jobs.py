@@ -151,9 +151,9 @@ class Twin(engines.Engine):
 """
 
 
-def test_the_commands_workers_forked_from_its_fork_server_give_the_serial_run(tmp_path):
-    """The ``xcheck`` command forks its workers from a fork server (a program calling
-    the API spawns them): its JSON with two workers equals its serial run's but for the
+def test_the_commands_forked_workers_give_the_serial_run(tmp_path):
+    """The ``xcheck`` command forks its workers from itself (a program calling the
+    API spawns them): its JSON with two workers equals its serial run's but for the
     timings. Two modes of an installed plug-in, each formulation I's solution and
     declared costly, so that the run sends them to workers; its reactions (the native
     per-body form's) are computed by the worker that runs its costlier mode, not by the
@@ -328,8 +328,8 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     run cannot have ended before it. (A worker still starting when the signal
     comes ends by the signal's default action, which the pool's initializer
     sets; that moment cannot be timed from here, and this test would pass
-    without it.) The command's workers are forked from one fork server, not
-    from the command itself, and the server ignores Ctrl-C and ends with the run.
+    without it.) The command's workers are forked from the command itself, which
+    has loaded no engine.
     """
     import subprocess
     import time
@@ -355,7 +355,7 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
             time.sleep(0.1)
         workers, parents = zip(*(map(int, p.name.split("-")) for p in started.iterdir()))
         assert len(workers) == 2 and run.poll() is None, "the two slow modes did not start"
-        assert parents[0] == parents[1] != run.pid  # the fork server
+        assert parents[0] == parents[1] == run.pid
         signalled = time.monotonic()
         os.killpg(run.pid, signal.SIGINT)
         _, stderr = run.communicate(timeout=60)
@@ -369,10 +369,10 @@ def test_ctrl_c_during_a_parallel_run_ends_it_without_a_traceback(tmp_path):
     deadline = time.monotonic() + 20
     while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
-    left = [pid for pid in (*workers, parents[0]) if _alive(pid)]
+    left = [pid for pid in workers if _alive(pid)]
     for pid in left:  # do not leave them to the next test either
         os.kill(pid, signal.SIGKILL)
-    assert left == [], "workers or their fork server outlived Ctrl-C"
+    assert left == [], "workers outlived Ctrl-C"
 
 
 def test_free_modes_in_worker_processes_equal_the_serial_run(monkeypatch):
@@ -444,6 +444,61 @@ def test_a_kept_pool_is_handed_out_again_then_shut():
     with process_pool(1) as alone, process_pool(1) as other:
         assert other is not alone
     assert alone.closed and other.closed
+
+
+def test_the_command_forks_its_workers_from_itself_only_where_that_is_safe(monkeypatch):
+    """On Linux the command forks its workers from itself where it has loaded no
+    engine and runs no thread but a progress bar's; else from a fork server (an
+    engine's library, such as JAX, may hold threads a forked child would inherit)."""
+    import threading
+    import types
+
+    from xcheck import _parallel, engines
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("the command spawns its workers where it is not on Linux")
+    monkeypatch.setattr(_parallel, "_the_command", lambda: True)
+    for package in {p for engine in engines.engines() for p in engine.requires}:
+        monkeypatch.delitem(sys.modules, package, raising=False)
+    main = threading.main_thread()
+    progress = threading.Thread(name=_parallel.QUIET_ACROSS_FORKS)
+    monkeypatch.setattr(threading, "enumerate", lambda: [main, progress])
+    assert _parallel._context(()).get_start_method() == "fork"
+    monkeypatch.setattr(threading, "enumerate", lambda: [main, progress, threading.Thread(name="another")])
+    assert _parallel._context(()).get_start_method() == "forkserver"
+    monkeypatch.setattr(threading, "enumerate", lambda: [main])
+    monkeypatch.setitem(sys.modules, "pymunk", types.ModuleType("pymunk"))
+    assert _parallel._context(()).get_start_method() == "forkserver"
+
+
+def test_the_progress_bar_draws_only_while_it_holds_the_lock_each_fork_takes():
+    """A worker forked while the progress bar is drawn never starts with the lock of
+    stderr taken by the bar's thread, which it does not have: the thread draws only
+    while it holds the terminal's lock, which a fork holds across it and which the
+    child finds free."""
+    import io
+    import threading
+    import time
+
+    from rich.console import Console
+
+    from xcheck._command_line import _Progress
+    from xcheck._parallel import QUIET_ACROSS_FORKS, terminal_lock
+
+    out = io.StringIO()
+    with _Progress(console=Console(file=out, force_terminal=True), transient=True) as bar:
+        bar.add_task("modes", total=2)
+        assert [t for t in threading.enumerate() if t.name == QUIET_ACROSS_FORKS]
+        with terminal_lock:
+            drawn = out.tell()
+            time.sleep(0.3)
+            assert out.tell() == drawn
+        time.sleep(0.3)
+        assert out.tell() > drawn
+        child = os.fork()
+        if child == 0:  # the child: the lock is free there
+            os._exit(0 if terminal_lock.acquire(timeout=5) else 1)
+        assert os.waitpid(child, 0)[1] == 0
 
 
 def test_workers_start_early_only_for_a_kept_pool():

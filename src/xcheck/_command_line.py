@@ -8,19 +8,19 @@ import functools
 import logging
 import re
 import sys
+import threading
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from typer.core import TyperGroup
 
 from . import engines as registry
+from ._parallel import QUIET_ACROSS_FORKS, terminal_lock
 from .errors import XcheckError
-
-if TYPE_CHECKING:
-    from rich.progress import Progress
 
 __all__ = [
     "OneLineUsageErrors",
@@ -138,15 +138,44 @@ class ToStderr(logging.Handler):
         typer.echo(self.format(record), err=True)
 
 
+class _Progress(Progress):
+    """rich's progress bar, redrawn ten times a second by a thread of its own that draws
+    only while it holds :data:`xcheck._parallel.terminal_lock`, so that a worker forked
+    from this process meanwhile never starts with the lock of stderr taken (rich's own
+    thread, ``auto_refresh``, would draw at any moment)."""
+
+    def __init__(self, *columns, **options) -> None:
+        super().__init__(*columns, auto_refresh=False, **options)
+        self._stopped = threading.Event()
+        self._redraw: threading.Thread | None = None
+
+    def start(self) -> None:
+        super().start()
+        if not self.disable:
+            self._stopped.clear()
+            self._redraw = threading.Thread(target=self._redraw_until_stopped, name=QUIET_ACROSS_FORKS, daemon=True)
+            self._redraw.start()
+
+    def stop(self) -> None:
+        if self._redraw is not None:
+            self._stopped.set()
+            self._redraw.join()
+            self._redraw = None
+        super().stop()
+
+    def _redraw_until_stopped(self) -> None:
+        while not self._stopped.wait(0.1):
+            with terminal_lock:
+                self.refresh()
+
+
 def progress_bar(off: bool, label: str = "{task.description}", stdout_terminal: bool = True) -> Progress:
     """A transient progress bar on stderr (``label``, done/total, time): only
     when stderr is a terminal, and stdout too unless ``stdout_terminal`` is
     False; never with --json or --quiet (``off``), so that piped or captured
     output stays clean."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
     stderr = Console(stderr=True)
-    return Progress(
+    return _Progress(
         SpinnerColumn(),
         TextColumn(label),
         BarColumn(),

@@ -1,16 +1,18 @@
 """Worker processes for ``xcheck run``: mechanisms (``run all --jobs``) or the
 modes of one mechanism (``run <name> --jobs``) at once.
 
-Workers are never forked from the process that runs the engines: an engine
+Workers are never forked from a process that has loaded an engine: an engine
 such as JAX holds threads that a forked child would inherit in an unknown
-state. On Linux the ``xcheck`` command forks its workers from a fork server, a process
-started for them that imports only Python, NumPy, pandas and xcheck (what every
-worker needs), so that a worker costs no start of its own; a program that calls
-xcheck (a script, a notebook, the tests) has them started afresh ("spawn"), as
-its environment may change between runs and a fork server's children keep the
-one it started with. Engines registered at run time
-(:func:`xcheck.engines.register`) exist only in the process that registered
-them; those from entry points load in every worker.
+state. On Linux the ``xcheck`` command forks its workers from itself, when its
+first task is sent, where it has loaded no engine and runs no thread but its own
+main one and its progress bar's (which stops drawing while a worker is forked,
+:data:`terminal_lock`): a worker then starts with Python, NumPy, pandas and xcheck
+already imported, in milliseconds. Otherwise the command forks them from a fork
+server, a process started for them that imports only those; a program that calls
+xcheck (a script, a notebook, the tests) has them started afresh ("spawn"), as its
+environment may change between runs and a forked child keeps the one it started
+with. Engines registered at run time (:func:`xcheck.engines.register`) exist only
+in the process that registered them; those from entry points load in every worker.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 __all__ = [
+    "terminal_lock",
+    "QUIET_ACROSS_FORKS",
     "process_pool",
     "workers_kept",
     "start_workers",
@@ -49,6 +53,17 @@ __all__ = [
 ]
 
 Key = TypeVar("Key", bound=Hashable)
+
+#: held by a thread of this process while it draws on the terminal, and by whichever thread
+#: forks a process, across the fork: a worker never starts with the lock of stderr taken by a
+#: thread that it does not have (the lock would never be released there)
+terminal_lock = threading.Lock()
+os.register_at_fork(
+    before=terminal_lock.acquire, after_in_parent=terminal_lock.release, after_in_child=terminal_lock.release
+)
+#: the name of a thread that writes only while it holds :data:`terminal_lock`: one that a
+#: worker may be forked beside (a progress bar's)
+QUIET_ACROSS_FORKS = "xcheck-progress"
 
 #: the reason of a mode whose worker process died
 WORKER_DIED = (
@@ -76,14 +91,14 @@ def _read_only(items: dict) -> types.MappingProxyType:
 
 class Pool(ProcessPoolExecutor):
     """A :class:`~concurrent.futures.ProcessPoolExecutor` that knows whether a worker
-    started (``started.value`` 1: one ran the initializer) and whether its workers are
-    forked from a fork server (``forked``), and that stays open at the end of its
-    ``with`` block while it is kept (:func:`workers_kept`)."""
+    started (``started.value`` 1: one ran the initializer) and how its workers start
+    (``start_method``: "fork", "forkserver" or "spawn"), and that stays open at the end
+    of its ``with`` block while it is kept (:func:`workers_kept`)."""
 
     def __init__(self, jobs: int, context, broken: dict[str, str]):
         # shared memory without a lock: a named semaphore would outlive a process that ends at once
         self.started = context.RawValue("i", 0)
-        self.forked = context.get_start_method() == "forkserver"
+        self.start_method = context.get_start_method()
         self.jobs = jobs
         self.kept = False
         self.closed = False
@@ -148,14 +163,18 @@ def workers_kept() -> Iterator[None]:
 def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",), preload: tuple[str, ...] = ()) -> None:
     """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
     importing ``modules`` while this process goes on: the first tasks find them ready.
-    Where workers are forked from a fork server (:func:`_context`), the server is
-    started instead, importing ``modules`` and ``preload`` (what some of the workers
-    will need) once: a worker is then forked from it in milliseconds when its first
-    task comes (starting one now would wait here for the server's imports)."""
+    Where workers are forked from this process (:func:`_context`), nothing starts now:
+    they are forked, with what this process has imported by then, when the first task
+    is sent. Where they are forked from a fork server, the server is started instead,
+    importing ``modules`` and ``preload`` (what some of the workers will need) once: a
+    worker is then forked from it in milliseconds when its first task comes (starting
+    one now would wait here for the server's imports)."""
     if not _kept:
         raise RuntimeError("start_workers: expected to be called within workers_kept()")
     pool = process_pool(jobs, (*modules, *preload))
-    if pool.forked:
+    if pool.start_method == "fork":
+        return
+    if pool.start_method == "forkserver":
         from multiprocessing import forkserver
 
         with _spawning():  # the server, and so every worker it forks, starts with SIGINT ignored
@@ -194,16 +213,23 @@ def _new_pool(jobs: int, preload: tuple[str, ...] = ()) -> Pool:
 
     picklable_mechanisms()
     # a plug-in this process could not load is not tried again in each worker (its import may hang)
-    return Pool(jobs, _context(("xcheck.runner", *preload)), engines.load_problems())
+    problems = engines.load_problems()
+    context = _context(("xcheck.runner", *preload))
+    if context.get_start_method() == "fork":
+        import_all(("xcheck.runner",))  # what every worker needs, imported once, before they are forked
+    return Pool(jobs, context, problems)
 
 
 def _context(modules: tuple[str, ...]):
-    """How worker processes start: forked from a fork server where this process is the
-    ``xcheck`` command on Linux, the server importing the command line and ``modules``
-    when it starts (the first call decides them); else spawned afresh (on macOS a fork
-    of a process that has loaded NumPy's BLAS, Accelerate, is not safe to use it)."""
+    """How worker processes start where this process is the ``xcheck`` command on Linux:
+    forked from it where that is safe (:func:`_forkable`), else from a fork server that
+    imports the command line and ``modules`` when it starts (the first call decides
+    them). Anywhere else they are spawned afresh (on macOS a fork of a process that has
+    loaded NumPy's BLAS, Accelerate, is not safe to use it)."""
     if not _the_command() or not sys.platform.startswith("linux"):
         return multiprocessing.get_context("spawn")
+    if _forkable():
+        return multiprocessing.get_context("fork")
     context = multiprocessing.get_context("forkserver")
     # the command line: each child imports the main module (a console script, which the server's
     # own preload of "__main__" leaves out), finding it imported
@@ -211,10 +237,26 @@ def _context(modules: tuple[str, ...]):
     return context
 
 
+def _forkable() -> bool:
+    """Whether a worker may be forked from this process: it has loaded no engine's
+    library (:attr:`xcheck.engines.Engine.requires`; some, such as JAX, run threads
+    of their own) and runs no Python thread but its main one and those that write
+    only under :data:`terminal_lock` (named :data:`QUIET_ACROSS_FORKS`). OpenBLAS's
+    threads, which NumPy may have started, are made safe across a fork by OpenBLAS."""
+    from . import engines
+
+    if any(package in sys.modules for engine in engines.engines() for package in engine.requires):
+        return False
+    main = threading.main_thread()
+    return all(thread is main or thread.name == QUIET_ACROSS_FORKS for thread in threading.enumerate())
+
+
 def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     """The pool's initializer: mechanisms picklable, plug-ins the parent could
     not load (``broken``: name -> reason) left alone, Ctrl-C, a watch on the
-    parent, and the pool's flag of a started worker (``started``) set.
+    parent, and the pool's flag of a started worker (``started``) set. It writes
+    to its process's own stdout and stderr: a worker forked while a progress bar was
+    drawn would otherwise write through the bar's stand-ins for them, redrawing it.
 
     Ctrl-C reaches the whole foreground process group: the parent ends the run
     (exit code 130), and a worker is ended by the signal's default action, at
@@ -228,6 +270,7 @@ def _start_worker(broken: dict[str, str] | None = None, started=None) -> None:
     from .engines._registry import skip_entry_points
 
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    sys.stdout, sys.stderr = sys.__stdout__ or sys.stdout, sys.__stderr__ or sys.stderr
     picklable_mechanisms()
     _one_blas_thread()
     skip_entry_points(broken or {})

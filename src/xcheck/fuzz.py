@@ -861,7 +861,7 @@ def fuzz(
         for args in tasks:
             record(_run_batch(*args), len(args[0]))
     else:
-        from ._parallel import process_pool  # never forked from here: a fork would inherit JAX's threads
+        from ._parallel import process_pool  # never forked from here once an engine is loaded (JAX has threads)
 
         with process_pool(processes) as pool:
             pending = {pool.submit(_run_batch, *args): len(args[0]) for args in tasks}
