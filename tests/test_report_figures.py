@@ -107,7 +107,7 @@ def test_minor_ticks_drawn_as_two_lines_give_matplotlibs_pixels(y, minor_labelle
         ((-130.0, 125.0), (0.1, 800.0), "linear", True),  # the quantities figure's panels
         ((-130.0, 125.0), (-18.0, 6.5), "linear", True),  # negative labels
         ((-130.0, 125.0), (1e-12, 1.0), "log", True),  # the differences figure's, minor ticks unlabelled
-        ((-130.0, 125.0), (2e-6, 7e-6), "log", False),  # labelled minor ticks: left as they are
+        ((-130.0, 125.0), (2e-6, 7e-6), "log", True),  # labelled minor ticks: drawn as artists too
         ((-130.0, 125.0), (1e5, 1e5 + 1e-3), "linear", False),  # labels with an offset: left as they are
         ((-0.2, 0.32), (-0.2, 0.3), "equal", True),  # the drawing: its limits set by the aspect as it draws
     ],
@@ -142,6 +142,8 @@ def test_major_ticks_drawn_as_artists_give_matplotlibs_pixels(x, y, scale, repla
     (ax,) = ours.axes
     assert isinstance(ax.xaxis.get_major_locator(), NullLocator)
     assert isinstance(ax.yaxis.get_major_locator(), NullLocator) == replaced
+    if scale == "log":  # its minor ticks too, labelled or not
+        assert isinstance(ax.yaxis.get_minor_locator(), NullLocator) == replaced
     assert pixels(ours) == pixels(theirs)
 
 

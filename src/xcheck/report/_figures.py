@@ -260,14 +260,15 @@ def _unlabelled_minor_ticks_as_lines(figure) -> None:
 
 
 def _major_ticks_as_artists(figure) -> None:
-    """Draw the major ticks of ``figure``'s panels as one line of tick marks, one
-    collection of grid lines and a text per label, styled and placed as
-    matplotlib's own major ticks, and put each axis label where matplotlib would
-    (clear of those labels), instead of five artists per tick made and drawn one
-    by one: the same pixels. For a static image at its final resolution: call it
-    after :func:`_unlabelled_minor_ticks_as_lines`, once the figure's dpi is set.
-    An axis that still has minor ticks (labelled), whose labels have an offset,
-    or with ticks or its label on its other side is left as it is."""
+    """Draw the ticks of ``figure``'s panels (the major ones, and the minor ones
+    :func:`_unlabelled_minor_ticks_as_lines` left because they carry labels) as
+    one line of tick marks, one collection of grid lines and a text per label
+    each, styled and placed as matplotlib's own ticks, and put each axis label
+    where matplotlib would (clear of those labels), instead of five artists per
+    tick made and drawn one by one: the same pixels. For a static image at its
+    final resolution: call it after :func:`_unlabelled_minor_ticks_as_lines`,
+    once the figure's dpi is set. An axis whose labels have an offset, or with
+    ticks or its label on its other side, is left as it is."""
     renderer = figure.canvas.get_renderer()
     dots = figure.dpi / 72
     for ax in figure.axes:
@@ -278,42 +279,50 @@ def _major_ticks_as_artists(figure) -> None:
         for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
             if isinstance(axis.get_major_locator(), ticker.NullLocator):
                 continue
-            if not isinstance(axis.get_minor_locator(), ticker.NullLocator):
-                continue
-            everywhere = axis.get_majorticklocs()
-            labels = axis.major.formatter.format_ticks(everywhere)  # as matplotlib formats them, all at once
-            template = axis.get_major_ticks(1)[0]
-            if (
-                axis.major.formatter.get_offset()
-                or template.tick2line.get_visible()
-                or template.label2.get_visible()
-                or axis.get_label_position() != ("bottom" if name == "x" else "left")
+            # per level, as matplotlib draws them (majors, then minors): its ticks' locations, labels and a tick
+            levels = [("major", axis.get_majorticklocs(), axis.major.formatter, axis.get_major_ticks(1)[0])]
+            if not isinstance(axis.get_minor_locator(), ticker.NullLocator):  # (minors apart from the majors)
+                levels.append(("minor", axis.get_minorticklocs(), axis.minor.formatter, axis.get_minor_ticks(1)[0]))
+            if axis.get_label_position() != ("bottom" if name == "x" else "left") or any(
+                template.tick2line.get_visible() or template.label2.get_visible() for *_, template in levels
             ):
                 continue
-            shown = _in_view(axis, everywhere)
-            locations, labels = everywhere[shown], [label for label, kept in zip(labels, shown) if kept]
-            axis.set_major_locator(ticker.NullLocator())
-            zorder = base + _TICK_ORDER[f"{name} major"]
-            if len(locations):
-                _tick_lines(ax, axis, template, locations, zorder)
-            boxes = []
-            if template.label1.get_visible():
-                for location, label in zip(locations, labels):
-                    at = (location, 0.0) if name == "x" else (0.0, location)
-                    text = matplotlib.text.Text(at[0], at[1], label)
-                    text.update_from(template.label1)
-                    text.set_zorder(zorder)
-                    text.set_clip_on(False)
-                    ax.add_artist(text)
-                    boxes.append(text.get_window_extent(renderer))
-            # the axis label clear of the tick labels, as matplotlib places it (Axis._update_label_position)
-            x, y = axis.label.get_position()
-            if name == "x":
-                bottom = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("bottom", ax).get_window_extent()])
-                axis.set_label_coords(x, bottom.y0 - axis.labelpad * dots, transform=axis.label.get_transform())
+            drawn = []
+            for level, everywhere, formatter, template in levels:
+                labels = formatter.format_ticks(everywhere)  # as matplotlib formats them, all at once
+                if formatter.get_offset():
+                    break
+                shown = _in_view(axis, everywhere)
+                drawn.append(
+                    (level, everywhere[shown], [label for label, kept in zip(labels, shown) if kept], template)
+                )
             else:
-                left = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("left", ax).get_window_extent()])
-                axis.set_label_coords(left.x0 - axis.labelpad * dots, y, transform=axis.label.get_transform())
+                boxes = []
+                for level, locations, labels, template in drawn:
+                    zorder = base + _TICK_ORDER[f"{name} {level}"]
+                    if len(locations):
+                        _tick_lines(ax, axis, template, locations, zorder)
+                    if template.label1.get_visible():
+                        for location, label in zip(
+                            locations, labels
+                        ):  # an empty one too: its box places the axis label
+                            at = (location, 0.0) if name == "x" else (0.0, location)
+                            text = matplotlib.text.Text(at[0], at[1], label)
+                            text.update_from(template.label1)
+                            text.set_zorder(zorder)
+                            text.set_clip_on(False)
+                            ax.add_artist(text)
+                            boxes.append(text.get_window_extent(renderer))
+                axis.set_major_locator(ticker.NullLocator())
+                axis.set_minor_locator(ticker.NullLocator())
+                # the axis label clear of the tick labels, as matplotlib places it (Axis._update_label_position)
+                x, y = axis.label.get_position()
+                if name == "x":
+                    bottom = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("bottom", ax).get_window_extent()])
+                    axis.set_label_coords(x, bottom.y0 - axis.labelpad * dots, transform=axis.label.get_transform())
+                else:
+                    left = matplotlib.transforms.Bbox.union([*boxes, ax.spines.get("left", ax).get_window_extent()])
+                    axis.set_label_coords(left.x0 - axis.labelpad * dots, y, transform=axis.label.get_transform())
 
 
 def _input_axis(run: RunResult, values: np.ndarray) -> tuple[np.ndarray, str]:
