@@ -163,16 +163,19 @@ def workers_kept() -> Iterator[None]:
 def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",), preload: tuple[str, ...] = ()) -> None:
     """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
     importing ``modules`` while this process goes on: the first tasks find them ready.
-    Where workers are forked from this process (:func:`_context`), nothing starts now:
-    they are forked, with what this process has imported by then, when the first task
-    is sent. Where they are forked from a fork server, the server is started instead,
-    importing ``modules`` and ``preload`` (what some of the workers will need) once: a
-    worker is then forked from it in milliseconds when its first task comes (starting
-    one now would wait here for the server's imports)."""
+    Where workers are forked from this process (:func:`_context`), they are forked
+    now to import ``preload`` (what some of them will need) while this process goes
+    on, and with no ``preload`` when the first task is sent, with what this process
+    has imported by then. Where they are forked from a fork server, the server is
+    started instead, importing ``modules`` and ``preload`` once: a worker is then
+    forked from it in milliseconds when its first task comes (starting one now would
+    wait here for the server's imports)."""
     if not _kept:
         raise RuntimeError("start_workers: expected to be called within workers_kept()")
     pool = process_pool(jobs, (*modules, *preload))
     if pool.start_method == "fork":
+        for _ in range(jobs if preload else 0):
+            pool.submit(import_all, preload)
         return
     if pool.start_method == "forkserver":
         from multiprocessing import forkserver
