@@ -3,13 +3,23 @@
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 from pathlib import Path
 
 import pytest
-from threadpoolctl import threadpool_limits
 
-from xcheck import Kinematics, load_mechanism
+#: No cyclic garbage collection while the tests are collected: rewriting the test
+#: modules' assertions makes millions of short-lived AST nodes, which start full
+#: collections that traverse every object the imports left (numpy, SciPy, pandas,
+#: the engines), about a quarter of each xdist worker's collection. The nodes are
+#: freed by reference counting alone; collection turns back on when it ends
+#: (:func:`pytest_collection`).
+gc.disable()
+
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from xcheck import Kinematics, load_mechanism  # noqa: E402
 
 #: One BLAS thread in every test process and the processes they start: xdist runs a
 #: worker per core, and OpenBLAS's own threads on top of them spin against each other
@@ -34,6 +44,16 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 JAX_CACHE = Path(__file__).resolve().parent / ".jax-cache"
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(JAX_CACHE))
 os.environ.setdefault("JAX_COMPILATION_CACHE_MAX_SIZE", str(2**28))  # bytes; the least recently used go
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collection(session):
+    """The collection, then cyclic garbage collection back on (see :func:`gc.disable` above)."""
+    try:
+        return (yield)
+    finally:
+        gc.enable()
+
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
