@@ -264,3 +264,36 @@ def test_a_law_at_one_number_of_time_is_its_value_as_an_array_bit_for_bit(law):
     for t in [*np.linspace(-3.0, 3.0, 601), 0.0, -0.0, 2]:
         one, array = motion.at_time(float(t)), motion.at_time(np.array(t, dtype=float))
         assert [(float(v), math.copysign(1.0, v)) for v in one] == [(float(v), math.copysign(1.0, v)) for v in array]
+
+
+def test_a_second_kinematics_of_a_mechanism_takes_the_walk_of_the_first(monkeypatch):
+    """A feasible-range walk is kept for the process: another Kinematics of the same
+    mechanism (read again) gets the same range, configurations and sweep, to every
+    bit, without walking; one that starts from another configuration walks anew; the
+    latest walks only are kept."""
+    import collections
+
+    from conftest import MODELS
+
+    from xcheck.kinematics import _solve
+    from xcheck.model import load_mechanism
+
+    walks = []
+    real = _solve.continue_to
+    monkeypatch.setattr(_solve, "continue_to", lambda *a, **k: walks.append(1) or real(*a, **k))
+    monkeypatch.setattr(_solve, "_WALKS", collections.OrderedDict())
+    first, second, moved = (Kinematics(load_mechanism(MODELS / "slider-crank.toml")) for _ in range(3))
+    span, key = first.input_range(0), (first._branch_name(None), 0)
+    walked = len(walks)
+    assert walked > 0 and second.input_range(0) == span and len(walks) == walked
+    for (c1, q1), (c2, q2) in zip(first._walked[key], second._walked[key], strict=True):
+        assert c1 == c2 and np.array_equal(q1, q2)
+    inputs = np.linspace(0.0, 6.0, 40)[:, None]
+    one, two = first.solve(inputs), second.solve(inputs)
+    assert np.array_equal(one.q, two.q) and np.array_equal(one.qd, two.qd) and np.array_equal(one.qdd, two.qdd)
+    moved._assembled[key[0]] = moved.assemble(key[0]) + np.r_[1e-12, np.zeros(moved.system.n - 1)]
+    moved.input_range(0)
+    assert len(walks) > walked
+    monkeypatch.setattr(_solve, "_WALKS_KEPT", 1)
+    Kinematics(load_mechanism(MODELS / "fourbar.toml")).input_range(0)
+    assert len(_solve._WALKS) == 1

@@ -4,6 +4,8 @@ acceleration over a sweep of inputs.
 
 from __future__ import annotations
 
+import collections
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -31,6 +33,12 @@ from ._newton import (
 from ._system import ConstraintSystem, _perp, rotate
 
 __all__ = ["Status", "Solution", "Kinematics", "NEAR_SINGULAR", "SINGULAR"]
+
+#: feasible ranges walked in this process (the walk, by :func:`_walk_key`: its range, the
+#: configurations it walked through and the change of q over one turn or None), so that
+#: another Kinematics of the same mechanism does not walk it again; the latest kept
+_WALKS: collections.OrderedDict = collections.OrderedDict()
+_WALKS_KEPT = 64
 
 #: Below this inverse condition number of the scaled Jacobian, results lose
 #: more than about six digits: flagged, still reported.
@@ -222,6 +230,18 @@ class InputRange:
         return (self.low is None or value >= self.low) and (self.high is None or value <= self.high)
 
 
+def _walk_key(mechanism: Mechanism, branch: str, driver: int, start: np.ndarray) -> str | None:
+    """What a feasible-range walk depends on, digested: the canonical mechanism (not
+    the path it was read from), the branch, the driver and the configuration it
+    starts from, to every bit; None where the mechanism cannot be digested."""
+    from ..store import digest
+
+    try:
+        return digest("walk", dataclasses.replace(mechanism, path=""), branch, driver, start)
+    except TypeError:
+        return None
+
+
 @dataclass
 class Kinematics:
     """The native general solver for one mechanism.
@@ -234,6 +254,9 @@ class Kinematics:
     -----
     Build once per mechanism; the assembled reference configuration of each
     branch and the feasible input ranges are computed on first use and kept.
+    A feasible range's walk is also kept for the process: another Kinematics
+    of the same mechanism, assembled the same, takes it instead of walking again
+    (the same floats).
     """
 
     mechanism: Mechanism
@@ -521,6 +544,14 @@ class Kinematics:
         key = (name, k)
         if key not in self._ranges:
             q_ref, c_ref = self.assemble(name), self.reference_inputs()
+            walk = _walk_key(self.mechanism, name, k, q_ref)
+            if walk in _WALKS:  # another Kinematics of this mechanism in this process walked it
+                _WALKS.move_to_end(walk)
+                self._ranges[key], self._walked[key], turn = _WALKS[walk]
+                self._walked[key] = list(self._walked[key])
+                if turn is not None:
+                    self._turns[key] = turn
+                return self._ranges[key]
             is_angle = drivers[k].quantity == "angle"
             span = 2.0 * math.pi if is_angle else 10.0 * self.system.size
             ends = []
@@ -537,6 +568,10 @@ class Kinematics:
                     break
             self._walked[key] = walked
             self._ranges[key] = InputRange(drivers[k].name, ends[0], ends[-1], span)
+            if walk is not None:
+                _WALKS[walk] = (self._ranges[key], tuple(walked), self._turns.get(key))
+                while len(_WALKS) > _WALKS_KEPT:
+                    _WALKS.popitem(last=False)
         return self._ranges[key]
 
     def _record_turn(self, branch: str, k: int, change: np.ndarray) -> None:
