@@ -114,7 +114,7 @@ def test_a_mechanisms_modes_in_worker_processes_equal_the_serial_run(tmp_path):
     parallel_json, parallel_files = _run_one(tmp_path / "parallel", "2")
     assert list(parallel_json["engines"]) == list(serial_json["engines"])  # the order asked for
     assert parallel_json == serial_json
-    # a worker drew part of the parallel run's figures (report._WORKER_SHARE)
+    # the parallel run's figures were drawn by two workers (report._WORKER_SHARES)
     assert parallel_files.keys() == serial_files.keys() and {"fourbar.md", "fourbar/motion.gif"} <= set(serial_files)
     for relative, data in serial_files.items():
         assert parallel_files[relative] == data, f"{relative} differs between the serial and the parallel run"

@@ -9,7 +9,6 @@ and prints.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -192,7 +191,7 @@ def run_model(model: str, settings: RunSettings, step=None, jobs: int = 1):
         answers = _PrintedAnswers(kin, comparisons_of(kin.mechanism, s.comparisons))  # a bad file stops it here
         run = run_mechanism(
             kin, s.modes, s.samples, s.branch, progress=lambda mode: tell(label, mode), jobs=jobs,
-            cache=s.use_cache, meanwhile=functools.partial(answers.meanwhile, _figures(settings)),
+            cache=s.use_cache, meanwhile=answers.meanwhile,
         )  # fmt: skip
         run.textbook = answers.checked()
         if s.use_cache:
@@ -233,17 +232,14 @@ class _PrintedAnswers:
         self.kinematics, self.printed = kinematics, printed
         self.answers: list[dict] | XcheckError | None = None
 
-    def meanwhile(self, modules: tuple[str, ...] = ()) -> None:
-        """Compute the answers (an error in them kept for :meth:`checked`), then import
-        ``modules`` (a report's figures)."""
-        from ._parallel import import_all
+    def meanwhile(self) -> None:
+        """Compute the answers (an error in them kept for :meth:`checked`)."""
         from .textbook import check_printed
 
         try:
             self.answers = [] if self.printed is None else check_printed(self.kinematics, self.printed)
         except XcheckError as err:  # said once the modes are back, which the cache keeps
             self.answers = err
-        import_all(modules)
 
     def checked(self) -> list[dict]:
         """The printed answers checked (:func:`xcheck.textbook.check_printed`).
@@ -339,8 +335,8 @@ def _run_in_pool(names: list[str], settings: RunSettings, jobs: int, done: Calla
     return [outcomes[i] for i in range(len(names))]
 
 
-#: the module of the reports' figures (with matplotlib: about 0.3 CPU s to import), imported while
-#: the workers run the modes (:func:`run_model`'s ``meanwhile``) instead of after them
+#: the module of the reports' figures (with matplotlib: about 0.3 CPU s to import), which the
+#: workers that will draw them import ahead (:func:`xcheck._parallel.start_workers`'s ``preload``)
 _FIGURES = "xcheck.report._figures"
 
 

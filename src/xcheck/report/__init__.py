@@ -156,10 +156,10 @@ _IMAGES = (
     ("forces.png", "forces_plot", "forces"),
     ("motion.gif", "motion_gif", "gif"),
 )
-#: the figures one worker draws, as one task, where the run has workers, while this process
-#: draws the others: the two shares about equal with the worker's import of matplotlib counted
-#: (each figure's cost: benchmarks/bench_report_figures.py)
-_WORKER_SHARE = ("motion_gif", "quantities", "drawing")
+#: the figures two workers draw, a share each, where the run has workers (this process draws
+#: none, and need not import matplotlib): the shares about equal (each figure's cost:
+#: benchmarks/bench_report_figures.py)
+_WORKER_SHARES = (("convergence_plot", "quantities", "drawing"), ("error_plots", "motion_gif", "forces_plot"))
 
 
 def _figure(function: str, run: RunResult, identity: str | None = None) -> bytes | None:
@@ -221,15 +221,13 @@ def _write_report(run: RunResult, directory: Path, command: str, gif: bool, jobs
         drawn = _cached_figures(run, [f for _, f, _ in drawing])  # a run whose results all came from the cache
         identity = drawn.pop("", None)
         missing = [(file, f, key) for file, f, key in drawing if f not in drawn]
-        if jobs > 1 and not _known_here_only(run) and any(f in _WORKER_SHARE for _, f, _ in missing):
+        if jobs > 1 and not _known_here_only(run) and missing:
             from .._parallel import process_pool
 
-            with process_pool(1) as pool:
-                away = [f for _, f, _ in missing if f in _WORKER_SHARE]
-                # one task: one worker imports matplotlib and receives the run, whatever the pool's size
-                there = pool.submit(_drawn, away, run, identity)
-                drawn.update({f: _figure(f, run, identity) for _, f, _ in missing if f not in away})
-                drawn.update(there.result())
+            with process_pool(2) as pool:
+                shares = [[f for _, f, _ in missing if f in share] for share in _WORKER_SHARES]
+                for there in [pool.submit(_drawn, share, run, identity) for share in shares if share]:
+                    drawn.update(there.result())
         else:
             drawn.update({f: _figure(f, run, identity) for _, f, _ in missing})
         images = _keep_figures(directory / name, staging, evidence, {key: file for file, _, key in wanted})
