@@ -3,11 +3,11 @@ modes of one mechanism (``run <name> --jobs``) at once.
 
 Workers are never forked from a process that has loaded an engine: an engine
 such as JAX holds threads that a forked child would inherit in an unknown
-state. On Linux the ``xcheck`` command forks its workers from itself, when its
-first task is sent, where it has loaded no engine and runs no thread but its own
-main one and its progress bar's (which stops drawing while a worker is forked,
-:data:`terminal_lock`): a worker then starts with Python, NumPy, pandas and xcheck
-already imported, in milliseconds. Otherwise the command forks them from a fork
+state. On Linux the ``xcheck`` command forks its workers from itself, when it
+first needs them (:func:`start_workers`), where it has loaded no engine and runs no
+thread but its own main one and its progress bar's (which stops drawing while a
+worker is forked, :data:`terminal_lock`): a worker then starts with Python, NumPy,
+pandas and xcheck already imported, in milliseconds. Otherwise the command forks them from a fork
 server, a process started for them that imports only those; a program that calls
 xcheck (a script, a notebook, the tests) has them started afresh ("spawn"), as its
 environment may change between runs and a forked child keeps the one it started
