@@ -21,7 +21,6 @@ is no error: the map is then computed on every call, as without a cache.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 from pathlib import Path
@@ -45,10 +44,7 @@ log = logging.getLogger("xcheck.cache")
 def _name(kin: Kinematics) -> str | None:
     """The entry's name: SHA-256 of the canonical mechanism (without the path it
     was read from); None where it cannot be digested."""
-    try:
-        return _store.digest("branch map", dataclasses.replace(kin.mechanism, path=""))
-    except TypeError:
-        return None
+    return _store.mechanism_digest("branch map", kin.mechanism)
 
 
 def entry_path(kin: Kinematics) -> Path | None:

@@ -58,6 +58,7 @@ __all__ = [
     "clear",
     "describe",
     "digest",
+    "mechanism_digest",
     "entry_path",
     "read",
     "made_by",
@@ -157,6 +158,16 @@ def version(distribution: str) -> str:
 def _normal(name: str) -> str:
     """A distribution's name as its dist-info folder and PEP 503 compare it."""
     return re.sub(r"[-_.]+", "_", name).lower()
+
+
+def mechanism_digest(kind: str, mechanism: Any, *values: Any) -> str | None:
+    """:func:`digest` of ``kind``, the canonical mechanism (its model, not the path it
+    was read from: the same model read from another file is the same) and ``values``;
+    None where they cannot be digested."""
+    try:
+        return digest(kind, dataclasses.replace(mechanism, path=""), *values)
+    except TypeError:
+        return None
 
 
 def digest(*values: Any) -> str:

@@ -5,7 +5,6 @@ acceleration over a sweep of inputs.
 from __future__ import annotations
 
 import collections
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -234,12 +233,9 @@ def _walk_key(mechanism: Mechanism, branch: str, driver: int, start: np.ndarray)
     """What a feasible-range walk depends on, digested: the canonical mechanism (not
     the path it was read from), the branch, the driver and the configuration it
     starts from, to every bit; None where the mechanism cannot be digested."""
-    from ..store import digest
+    from ..store import mechanism_digest
 
-    try:
-        return digest("walk", dataclasses.replace(mechanism, path=""), branch, driver, start)
-    except TypeError:
-        return None
+    return mechanism_digest("walk", mechanism, branch, driver, start)
 
 
 @dataclass
