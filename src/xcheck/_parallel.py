@@ -161,15 +161,15 @@ def workers_kept() -> Iterator[None]:
 
 
 def start_workers(jobs: int, modules: tuple[str, ...] = ("xcheck.runner",), preload: tuple[str, ...] = ()) -> None:
-    """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`), each
-    importing ``modules`` while this process goes on: the first tasks find them ready.
-    Where workers are forked from this process (:func:`_context`), they are forked
-    now to import ``preload`` (what some of them will need) while this process goes
-    on, and with no ``preload`` when the first task is sent, with what this process
-    has imported by then. Where they are forked from a fork server, the server is
-    started instead, importing ``modules`` and ``preload`` once: a worker is then
-    forked from it in milliseconds when its first task comes (starting one now would
-    wait here for the server's imports)."""
+    """Start the kept pool's ``jobs`` workers now (within :func:`workers_kept`): spawned
+    ones each import ``modules`` while this process goes on, so that the first tasks
+    find them ready. Where workers are forked from this process (:func:`_context`),
+    they inherit what it has imported: they are forked now to import ``preload``
+    (what some of them will need) while this process goes on, and with no
+    ``preload`` when the first task is sent. Where they are forked from a fork
+    server, the server is started instead, importing ``modules`` and ``preload``
+    once: a worker is then forked from it in milliseconds when its first task comes
+    (starting one now would wait here for the server's imports)."""
     if not _kept:
         raise RuntimeError("start_workers: expected to be called within workers_kept()")
     pool = process_pool(jobs, (*modules, *preload))
